@@ -1,0 +1,64 @@
+//! Angle helpers: wrapping and the degree/radian boundary.
+//!
+//! Angles are radians inside the core. Degrees appear only at the edges (CSV columns,
+//! JSON, the page), and these helpers are where the conversion happens.
+
+use std::f64::consts::{PI, TAU};
+
+/// Wraps an angle to `[0, 2π)`, as headings are reported.
+pub fn wrap_to_2pi(angle_rad: f64) -> f64 {
+    let wrapped = angle_rad.rem_euclid(TAU);
+    // rem_euclid can return exactly TAU for tiny negative inputs through rounding.
+    if wrapped >= TAU {
+        0.0
+    } else {
+        wrapped
+    }
+}
+
+/// Wraps an angle to `(−π, π]`, as heading differences are reported.
+pub fn wrap_to_pi(angle_rad: f64) -> f64 {
+    let wrapped = wrap_to_2pi(angle_rad);
+    if wrapped > PI {
+        wrapped - TAU
+    } else {
+        wrapped
+    }
+}
+
+/// The signed difference `a − b` of two headings, in `(−π, π]`.
+pub fn heading_difference_rad(a_rad: f64, b_rad: f64) -> f64 {
+    wrap_to_pi(a_rad - b_rad)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn check(input_deg: f64, expect_deg: f64) {
+        let got_deg = wrap_to_pi(input_deg.to_radians()).to_degrees();
+        assert!((got_deg - expect_deg).abs() < 1e-9, "{input_deg} → {got_deg}, expected {expect_deg}");
+    }
+
+    #[test]
+    fn wrap_to_pi_keeps_the_half_open_interval() {
+        check(0.0, 0.0);
+        check(180.0, 180.0);
+        check(-180.0, 180.0);
+        check(190.0, -170.0);
+        check(-190.0, 170.0);
+        check(720.0 + 10.0, 10.0);
+    }
+
+    #[test]
+    fn heading_difference_crosses_north() {
+        let diff_deg = heading_difference_rad(2f64.to_radians(), 358f64.to_radians()).to_degrees();
+        assert!((diff_deg - 4.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn wrap_to_2pi_never_returns_tau() {
+        assert!(wrap_to_2pi(-1e-18) < TAU);
+        assert!((wrap_to_2pi(-PI / 2.0) - 1.5 * PI).abs() < 1e-12);
+    }
+}

@@ -1,0 +1,214 @@
+//! Min/max autocalibration of the levelled horizontal field.
+//!
+//! Source: Moafipoor et al. (2007), Eq. 6-7, after Caruso (1997). The method:
+//!
+//! 1. level the field with roll and pitch (Eq. 4, [`super::tilt`]);
+//! 2. take the extremes of the levelled components over a full turn and estimate, per
+//!    axis, a scale factor and a bias (Eq. 7):
+//!    ```text
+//!    Sx = max(1, (Hy_max − Hy_min) / (Hx_max − Hx_min))
+//!    Sy = max(1, (Hx_max − Hx_min) / (Hy_max − Hy_min))
+//!    Bx = ((Hx_max − Hx_min)/2 − Hx_max) · Sx
+//!    By = ((Hy_max − Hy_min)/2 − Hy_max) · Sy
+//!    ```
+//! 3. correct each sample with `H' = S·H + B` (Eq. 6), which moves the centre of the
+//!    ellipse to the origin and stretches its shorter axis to the longer one;
+//! 4. compute the heading from the corrected components (Eq. 1, [`super::heading`]);
+//! 5. add the declination.
+//!
+//! ## Limits
+//!
+//! The model is a centre and two axis scales: an ellipse whose axes lie along x and y.
+//! Soft iron that couples x into y tilts the ellipse and leaves an error of a few
+//! degrees that this method cannot remove. The extremes come from single samples, so one
+//! spike moves them; and without a full turn the extremes are not those of the ellipse.
+//! The fit reports the largest heading gap so that a partial turn is visible.
+
+use nalgebra::Vector2;
+use serde::Serialize;
+
+use super::CalibError;
+use crate::angle::wrap_to_2pi;
+
+/// Fewer samples than this cannot trace a turn.
+pub const MIN_SAMPLES: usize = 20;
+
+/// A horizontal field range below this (µT) is no turn at all: Earth's horizontal
+/// field is 10-40 µT, so a full turn spans 20-80 µT.
+const MIN_RANGE_UT: f64 = 1.0;
+
+/// Width of the heading bins that coverage is counted in.
+const COVERAGE_BIN_DEG: f64 = 10.0;
+
+/// The Eq. 7 parameters, with the extremes they came from.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct MinMaxCalibration {
+    pub scale_x: f64,
+    pub scale_y: f64,
+    pub bias_x_ut: f64,
+    pub bias_y_ut: f64,
+    /// Centre of the raw ellipse, `(max + min) / 2` per axis (the hard-iron estimate in
+    /// the level plane).
+    pub center_x_ut: f64,
+    pub center_y_ut: f64,
+    /// Half the range per axis: the semi-axes of the raw ellipse.
+    pub semi_axis_x_ut: f64,
+    pub semi_axis_y_ut: f64,
+    /// How much of the circle the corrected samples cover.
+    pub coverage: Coverage,
+}
+
+/// How much of a full turn the samples cover, in heading bins.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Coverage {
+    pub n_bins_covered: usize,
+    pub n_bins: usize,
+    /// The widest arc of magnetic heading with no sample, and where it starts.
+    pub largest_gap_deg: f64,
+    pub largest_gap_start_deg: f64,
+}
+
+impl MinMaxCalibration {
+    /// Fits Eq. 7 to levelled field samples (µT).
+    pub fn fit(level_ut: &[Vector2<f64>]) -> Result<Self, CalibError> {
+        if level_ut.len() < MIN_SAMPLES {
+            return Err(CalibError::TooFewSamples { n_samples: level_ut.len(), min: MIN_SAMPLES });
+        }
+        if let Some(sample_idx) = level_ut.iter().position(|sample| !(sample.x.is_finite() && sample.y.is_finite())) {
+            return Err(CalibError::NonFinite { sample_idx });
+        }
+        let (mut min, mut max) = (Vector2::repeat(f64::INFINITY), Vector2::repeat(f64::NEG_INFINITY));
+        for sample in level_ut {
+            min = min.inf(sample);
+            max = max.sup(sample);
+        }
+        let range_ut = max - min;
+        for (axis, axis_range_ut) in [("x", range_ut.x), ("y", range_ut.y)] {
+            if axis_range_ut < MIN_RANGE_UT {
+                return Err(CalibError::NoTurn { axis, range_ut: axis_range_ut });
+            }
+        }
+        let scale_x = (range_ut.y / range_ut.x).max(1.0);
+        let scale_y = (range_ut.x / range_ut.y).max(1.0);
+        let mut calibration = MinMaxCalibration {
+            scale_x,
+            scale_y,
+            bias_x_ut: (range_ut.x / 2.0 - max.x) * scale_x,
+            bias_y_ut: (range_ut.y / 2.0 - max.y) * scale_y,
+            center_x_ut: (max.x + min.x) / 2.0,
+            center_y_ut: (max.y + min.y) / 2.0,
+            semi_axis_x_ut: range_ut.x / 2.0,
+            semi_axis_y_ut: range_ut.y / 2.0,
+            coverage: Coverage { n_bins_covered: 0, n_bins: 0, largest_gap_deg: 0.0, largest_gap_start_deg: 0.0 },
+        };
+        calibration.coverage = Coverage::of_headings(level_ut.iter().map(|&sample| {
+            let corrected_ut = calibration.apply(sample);
+            wrap_to_2pi((-corrected_ut.y).atan2(corrected_ut.x)).to_degrees()
+        }));
+        Ok(calibration)
+    }
+
+    /// Eq. 6: the corrected levelled components of a raw levelled sample.
+    pub fn apply(&self, level_ut: Vector2<f64>) -> Vector2<f64> {
+        Vector2::new(self.scale_x * level_ut.x + self.bias_x_ut, self.scale_y * level_ut.y + self.bias_y_ut)
+    }
+
+    /// Radius of the corrected circle: the longer semi-axis, which Eq. 7 keeps.
+    pub fn corrected_radius_ut(&self) -> f64 {
+        self.semi_axis_x_ut.max(self.semi_axis_y_ut)
+    }
+}
+
+impl Coverage {
+    /// Coverage of a set of headings in degrees, `[0, 360)`.
+    pub fn of_headings(headings_deg: impl IntoIterator<Item = f64>) -> Coverage {
+        let n_bins = (360.0 / COVERAGE_BIN_DEG).round() as usize;
+        let mut covered = vec![false; n_bins];
+        for heading_deg in headings_deg {
+            if heading_deg.is_finite() {
+                let bin_idx = ((heading_deg.rem_euclid(360.0) / COVERAGE_BIN_DEG) as usize).min(n_bins - 1);
+                covered[bin_idx] = true;
+            }
+        }
+        let n_bins_covered = covered.iter().filter(|&&is_covered| is_covered).count();
+        // The longest run of empty bins, going round the circle (so twice over).
+        let (mut largest_run, mut largest_run_start, mut run) = (0usize, 0usize, 0usize);
+        for step in 0..(2 * n_bins) {
+            if covered[step % n_bins] {
+                run = 0;
+            } else {
+                run += 1;
+                if run > largest_run && run <= n_bins {
+                    largest_run = run;
+                    largest_run_start = (step + 1 - run) % n_bins;
+                }
+            }
+        }
+        Coverage {
+            n_bins_covered,
+            n_bins,
+            largest_gap_deg: largest_run as f64 * COVERAGE_BIN_DEG,
+            largest_gap_start_deg: largest_run_start as f64 * COVERAGE_BIN_DEG,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::calib::heading::heading_rad;
+    use crate::angle::heading_difference_rad;
+
+    /// A level full turn seen through hard iron and axis scale factors.
+    fn distorted_turn(n_samples: usize, hard_iron_ut: Vector2<f64>, scale: Vector2<f64>) -> Vec<(f64, Vector2<f64>)> {
+        let horizontal_field_ut = 22.0;
+        (0..n_samples)
+            .map(|sample_idx| {
+                let heading_rad = std::f64::consts::TAU * sample_idx as f64 / n_samples as f64;
+                let true_level_ut = Vector2::new(horizontal_field_ut * heading_rad.cos(), -horizontal_field_ut * heading_rad.sin());
+                (heading_rad, true_level_ut.component_mul(&scale) + hard_iron_ut)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn hard_iron_and_axis_scale_are_removed() {
+        let turn = distorted_turn(3600, Vector2::new(15.0, -30.0), Vector2::new(1.2, 0.9));
+        let samples: Vec<Vector2<f64>> = turn.iter().map(|&(_, sample)| sample).collect();
+        let calibration = MinMaxCalibration::fit(&samples).expect("a full turn fits");
+        assert!((calibration.center_x_ut - 15.0).abs() < 1e-3);
+        assert!((calibration.center_y_ut + 30.0).abs() < 1e-3);
+        assert!((calibration.scale_y - 1.2 / 0.9).abs() < 1e-3);
+        assert_eq!(calibration.scale_x, 1.0);
+        let worst_error_deg = turn
+            .iter()
+            .map(|&(true_heading_rad, sample)| heading_difference_rad(heading_rad(calibration.apply(sample), 0.0), true_heading_rad).abs().to_degrees())
+            .fold(0.0, f64::max);
+        assert!(worst_error_deg < 0.05, "worst heading error {worst_error_deg}°");
+        assert_eq!(calibration.coverage.n_bins_covered, 36);
+        assert_eq!(calibration.coverage.largest_gap_deg, 0.0);
+    }
+
+    #[test]
+    fn a_half_turn_shows_its_gap() {
+        let turn = distorted_turn(360, Vector2::zeros(), Vector2::new(1.0, 1.0));
+        let half: Vec<Vector2<f64>> = turn.iter().take(180).map(|&(_, sample)| sample).collect();
+        let calibration = MinMaxCalibration::fit(&half).expect("fits, with a gap");
+        // Min/max stretches a half circle, so the corrected headings spread, but the gap
+        // stays wide enough to be reported.
+        assert!(calibration.coverage.largest_gap_deg >= 60.0, "{:?}", calibration.coverage);
+    }
+
+    #[test]
+    fn degenerate_inputs_are_errors_not_panics() {
+        let point = vec![Vector2::new(3.0, 4.0); 100];
+        assert!(matches!(MinMaxCalibration::fit(&point), Err(CalibError::NoTurn { axis: "x", .. })));
+        let line: Vec<Vector2<f64>> = (0..100).map(|idx| Vector2::new(idx as f64, 5.0)).collect();
+        assert!(matches!(MinMaxCalibration::fit(&line), Err(CalibError::NoTurn { axis: "y", .. })));
+        assert!(matches!(MinMaxCalibration::fit(&point[..3]), Err(CalibError::TooFewSamples { n_samples: 3, .. })));
+        let mut with_nan = point.clone();
+        with_nan[7].x = f64::NAN;
+        assert!(matches!(MinMaxCalibration::fit(&with_nan), Err(CalibError::NonFinite { sample_idx: 7 })));
+        assert!(matches!(MinMaxCalibration::fit(&[]), Err(CalibError::TooFewSamples { .. })));
+    }
+}

@@ -1,0 +1,27 @@
+//! Magnetometer calibration and the heading it gives.
+//!
+//! One algorithm per file: [`tilt`] levels the field (Eq. 4 of Moafipoor et al. 2007),
+//! [`heading`] turns levelled components into a heading (Eq. 1), and [`minmax`] is the
+//! min/max autocalibration (Eq. 6-7, after Caruso 1997).
+
+pub mod heading;
+pub mod minmax;
+pub mod tilt;
+
+use thiserror::Error;
+
+/// Why a calibration could not be fitted. Messages say what the user can do.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum CalibError {
+    #[error("too few magnetometer samples ({n_samples}; at least {min} are needed). Record longer, turning through a full circle.")]
+    TooFewSamples { n_samples: usize, min: usize },
+
+    #[error("sample {sample_idx} is not a finite number. Remove NaN or infinite values from the input.")]
+    NonFinite { sample_idx: usize },
+
+    #[error(
+        "the horizontal field hardly changes along {axis} (range {range_ut:.2} µT), so there is \
+         no turn to calibrate from. Turn the device through a full circle while holding it level."
+    )]
+    NoTurn { axis: &'static str, range_ut: f64 },
+}

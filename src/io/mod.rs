@@ -1,0 +1,150 @@
+//! Importers: bytes in, a [`Recording`](crate::recording::Recording) and diagnostics out.
+//!
+//! Partial failure is not failure. A line that cannot be used becomes a [`Diagnostic`]
+//! with its line number and the reason, and the rest of the file is still read. Only a
+//! file from which nothing at all can be read is an [`ImportError`].
+
+pub mod canonical_csv;
+pub mod lines;
+
+use serde::Serialize;
+use thiserror::Error;
+
+use crate::recording::Recording;
+
+/// How many diagnostics an import keeps in full; past this only their count is kept,
+/// so that a huge file of bad lines cannot exhaust memory.
+pub const MAX_DIAGNOSTICS_KEPT: usize = 200;
+
+/// A line that was skipped or is suspect.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Diagnostic {
+    /// 1-based line number, where the problem belongs to one line.
+    pub line: Option<usize>,
+    pub message: String,
+}
+
+/// Diagnostics of one import, bounded in memory.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct Diagnostics {
+    pub kept: Vec<Diagnostic>,
+    /// Diagnostics past [`MAX_DIAGNOSTICS_KEPT`], counted but not kept.
+    pub n_not_kept: usize,
+}
+
+impl Diagnostics {
+    pub fn push(&mut self, line: Option<usize>, message: impl Into<String>) {
+        if self.kept.len() < MAX_DIAGNOSTICS_KEPT {
+            self.kept.push(Diagnostic { line, message: message.into() });
+        } else {
+            self.n_not_kept += 1;
+        }
+    }
+
+    pub fn total(&self) -> usize {
+        self.kept.len() + self.n_not_kept
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.total() == 0
+    }
+}
+
+/// What an import read: the recording, what was skipped, and what the header held.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ImportReport {
+    pub file_name: String,
+    pub recording: Recording,
+    pub diagnostics: Diagnostics,
+    /// The header's column names as written, and the line they were on.
+    pub header_columns: Vec<String>,
+    pub header_line: usize,
+    /// Lines after the header that were neither blank nor comments.
+    pub n_data_lines: usize,
+}
+
+/// A file from which nothing could be read. Each message names the file and says what
+/// the user can do.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum ImportError {
+    #[error("{file_name} is empty. Choose a log with a header line and samples.")]
+    Empty { file_name: String },
+
+    #[error(
+        "{file_name} is not a text log (binary data near byte {byte_offset}). \
+         Export the log as CSV text with a header line such as \
+         t_s,mag_x_ut,mag_y_ut,mag_z_ut."
+    )]
+    NotText { file_name: String, byte_offset: usize },
+
+    #[error("{file_name} has no header line, only blank or comment lines. Add a header such as t_s,mag_x_ut,mag_y_ut,mag_z_ut.")]
+    NoHeader { file_name: String },
+
+    #[error(
+        "{file_name}, line {line}: the header names no column this tool knows \
+         (found: {found}). Use the canonical names, such as t_s, acc_x_mps2, \
+         mag_x_ut, mag_y_ut, mag_z_ut, ref_heading_deg."
+    )]
+    UnknownHeader { file_name: String, line: usize, found: String },
+}
+
+/// Whether `bytes` look like text, judged from their start. Returns the offset of the
+/// first byte that shows they are not: a NUL, or the point where more than 10% of the
+/// characters so far are control characters or invalid UTF-8.
+pub fn first_binary_offset(bytes: &[u8]) -> Option<usize> {
+    const PROBE_BYTES: usize = 8192;
+    let probe = &bytes[..bytes.len().min(PROBE_BYTES)];
+    if let Some(nul_offset) = probe.iter().position(|&byte| byte == 0) {
+        return Some(nul_offset);
+    }
+    let text = String::from_utf8_lossy(probe);
+    let mut n_chars = 0usize;
+    let mut n_suspect = 0usize;
+    let mut byte_offset = 0usize;
+    for character in text.chars() {
+        n_chars += 1;
+        let is_suspect = character == char::REPLACEMENT_CHARACTER
+            || (character.is_control() && !matches!(character, '\n' | '\r' | '\t'));
+        if is_suspect {
+            n_suspect += 1;
+        }
+        // Judge only once a few dozen characters have been seen.
+        if n_chars >= 32 && n_suspect * 10 > n_chars {
+            return Some(byte_offset.min(probe.len()));
+        }
+        byte_offset += character.len_utf8();
+    }
+    if n_chars > 0 && n_chars < 32 && n_suspect * 10 > n_chars {
+        return Some(0);
+    }
+    None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn text_is_not_binary() {
+        assert_eq!(first_binary_offset(b"t_s,mag_x_ut\n0.0,1.5\n"), None);
+        assert_eq!(first_binary_offset("t_s,X (µT)\r\n".as_bytes()), None);
+        assert_eq!(first_binary_offset(b""), None);
+    }
+
+    #[test]
+    fn nul_bytes_and_noise_are_binary() {
+        assert_eq!(first_binary_offset(b"abc\0def"), Some(3));
+        let noise: Vec<u8> = (0..4096u32).map(|i| (i.wrapping_mul(2654435761) >> 13) as u8 | 0x80).collect();
+        assert!(first_binary_offset(&noise).is_some());
+    }
+
+    #[test]
+    fn diagnostics_are_bounded() {
+        let mut diagnostics = Diagnostics::default();
+        for line in 0..(MAX_DIAGNOSTICS_KEPT + 5) {
+            diagnostics.push(Some(line), "bad");
+        }
+        assert_eq!(diagnostics.kept.len(), MAX_DIAGNOSTICS_KEPT);
+        assert_eq!(diagnostics.total(), MAX_DIAGNOSTICS_KEPT + 5);
+    }
+}

@@ -1,0 +1,60 @@
+//! # compass-pdr
+//!
+//! Magnetometer compass calibration, heading estimation and pedestrian dead reckoning
+//! (PDR), as one pure Rust core that runs natively (the `compass-pdr` CLI) and in the
+//! browser (WebAssembly, `src/web/`).
+//!
+//! ## A primer on the domain
+//!
+//! A 3-axis magnetometer measures the local magnetic field, about 25-65 µT on Earth,
+//! in the axes of the device. The Earth's field points to magnetic north and dips into
+//! the ground by the inclination angle. Once the horizontal part of the measured field
+//! is known, the heading (the angle of the device's forward axis, clockwise from
+//! north) follows from one `atan2`. Three things spoil it:
+//!
+//! - **tilt**: unless the device is level, its x and y axes are not horizontal, so the
+//!   vertical field leaks into them. Roll and pitch from the accelerometer undo this
+//!   (Moafipoor et al. 2007, Eq. 4; [`calib::tilt`]).
+//! - **hard and soft iron**: magnets and iron carried with the sensor add a constant
+//!   offset and stretch the field, so that a full turn traces an off-centre ellipse
+//!   instead of a centred circle (Eq. 2-3, 5). Calibration estimates and removes them
+//!   ([`calib::minmax`]).
+//! - **declination**: magnetic north is not true north; the angle depends on place and
+//!   date.
+//!
+//! ## Conventions used throughout
+//!
+//! - **Body frame**: x forward, y right, z down (the canonical CSV uses it; importers
+//!   convert other devices' axes to it at one place).
+//! - **Navigation frame**: north-east-down for vectors; positions in a local east-north
+//!   plane in metres.
+//! - **Headings** are clockwise from north. Angles are radians inside the core and
+//!   degrees at the edges (CSV, JSON, page); names carry the unit (`_rad`, `_deg`).
+//! - **Accelerometer** values are specific force as sensors report it: a level device at
+//!   rest reads `acc_z_mps2 ≈ −9.81`.
+//! - Other units are in names too: `_ut` (microtesla), `_mps2`, `_radps`, `_s`, `_m`.
+//!
+//! ## Layers
+//!
+//! Everything in this crate except `web` is pure: it takes bytes, text or samples and
+//! returns values. It reads no clock, file, global or DOM. The CLI (`src/main.rs`,
+//! `src/cli/`) owns files and argv; `web` (wasm32 only) owns the DOM. See
+//! `ARCHITECTURE.md`.
+//!
+//! ## Limits (today)
+//!
+//! The importer reads the canonical CSV only, and calibration is the min/max method of
+//! the 2007 paper, which needs a full level turn and cannot correct cross-axis soft
+//! iron.
+
+pub mod analysis;
+pub mod angle;
+pub mod calib;
+pub mod io;
+pub mod plot;
+pub mod recording;
+pub mod sim;
+pub mod stats;
+
+#[cfg(target_arch = "wasm32")]
+pub mod web;

@@ -1,0 +1,80 @@
+//! Plots, generic over plotters' [`DrawingBackend`]: the page draws them on a canvas,
+//! the CLI and the tests draw the very same plots to SVG.
+//!
+//! Each plot takes a drawing area and the analysis it shows, and draws nothing else:
+//! sizes, backends and files belong to the caller.
+
+pub mod circle_fit;
+pub mod heading_error;
+
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use thiserror::Error;
+
+use crate::analysis::MinMaxAnalysis;
+
+pub use circle_fit::draw_circle_fit;
+pub use heading_error::draw_heading_error;
+
+/// At most this many points of one series are drawn; longer series are thinned evenly.
+pub const MAX_POINTS_PER_SERIES: usize = 4000;
+
+/// A plot that could not be drawn (the backend failed).
+#[derive(Debug, Error)]
+#[error("could not draw the {plot} plot: {reason}")]
+pub struct PlotError {
+    pub plot: &'static str,
+    pub reason: String,
+}
+
+impl PlotError {
+    fn from_backend<E: std::fmt::Debug>(plot: &'static str) -> impl Fn(E) -> PlotError {
+        move |error| PlotError { plot, reason: format!("{error:?}") }
+    }
+}
+
+/// Both min/max plots side by side: the circle fit on the left, heading error on the
+/// right. This is the figure `compass-pdr calibrate --plot` writes.
+pub fn draw_minmax_figure<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, analysis: &MinMaxAnalysis) -> Result<(), PlotError> {
+    area.fill(&WHITE).map_err(PlotError::from_backend("figure"))?;
+    let (left, right) = area.split_horizontally(area.dim_in_pixel().0 / 2);
+    draw_circle_fit(&left, analysis)?;
+    draw_heading_error(&right, analysis)?;
+    area.present().map_err(PlotError::from_backend("figure"))
+}
+
+/// The indices of at most `max_points` evenly spaced elements of `0..len`.
+pub(crate) fn thinned_indices(len: usize, max_points: usize) -> impl Iterator<Item = usize> {
+    let stride = len.div_ceil(max_points.max(1)).max(1);
+    (0..len).step_by(stride)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::analysis::{analyse_minmax_csv, Options};
+    use crate::io::canonical_csv;
+    use crate::sim::walk::{simulate, WalkConfig};
+
+    #[test]
+    fn the_figure_draws_to_svg() {
+        let text = canonical_csv::write(&simulate(&WalkConfig::from_seed(5, 60.0)));
+        let analysis = analyse_minmax_csv("sim.csv", text.as_bytes(), Options::default()).expect("analysable");
+        let mut svg = String::new();
+        {
+            let root = SVGBackend::with_string(&mut svg, (1200, 500)).into_drawing_area();
+            draw_minmax_figure(&root, &analysis).expect("drawable");
+        }
+        assert!(svg.starts_with("<svg"));
+        assert!(svg.contains("Level-plane field"), "circle plot title");
+        assert!(svg.contains("Heading error"), "heading plot title");
+        assert!(svg.matches("<circle").count() > 1000, "the points are drawn");
+    }
+
+    #[test]
+    fn thinning_keeps_short_series_whole() {
+        assert_eq!(thinned_indices(5, 10).collect::<Vec<_>>(), vec![0, 1, 2, 3, 4]);
+        assert_eq!(thinned_indices(10, 5).collect::<Vec<_>>(), vec![0, 2, 4, 6, 8]);
+        assert_eq!(thinned_indices(0, 5).count(), 0);
+    }
+}

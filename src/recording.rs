@@ -1,0 +1,171 @@
+//! The recording model: time-stamped streams, each at its own rate.
+//!
+//! Every importer produces a [`Recording`]. Units and frames are fixed here, so that
+//! the algorithms never convert: vectors are in the body frame (x forward, y right,
+//! z down), magnetic field in µT, specific force in m/s², rates in rad/s, angles in
+//! radians clockwise from north, positions in metres east and north of a local origin.
+
+use nalgebra::{Vector2, Vector3};
+use serde::Serialize;
+
+use crate::angle::wrap_to_pi;
+
+/// One stream: sample times and values, sorted by time (importers sort and report).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Stream<T> {
+    pub t_s: Vec<f64>,
+    pub values: Vec<T>,
+}
+
+impl<T> Default for Stream<T> {
+    fn default() -> Self {
+        Self { t_s: Vec::new(), values: Vec::new() }
+    }
+}
+
+impl<T> Stream<T> {
+    pub fn push(&mut self, t_s: f64, value: T) {
+        self.t_s.push(t_s);
+        self.values.push(value);
+    }
+
+    pub fn len(&self) -> usize {
+        self.values.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.values.is_empty()
+    }
+
+    /// Time from the first to the last sample, zero for fewer than two samples.
+    pub fn duration_s(&self) -> f64 {
+        match (self.t_s.first(), self.t_s.last()) {
+            (Some(first_s), Some(last_s)) => last_s - first_s,
+            _ => 0.0,
+        }
+    }
+
+    /// Sorts the samples by time, keeping the order of equal times. Returns how many
+    /// samples were out of order before sorting.
+    pub fn sort_by_time(&mut self) -> usize
+    where
+        T: Clone,
+    {
+        let n_out_of_order = self.t_s.windows(2).filter(|pair| pair[1] < pair[0]).count();
+        if n_out_of_order > 0 {
+            let mut order: Vec<usize> = (0..self.t_s.len()).collect();
+            order.sort_by(|&a, &b| self.t_s[a].total_cmp(&self.t_s[b]));
+            self.t_s = order.iter().map(|&idx| self.t_s[idx]).collect();
+            self.values = order.iter().map(|&idx| self.values[idx].clone()).collect();
+        }
+        n_out_of_order
+    }
+
+    /// The samples bracketing `t_s`, with the fraction of the way from the first to the
+    /// second. `None` outside the stream's time span (never extrapolate) and across gaps
+    /// longer than `max_gap_s` (never bridge missing data).
+    fn bracket(&self, t_s: f64, max_gap_s: f64) -> Option<(&T, &T, f64)> {
+        let after_idx = self.t_s.partition_point(|&sample_t_s| sample_t_s < t_s);
+        let after_t_s = *self.t_s.get(after_idx)?;
+        let after_value = self.values.get(after_idx)?;
+        if after_t_s == t_s {
+            return Some((after_value, after_value, 0.0));
+        }
+        let before_idx = after_idx.checked_sub(1)?;
+        let before_t_s = *self.t_s.get(before_idx)?;
+        let before_value = self.values.get(before_idx)?;
+        let gap_s = after_t_s - before_t_s;
+        if !(gap_s > 0.0 && gap_s <= max_gap_s) {
+            return None;
+        }
+        Some((before_value, after_value, (t_s - before_t_s) / gap_s))
+    }
+}
+
+impl Stream<f64> {
+    /// Linear interpolation at `t_s`; see [`Stream::bracket`] for when it is `None`.
+    pub fn interpolate_at(&self, t_s: f64, max_gap_s: f64) -> Option<f64> {
+        let (before, after, fraction) = self.bracket(t_s, max_gap_s)?;
+        Some(before + (after - before) * fraction)
+    }
+
+    /// Interpolation of an angle stream along the shorter arc (359° and 1° meet at 0°).
+    pub fn interpolate_angle_at(&self, t_s: f64, max_gap_s: f64) -> Option<f64> {
+        let (before_rad, after_rad, fraction) = self.bracket(t_s, max_gap_s)?;
+        Some(before_rad + wrap_to_pi(after_rad - before_rad) * fraction)
+    }
+}
+
+impl Stream<Vector3<f64>> {
+    /// Component-wise linear interpolation at `t_s`.
+    pub fn interpolate_at(&self, t_s: f64, max_gap_s: f64) -> Option<Vector3<f64>> {
+        let (before, after, fraction) = self.bracket(t_s, max_gap_s)?;
+        Some(before + (after - before) * fraction)
+    }
+}
+
+/// One GNSS fix as the receiver reports it. Any field may be missing.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+pub struct GnssFix {
+    pub lat_deg: Option<f64>,
+    pub lon_deg: Option<f64>,
+    pub speed_mps: Option<f64>,
+    /// Course over ground, clockwise from true north.
+    pub course_rad: Option<f64>,
+    /// Horizontal accuracy (1 σ) as reported.
+    pub hacc_m: Option<f64>,
+}
+
+/// Everything read from one log, in the units and frames stated in the module header.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Recording {
+    /// Specific force in the body frame (a level device at rest reads z ≈ −9.81).
+    pub acc_in_body_mps2: Stream<Vector3<f64>>,
+    pub gyro_in_body_radps: Stream<Vector3<f64>>,
+    pub mag_in_body_ut: Stream<Vector3<f64>>,
+    pub temp_c: Stream<f64>,
+    pub gnss: Stream<GnssFix>,
+    /// Reference (true) heading, clockwise from true north.
+    pub ref_heading_rad: Stream<f64>,
+    /// Reference position, metres east and north of a local origin.
+    pub ref_position_en_m: Stream<Vector2<f64>>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn stream(points: &[(f64, f64)]) -> Stream<f64> {
+        let mut stream = Stream::default();
+        for &(t_s, value) in points {
+            stream.push(t_s, value);
+        }
+        stream
+    }
+
+    #[test]
+    fn interpolation_never_extrapolates_or_bridges_gaps() {
+        let s = stream(&[(0.0, 0.0), (1.0, 10.0), (5.0, 50.0)]);
+        assert_eq!(s.interpolate_at(0.5, 2.0), Some(5.0));
+        assert_eq!(s.interpolate_at(1.0, 2.0), Some(10.0));
+        assert_eq!(s.interpolate_at(-0.1, 2.0), None);
+        assert_eq!(s.interpolate_at(5.1, 2.0), None);
+        assert_eq!(s.interpolate_at(3.0, 2.0), None, "the 4 s gap is longer than 2 s");
+        assert_eq!(s.interpolate_at(3.0, 4.0), Some(30.0));
+    }
+
+    #[test]
+    fn angle_interpolation_takes_the_short_way_round() {
+        let s = stream(&[(0.0, 359f64.to_radians()), (1.0, 1f64.to_radians())]);
+        let mid_rad = s.interpolate_angle_at(0.5, 2.0).unwrap_or(f64::NAN);
+        assert!(wrap_to_pi(mid_rad).abs() < 1e-12);
+    }
+
+    #[test]
+    fn sorting_reports_and_repairs_out_of_order_samples() {
+        let mut s = stream(&[(0.0, 0.0), (2.0, 2.0), (1.0, 1.0), (3.0, 3.0)]);
+        assert_eq!(s.sort_by_time(), 1);
+        assert_eq!(s.t_s, vec![0.0, 1.0, 2.0, 3.0]);
+        assert_eq!(s.values, vec![0.0, 1.0, 2.0, 3.0]);
+    }
+}

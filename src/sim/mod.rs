@@ -1,0 +1,15 @@
+//! A deterministic simulator: logs with known truth.
+//!
+//! [`walk`] simulates a pedestrian with a phone held in front of them: a calibration
+//! circle, then straight legs and turns. The magnetometer sees the Earth's field through
+//! hard iron, axis scale factors and noise (the hard/soft-iron model of Eq. 2-3 of the
+//! 2007 paper, with a diagonal matrix); the accelerometer sees gravity, the tilt of the
+//! hand, and a vertical bounce at the step frequency. The true heading and position are
+//! written as the reference columns.
+//!
+//! Randomness comes from [`rng::SplitMix64`], written out here rather than taken from a
+//! crate so that a seed gives the same log forever, on every platform: the demo in
+//! `assets/` depends on it.
+
+pub mod rng;
+pub mod walk;

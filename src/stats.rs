@@ -1,0 +1,86 @@
+//! Heading-error statistics, as the papers report them (mean ± std) and as users
+//! compare tools (RMS, 95th percentile, share within ±5°).
+
+use serde::Serialize;
+
+use crate::angle::wrap_to_pi;
+
+/// Statistics of a set of heading errors (estimate minus reference), in degrees.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct HeadingErrorStats {
+    pub n_samples: usize,
+    pub mean_deg: f64,
+    /// Sample standard deviation (n − 1).
+    pub std_deg: f64,
+    pub rms_deg: f64,
+    /// 95th percentile of the absolute error.
+    pub p95_abs_deg: f64,
+    pub max_abs_deg: f64,
+    /// Share of samples with |error| ≤ 5°, in percent.
+    pub within_5_deg_pct: f64,
+}
+
+impl HeadingErrorStats {
+    /// Statistics of heading errors given in radians (wrapped here to ±π). Non-finite
+    /// values are left out; `None` when nothing is left.
+    pub fn from_errors_rad(errors_rad: impl IntoIterator<Item = f64>) -> Option<Self> {
+        let mut errors_deg: Vec<f64> =
+            errors_rad.into_iter().filter(|error_rad| error_rad.is_finite()).map(|error_rad| wrap_to_pi(error_rad).to_degrees()).collect();
+        let n_samples = errors_deg.len();
+        if n_samples == 0 {
+            return None;
+        }
+        let n = n_samples as f64;
+        let mean_deg = errors_deg.iter().sum::<f64>() / n;
+        let sum_sq_dev: f64 = errors_deg.iter().map(|error_deg| (error_deg - mean_deg).powi(2)).sum();
+        let std_deg = if n_samples > 1 { (sum_sq_dev / (n - 1.0)).sqrt() } else { 0.0 };
+        let rms_deg = (errors_deg.iter().map(|error_deg| error_deg * error_deg).sum::<f64>() / n).sqrt();
+        let within_5 = errors_deg.iter().filter(|error_deg| error_deg.abs() <= 5.0).count();
+        for error_deg in &mut errors_deg {
+            *error_deg = error_deg.abs();
+        }
+        errors_deg.sort_by(f64::total_cmp);
+        // Nearest-rank percentile.
+        let p95_rank = ((0.95 * n).ceil() as usize).clamp(1, n_samples);
+        Some(HeadingErrorStats {
+            n_samples,
+            mean_deg,
+            std_deg,
+            rms_deg,
+            p95_abs_deg: errors_deg[p95_rank - 1],
+            max_abs_deg: errors_deg[n_samples - 1],
+            within_5_deg_pct: 100.0 * within_5 as f64 / n,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn known_errors_give_known_statistics() {
+        let errors_deg = [1.0, -1.0, 3.0, -3.0, 10.0];
+        let stats = HeadingErrorStats::from_errors_rad(errors_deg.iter().map(|e: &f64| e.to_radians())).expect("some errors");
+        assert_eq!(stats.n_samples, 5);
+        assert!((stats.mean_deg - 2.0).abs() < 1e-9);
+        assert!((stats.rms_deg - (120.0f64 / 5.0).sqrt()).abs() < 1e-9);
+        assert!((stats.std_deg - (100.0f64 / 4.0).sqrt()).abs() < 1e-9);
+        assert!((stats.max_abs_deg - 10.0).abs() < 1e-9);
+        assert!((stats.p95_abs_deg - 10.0).abs() < 1e-9);
+        assert!((stats.within_5_deg_pct - 80.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn errors_are_wrapped_before_averaging() {
+        let stats = HeadingErrorStats::from_errors_rad([359f64.to_radians(), 1f64.to_radians()]).expect("two errors");
+        assert!(stats.mean_deg.abs() < 1e-9);
+        assert!((stats.rms_deg - 1.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn nothing_finite_gives_nothing() {
+        assert_eq!(HeadingErrorStats::from_errors_rad([f64::NAN]), None);
+        assert_eq!(HeadingErrorStats::from_errors_rad([]), None);
+    }
+}

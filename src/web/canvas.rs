@@ -1,0 +1,67 @@
+//! Drawing the core's plots on canvas elements.
+
+use plotters::prelude::*;
+use plotters_canvas::CanvasBackend;
+use web_sys::HtmlCanvasElement;
+
+use crate::analysis::MinMaxAnalysis;
+use crate::plot::{draw_circle_fit, draw_heading_error, PlotError};
+
+/// Which plot goes on a canvas.
+#[derive(Debug, Clone, Copy)]
+pub enum Plot {
+    CircleFit,
+    HeadingError,
+}
+
+pub fn draw(canvas: &HtmlCanvasElement, plot: Plot, analysis: &MinMaxAnalysis) -> Result<(), String> {
+    let backend = CanvasBackend::with_canvas_object(canvas.clone()).ok_or("the canvas has no 2D context")?;
+    let area = backend.into_drawing_area();
+    area.fill(&WHITE).map_err(|error| format!("{error:?}"))?;
+    let drawn: Result<(), PlotError> = match plot {
+        Plot::CircleFit => draw_circle_fit(&area, analysis),
+        Plot::HeadingError => draw_heading_error(&area, analysis),
+    };
+    drawn.map_err(|error| error.to_string())?;
+    area.present().map_err(|error| format!("{error:?}"))
+}
+
+/// Replaces a plot by a message, so that a failed analysis never leaves a blank or
+/// stale canvas.
+pub fn draw_message(canvas: &HtmlCanvasElement, message: &str) -> Result<(), String> {
+    let backend = CanvasBackend::with_canvas_object(canvas.clone()).ok_or("the canvas has no 2D context")?;
+    let area = backend.into_drawing_area();
+    area.fill(&RGBColor(250, 246, 240)).map_err(|error| format!("{error:?}"))?;
+    let (width_px, height_px) = area.dim_in_pixel();
+    // About 8 px per character of a 15 px sans-serif font.
+    let lines = wrap_words(message, (width_px as usize).saturating_sub(32) / 8);
+    let style = ("sans-serif", 15).into_font().color(&RGBColor(150, 40, 20));
+    let line_height_px = 22;
+    let top_px = height_px as i32 / 2 - line_height_px * lines.len() as i32 / 2;
+    for (line_idx, line) in lines.iter().enumerate() {
+        area.draw(&Text::new(line.clone(), (16, top_px + line_height_px * line_idx as i32), style.clone()))
+            .map_err(|error| format!("{error:?}"))?;
+    }
+    area.present().map_err(|error| format!("{error:?}"))
+}
+
+/// Splits text into lines of at most `max_chars` characters at spaces (a longer word
+/// gets a line of its own).
+fn wrap_words(text: &str, max_chars: usize) -> Vec<String> {
+    let max_chars = max_chars.max(10);
+    let mut lines: Vec<String> = Vec::new();
+    let mut current = String::new();
+    for word in text.split_whitespace() {
+        if !current.is_empty() && current.chars().count() + 1 + word.chars().count() > max_chars {
+            lines.push(std::mem::take(&mut current));
+        }
+        if !current.is_empty() {
+            current.push(' ');
+        }
+        current.push_str(word);
+    }
+    if !current.is_empty() {
+        lines.push(current);
+    }
+    lines
+}

@@ -1,0 +1,52 @@
+//! The browser edge: the only module that knows wasm-bindgen, web-sys, gloo and the
+//! DOM. It reads what the user drops, hands bytes to the core, and puts the core's
+//! results into the page. No calibration or statistics are computed here.
+//!
+//! `www/bootstrap.js` loads the module and calls [`run_page`]; [`analyse_csv`] is the
+//! same analysis for scripts, returning the summary as a plain object.
+
+mod canvas;
+mod page;
+
+#[cfg(test)]
+mod tests;
+
+use std::sync::Once;
+
+use wasm_bindgen::prelude::*;
+
+use crate::analysis::{analyse_minmax_csv, Options};
+
+/// Wires up the page (`www/index.html`) and analyses the demo log named by the body's
+/// `data-demo-url`.
+#[wasm_bindgen]
+pub fn run_page() -> Result<(), JsError> {
+    install_panic_hook();
+    let page = page::Page::from_document().map_err(|message| JsError::new(&message))?;
+    page.start();
+    Ok(())
+}
+
+/// Min/max analysis of a canonical CSV, returned as a plain object (the same fields as
+/// `compass-pdr calibrate --json`). Throws an `Error` whose message says what is wrong
+/// with the file and what to do.
+#[wasm_bindgen]
+pub fn analyse_csv(file_name: &str, bytes: &[u8]) -> Result<JsValue, JsError> {
+    let analysis = analyse_minmax_csv(file_name, bytes, Options::default()).map_err(|error| JsError::new(&error.to_string()))?;
+    let serializer = serde_wasm_bindgen::Serializer::json_compatible();
+    serde::Serialize::serialize(&analysis.summary, &serializer).map_err(|error| JsError::new(&error.to_string()))
+}
+
+/// A panic is a bug: report it in the console and in the page's status area, so the
+/// user sees that something broke instead of a page that silently stops.
+fn install_panic_hook() {
+    static INSTALL: Once = Once::new();
+    INSTALL.call_once(|| {
+        std::panic::set_hook(Box::new(|info| {
+            console_error_panic_hook::hook(info);
+            page::show_bug(&format!(
+                "Internal error (a bug in compass-pdr): {info}. Reload the page to continue, and please report it."
+            ));
+        }));
+    });
+}

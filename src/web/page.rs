@@ -1,0 +1,280 @@
+//! The page: element handles, event wiring, and putting results into the DOM.
+//!
+//! Log-derived text (file names, messages) is set with `textContent`, never as HTML.
+//! The body's `data-state` attribute says where the page is (`loading`, `ready`,
+//! `error`), for people using assistive technology (through the status region) and for
+//! the end-to-end tests.
+
+use std::rc::Rc;
+
+use gloo::events::{EventListener, EventListenerOptions};
+use wasm_bindgen::JsCast;
+use wasm_bindgen_futures::{spawn_local, JsFuture};
+use web_sys::{Document, DragEvent, Element, HtmlCanvasElement, HtmlElement, HtmlInputElement};
+
+use super::canvas::{self, Plot};
+use crate::analysis::{analyse_minmax_csv, MinMaxAnalysis, MinMaxSummary, Options};
+use crate::stats::HeadingErrorStats;
+
+/// The ids of the elements the page must have (see `www/index.html`).
+const STATUS_ID: &str = "status";
+const FILE_INPUT_ID: &str = "file-input";
+const DROP_ZONE_ID: &str = "drop-zone";
+const CIRCLE_CANVAS_ID: &str = "plot-circle";
+const HEADING_CANVAS_ID: &str = "plot-heading";
+
+/// Diagnostics listed on the page at most; the rest are counted.
+const MAX_DIAGNOSTICS_SHOWN: usize = 50;
+
+pub struct Page {
+    document: Document,
+    body: HtmlElement,
+    status: Element,
+    file_input: HtmlInputElement,
+    drop_zone: Element,
+    circle_canvas: HtmlCanvasElement,
+    heading_canvas: HtmlCanvasElement,
+}
+
+impl Page {
+    /// Finds the page's elements; the message names the first one missing.
+    pub fn from_document() -> Result<Rc<Page>, String> {
+        let document = web_sys::window().and_then(|window| window.document()).ok_or("no document")?;
+        let body = document.body().ok_or("the page has no body")?;
+        let element = |id: &str| document.get_element_by_id(id).ok_or(format!("the page has no element #{id}"));
+        let canvas = |id: &str| {
+            element(id)?.dyn_into::<HtmlCanvasElement>().map_err(|_| format!("#{id} is not a canvas"))
+        };
+        Ok(Rc::new(Page {
+            status: element(STATUS_ID)?,
+            file_input: element(FILE_INPUT_ID)?
+                .dyn_into::<HtmlInputElement>()
+                .map_err(|_| format!("#{FILE_INPUT_ID} is not an input"))?,
+            drop_zone: element(DROP_ZONE_ID)?,
+            circle_canvas: canvas(CIRCLE_CANVAS_ID)?,
+            heading_canvas: canvas(HEADING_CANVAS_ID)?,
+            body,
+            document,
+        }))
+    }
+
+    /// Wires the file input and the drop zone, then analyses the demo.
+    pub fn start(self: Rc<Self>) {
+        let page = Rc::clone(&self);
+        EventListener::new(&self.file_input, "change", move |_| {
+            let Some(files) = page.file_input.files() else { return };
+            page.analyse_files(files);
+            // Choosing the same file again should analyse it again.
+            page.file_input.set_value("");
+        })
+        .forget();
+
+        // Without preventDefault on dragover and drop, the browser opens the file.
+        let prevent_default = EventListenerOptions::enable_prevent_default();
+        for event_name in ["dragover", "drop"] {
+            EventListener::new_with_options(&self.document, event_name, prevent_default, |event| event.prevent_default())
+                .forget();
+        }
+        let drop_zone = self.drop_zone.clone();
+        EventListener::new(&self.drop_zone, "dragover", move |_| {
+            let _ = drop_zone.class_list().add_1("dragging");
+        })
+        .forget();
+        let drop_zone = self.drop_zone.clone();
+        EventListener::new(&self.drop_zone, "dragleave", move |_| {
+            let _ = drop_zone.class_list().remove_1("dragging");
+        })
+        .forget();
+        let page = Rc::clone(&self);
+        EventListener::new_with_options(&self.drop_zone, "drop", prevent_default, move |event| {
+            event.prevent_default();
+            let _ = page.drop_zone.class_list().remove_1("dragging");
+            let files = event.dyn_ref::<DragEvent>().and_then(DragEvent::data_transfer).and_then(|transfer| transfer.files());
+            match files {
+                Some(files) if files.length() > 0 => page.analyse_files(files),
+                _ => page.show_error("Nothing to read in what was dropped. Drop a CSV file from your computer."),
+            }
+        })
+        .forget();
+
+        spawn_local(async move { self.load_demo().await });
+    }
+
+    async fn load_demo(&self) {
+        let Some(demo_url) = self.body.get_attribute("data-demo-url") else {
+            self.set_state("ready", "Drop a log to analyse it.");
+            return;
+        };
+        let file_name = demo_url.rsplit('/').next().unwrap_or(&demo_url).to_string();
+        self.set_state("loading", &format!("Loading the demo log {file_name}…"));
+        match fetch_bytes(&demo_url).await {
+            Ok(bytes) => self.analyse_and_show(&file_name, &bytes),
+            Err(message) => self.show_error(&format!("Could not load the demo log {demo_url}: {message}. Drop a log to analyse it instead.")),
+        }
+    }
+
+    fn analyse_files(self: &Rc<Self>, files: web_sys::FileList) {
+        let Some(file) = files.get(0) else { return };
+        let n_files = files.length();
+        let page = Rc::clone(self);
+        spawn_local(async move {
+            let file_name = file.name();
+            page.set_state("loading", &format!("Reading {file_name}…"));
+            match gloo_file::futures::read_as_bytes(&gloo::file::Blob::from(file)).await {
+                Ok(bytes) => {
+                    page.analyse_and_show(&file_name, &bytes);
+                    if n_files > 1 {
+                        page.append_status(&format!(" Only the first of the {n_files} files was analysed."));
+                    }
+                }
+                Err(error) => page.show_error(&format!("Could not read {file_name}: {error}. Try choosing it again.")),
+            }
+        });
+    }
+
+    fn analyse_and_show(&self, file_name: &str, bytes: &[u8]) {
+        match analyse_minmax_csv(file_name, bytes, Options::default()) {
+            Ok(analysis) => self.show_analysis(&analysis),
+            Err(error) => self.show_error(&error.to_string()),
+        }
+    }
+
+    pub fn show_analysis(&self, analysis: &MinMaxAnalysis) {
+        let summary = &analysis.summary;
+        self.body.set_attribute("data-file", &summary.file_name).ok();
+        self.set_text("result-file", &summary.file_name);
+        self.show_stats("before", summary.heading_error_before.as_ref());
+        self.show_stats("after", summary.heading_error_after.as_ref());
+        self.show_calibration(summary);
+        self.fill_list("notes", summary.notes.iter().cloned());
+        self.show_diagnostics(summary);
+        for (canvas, plot) in [(&self.circle_canvas, Plot::CircleFit), (&self.heading_canvas, Plot::HeadingError)] {
+            if let Err(message) = canvas::draw(canvas, plot, analysis) {
+                let _ = canvas::draw_message(canvas, &format!("This plot could not be drawn: {message}"));
+            }
+        }
+        let n_problems = summary.diagnostics.total();
+        let problems = match n_problems {
+            0 => String::new(),
+            1 => " 1 line had a problem; see below.".to_string(),
+            n => format!(" {n} lines had problems; see below."),
+        };
+        self.set_state(
+            "ready",
+            &format!("Analysed {}: {} magnetometer samples.{problems}", summary.file_name, summary.n_samples_used),
+        );
+    }
+
+    /// Shows an error in the status area and on the canvases, and clears the figures of
+    /// the previous file so that none of them is taken for this one's.
+    pub fn show_error(&self, message: &str) {
+        self.body.remove_attribute("data-file").ok();
+        self.set_text("result-file", "—");
+        self.show_stats("before", None);
+        self.show_stats("after", None);
+        self.fill_list("calibration", std::iter::empty());
+        self.fill_list("notes", std::iter::empty());
+        self.fill_list("diagnostics", std::iter::empty());
+        for canvas in [&self.circle_canvas, &self.heading_canvas] {
+            let _ = canvas::draw_message(canvas, message);
+        }
+        self.set_state("error", message);
+    }
+
+    fn show_stats(&self, which: &str, stats: Option<&HeadingErrorStats>) {
+        let format = |value: Option<f64>, unit: &str| value.map_or("—".to_string(), |value| format!("{value:.2}{unit}"));
+        self.set_text(&format!("stat-{which}-mean"), &format(stats.map(|s| s.mean_deg), "°"));
+        self.set_text(&format!("stat-{which}-std"), &format(stats.map(|s| s.std_deg), "°"));
+        self.set_text(&format!("stat-{which}-rms"), &format(stats.map(|s| s.rms_deg), "°"));
+        self.set_text(&format!("stat-{which}-p95"), &format(stats.map(|s| s.p95_abs_deg), "°"));
+        self.set_text(&format!("stat-{which}-within5"), &format(stats.map(|s| s.within_5_deg_pct), " %"));
+    }
+
+    fn show_calibration(&self, summary: &MinMaxSummary) {
+        let calibration = &summary.calibration;
+        let coverage = &calibration.coverage;
+        self.fill_list(
+            "calibration",
+            [
+                format!("Scale factors Sx = {:.4}, Sy = {:.4}", calibration.scale_x, calibration.scale_y),
+                format!("Biases Bx = {:.2} µT, By = {:.2} µT", calibration.bias_x_ut, calibration.bias_y_ut),
+                format!("Ellipse centre ({:.2}, {:.2}) µT", calibration.center_x_ut, calibration.center_y_ut),
+                format!(
+                    "Coverage {} of {} heading bins of 10°, largest gap {:.0}°",
+                    coverage.n_bins_covered, coverage.n_bins, coverage.largest_gap_deg
+                ),
+            ]
+            .into_iter(),
+        );
+    }
+
+    fn show_diagnostics(&self, summary: &MinMaxSummary) {
+        let diagnostics = &summary.diagnostics;
+        let shown = diagnostics.kept.iter().take(MAX_DIAGNOSTICS_SHOWN).map(|diagnostic| match diagnostic.line {
+            Some(line) => format!("{}, line {line}: {}", summary.file_name, diagnostic.message),
+            None => format!("{}: {}", summary.file_name, diagnostic.message),
+        });
+        let n_not_shown = diagnostics.total().saturating_sub(MAX_DIAGNOSTICS_SHOWN);
+        let more = (n_not_shown > 0).then(|| format!("… and {n_not_shown} more (the CLI lists them all)."));
+        self.fill_list("diagnostics", shown.chain(more));
+    }
+
+    /// Replaces the items of list `#id` with one `<li>` of text per item.
+    fn fill_list(&self, id: &str, items: impl Iterator<Item = String>) {
+        let Some(list) = self.document.get_element_by_id(id) else { return };
+        list.set_text_content(None);
+        for item in items {
+            if let Ok(list_item) = self.document.create_element("li") {
+                list_item.set_text_content(Some(&item));
+                let _ = list.append_child(&list_item);
+            }
+        }
+    }
+
+    fn set_text(&self, id: &str, text: &str) {
+        if let Some(element) = self.document.get_element_by_id(id) {
+            element.set_text_content(Some(text));
+        }
+    }
+
+    fn set_state(&self, state: &str, message: &str) {
+        self.body.set_attribute("data-state", state).ok();
+        self.status.set_text_content(Some(message));
+    }
+
+    fn append_status(&self, text: &str) {
+        let current = self.status.text_content().unwrap_or_default();
+        self.status.set_text_content(Some(&(current + text)));
+    }
+}
+
+/// Puts a bug report into the status area, whatever state the page is in.
+pub fn show_bug(message: &str) {
+    let Some(document) = web_sys::window().and_then(|window| window.document()) else { return };
+    if let Some(body) = document.body() {
+        body.set_attribute("data-state", "error").ok();
+    }
+    if let Some(status) = document.get_element_by_id(STATUS_ID) {
+        status.set_text_content(Some(message));
+    }
+}
+
+/// The bytes at a URL of the page's own origin.
+async fn fetch_bytes(url: &str) -> Result<Vec<u8>, String> {
+    let window = web_sys::window().ok_or("no window")?;
+    let response = JsFuture::from(window.fetch_with_str(url)).await.map_err(describe_js_error)?;
+    let response: web_sys::Response = response.dyn_into().map_err(|_| "the answer was not an HTTP response".to_string())?;
+    if !response.ok() {
+        return Err(format!("HTTP {}", response.status()));
+    }
+    let buffer = JsFuture::from(response.array_buffer().map_err(describe_js_error)?).await.map_err(describe_js_error)?;
+    Ok(js_sys::Uint8Array::new(&buffer).to_vec())
+}
+
+fn describe_js_error(value: wasm_bindgen::JsValue) -> String {
+    value
+        .dyn_ref::<js_sys::Error>()
+        .map(|error| String::from(error.message()))
+        .or_else(|| value.as_string())
+        .unwrap_or_else(|| "unknown error".to_string())
+}

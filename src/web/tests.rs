@@ -1,0 +1,72 @@
+//! Browser tests of the web edge (wasm-bindgen-test in headless Chromium).
+
+use wasm_bindgen::JsCast;
+use wasm_bindgen_test::*;
+use web_sys::{CanvasRenderingContext2d, HtmlCanvasElement};
+
+use super::canvas::{self, Plot};
+use crate::analysis::{analyse_minmax_csv, Options};
+use crate::io::canonical_csv;
+use crate::sim::walk::{simulate, WalkConfig};
+
+wasm_bindgen_test_configure!(run_in_browser);
+
+fn simulated_csv() -> Vec<u8> {
+    canonical_csv::write(&simulate(&WalkConfig::from_seed(2, 60.0))).into_bytes()
+}
+
+fn new_canvas(width_px: u32, height_px: u32) -> HtmlCanvasElement {
+    let document = web_sys::window().and_then(|window| window.document()).expect("a document");
+    let canvas: HtmlCanvasElement = document.create_element("canvas").expect("canvas").dyn_into().expect("a canvas");
+    canvas.set_width(width_px);
+    canvas.set_height(height_px);
+    document.body().expect("a body").append_child(&canvas).expect("appended");
+    canvas
+}
+
+/// Pixels that are not the white background.
+fn n_drawn_pixels(canvas: &HtmlCanvasElement) -> usize {
+    let context: CanvasRenderingContext2d =
+        canvas.get_context("2d").expect("context").expect("2d").dyn_into().expect("a 2D context");
+    let data = context.get_image_data(0, 0, canvas.width() as i32, canvas.height() as i32).expect("pixels").data();
+    data.chunks_exact(4).filter(|rgba| rgba[0] < 250 || rgba[1] < 250 || rgba[2] < 250).count()
+}
+
+#[wasm_bindgen_test]
+fn analyse_csv_returns_the_summary_as_a_plain_object() {
+    let value = super::analyse_csv("walk.csv", &simulated_csv()).map_err(wasm_bindgen::JsValue::from).expect("analysable");
+    let rms = js_sys::Reflect::get(&value, &"heading_error_after".into())
+        .and_then(|after| js_sys::Reflect::get(&after, &"rms_deg".into()))
+        .ok()
+        .and_then(|rms| rms.as_f64())
+        .expect("heading_error_after.rms_deg is a number");
+    assert!(rms > 0.0 && rms < 3.0, "{rms}");
+    let file_name = js_sys::Reflect::get(&value, &"file_name".into()).ok().and_then(|name| name.as_string());
+    assert_eq!(file_name.as_deref(), Some("walk.csv"));
+}
+
+#[wasm_bindgen_test]
+fn analyse_csv_throws_a_message_that_names_the_file() {
+    let garbage: Vec<u8> = (0..2000u32).map(|idx| (idx.wrapping_mul(2_654_435_761) >> 7) as u8).collect();
+    let error = super::analyse_csv("noise.bin", &garbage).map_err(wasm_bindgen::JsValue::from).expect_err("garbage is refused");
+    let message: String = error.dyn_into::<js_sys::Error>().expect("an Error").message().into();
+    assert!(message.contains("noise.bin is not a text log"), "{message}");
+}
+
+#[wasm_bindgen_test]
+fn both_plots_draw_on_a_canvas() {
+    let analysis = analyse_minmax_csv("walk.csv", &simulated_csv(), Options::default()).expect("analysable");
+    for plot in [Plot::CircleFit, Plot::HeadingError] {
+        let canvas = new_canvas(480, 360);
+        canvas::draw(&canvas, plot, &analysis).expect("drawn");
+        let n_drawn = n_drawn_pixels(&canvas);
+        assert!(n_drawn > 5_000, "{plot:?}: only {n_drawn} pixels drawn");
+    }
+}
+
+#[wasm_bindgen_test]
+fn an_error_message_replaces_the_plot() {
+    let canvas = new_canvas(480, 360);
+    canvas::draw_message(&canvas, "noise.bin is not a text log (binary data near byte 0).").expect("drawn");
+    assert!(n_drawn_pixels(&canvas) > 10_000, "the message panel is drawn");
+}
