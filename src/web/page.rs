@@ -146,7 +146,7 @@ impl Page {
         self.show_stats("before", summary.heading_error_before.as_ref());
         self.show_stats("after", summary.heading_error_after.as_ref());
         self.show_calibration(summary);
-        self.fill_list("notes", summary.notes.iter().cloned());
+        self.fill_list("notes", or_none(summary.notes.iter().cloned()));
         self.show_diagnostics(summary);
         for (canvas, plot) in [(&self.circle_canvas, Plot::CircleFit), (&self.heading_canvas, Plot::HeadingError)] {
             if let Err(message) = canvas::draw(canvas, plot, analysis) {
@@ -176,7 +176,7 @@ impl Page {
         self.fill_list("notes", std::iter::empty());
         self.fill_list("diagnostics", std::iter::empty());
         for canvas in [&self.circle_canvas, &self.heading_canvas] {
-            let _ = canvas::draw_message(canvas, message);
+            let _ = canvas::draw_message(canvas, &format!("No plot: {message}"));
         }
         self.set_state("error", message);
     }
@@ -216,7 +216,7 @@ impl Page {
         });
         let n_not_shown = diagnostics.total().saturating_sub(MAX_DIAGNOSTICS_SHOWN);
         let more = (n_not_shown > 0).then(|| format!("… and {n_not_shown} more (the CLI lists them all)."));
-        self.fill_list("diagnostics", shown.chain(more));
+        self.fill_list("diagnostics", or_none(shown.chain(more)));
     }
 
     /// Replaces the items of list `#id` with one `<li>` of text per item.
@@ -246,6 +246,14 @@ impl Page {
         let current = self.status.text_content().unwrap_or_default();
         self.status.set_text_content(Some(&(current + text)));
     }
+}
+
+/// The items, or a single "None." when there are none, so that an empty list reads as
+/// checked rather than missing.
+fn or_none(items: impl Iterator<Item = String>) -> impl Iterator<Item = String> {
+    let mut items = items.peekable();
+    let none = items.peek().is_none().then(|| "None.".to_string());
+    items.chain(none)
 }
 
 /// Puts a bug report into the status area, whatever state the page is in.

@@ -70,3 +70,41 @@ fn an_error_message_replaces_the_plot() {
     canvas::draw_message(&canvas, "noise.bin is not a text log (binary data near byte 0).").expect("drawn");
     assert!(n_drawn_pixels(&canvas) > 10_000, "the message panel is drawn");
 }
+
+/// The elements `www/index.html` gives the page, enough for [`super::page::Page`].
+fn add_page_skeleton() {
+    let document = web_sys::window().and_then(|window| window.document()).expect("a document");
+    let skeleton = document.create_element("div").expect("div");
+    skeleton.set_inner_html(
+        r#"<div id="drop-zone"><input id="file-input" type="file"></div><p id="status"></p>
+           <span id="result-file"></span><span id="stat-before-rms"></span><span id="stat-after-rms"></span>
+           <span id="stat-after-mean"></span><ul id="calibration"></ul><ul id="notes"></ul><ul id="diagnostics"></ul>
+           <canvas id="plot-circle" width="320" height="240"></canvas><canvas id="plot-heading" width="320" height="240"></canvas>"#,
+    );
+    document.body().expect("a body").append_child(&skeleton).expect("appended");
+}
+
+#[wasm_bindgen_test]
+fn the_page_shows_an_analysis_then_an_error() {
+    add_page_skeleton();
+    let page = super::page::Page::from_document().expect("the skeleton has every element");
+    let document = web_sys::window().and_then(|window| window.document()).expect("a document");
+    let text = |id: &str| document.get_element_by_id(id).and_then(|element| element.text_content()).unwrap_or_default();
+
+    let analysis = analyse_minmax_csv("walk.csv", &simulated_csv(), Options::default()).expect("analysable");
+    page.show_analysis(&analysis);
+    let after = analysis.summary.heading_error_after.expect("reference present");
+    assert_eq!(text("stat-after-rms"), format!("{:.2}°", after.rms_deg));
+    assert_eq!(text("result-file"), "walk.csv");
+    assert_eq!(text("diagnostics"), "None.");
+    assert!(text("status").starts_with("Analysed walk.csv"));
+
+    page.show_error("bad.csv is empty. Choose a log with a header line and samples.");
+    let body = document.body().expect("a body");
+    assert_eq!(body.get_attribute("data-state").as_deref(), Some("error"));
+    assert_eq!(text("stat-after-rms"), "—");
+    assert_eq!(text("status"), "bad.csv is empty. Choose a log with a header line and samples.");
+    // Text from a log is inserted as text: markup in a file name stays visible text.
+    page.show_error("<b>x</b>.csv is empty.");
+    assert_eq!(text("status"), "<b>x</b>.csv is empty.");
+}

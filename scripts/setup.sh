@@ -1,0 +1,84 @@
+# Idempotent installs shared by ./run and ./test (sourced, not run). Each function checks
+# first and installs only what is missing or at the wrong version. Only the package
+# registries are used: crates.io, Debian's apt, npm.
+
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+
+log() { printf '\033[1m==> %s\033[0m\n' "$*" >&2; }
+
+as_root() {
+  if [ "$(id -u)" = 0 ]; then "$@"; else sudo "$@"; fi
+}
+
+ensure_rust() {
+  if ! command -v cargo >/dev/null 2>&1; then
+    echo "cargo is missing: install Rust with rustup (https://rustup.rs) and run this again." >&2
+    exit 1
+  fi
+}
+
+ensure_wasm_target() {
+  if ! rustup target list --installed 2>/dev/null | grep -qx wasm32-unknown-unknown; then
+    log "Adding the wasm32-unknown-unknown target"
+    rustup target add wasm32-unknown-unknown
+  fi
+}
+
+# wasm-bindgen's CLI must match the wasm-bindgen crate in Cargo.lock exactly.
+wasm_bindgen_version() {
+  awk '/^name = "wasm-bindgen"$/ { getline; gsub(/version = |"/, ""); print; exit }' "$ROOT/Cargo.lock"
+}
+
+ensure_wasm_bindgen_cli() {
+  local want
+  want="$(wasm_bindgen_version)"
+  if [ -z "$want" ]; then echo "no wasm-bindgen in Cargo.lock" >&2; exit 1; fi
+  if [ "$(wasm-bindgen --version 2>/dev/null)" != "wasm-bindgen $want" ] \
+     || [ "$(wasm-bindgen-test-runner --version 2>/dev/null)" != "wasm-bindgen-test-runner $want" ]; then
+    log "Installing wasm-bindgen-cli $want (a few minutes, once)"
+    # No --locked: one of its locked dependencies is no longer on crates.io.
+    cargo install wasm-bindgen-cli --version "$want" --no-default-features \
+      --bin wasm-bindgen --bin wasm-bindgen-test-runner
+  fi
+}
+
+ensure_chromium() {
+  if ! command -v chromium >/dev/null 2>&1 || ! command -v chromedriver >/dev/null 2>&1; then
+    log "Installing Debian's chromium and chromium-driver"
+    as_root apt-get update -qq
+    as_root env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium chromium-driver >/dev/null
+  fi
+}
+
+ensure_e2e_packages() {
+  local dir="$ROOT/tests/e2e"
+  if [ ! -f "$dir/node_modules/.package-lock.json" ] \
+     || [ "$dir/package-lock.json" -nt "$dir/node_modules/.package-lock.json" ]; then
+    log "Installing the end-to-end test packages (npm ci)"
+    npm ci --prefix "$dir" --no-audit --no-fund --loglevel=error
+  fi
+}
+
+# Builds the release wasm, generates its JS glue into www/pkg and puts the demo log
+# beside it, so that www/ is the whole static site.
+build_web() {
+  log "Building the page (release wasm)"
+  cargo build --manifest-path "$ROOT/Cargo.toml" --release --lib --target wasm32-unknown-unknown
+  rm -rf "$ROOT/www/pkg"
+  wasm-bindgen --target web --no-typescript --out-dir "$ROOT/www/pkg" \
+    "$ROOT/target/wasm32-unknown-unknown/release/compass_pdr.wasm"
+  cp "$ROOT/assets/demo-walk.csv" "$ROOT/www/pkg/demo-walk.csv"
+  local wasm="$ROOT/www/pkg/compass_pdr_bg.wasm"
+  log "wasm size: $(stat -c %s "$wasm") bytes raw, $(gzip -9 -c "$wasm" | wc -c) bytes gzip -9"
+}
+
+# Waits until a local URL answers, for at most 20 s.
+wait_for_url() {
+  local url="$1"
+  for _ in $(seq 1 100); do
+    if curl -fsS -o /dev/null "$url" 2>/dev/null; then return 0; fi
+    sleep 0.2
+  done
+  echo "the server at $url did not answer" >&2
+  return 1
+}

@@ -1,0 +1,148 @@
+// End-to-end tests of the page as a person uses it: load, see the demo analysed, drop
+// a log, choose a bad file. playwright-core drives Debian's Chromium; ./test serves
+// www/ and writes the expected figures (from the CLI) into E2E_OUT.
+import { test, before, after } from 'node:test';
+import assert from 'node:assert/strict';
+import { readFileSync } from 'node:fs';
+import { join } from 'node:path';
+import { chromium } from 'playwright-core';
+
+const baseUrl = process.env.E2E_BASE_URL;
+const out = process.env.E2E_OUT;
+if (!baseUrl || !out) {
+  throw new Error('E2E_BASE_URL and E2E_OUT must be set: run the end-to-end tests through ./test');
+}
+
+let browser;
+before(async () => {
+  browser = await chromium.launch({
+    executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
+    args: ['--no-sandbox', '--disable-gpu', '--disable-dev-shm-usage', '--disable-quic', '--no-first-run',
+           '--disable-background-networking', '--disable-component-update', '--disable-sync'],
+  });
+});
+after(async () => { await browser?.close(); });
+
+/** A fresh page at the site, with console errors and page errors collected. */
+async function openPage() {
+  const context = await browser.newContext({ viewport: { width: 1360, height: 1000 } });
+  const page = await context.newPage();
+  const problems = [];
+  page.on('pageerror', (error) => problems.push(`page error: ${error.message}`));
+  page.on('console', (message) => { if (message.type() === 'error') problems.push(`console: ${message.text()}`); });
+  await page.goto(baseUrl);
+  return { page, problems, close: () => context.close() };
+}
+
+async function waitForState(page, state, fileName) {
+  const selector = fileName ? `body[data-state="${state}"][data-file="${fileName}"]` : `body[data-state="${state}"]`;
+  await page.waitForSelector(selector, { timeout: 15_000 });
+}
+
+/** Pixels of a canvas that are not white. */
+function drawnPixels(page, id) {
+  return page.evaluate((canvasId) => {
+    const canvas = document.getElementById(canvasId);
+    const data = canvas.getContext('2d').getImageData(0, 0, canvas.width, canvas.height).data;
+    let n = 0;
+    for (let i = 0; i < data.length; i += 4) {
+      if (data[i] < 250 || data[i + 1] < 250 || data[i + 2] < 250) n += 1;
+    }
+    return n;
+  }, id);
+}
+
+const text = (page, id) => page.textContent(`#${id}`);
+
+/** The page shows the same statistics as `compass-pdr calibrate --json`. */
+async function assertStatsMatch(page, expected) {
+  for (const which of ['before', 'after']) {
+    const stats = expected[`heading_error_${which}`];
+    assert.ok(stats, `the CLI found a reference heading (${which})`);
+    assert.equal(await text(page, `stat-${which}-mean`), `${stats.mean_deg.toFixed(2)}°`);
+    assert.equal(await text(page, `stat-${which}-std`), `${stats.std_deg.toFixed(2)}°`);
+    assert.equal(await text(page, `stat-${which}-rms`), `${stats.rms_deg.toFixed(2)}°`);
+    assert.equal(await text(page, `stat-${which}-p95`), `${stats.p95_abs_deg.toFixed(2)}°`);
+    assert.equal(await text(page, `stat-${which}-within5`), `${stats.within_5_deg_pct.toFixed(2)} %`);
+  }
+}
+
+async function assertPlotsDrawn(page) {
+  for (const id of ['plot-circle', 'plot-heading']) {
+    const n = await drawnPixels(page, id);
+    assert.ok(n > 10_000, `#${id} has ${n} drawn pixels`);
+  }
+}
+
+/** Drops files on the drop zone the way a browser does: a drop event with a DataTransfer. */
+async function dropFile(page, name, content) {
+  await page.evaluate(({ name, content }) => {
+    const transfer = new DataTransfer();
+    transfer.items.add(new File([content], name, { type: 'text/csv' }));
+    const zone = document.getElementById('drop-zone');
+    zone.dispatchEvent(new DragEvent('dragover', { dataTransfer: transfer, bubbles: true, cancelable: true }));
+    zone.dispatchEvent(new DragEvent('drop', { dataTransfer: transfer, bubbles: true, cancelable: true }));
+  }, { name, content });
+}
+
+test('the demo is analysed and drawn on load, with the CLI\'s figures', async () => {
+  const { page, problems, close } = await openPage();
+  await waitForState(page, 'ready', 'demo-walk.csv');
+  const expected = JSON.parse(readFileSync(join(out, 'demo-walk.json'), 'utf8'));
+  await assertStatsMatch(page, expected);
+  // The demo shows what calibration is for: tens of degrees before, a few after.
+  assert.ok(expected.heading_error_before.rms_deg > 10, 'large error before');
+  assert.ok(expected.heading_error_after.rms_deg < 3, 'small error after');
+  await assertPlotsDrawn(page);
+  assert.match(await text(page, 'status'), /Analysed demo-walk\.csv: 9000 magnetometer samples\./);
+  assert.match(await text(page, 'calibration'), /Scale factors Sx = 1\.0000/);
+  await page.screenshot({ path: join(out, 'demo.png'), fullPage: true });
+  assert.deepEqual(problems, []);
+  await close();
+});
+
+test('a dropped canonical CSV replaces the demo', async () => {
+  const { page, problems, close } = await openPage();
+  await waitForState(page, 'ready', 'demo-walk.csv');
+  await dropFile(page, 'drop-walk.csv', readFileSync(join(out, 'drop-walk.csv'), 'utf8'));
+  await waitForState(page, 'ready', 'drop-walk.csv');
+  const expected = JSON.parse(readFileSync(join(out, 'drop-walk.json'), 'utf8'));
+  await assertStatsMatch(page, expected);
+  await assertPlotsDrawn(page);
+  assert.equal(await text(page, 'result-file'), 'drop-walk.csv');
+  await page.screenshot({ path: join(out, 'dropped.png'), fullPage: true });
+  assert.deepEqual(problems, []);
+  await close();
+});
+
+// Bad files: each gives a clear message naming the file and what to do, the previous
+// figures are cleared, the canvases say why, and the page still works afterwards.
+const badFiles = [
+  { name: 'garbage.bin', buffer: Buffer.from(Array.from({ length: 4096 }, (_, i) => (i * 2654435761) >>> 24)),
+    message: /garbage\.bin is not a text log \(binary data near byte \d+\)\. Export the log as CSV/ },
+  { name: 'empty.csv', buffer: Buffer.alloc(0), message: /empty\.csv is empty\. Choose a log with a header line/ },
+  { name: 'no-mag.csv', buffer: Buffer.from('t_s,acc_x_mps2,acc_y_mps2,acc_z_mps2\n0,0,0,-9.81\n1,0,0,-9.81\n'),
+    message: /no-mag\.csv has no magnetometer columns: its header \(line 1\) has t_s, acc_x_mps2, acc_y_mps2, acc_z_mps2\. Name them mag_x_ut/ },
+  { name: 'nans.csv', buffer: Buffer.from('t_s,mag_x_ut,mag_y_ut,mag_z_ut\n0,NaN,NaN,NaN\n1,NaN,NaN,NaN\n2,nan,nan,nan\n'),
+    message: /nans\.csv: none of its 3 data lines has a usable magnetometer sample \(line 2: mag_x_ut is NaN/ },
+];
+
+for (const bad of badFiles) {
+  test(`choosing ${bad.name} shows what is wrong and what to do`, async () => {
+    const { page, problems, close } = await openPage();
+    await waitForState(page, 'ready', 'demo-walk.csv');
+    await page.setInputFiles('#file-input', { name: bad.name, mimeType: 'application/octet-stream', buffer: bad.buffer });
+    await waitForState(page, 'error');
+    assert.match(await text(page, 'status'), bad.message);
+    assert.equal(await text(page, 'stat-after-rms'), '—', 'the demo\'s figures are cleared');
+    assert.equal(await text(page, 'result-file'), '—');
+    // The canvases carry the message instead of a stale or blank plot.
+    await assertPlotsDrawn(page);
+    await page.screenshot({ path: join(out, `error-${bad.name}.png`), fullPage: true });
+    // The page recovers: a good file is analysed again.
+    await dropFile(page, 'drop-walk.csv', readFileSync(join(out, 'drop-walk.csv'), 'utf8'));
+    await waitForState(page, 'ready', 'drop-walk.csv');
+    assert.deepEqual(problems, []);
+    await close();
+  });
+}
