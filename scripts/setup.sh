@@ -15,6 +15,15 @@ ensure_rust() {
     echo "cargo is missing: install Rust with rustup (https://rustup.rs) and run this again." >&2
     exit 1
   fi
+  # ./test checks formatting and lints; rustup's minimal profile lacks both tools.
+  local installed
+  installed="$(rustup component list --installed 2>/dev/null || true)"
+  for component in rustfmt clippy; do
+    if ! grep -q "^$component" <<<"$installed"; then
+      log "Adding the $component component"
+      rustup component add "$component"
+    fi
+  done
 }
 
 ensure_wasm_target() {
@@ -37,7 +46,7 @@ ensure_wasm_bindgen_cli() {
      || [ "$(wasm-bindgen-test-runner --version 2>/dev/null)" != "wasm-bindgen-test-runner $want" ]; then
     log "Installing wasm-bindgen-cli $want (a few minutes, once)"
     # No --locked: one of its locked dependencies is no longer on crates.io.
-    cargo install wasm-bindgen-cli --version "$want" --no-default-features \
+    cargo install wasm-bindgen-cli --version "$want" --force --no-default-features \
       --bin wasm-bindgen --bin wasm-bindgen-test-runner
   fi
 }
@@ -76,7 +85,9 @@ build_web() {
 wait_for_url() {
   local url="$1"
   for _ in $(seq 1 100); do
-    if curl -fsS -o /dev/null "$url" 2>/dev/null; then return 0; fi
+    if python3 -c "import sys, urllib.request; urllib.request.urlopen(sys.argv[1], timeout=2)" "$url" 2>/dev/null; then
+      return 0
+    fi
     sleep 0.2
   done
   echo "the server at $url did not answer" >&2

@@ -29,7 +29,10 @@ pub struct Options {
 
 impl Default for Options {
     fn default() -> Self {
-        Options { declination_deg: 0.0, gravity_window_s: 1.0 }
+        Options {
+            declination_deg: 0.0,
+            gravity_window_s: 1.0,
+        }
     }
 }
 
@@ -95,39 +98,80 @@ pub enum AnalysisError {
         "{file_name} has no magnetometer columns: its header (line {header_line}) has {found}. \
          Name them mag_x_ut, mag_y_ut, mag_z_ut (microtesla, body axes x forward, y right, z down)."
     )]
-    NoMagnetometerColumns { file_name: String, header_line: usize, found: String },
+    NoMagnetometerColumns {
+        file_name: String,
+        header_line: usize,
+        found: String,
+    },
 
     #[error("{file_name}: none of its {n_data_lines} data lines has a usable magnetometer sample{first_problem}. Check that the log holds numbers in mag_x_ut, mag_y_ut and mag_z_ut.")]
-    NoMagnetometerSamples { file_name: String, n_data_lines: usize, first_problem: String },
+    NoMagnetometerSamples {
+        file_name: String,
+        n_data_lines: usize,
+        first_problem: String,
+    },
 
     #[error("{file_name}: the accelerometer does not overlap the magnetometer in time, so the field cannot be levelled. Check the t_s column.")]
     NoLevelledSamples { file_name: String },
 
     #[error("{file_name}: {source}")]
-    Calibration { file_name: String, source: CalibError },
+    Calibration {
+        file_name: String,
+        source: CalibError,
+    },
 }
 
 /// Reads a canonical CSV and runs the min/max analysis on it.
-pub fn analyse_minmax_csv(file_name: &str, bytes: &[u8], options: Options) -> Result<MinMaxAnalysis, AnalysisError> {
+pub fn analyse_minmax_csv(
+    file_name: &str,
+    bytes: &[u8],
+    options: Options,
+) -> Result<MinMaxAnalysis, AnalysisError> {
     let report = canonical_csv::read(file_name, bytes)?;
     analyse_minmax(report, options)
 }
 
 /// Runs the min/max analysis on an imported recording.
-pub fn analyse_minmax(report: ImportReport, options: Options) -> Result<MinMaxAnalysis, AnalysisError> {
-    let ImportReport { file_name, recording, diagnostics, header_columns, header_line, n_data_lines } = report;
+pub fn analyse_minmax(
+    report: ImportReport,
+    options: Options,
+) -> Result<MinMaxAnalysis, AnalysisError> {
+    let ImportReport {
+        file_name,
+        recording,
+        diagnostics,
+        header_columns,
+        header_line,
+        n_data_lines,
+    } = report;
     let mag = &recording.mag_in_body_ut;
     if mag.is_empty() {
-        let has_mag_columns = header_columns.iter().any(|name| name.to_ascii_lowercase().starts_with("mag_"));
+        let has_mag_columns = header_columns
+            .iter()
+            .any(|name| name.to_ascii_lowercase().starts_with("mag_"));
         return Err(if has_mag_columns {
             let first_problem = diagnostics
                 .kept
                 .first()
-                .map(|diagnostic| format!(" (line {}: {})", diagnostic.line.unwrap_or(header_line), diagnostic.message))
+                .map(|diagnostic| {
+                    format!(
+                        " (line {}: {})",
+                        diagnostic.line.unwrap_or(header_line),
+                        diagnostic.message
+                    )
+                })
                 .unwrap_or_default();
-            AnalysisError::NoMagnetometerSamples { file_name, n_data_lines, first_problem }
+            AnalysisError::NoMagnetometerSamples {
+                file_name,
+                n_data_lines,
+                first_problem,
+            }
         } else {
-            AnalysisError::NoMagnetometerColumns { file_name, header_line, found: header_columns.join(", ") }
+            AnalysisError::NoMagnetometerColumns {
+                file_name,
+                header_line,
+                found: header_columns.join(", "),
+            }
         });
     }
 
@@ -136,16 +180,18 @@ pub fn analyse_minmax(report: ImportReport, options: Options) -> Result<MinMaxAn
     let levelling = if gravity.is_empty() {
         Levelling::AssumedLevel
     } else {
-        Levelling::Accelerometer { window_s: options.gravity_window_s }
+        Levelling::Accelerometer {
+            window_s: options.gravity_window_s,
+        }
     };
     let mut t_s = Vec::with_capacity(mag.len());
     let mut level_raw_ut = Vec::with_capacity(mag.len());
     for (&sample_t_s, &mag_ut) in mag.t_s.iter().zip(&mag.values) {
         let tilt = match levelling {
             Levelling::AssumedLevel => Some(Tilt::LEVEL),
-            Levelling::Accelerometer { .. } => {
-                gravity.interpolate_at(sample_t_s, MAX_INTERPOLATION_GAP_S).and_then(Tilt::from_specific_force)
-            }
+            Levelling::Accelerometer { .. } => gravity
+                .interpolate_at(sample_t_s, MAX_INTERPOLATION_GAP_S)
+                .and_then(Tilt::from_specific_force),
         };
         if let Some(tilt) = tilt {
             t_s.push(sample_t_s);
@@ -157,25 +203,40 @@ pub fn analyse_minmax(report: ImportReport, options: Options) -> Result<MinMaxAn
     }
 
     // Steps 2-3: fit Eq. 7 and correct with Eq. 6.
-    let calibration = MinMaxCalibration::fit(&level_raw_ut)
-        .map_err(|source| AnalysisError::Calibration { file_name: file_name.clone(), source })?;
-    let level_corrected_ut: Vec<Vector2<f64>> = level_raw_ut.iter().map(|&sample| calibration.apply(sample)).collect();
+    let calibration =
+        MinMaxCalibration::fit(&level_raw_ut).map_err(|source| AnalysisError::Calibration {
+            file_name: file_name.clone(),
+            source,
+        })?;
+    let level_corrected_ut: Vec<Vector2<f64>> = level_raw_ut
+        .iter()
+        .map(|&sample| calibration.apply(sample))
+        .collect();
 
     // Steps 4-5: heading and declination.
     let declination_rad = options.declination_deg.to_radians();
-    let heading_before_rad: Vec<f64> = level_raw_ut.iter().map(|&sample| heading_rad(sample, declination_rad)).collect();
-    let heading_after_rad: Vec<f64> = level_corrected_ut.iter().map(|&sample| heading_rad(sample, declination_rad)).collect();
+    let heading_before_rad: Vec<f64> = level_raw_ut
+        .iter()
+        .map(|&sample| heading_rad(sample, declination_rad))
+        .collect();
+    let heading_after_rad: Vec<f64> = level_corrected_ut
+        .iter()
+        .map(|&sample| heading_rad(sample, declination_rad))
+        .collect();
     let ref_heading_rad: Vec<Option<f64>> = t_s
         .iter()
-        .map(|&sample_t_s| recording.ref_heading_rad.interpolate_angle_at(sample_t_s, MAX_INTERPOLATION_GAP_S))
+        .map(|&sample_t_s| {
+            recording
+                .ref_heading_rad
+                .interpolate_angle_at(sample_t_s, MAX_INTERPOLATION_GAP_S)
+        })
         .collect();
     let errors_against_reference = |headings_rad: &[f64]| {
-        HeadingErrorStats::from_errors_rad(
-            headings_rad
-                .iter()
-                .zip(&ref_heading_rad)
-                .filter_map(|(&heading_rad, &reference_rad)| Some(heading_difference_rad(heading_rad, reference_rad?))),
-        )
+        HeadingErrorStats::from_errors_rad(headings_rad.iter().zip(&ref_heading_rad).filter_map(
+            |(&heading_rad, &reference_rad)| {
+                Some(heading_difference_rad(heading_rad, reference_rad?))
+            },
+        ))
     };
     let heading_error_before = errors_against_reference(&heading_before_rad);
     let heading_error_after = errors_against_reference(&heading_after_rad);
@@ -218,9 +279,18 @@ pub fn analyse_minmax(report: ImportReport, options: Options) -> Result<MinMaxAn
         t_s,
         level_raw_ut,
         level_corrected_ut,
-        heading_before_deg: heading_before_rad.iter().map(|heading_rad| heading_rad.to_degrees()).collect(),
-        heading_after_deg: heading_after_rad.iter().map(|heading_rad| heading_rad.to_degrees()).collect(),
-        ref_heading_deg: ref_heading_rad.iter().map(|reference_rad| reference_rad.map(f64::to_degrees)).collect(),
+        heading_before_deg: heading_before_rad
+            .iter()
+            .map(|heading_rad| heading_rad.to_degrees())
+            .collect(),
+        heading_after_deg: heading_after_rad
+            .iter()
+            .map(|heading_rad| heading_rad.to_degrees())
+            .collect(),
+        ref_heading_deg: ref_heading_rad
+            .iter()
+            .map(|reference_rad| reference_rad.map(f64::to_degrees))
+            .collect(),
     })
 }
 
@@ -234,14 +304,23 @@ mod tests {
 
     #[test]
     fn a_csv_without_magnetometer_columns_says_which_columns_it_has() {
-        let message = analyse("t_s,acc_x_mps2,acc_y_mps2,acc_z_mps2\n0,0,0,-9.8\n").map(|_| ()).unwrap_err().to_string();
-        assert!(message.contains("log.csv has no magnetometer columns"), "{message}");
+        let message = analyse("t_s,acc_x_mps2,acc_y_mps2,acc_z_mps2\n0,0,0,-9.8\n")
+            .map(|_| ())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            message.contains("log.csv has no magnetometer columns"),
+            "{message}"
+        );
         assert!(message.contains("t_s, acc_x_mps2"), "{message}");
     }
 
     #[test]
     fn a_csv_of_nans_names_the_first_bad_line() {
-        let message = analyse("t_s,mag_x_ut,mag_y_ut,mag_z_ut\n0,NaN,NaN,NaN\n1,NaN,NaN,NaN\n").map(|_| ()).unwrap_err().to_string();
+        let message = analyse("t_s,mag_x_ut,mag_y_ut,mag_z_ut\n0,NaN,NaN,NaN\n1,NaN,NaN,NaN\n")
+            .map(|_| ())
+            .unwrap_err()
+            .to_string();
         assert!(message.contains("none of its 2 data lines"), "{message}");
         assert!(message.contains("line 2: mag_x_ut is NaN"), "{message}");
     }
@@ -251,7 +330,10 @@ mod tests {
         let mut text = String::from("t_s,mag_x_ut,mag_y_ut,mag_z_ut,ref_heading_deg\n");
         for sample_idx in 0..360 {
             let heading_rad = (sample_idx as f64).to_radians();
-            let (x_ut, y_ut) = (10.0 + 25.0 * heading_rad.cos(), -5.0 - 20.0 * heading_rad.sin());
+            let (x_ut, y_ut) = (
+                10.0 + 25.0 * heading_rad.cos(),
+                -5.0 - 20.0 * heading_rad.sin(),
+            );
             text.push_str(&format!("{sample_idx},{x_ut},{y_ut},40,{sample_idx}\n"));
         }
         let analysis = analyse(&text).expect("analysable");
@@ -262,6 +344,9 @@ mod tests {
         let before = summary.heading_error_before.expect("has a reference");
         assert!(after.rms_deg < 0.1, "{after:?}");
         assert!(before.rms_deg > 10.0, "{before:?}");
-        assert!(summary.notes.iter().any(|note| note.contains("assumed level")));
+        assert!(summary
+            .notes
+            .iter()
+            .any(|note| note.contains("assumed level")));
     }
 }

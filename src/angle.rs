@@ -37,7 +37,10 @@ mod tests {
 
     fn check(input_deg: f64, expect_deg: f64) {
         let got_deg = wrap_to_pi(input_deg.to_radians()).to_degrees();
-        assert!((got_deg - expect_deg).abs() < 1e-9, "{input_deg} → {got_deg}, expected {expect_deg}");
+        assert!(
+            (got_deg - expect_deg).abs() < 1e-9,
+            "{input_deg} → {got_deg}, expected {expect_deg}"
+        );
     }
 
     #[test]

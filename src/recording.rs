@@ -19,7 +19,10 @@ pub struct Stream<T> {
 
 impl<T> Default for Stream<T> {
     fn default() -> Self {
-        Self { t_s: Vec::new(), values: Vec::new() }
+        Self {
+            t_s: Vec::new(),
+            values: Vec::new(),
+        }
     }
 }
 
@@ -150,7 +153,11 @@ mod tests {
         assert_eq!(s.interpolate_at(1.0, 2.0), Some(10.0));
         assert_eq!(s.interpolate_at(-0.1, 2.0), None);
         assert_eq!(s.interpolate_at(5.1, 2.0), None);
-        assert_eq!(s.interpolate_at(3.0, 2.0), None, "the 4 s gap is longer than 2 s");
+        assert_eq!(
+            s.interpolate_at(3.0, 2.0),
+            None,
+            "the 4 s gap is longer than 2 s"
+        );
         assert_eq!(s.interpolate_at(3.0, 4.0), Some(30.0));
     }
 

@@ -24,18 +24,36 @@ impl HeadingErrorStats {
     /// Statistics of heading errors given in radians (wrapped here to ±π). Non-finite
     /// values are left out; `None` when nothing is left.
     pub fn from_errors_rad(errors_rad: impl IntoIterator<Item = f64>) -> Option<Self> {
-        let mut errors_deg: Vec<f64> =
-            errors_rad.into_iter().filter(|error_rad| error_rad.is_finite()).map(|error_rad| wrap_to_pi(error_rad).to_degrees()).collect();
+        let mut errors_deg: Vec<f64> = errors_rad
+            .into_iter()
+            .filter(|error_rad| error_rad.is_finite())
+            .map(|error_rad| wrap_to_pi(error_rad).to_degrees())
+            .collect();
         let n_samples = errors_deg.len();
         if n_samples == 0 {
             return None;
         }
         let n = n_samples as f64;
         let mean_deg = errors_deg.iter().sum::<f64>() / n;
-        let sum_sq_dev: f64 = errors_deg.iter().map(|error_deg| (error_deg - mean_deg).powi(2)).sum();
-        let std_deg = if n_samples > 1 { (sum_sq_dev / (n - 1.0)).sqrt() } else { 0.0 };
-        let rms_deg = (errors_deg.iter().map(|error_deg| error_deg * error_deg).sum::<f64>() / n).sqrt();
-        let within_5 = errors_deg.iter().filter(|error_deg| error_deg.abs() <= 5.0).count();
+        let sum_sq_dev: f64 = errors_deg
+            .iter()
+            .map(|error_deg| (error_deg - mean_deg).powi(2))
+            .sum();
+        let std_deg = if n_samples > 1 {
+            (sum_sq_dev / (n - 1.0)).sqrt()
+        } else {
+            0.0
+        };
+        let rms_deg = (errors_deg
+            .iter()
+            .map(|error_deg| error_deg * error_deg)
+            .sum::<f64>()
+            / n)
+            .sqrt();
+        let within_5 = errors_deg
+            .iter()
+            .filter(|error_deg| error_deg.abs() <= 5.0)
+            .count();
         for error_deg in &mut errors_deg {
             *error_deg = error_deg.abs();
         }
@@ -61,7 +79,9 @@ mod tests {
     #[test]
     fn known_errors_give_known_statistics() {
         let errors_deg = [1.0, -1.0, 3.0, -3.0, 10.0];
-        let stats = HeadingErrorStats::from_errors_rad(errors_deg.iter().map(|e: &f64| e.to_radians())).expect("some errors");
+        let stats =
+            HeadingErrorStats::from_errors_rad(errors_deg.iter().map(|e: &f64| e.to_radians()))
+                .expect("some errors");
         assert_eq!(stats.n_samples, 5);
         assert!((stats.mean_deg - 2.0).abs() < 1e-9);
         assert!((stats.rms_deg - (120.0f64 / 5.0).sqrt()).abs() < 1e-9);
@@ -73,7 +93,8 @@ mod tests {
 
     #[test]
     fn errors_are_wrapped_before_averaging() {
-        let stats = HeadingErrorStats::from_errors_rad([359f64.to_radians(), 1f64.to_radians()]).expect("two errors");
+        let stats = HeadingErrorStats::from_errors_rad([359f64.to_radians(), 1f64.to_radians()])
+            .expect("two errors");
         assert!(stats.mean_deg.abs() < 1e-9);
         assert!((stats.rms_deg - 1.0).abs() < 1e-9);
     }

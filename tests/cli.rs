@@ -5,7 +5,10 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 fn compass_pdr(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_compass-pdr")).args(args).output().expect("the CLI runs")
+    Command::new(env!("CARGO_BIN_EXE_compass-pdr"))
+        .args(args)
+        .output()
+        .expect("the CLI runs")
 }
 
 fn scratch_dir(test_name: &str) -> PathBuf {
@@ -22,24 +25,50 @@ fn stderr(output: &Output) -> String {
 fn the_committed_demo_is_what_the_simulator_writes() {
     let dir = scratch_dir("demo");
     let out = dir.join("demo-walk.csv");
-    let output = compass_pdr(&["simulate", "--seed", "1", "--duration-s", "180", "--out", out.to_str().unwrap_or_default()]);
+    let output = compass_pdr(&[
+        "simulate",
+        "--seed",
+        "1",
+        "--duration-s",
+        "180",
+        "--out",
+        out.to_str().unwrap_or_default(),
+    ]);
     assert!(output.status.success(), "{}", stderr(&output));
     let regenerated = std::fs::read(&out).expect("written");
-    let committed = std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/demo-walk.csv")).expect("committed demo");
-    assert!(regenerated == committed, "assets/demo-walk.csv is stale: regenerate it with the command in README.md");
+    let committed =
+        std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/demo-walk.csv"))
+            .expect("committed demo");
+    assert!(
+        regenerated == committed,
+        "assets/demo-walk.csv is stale: regenerate it with the command in README.md"
+    );
 }
 
 #[test]
 fn calibrate_prints_json_with_the_heading_errors() {
     let demo = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/demo-walk.csv");
-    let output = compass_pdr(&["calibrate", demo.to_str().unwrap_or_default(), "--method", "minmax", "--json"]);
+    let output = compass_pdr(&[
+        "calibrate",
+        demo.to_str().unwrap_or_default(),
+        "--method",
+        "minmax",
+        "--json",
+    ]);
     assert!(output.status.success(), "{}", stderr(&output));
     let json: serde_json::Value = serde_json::from_slice(&output.stdout).expect("JSON on stdout");
     assert_eq!(json["method"], "minmax");
     assert_eq!(json["n_samples_used"], 9000);
-    let rms_before = json["heading_error_before"]["rms_deg"].as_f64().unwrap_or(f64::NAN);
-    let rms_after = json["heading_error_after"]["rms_deg"].as_f64().unwrap_or(f64::NAN);
-    assert!(rms_before > 10.0 && rms_after < 3.0, "before {rms_before}, after {rms_after}");
+    let rms_before = json["heading_error_before"]["rms_deg"]
+        .as_f64()
+        .unwrap_or(f64::NAN);
+    let rms_after = json["heading_error_after"]["rms_deg"]
+        .as_f64()
+        .unwrap_or(f64::NAN);
+    assert!(
+        rms_before > 10.0 && rms_after < 3.0,
+        "before {rms_before}, after {rms_after}"
+    );
     for key in ["scale_x", "scale_y", "bias_x_ut", "bias_y_ut"] {
         assert!(json["calibration"][key].is_f64(), "{key}");
     }
@@ -50,10 +79,18 @@ fn calibrate_draws_the_plots_to_svg() {
     let dir = scratch_dir("plot");
     let svg = dir.join("plot.svg");
     let demo = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/demo-walk.csv");
-    let output = compass_pdr(&["calibrate", demo.to_str().unwrap_or_default(), "--plot", svg.to_str().unwrap_or_default()]);
+    let output = compass_pdr(&[
+        "calibrate",
+        demo.to_str().unwrap_or_default(),
+        "--plot",
+        svg.to_str().unwrap_or_default(),
+    ]);
     assert!(output.status.success(), "{}", stderr(&output));
     let text = std::fs::read_to_string(&svg).expect("SVG written");
-    assert!(text.contains("Level-plane field") && text.contains("Heading error against ref_heading_deg"));
+    assert!(
+        text.contains("Level-plane field")
+            && text.contains("Heading error against ref_heading_deg")
+    );
     assert!(String::from_utf8_lossy(&output.stdout).contains("heading error after"));
 }
 
@@ -66,18 +103,33 @@ fn check_refused(test_name: &str, file_name: &str, content: &[u8], expect_in_mes
     let message = stderr(&output);
     assert_eq!(output.status.code(), Some(1), "{message}");
     assert!(!message.contains("panicked"), "{message}");
-    assert!(message.contains(file_name), "the message names the file: {message}");
+    assert!(
+        message.contains(file_name),
+        "the message names the file: {message}"
+    );
     assert!(message.contains(expect_in_message), "{message}");
     assert!(output.stdout.is_empty());
 }
 
 #[test]
 fn bad_inputs_are_refused_with_clear_messages() {
-    let garbage: Vec<u8> = (0..4096u32).map(|idx| (idx.wrapping_mul(2_654_435_761) >> 24) as u8).collect();
+    let garbage: Vec<u8> = (0..4096u32)
+        .map(|idx| (idx.wrapping_mul(2_654_435_761) >> 24) as u8)
+        .collect();
     check_refused("garbage", "garbage.bin", &garbage, "is not a text log");
     check_refused("empty", "empty.csv", b"", "is empty. Choose a log");
-    check_refused("nomag", "no-mag.csv", b"t_s,acc_x_mps2,acc_y_mps2,acc_z_mps2\n0,0,0,-9.81\n", "has no magnetometer columns");
-    check_refused("nans", "nans.csv", b"t_s,mag_x_ut,mag_y_ut,mag_z_ut\n0,NaN,NaN,NaN\n1,NaN,NaN,NaN\n", "line 2: mag_x_ut is NaN");
+    check_refused(
+        "nomag",
+        "no-mag.csv",
+        b"t_s,acc_x_mps2,acc_y_mps2,acc_z_mps2\n0,0,0,-9.81\n",
+        "has no magnetometer columns",
+    );
+    check_refused(
+        "nans",
+        "nans.csv",
+        b"t_s,mag_x_ut,mag_y_ut,mag_z_ut\n0,NaN,NaN,NaN\n1,NaN,NaN,NaN\n",
+        "line 2: mag_x_ut is NaN",
+    );
     check_refused("flat", "still.csv", b"t_s,mag_x_ut,mag_y_ut,mag_z_ut\n0,20,0,40\n1,20,0,40\n2,20,0,40\n3,20,0,40\n4,20,0,40\n5,20,0,40\n6,20,0,40\n7,20,0,40\n8,20,0,40\n9,20,0,40\n10,20,0,40\n11,20,0,40\n12,20,0,40\n13,20,0,40\n14,20,0,40\n15,20,0,40\n16,20,0,40\n17,20,0,40\n18,20,0,40\n19,20,0,40\n20,20,0,40\n", "Turn the device through a full circle");
 }
 
@@ -98,13 +150,21 @@ fn bad_lines_are_listed_with_their_line_numbers_and_the_rest_is_used() {
         if idx == 10 {
             text.push_str("10,abc,1,2\n");
         } else {
-            text.push_str(&format!("{idx},{},{},40\n", 20.0 * angle_rad.cos(), 20.0 * angle_rad.sin()));
+            text.push_str(&format!(
+                "{idx},{},{},40\n",
+                20.0 * angle_rad.cos(),
+                20.0 * angle_rad.sin()
+            ));
         }
     }
     std::fs::write(&path, text).expect("written");
     let output = compass_pdr(&["calibrate", path.to_str().unwrap_or_default(), "--json"]);
     assert!(output.status.success(), "{}", stderr(&output));
-    assert!(stderr(&output).contains("partly-bad.csv:12: mag_x_ut is not a number (abc)"), "{}", stderr(&output));
+    assert!(
+        stderr(&output).contains("partly-bad.csv:12: mag_x_ut is not a number (abc)"),
+        "{}",
+        stderr(&output)
+    );
     let json: serde_json::Value = serde_json::from_slice(&output.stdout).expect("JSON");
     assert_eq!(json["n_samples_used"], 99);
 }

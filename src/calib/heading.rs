@@ -24,7 +24,10 @@ mod tests {
 
     fn check(level_ut: (f64, f64), expect_deg: f64) {
         let got_deg = heading_rad(Vector2::new(level_ut.0, level_ut.1), 0.0).to_degrees();
-        assert!((got_deg - expect_deg).abs() < 1e-9, "{level_ut:?} → {got_deg}");
+        assert!(
+            (got_deg - expect_deg).abs() < 1e-9,
+            "{level_ut:?} → {got_deg}"
+        );
     }
 
     #[test]

@@ -72,12 +72,21 @@ impl MinMaxCalibration {
     /// Fits Eq. 7 to levelled field samples (µT).
     pub fn fit(level_ut: &[Vector2<f64>]) -> Result<Self, CalibError> {
         if level_ut.len() < MIN_SAMPLES {
-            return Err(CalibError::TooFewSamples { n_samples: level_ut.len(), min: MIN_SAMPLES });
+            return Err(CalibError::TooFewSamples {
+                n_samples: level_ut.len(),
+                min: MIN_SAMPLES,
+            });
         }
-        if let Some(sample_idx) = level_ut.iter().position(|sample| !(sample.x.is_finite() && sample.y.is_finite())) {
+        if let Some(sample_idx) = level_ut
+            .iter()
+            .position(|sample| !(sample.x.is_finite() && sample.y.is_finite()))
+        {
             return Err(CalibError::NonFinite { sample_idx });
         }
-        let (mut min, mut max) = (Vector2::repeat(f64::INFINITY), Vector2::repeat(f64::NEG_INFINITY));
+        let (mut min, mut max) = (
+            Vector2::repeat(f64::INFINITY),
+            Vector2::repeat(f64::NEG_INFINITY),
+        );
         for sample in level_ut {
             min = min.inf(sample);
             max = max.sup(sample);
@@ -85,7 +94,10 @@ impl MinMaxCalibration {
         let range_ut = max - min;
         for (axis, axis_range_ut) in [("x", range_ut.x), ("y", range_ut.y)] {
             if axis_range_ut < MIN_RANGE_UT {
-                return Err(CalibError::NoTurn { axis, range_ut: axis_range_ut });
+                return Err(CalibError::NoTurn {
+                    axis,
+                    range_ut: axis_range_ut,
+                });
             }
         }
         let scale_x = (range_ut.y / range_ut.x).max(1.0);
@@ -99,7 +111,12 @@ impl MinMaxCalibration {
             center_y_ut: (max.y + min.y) / 2.0,
             semi_axis_x_ut: range_ut.x / 2.0,
             semi_axis_y_ut: range_ut.y / 2.0,
-            coverage: Coverage { n_bins_covered: 0, n_bins: 0, largest_gap_deg: 0.0, largest_gap_start_deg: 0.0 },
+            coverage: Coverage {
+                n_bins_covered: 0,
+                n_bins: 0,
+                largest_gap_deg: 0.0,
+                largest_gap_start_deg: 0.0,
+            },
         };
         calibration.coverage = Coverage::of_headings(level_ut.iter().map(|&sample| {
             let corrected_ut = calibration.apply(sample);
@@ -110,7 +127,10 @@ impl MinMaxCalibration {
 
     /// Eq. 6: the corrected levelled components of a raw levelled sample.
     pub fn apply(&self, level_ut: Vector2<f64>) -> Vector2<f64> {
-        Vector2::new(self.scale_x * level_ut.x + self.bias_x_ut, self.scale_y * level_ut.y + self.bias_y_ut)
+        Vector2::new(
+            self.scale_x * level_ut.x + self.bias_x_ut,
+            self.scale_y * level_ut.y + self.bias_y_ut,
+        )
     }
 
     /// Radius of the corrected circle: the longer semi-axis, which Eq. 7 keeps.
@@ -126,7 +146,8 @@ impl Coverage {
         let mut covered = vec![false; n_bins];
         for heading_deg in headings_deg {
             if heading_deg.is_finite() {
-                let bin_idx = ((heading_deg.rem_euclid(360.0) / COVERAGE_BIN_DEG) as usize).min(n_bins - 1);
+                let bin_idx =
+                    ((heading_deg.rem_euclid(360.0) / COVERAGE_BIN_DEG) as usize).min(n_bins - 1);
                 covered[bin_idx] = true;
             }
         }
@@ -156,17 +177,27 @@ impl Coverage {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::calib::heading::heading_rad;
     use crate::angle::heading_difference_rad;
+    use crate::calib::heading::heading_rad;
 
     /// A level full turn seen through hard iron and axis scale factors.
-    fn distorted_turn(n_samples: usize, hard_iron_ut: Vector2<f64>, scale: Vector2<f64>) -> Vec<(f64, Vector2<f64>)> {
+    fn distorted_turn(
+        n_samples: usize,
+        hard_iron_ut: Vector2<f64>,
+        scale: Vector2<f64>,
+    ) -> Vec<(f64, Vector2<f64>)> {
         let horizontal_field_ut = 22.0;
         (0..n_samples)
             .map(|sample_idx| {
                 let heading_rad = std::f64::consts::TAU * sample_idx as f64 / n_samples as f64;
-                let true_level_ut = Vector2::new(horizontal_field_ut * heading_rad.cos(), -horizontal_field_ut * heading_rad.sin());
-                (heading_rad, true_level_ut.component_mul(&scale) + hard_iron_ut)
+                let true_level_ut = Vector2::new(
+                    horizontal_field_ut * heading_rad.cos(),
+                    -horizontal_field_ut * heading_rad.sin(),
+                );
+                (
+                    heading_rad,
+                    true_level_ut.component_mul(&scale) + hard_iron_ut,
+                )
             })
             .collect()
     }
@@ -182,9 +213,19 @@ mod tests {
         assert_eq!(calibration.scale_x, 1.0);
         let worst_error_deg = turn
             .iter()
-            .map(|&(true_heading_rad, sample)| heading_difference_rad(heading_rad(calibration.apply(sample), 0.0), true_heading_rad).abs().to_degrees())
+            .map(|&(true_heading_rad, sample)| {
+                heading_difference_rad(
+                    heading_rad(calibration.apply(sample), 0.0),
+                    true_heading_rad,
+                )
+                .abs()
+                .to_degrees()
+            })
             .fold(0.0, f64::max);
-        assert!(worst_error_deg < 0.05, "worst heading error {worst_error_deg}°");
+        assert!(
+            worst_error_deg < 0.05,
+            "worst heading error {worst_error_deg}°"
+        );
         assert_eq!(calibration.coverage.n_bins_covered, 36);
         assert_eq!(calibration.coverage.largest_gap_deg, 0.0);
     }
@@ -196,19 +237,38 @@ mod tests {
         let calibration = MinMaxCalibration::fit(&half).expect("fits, with a gap");
         // Min/max stretches a half circle, so the corrected headings spread, but the gap
         // stays wide enough to be reported.
-        assert!(calibration.coverage.largest_gap_deg >= 60.0, "{:?}", calibration.coverage);
+        assert!(
+            calibration.coverage.largest_gap_deg >= 60.0,
+            "{:?}",
+            calibration.coverage
+        );
     }
 
     #[test]
     fn degenerate_inputs_are_errors_not_panics() {
         let point = vec![Vector2::new(3.0, 4.0); 100];
-        assert!(matches!(MinMaxCalibration::fit(&point), Err(CalibError::NoTurn { axis: "x", .. })));
+        assert!(matches!(
+            MinMaxCalibration::fit(&point),
+            Err(CalibError::NoTurn { axis: "x", .. })
+        ));
         let line: Vec<Vector2<f64>> = (0..100).map(|idx| Vector2::new(idx as f64, 5.0)).collect();
-        assert!(matches!(MinMaxCalibration::fit(&line), Err(CalibError::NoTurn { axis: "y", .. })));
-        assert!(matches!(MinMaxCalibration::fit(&point[..3]), Err(CalibError::TooFewSamples { n_samples: 3, .. })));
+        assert!(matches!(
+            MinMaxCalibration::fit(&line),
+            Err(CalibError::NoTurn { axis: "y", .. })
+        ));
+        assert!(matches!(
+            MinMaxCalibration::fit(&point[..3]),
+            Err(CalibError::TooFewSamples { n_samples: 3, .. })
+        ));
         let mut with_nan = point.clone();
         with_nan[7].x = f64::NAN;
-        assert!(matches!(MinMaxCalibration::fit(&with_nan), Err(CalibError::NonFinite { sample_idx: 7 })));
-        assert!(matches!(MinMaxCalibration::fit(&[]), Err(CalibError::TooFewSamples { .. })));
+        assert!(matches!(
+            MinMaxCalibration::fit(&with_nan),
+            Err(CalibError::NonFinite { sample_idx: 7 })
+        ));
+        assert!(matches!(
+            MinMaxCalibration::fit(&[]),
+            Err(CalibError::TooFewSamples { .. })
+        ));
     }
 }

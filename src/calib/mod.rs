@@ -16,7 +16,9 @@ pub enum CalibError {
     #[error("too few magnetometer samples ({n_samples}; at least {min} are needed). Record longer, turning through a full circle.")]
     TooFewSamples { n_samples: usize, min: usize },
 
-    #[error("sample {sample_idx} is not a finite number. Remove NaN or infinite values from the input.")]
+    #[error(
+        "sample {sample_idx} is not a finite number. Remove NaN or infinite values from the input."
+    )]
     NonFinite { sample_idx: usize },
 
     #[error(

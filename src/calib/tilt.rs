@@ -44,7 +44,10 @@ pub struct Tilt {
 }
 
 impl Tilt {
-    pub const LEVEL: Tilt = Tilt { roll_rad: 0.0, pitch_rad: 0.0 };
+    pub const LEVEL: Tilt = Tilt {
+        roll_rad: 0.0,
+        pitch_rad: 0.0,
+    };
 
     /// Roll and pitch from specific force in the body frame; `None` when the force is
     /// too small or not finite to tell which way is down.
@@ -54,7 +57,10 @@ impl Tilt {
             return None;
         }
         let (fx, fy, fz) = (f_in_body_mps2.x, f_in_body_mps2.y, f_in_body_mps2.z);
-        Some(Tilt { roll_rad: (-fy).atan2(-fz), pitch_rad: fx.atan2(fy.hypot(fz)) })
+        Some(Tilt {
+            roll_rad: (-fy).atan2(-fz),
+            pitch_rad: fx.atan2(fy.hypot(fz)),
+        })
     }
 
     /// The horizontal components (Xh along the heading, Yh to its right) of a body
@@ -63,7 +69,9 @@ impl Tilt {
         let (sin_roll, cos_roll) = self.roll_rad.sin_cos();
         let (sin_pitch, cos_pitch) = self.pitch_rad.sin_cos();
         Vector2::new(
-            v_in_body.x * cos_pitch + v_in_body.y * sin_roll * sin_pitch + v_in_body.z * cos_roll * sin_pitch,
+            v_in_body.x * cos_pitch
+                + v_in_body.y * sin_roll * sin_pitch
+                + v_in_body.z * cos_roll * sin_pitch,
             v_in_body.y * cos_roll - v_in_body.z * sin_roll,
         )
     }
@@ -71,7 +79,10 @@ impl Tilt {
 
 /// Specific force averaged over a centred window of `window_s` seconds, at each
 /// sample's time: the gravity estimate that tilt is taken from.
-pub fn smooth_specific_force(acc_in_body_mps2: &Stream<Vector3<f64>>, window_s: f64) -> Stream<Vector3<f64>> {
+pub fn smooth_specific_force(
+    acc_in_body_mps2: &Stream<Vector3<f64>>,
+    window_s: f64,
+) -> Stream<Vector3<f64>> {
     let half_window_s = window_s / 2.0;
     let times_s = &acc_in_body_mps2.t_s;
     let values = &acc_in_body_mps2.values;
@@ -107,13 +118,22 @@ mod tests {
 
     #[test]
     fn tilt_is_recovered_from_specific_force_at_rest() {
-        for &(roll_deg, pitch_deg) in &[(0.0, 0.0), (10.0, -5.0), (-30.0, 20.0), (80.0, 45.0), (170.0, 10.0)] {
+        for &(roll_deg, pitch_deg) in &[
+            (0.0, 0.0),
+            (10.0, -5.0),
+            (-30.0, 20.0),
+            (80.0, 45.0),
+            (170.0, 10.0),
+        ] {
             let (roll_rad, pitch_rad) = (f64::to_radians(roll_deg), f64::to_radians(pitch_deg));
             let body_from_ned = ned_from_body(1.0, pitch_rad, roll_rad).inverse();
             let f_in_body = body_from_ned * Vector3::new(0.0, 0.0, -G_MPS2);
             let tilt = Tilt::from_specific_force(f_in_body).expect("gravity is large enough");
             assert!((tilt.roll_rad - roll_rad).abs() < 1e-9, "roll {roll_deg}");
-            assert!((tilt.pitch_rad - pitch_rad).abs() < 1e-9, "pitch {pitch_deg}");
+            assert!(
+                (tilt.pitch_rad - pitch_rad).abs() < 1e-9,
+                "pitch {pitch_deg}"
+            );
         }
     }
 
@@ -126,16 +146,23 @@ mod tests {
         for &(roll_deg, pitch_deg) in &[(0.0, 0.0), (15.0, -10.0), (-40.0, 25.0)] {
             let (roll_rad, pitch_rad) = (f64::to_radians(roll_deg), f64::to_radians(pitch_deg));
             let body_from_ned = ned_from_body(yaw_rad, pitch_rad, roll_rad).inverse();
-            let tilt = Tilt::from_specific_force(body_from_ned * Vector3::new(0.0, 0.0, -G_MPS2)).expect("tilt");
+            let tilt = Tilt::from_specific_force(body_from_ned * Vector3::new(0.0, 0.0, -G_MPS2))
+                .expect("tilt");
             let level_ut = tilt.level(body_from_ned * field_in_ned_ut);
-            assert!((level_ut - expect).norm() < 1e-9, "roll {roll_deg}, pitch {pitch_deg}: {level_ut:?}");
+            assert!(
+                (level_ut - expect).norm() < 1e-9,
+                "roll {roll_deg}, pitch {pitch_deg}: {level_ut:?}"
+            );
         }
     }
 
     #[test]
     fn no_direction_from_free_fall_or_nan() {
         assert_eq!(Tilt::from_specific_force(Vector3::new(0.1, 0.0, 0.2)), None);
-        assert_eq!(Tilt::from_specific_force(Vector3::new(f64::NAN, 0.0, -9.8)), None);
+        assert_eq!(
+            Tilt::from_specific_force(Vector3::new(f64::NAN, 0.0, -9.8)),
+            None
+        );
     }
 
     #[test]

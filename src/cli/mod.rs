@@ -213,9 +213,16 @@ fn summary_text(summary: &MinMaxSummary) -> String {
     );
     let mut print_stats = |label: &str, stats: &Option<HeadingErrorStats>| {
         if let Some(stats) = stats {
-            let _ = writeln!(text, 
-                "  heading error {label}: mean {:.2}°, std {:.2}°, RMS {:.2}°, p95 {:.2}°, within ±5° {:.1}% (n = {})",
-                stats.mean_deg, stats.std_deg, stats.rms_deg, stats.p95_abs_deg, stats.within_5_deg_pct, stats.n_samples
+            let _ = writeln!(
+                text,
+                "  heading error {label}: mean {:.2}°, std {:.2}°, RMS {:.2}°, p95 {:.2}°, \
+                 within ±5° {:.1}% (n = {})",
+                stats.mean_deg,
+                stats.std_deg,
+                stats.rms_deg,
+                stats.p95_abs_deg,
+                stats.within_5_deg_pct,
+                stats.n_samples
             );
         }
     };

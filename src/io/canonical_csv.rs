@@ -23,9 +23,25 @@ use crate::recording::{GnssFix, Recording};
 
 /// The canonical columns, in the order the writer uses.
 pub const COLUMNS: [&str; 19] = [
-    "t_s", "acc_x_mps2", "acc_y_mps2", "acc_z_mps2", "gyro_x_radps", "gyro_y_radps", "gyro_z_radps",
-    "mag_x_ut", "mag_y_ut", "mag_z_ut", "temp_c", "lat_deg", "lon_deg", "gps_speed_mps",
-    "gps_course_deg", "gps_hacc_m", "ref_heading_deg", "ref_e_m", "ref_n_m",
+    "t_s",
+    "acc_x_mps2",
+    "acc_y_mps2",
+    "acc_z_mps2",
+    "gyro_x_radps",
+    "gyro_y_radps",
+    "gyro_z_radps",
+    "mag_x_ut",
+    "mag_y_ut",
+    "mag_z_ut",
+    "temp_c",
+    "lat_deg",
+    "lon_deg",
+    "gps_speed_mps",
+    "gps_course_deg",
+    "gps_hacc_m",
+    "ref_heading_deg",
+    "ref_e_m",
+    "ref_n_m",
 ];
 
 /// Lines longer than this are cut (a canonical row is under 300 bytes).
@@ -115,13 +131,19 @@ pub fn read(file_name: &str, bytes: &[u8]) -> Result<ImportReport, ImportError> 
         return Err(ImportError::Empty { file_name });
     }
     if let Some(byte_offset) = first_binary_offset(bytes) {
-        return Err(ImportError::NotText { file_name, byte_offset });
+        return Err(ImportError::NotText {
+            file_name,
+            byte_offset,
+        });
     }
 
     let mut reader = Reader::default();
     decode_all(bytes, MAX_LINE_BYTES, |line| {
         if line.truncated {
-            reader.diagnostics.push(Some(line.number), format!("line longer than {MAX_LINE_BYTES} bytes; its end was ignored"));
+            reader.diagnostics.push(
+                Some(line.number),
+                format!("line longer than {MAX_LINE_BYTES} bytes; its end was ignored"),
+            );
         }
         reader.read_line(line.number, &line.text);
     });
@@ -167,7 +189,9 @@ impl Reader {
         let mut n_fields = 0usize;
         for (field_idx, field) in text.split(header.delimiter).enumerate() {
             n_fields += 1;
-            let Some(Some(column)) = header.column_of_field.get(field_idx) else { continue };
+            let Some(Some(column)) = header.column_of_field.get(field_idx) else {
+                continue;
+            };
             let field = field.trim().trim_matches('"').trim();
             if field.is_empty() {
                 continue;
@@ -175,7 +199,11 @@ impl Reader {
             match field.parse::<f64>() {
                 Ok(value) if value.is_finite() => values[*column] = Some(value),
                 Ok(_) => problems.push(format!("{} is {field}", COLUMNS[*column])),
-                Err(_) => problems.push(format!("{} is not a number ({})", COLUMNS[*column], shorten(field))),
+                Err(_) => problems.push(format!(
+                    "{} is not a number ({})",
+                    COLUMNS[*column],
+                    shorten(field)
+                )),
             }
         }
         // Fewer fields than the header are empty trailing columns; more may mean the
@@ -193,7 +221,8 @@ impl Reader {
                 Some(t_s) => t_s,
                 None => {
                     problems.push("no time (t_s), so the line was skipped".to_string());
-                    self.diagnostics.push(Some(line_number), problems.join("; "));
+                    self.diagnostics
+                        .push(Some(line_number), problems.join("; "));
                     return;
                 }
             }
@@ -203,16 +232,19 @@ impl Reader {
         };
 
         let recording = &mut self.recording;
-        let vector = |first: usize, name: &str, problems: &mut Vec<String>| -> Option<Vector3<f64>> {
-            match (values[first], values[first + 1], values[first + 2]) {
-                (Some(x), Some(y), Some(z)) => Some(Vector3::new(x, y, z)),
-                (None, None, None) => None,
-                _ => {
-                    problems.push(format!("{name} has only some of x, y, z; that sample was skipped"));
-                    None
+        let vector =
+            |first: usize, name: &str, problems: &mut Vec<String>| -> Option<Vector3<f64>> {
+                match (values[first], values[first + 1], values[first + 2]) {
+                    (Some(x), Some(y), Some(z)) => Some(Vector3::new(x, y, z)),
+                    (None, None, None) => None,
+                    _ => {
+                        problems.push(format!(
+                            "{name} has only some of x, y, z; that sample was skipped"
+                        ));
+                        None
+                    }
                 }
-            }
-        };
+            };
         if let Some(acc) = vector(col::ACC, "accelerometer", &mut problems) {
             recording.acc_in_body_mps2.push(t_s, acc);
         }
@@ -236,15 +268,20 @@ impl Reader {
             recording.gnss.push(t_s, fix);
         }
         if let Some(ref_heading_deg) = values[col::REF_HEADING] {
-            recording.ref_heading_rad.push(t_s, ref_heading_deg.to_radians());
+            recording
+                .ref_heading_rad
+                .push(t_s, ref_heading_deg.to_radians());
         }
         match (values[col::REF_E], values[col::REF_N]) {
-            (Some(e_m), Some(n_m)) => recording.ref_position_en_m.push(t_s, Vector2::new(e_m, n_m)),
+            (Some(e_m), Some(n_m)) => recording
+                .ref_position_en_m
+                .push(t_s, Vector2::new(e_m, n_m)),
             (None, None) => {}
             _ => problems.push("reference position has only one of ref_e_m, ref_n_m".to_string()),
         }
         if !problems.is_empty() {
-            self.diagnostics.push(Some(line_number), problems.join("; "));
+            self.diagnostics
+                .push(Some(line_number), problems.join("; "));
         }
     }
 
@@ -253,7 +290,11 @@ impl Reader {
             return Err(ImportError::NoHeader { file_name });
         };
         if header.column_of_field.iter().all(Option::is_none) {
-            return Err(ImportError::UnknownHeader { file_name, line: header.line, found: shorten(&header.names.join(", ")) });
+            return Err(ImportError::UnknownHeader {
+                file_name,
+                line: header.line,
+                found: shorten(&header.names.join(", ")),
+            });
         }
         let unknown: Vec<&str> = header
             .names
@@ -263,10 +304,19 @@ impl Reader {
             .map(|(name, _)| name.as_str())
             .collect();
         if !unknown.is_empty() {
-            self.diagnostics.push(Some(header.line), format!("columns ignored (not canonical names): {}", shorten(&unknown.join(", "))));
+            self.diagnostics.push(
+                Some(header.line),
+                format!(
+                    "columns ignored (not canonical names): {}",
+                    shorten(&unknown.join(", "))
+                ),
+            );
         }
         if !header.has_time {
-            self.diagnostics.push(Some(header.line), "no t_s column: the sample number is used as time");
+            self.diagnostics.push(
+                Some(header.line),
+                "no t_s column: the sample number is used as time",
+            );
         }
         self.sort_streams(header.line);
         Ok(ImportReport {
@@ -291,7 +341,9 @@ impl Reader {
         if n_out_of_order > 0 {
             self.diagnostics.push(
                 Some(header_line),
-                format!("time goes backwards {n_out_of_order} times; the samples were sorted by time"),
+                format!(
+                    "time goes backwards {n_out_of_order} times; the samples were sorted by time"
+                ),
             );
         }
     }
@@ -308,13 +360,26 @@ impl Header {
         } else {
             ','
         };
-        let names: Vec<String> = text.split(delimiter).map(|name| name.trim().trim_matches('"').trim().to_string()).collect();
+        let names: Vec<String> = text
+            .split(delimiter)
+            .map(|name| name.trim().trim_matches('"').trim().to_string())
+            .collect();
         let column_of_field: Vec<Option<usize>> = names
             .iter()
-            .map(|name| COLUMNS.iter().position(|column| column.eq_ignore_ascii_case(name)))
+            .map(|name| {
+                COLUMNS
+                    .iter()
+                    .position(|column| column.eq_ignore_ascii_case(name))
+            })
             .collect();
         let has_time = column_of_field.contains(&Some(col::T));
-        Header { line, delimiter, names, column_of_field, has_time }
+        Header {
+            line,
+            delimiter,
+            names,
+            column_of_field,
+            has_time,
+        }
     }
 }
 
@@ -351,12 +416,18 @@ mod tests {
         assert!(report.diagnostics.is_empty(), "{:?}", report.diagnostics);
         let recording = report.recording;
         assert_eq!(recording.mag_in_body_ut.t_s, vec![1.25, 2.0]);
-        assert_eq!(recording.mag_in_body_ut.values[0], Vector3::new(20.0, -5.5, 40.125));
+        assert_eq!(
+            recording.mag_in_body_ut.values[0],
+            Vector3::new(20.0, -5.5, 40.125)
+        );
         assert_eq!(recording.acc_in_body_mps2.len(), 2);
         assert!(recording.gyro_in_body_radps.is_empty());
         assert!(recording.gnss.is_empty());
         assert!((recording.ref_heading_rad.values[0].to_degrees() - 359.5).abs() < 1e-9);
-        assert_eq!(recording.ref_position_en_m.values[1], Vector2::new(3.0, 4.0));
+        assert_eq!(
+            recording.ref_position_en_m.values[1],
+            Vector2::new(3.0, 4.0)
+        );
     }
 
     #[test]
@@ -372,8 +443,12 @@ mod tests {
         assert_eq!(report.recording.mag_in_body_ut.t_s, vec![0.0, 4.0]);
         let lines: Vec<Option<usize>> = report.diagnostics.kept.iter().map(|d| d.line).collect();
         assert_eq!(lines, vec![Some(3), Some(4), Some(5), Some(6), Some(1)]);
-        assert!(report.diagnostics.kept[0].message.contains("mag_x_ut is not a number (abc)"));
-        assert!(report.diagnostics.kept[1].message.contains("mag_x_ut is NaN"));
+        assert!(report.diagnostics.kept[0]
+            .message
+            .contains("mag_x_ut is not a number (abc)"));
+        assert!(report.diagnostics.kept[1]
+            .message
+            .contains("mag_x_ut is NaN"));
         assert!(report.diagnostics.kept[4].message.contains("colour"));
     }
 
@@ -388,18 +463,33 @@ mod tests {
 
     #[test]
     fn out_of_order_time_is_sorted_and_reported() {
-        let report = read_text("t_s,mag_x_ut,mag_y_ut,mag_z_ut\n1,1,1,1\n0,0,0,0\n").expect("readable");
+        let report =
+            read_text("t_s,mag_x_ut,mag_y_ut,mag_z_ut\n1,1,1,1\n0,0,0,0\n").expect("readable");
         assert_eq!(report.recording.mag_in_body_ut.t_s, vec![0.0, 1.0]);
-        assert!(report.diagnostics.kept[0].message.contains("time goes backwards"));
+        assert!(report.diagnostics.kept[0]
+            .message
+            .contains("time goes backwards"));
     }
 
     #[test]
     fn files_with_nothing_readable_are_errors() {
         assert!(matches!(read_text(""), Err(ImportError::Empty { .. })));
-        assert!(matches!(read_text("\n \r\n"), Err(ImportError::Empty { .. })));
-        assert!(matches!(read_text("# only a comment\n"), Err(ImportError::NoHeader { .. })));
-        assert!(matches!(read_text("a,b,c\n1,2,3\n"), Err(ImportError::UnknownHeader { line: 1, .. })));
-        assert!(matches!(read("x.bin", b"\x00\x01\x02garbage"), Err(ImportError::NotText { .. })));
+        assert!(matches!(
+            read_text("\n \r\n"),
+            Err(ImportError::Empty { .. })
+        ));
+        assert!(matches!(
+            read_text("# only a comment\n"),
+            Err(ImportError::NoHeader { .. })
+        ));
+        assert!(matches!(
+            read_text("a,b,c\n1,2,3\n"),
+            Err(ImportError::UnknownHeader { line: 1, .. })
+        ));
+        assert!(matches!(
+            read("x.bin", b"\x00\x01\x02garbage"),
+            Err(ImportError::NotText { .. })
+        ));
     }
 
     #[test]

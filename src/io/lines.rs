@@ -31,7 +31,13 @@ pub struct LineDecoder {
 impl LineDecoder {
     /// A decoder that keeps at most `max_line_bytes` of any line.
     pub fn new(max_line_bytes: usize) -> Self {
-        Self { buffer: Vec::new(), max_line_bytes: max_line_bytes.max(1), n_lines_emitted: 0, truncated: false, after_cr: false }
+        Self {
+            buffer: Vec::new(),
+            max_line_bytes: max_line_bytes.max(1),
+            n_lines_emitted: 0,
+            truncated: false,
+            after_cr: false,
+        }
     }
 
     /// Feeds one chunk, calling `on_line` for each line it completes.
@@ -81,12 +87,17 @@ impl LineDecoder {
         if bytes.len() > room {
             self.truncated = true;
         }
-        self.buffer.extend_from_slice(&bytes[..bytes.len().min(room)]);
+        self.buffer
+            .extend_from_slice(&bytes[..bytes.len().min(room)]);
     }
 
     fn emit(&mut self, on_line: &mut impl FnMut(Line<'_>)) {
         self.n_lines_emitted += 1;
-        on_line(Line { number: self.n_lines_emitted, text: String::from_utf8_lossy(&self.buffer), truncated: self.truncated });
+        on_line(Line {
+            number: self.n_lines_emitted,
+            text: String::from_utf8_lossy(&self.buffer),
+            truncated: self.truncated,
+        });
         self.buffer.clear();
         self.truncated = false;
     }
@@ -107,7 +118,9 @@ mod tests {
         let mut lines = Vec::new();
         let mut decoder = LineDecoder::new(max_line_bytes);
         for chunk in chunks {
-            decoder.feed(chunk, |line| lines.push((line.number, line.text.into_owned(), line.truncated)));
+            decoder.feed(chunk, |line| {
+                lines.push((line.number, line.text.into_owned(), line.truncated))
+            });
         }
         decoder.finish(|line| lines.push((line.number, line.text.into_owned(), line.truncated)));
         lines
@@ -115,13 +128,19 @@ mod tests {
 
     #[test]
     fn every_line_ending_is_accepted() {
-        let got: Vec<String> = lines_of_chunks(&[b"a\nb\r\nc\rd"], 100).into_iter().map(|l| l.1).collect();
+        let got: Vec<String> = lines_of_chunks(&[b"a\nb\r\nc\rd"], 100)
+            .into_iter()
+            .map(|l| l.1)
+            .collect();
         assert_eq!(got, ["a", "b", "c", "d"]);
     }
 
     #[test]
     fn empty_lines_are_lines() {
-        let got: Vec<String> = lines_of_chunks(&[b"a\n\nb\r\n\r\n"], 100).into_iter().map(|l| l.1).collect();
+        let got: Vec<String> = lines_of_chunks(&[b"a\n\nb\r\n\r\n"], 100)
+            .into_iter()
+            .map(|l| l.1)
+            .collect();
         assert_eq!(got, ["a", "", "b", ""]);
     }
 
@@ -131,8 +150,16 @@ mod tests {
         let whole = lines_of_chunks(&[input], 100);
         for split_a in 0..=input.len() {
             for split_b in split_a..=input.len() {
-                let chunks = [&input[..split_a], &input[split_a..split_b], &input[split_b..]];
-                assert_eq!(lines_of_chunks(&chunks, 100), whole, "split at {split_a}, {split_b}");
+                let chunks = [
+                    &input[..split_a],
+                    &input[split_a..split_b],
+                    &input[split_b..],
+                ];
+                assert_eq!(
+                    lines_of_chunks(&chunks, 100),
+                    whole,
+                    "split at {split_a}, {split_b}"
+                );
             }
         }
     }
@@ -140,7 +167,10 @@ mod tests {
     #[test]
     fn long_lines_are_cut_and_flagged() {
         let got = lines_of_chunks(&[b"abcdefgh\nxy\n"], 4);
-        assert_eq!(got, vec![(1, "abcd".to_string(), true), (2, "xy".to_string(), false)]);
+        assert_eq!(
+            got,
+            vec![(1, "abcd".to_string(), true), (2, "xy".to_string(), false)]
+        );
     }
 
     #[test]

@@ -35,7 +35,10 @@ pub struct Diagnostics {
 impl Diagnostics {
     pub fn push(&mut self, line: Option<usize>, message: impl Into<String>) {
         if self.kept.len() < MAX_DIAGNOSTICS_KEPT {
-            self.kept.push(Diagnostic { line, message: message.into() });
+            self.kept.push(Diagnostic {
+                line,
+                message: message.into(),
+            });
         } else {
             self.n_not_kept += 1;
         }
@@ -75,7 +78,10 @@ pub enum ImportError {
          Export the log as CSV text with a header line such as \
          t_s,mag_x_ut,mag_y_ut,mag_z_ut."
     )]
-    NotText { file_name: String, byte_offset: usize },
+    NotText {
+        file_name: String,
+        byte_offset: usize,
+    },
 
     #[error("{file_name} has no header line, only blank or comment lines. Add a header such as t_s,mag_x_ut,mag_y_ut,mag_z_ut.")]
     NoHeader { file_name: String },
@@ -85,7 +91,11 @@ pub enum ImportError {
          (found: {found}). Use the canonical names, such as t_s, acc_x_mps2, \
          mag_x_ut, mag_y_ut, mag_z_ut, ref_heading_deg."
     )]
-    UnknownHeader { file_name: String, line: usize, found: String },
+    UnknownHeader {
+        file_name: String,
+        line: usize,
+        found: String,
+    },
 }
 
 /// Whether `bytes` look like text, judged from their start. Returns the offset of the
@@ -134,7 +144,9 @@ mod tests {
     #[test]
     fn nul_bytes_and_noise_are_binary() {
         assert_eq!(first_binary_offset(b"abc\0def"), Some(3));
-        let noise: Vec<u8> = (0..4096u32).map(|i| (i.wrapping_mul(2654435761) >> 13) as u8 | 0x80).collect();
+        let noise: Vec<u8> = (0..4096u32)
+            .map(|i| (i.wrapping_mul(2654435761) >> 13) as u8 | 0x80)
+            .collect();
         assert!(first_binary_offset(&noise).is_some());
     }
 

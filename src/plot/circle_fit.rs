@@ -13,10 +13,16 @@ pub const CORRECTED_COLOR: RGBColor = RGBColor(30, 100, 200);
 
 const N_CURVE_POINTS: usize = 240;
 
-pub fn draw_circle_fit<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, analysis: &MinMaxAnalysis) -> Result<(), PlotError> {
+pub fn draw_circle_fit<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    analysis: &MinMaxAnalysis,
+) -> Result<(), PlotError> {
     let error = PlotError::from_backend::<DrawingAreaErrorKind<DB::ErrorType>>("circle-fit");
     let calibration = &analysis.summary.calibration;
-    let all_points = analysis.level_raw_ut.iter().chain(&analysis.level_corrected_ut);
+    let all_points = analysis
+        .level_raw_ut
+        .iter()
+        .chain(&analysis.level_corrected_ut);
     let (mut min_x, mut max_x, mut min_y, mut max_y) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
     for point in all_points {
         min_x = min_x.min(point.x);
@@ -27,17 +33,29 @@ pub fn draw_circle_fit<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, analys
     let (x_range, y_range) = equal_scale_ranges(area, (min_x, max_x), (min_y, max_y));
 
     let mut chart = ChartBuilder::on(area)
-        .caption("Level-plane field (µT): raw, min/max ellipse, corrected", ("sans-serif", 16))
+        .caption(
+            "Level-plane field (µT): raw, min/max ellipse, corrected",
+            ("sans-serif", 16),
+        )
         .margin(12)
         .x_label_area_size(36)
         .y_label_area_size(48)
         .build_cartesian_2d(x_range, y_range)
         .map_err(&error)?;
-    chart.configure_mesh().x_desc("Xh (µT)").y_desc("Yh (µT)").light_line_style(WHITE.mix(0.0)).draw().map_err(&error)?;
+    chart
+        .configure_mesh()
+        .x_desc("Xh (µT)")
+        .y_desc("Yh (µT)")
+        .light_line_style(WHITE.mix(0.0))
+        .draw()
+        .map_err(&error)?;
 
     let raw = &analysis.level_raw_ut;
     chart
-        .draw_series(thinned_indices(raw.len(), MAX_POINTS_PER_SERIES).map(|idx| Circle::new((raw[idx].x, raw[idx].y), 1, RAW_COLOR.mix(0.5).filled())))
+        .draw_series(
+            thinned_indices(raw.len(), MAX_POINTS_PER_SERIES)
+                .map(|idx| Circle::new((raw[idx].x, raw[idx].y), 1, RAW_COLOR.mix(0.5).filled())),
+        )
         .map_err(&error)?
         .label("raw")
         .legend(|(x, y)| Circle::new((x + 8, y), 3, RAW_COLOR.filled()));
@@ -58,8 +76,13 @@ pub fn draw_circle_fit<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, analys
     let corrected = &analysis.level_corrected_ut;
     chart
         .draw_series(
-            thinned_indices(corrected.len(), MAX_POINTS_PER_SERIES)
-                .map(|idx| Circle::new((corrected[idx].x, corrected[idx].y), 1, CORRECTED_COLOR.mix(0.5).filled())),
+            thinned_indices(corrected.len(), MAX_POINTS_PER_SERIES).map(|idx| {
+                Circle::new(
+                    (corrected[idx].x, corrected[idx].y),
+                    1,
+                    CORRECTED_COLOR.mix(0.5).filled(),
+                )
+            }),
         )
         .map_err(&error)?
         .label("corrected")
@@ -74,7 +97,9 @@ pub fn draw_circle_fit<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, analys
         .draw_series(LineSeries::new(circle, CORRECTED_COLOR.stroke_width(2)))
         .map_err(&error)?
         .label("circle")
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], CORRECTED_COLOR.stroke_width(2)));
+        .legend(|(x, y)| {
+            PathElement::new(vec![(x, y), (x + 16, y)], CORRECTED_COLOR.stroke_width(2))
+        });
 
     chart
         .configure_series_labels()
@@ -101,6 +126,12 @@ fn equal_scale_ranges<DB: DrawingBackend>(
     let half_x = ((max_x - min_x) / 2.0 * pad).max(1.0);
     let half_y = ((max_y - min_y) / 2.0 * pad).max(1.0);
     let ut_per_px = (half_x / (plot_width_px / 2.0)).max(half_y / (plot_height_px / 2.0));
-    let (half_x, half_y) = (ut_per_px * plot_width_px / 2.0, ut_per_px * plot_height_px / 2.0);
-    (center_x - half_x..center_x + half_x, center_y - half_y..center_y + half_y)
+    let (half_x, half_y) = (
+        ut_per_px * plot_width_px / 2.0,
+        ut_per_px * plot_height_px / 2.0,
+    );
+    (
+        center_x - half_x..center_x + half_x,
+        center_y - half_y..center_y + half_y,
+    )
 }

@@ -9,10 +9,16 @@ use super::{thinned_indices, PlotError, MAX_POINTS_PER_SERIES};
 use crate::analysis::MinMaxAnalysis;
 use crate::angle::heading_difference_rad;
 
-pub fn draw_heading_error<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, analysis: &MinMaxAnalysis) -> Result<(), PlotError> {
+pub fn draw_heading_error<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    analysis: &MinMaxAnalysis,
+) -> Result<(), PlotError> {
     let error = PlotError::from_backend::<DrawingAreaErrorKind<DB::ErrorType>>("heading");
     let t_s = &analysis.t_s;
-    let (t_first_s, t_last_s) = (t_s.first().copied().unwrap_or(0.0), t_s.last().copied().unwrap_or(1.0));
+    let (t_first_s, t_last_s) = (
+        t_s.first().copied().unwrap_or(0.0),
+        t_s.last().copied().unwrap_or(1.0),
+    );
     let time_range = t_first_s..t_last_s.max(t_first_s + 1e-3);
     let has_reference = analysis.ref_heading_deg.iter().any(Option::is_some);
 
@@ -23,7 +29,14 @@ pub fn draw_heading_error<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, ana
                 let heading_deg = *headings_deg.get(idx)?;
                 if has_reference {
                     let reference_deg = (*analysis.ref_heading_deg.get(idx)?)?;
-                    Some((t_s[idx], heading_difference_rad(heading_deg.to_radians(), reference_deg.to_radians()).to_degrees()))
+                    Some((
+                        t_s[idx],
+                        heading_difference_rad(
+                            heading_deg.to_radians(),
+                            reference_deg.to_radians(),
+                        )
+                        .to_degrees(),
+                    ))
                 } else {
                     Some((t_s[idx], heading_deg))
                 }
@@ -34,11 +47,23 @@ pub fn draw_heading_error<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, ana
     let after = series(&analysis.heading_after_deg);
 
     let (caption, y_desc, y_range) = if has_reference {
-        let largest_deg = before.iter().chain(&after).map(|&(_, error_deg)| error_deg.abs()).fold(5.0, f64::max);
+        let largest_deg = before
+            .iter()
+            .chain(&after)
+            .map(|&(_, error_deg)| error_deg.abs())
+            .fold(5.0, f64::max);
         let limit_deg = (largest_deg * 1.1).min(180.0);
-        ("Heading error against ref_heading_deg", "error (°)", -limit_deg..limit_deg)
+        (
+            "Heading error against ref_heading_deg",
+            "error (°)",
+            -limit_deg..limit_deg,
+        )
     } else {
-        ("Heading (no reference in the log)", "heading (°)", 0.0..360.0)
+        (
+            "Heading (no reference in the log)",
+            "heading (°)",
+            0.0..360.0,
+        )
     };
 
     let mut chart = ChartBuilder::on(area)
@@ -48,15 +73,29 @@ pub fn draw_heading_error<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, ana
         .y_label_area_size(48)
         .build_cartesian_2d(time_range, y_range)
         .map_err(&error)?;
-    chart.configure_mesh().x_desc("time (s)").y_desc(y_desc).light_line_style(WHITE.mix(0.0)).draw().map_err(&error)?;
+    chart
+        .configure_mesh()
+        .x_desc("time (s)")
+        .y_desc(y_desc)
+        .light_line_style(WHITE.mix(0.0))
+        .draw()
+        .map_err(&error)?;
 
     chart
-        .draw_series(before.iter().map(|&point| Circle::new(point, 1, RAW_COLOR.filled())))
+        .draw_series(
+            before
+                .iter()
+                .map(|&point| Circle::new(point, 1, RAW_COLOR.filled())),
+        )
         .map_err(&error)?
         .label("before calibration")
         .legend(|(x, y)| Circle::new((x + 8, y), 3, RAW_COLOR.filled()));
     chart
-        .draw_series(after.iter().map(|&point| Circle::new(point, 1, CORRECTED_COLOR.filled())))
+        .draw_series(
+            after
+                .iter()
+                .map(|&point| Circle::new(point, 1, CORRECTED_COLOR.filled())),
+        )
         .map_err(&error)?
         .label("after min/max")
         .legend(|(x, y)| Circle::new((x + 8, y), 3, CORRECTED_COLOR.filled()));

@@ -29,14 +29,21 @@ pub struct PlotError {
 
 impl PlotError {
     fn from_backend<E: std::fmt::Debug>(plot: &'static str) -> impl Fn(E) -> PlotError {
-        move |error| PlotError { plot, reason: format!("{error:?}") }
+        move |error| PlotError {
+            plot,
+            reason: format!("{error:?}"),
+        }
     }
 }
 
 /// Both min/max plots side by side: the circle fit on the left, heading error on the
 /// right. This is the figure `compass-pdr calibrate --plot` writes.
-pub fn draw_minmax_figure<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, analysis: &MinMaxAnalysis) -> Result<(), PlotError> {
-    area.fill(&WHITE).map_err(PlotError::from_backend("figure"))?;
+pub fn draw_minmax_figure<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    analysis: &MinMaxAnalysis,
+) -> Result<(), PlotError> {
+    area.fill(&WHITE)
+        .map_err(PlotError::from_backend("figure"))?;
     let (left, right) = area.split_horizontally(area.dim_in_pixel().0 / 2);
     draw_circle_fit(&left, analysis)?;
     draw_heading_error(&right, analysis)?;
@@ -59,7 +66,8 @@ mod tests {
     #[test]
     fn the_figure_draws_to_svg() {
         let text = canonical_csv::write(&simulate(&WalkConfig::from_seed(5, 60.0)));
-        let analysis = analyse_minmax_csv("sim.csv", text.as_bytes(), Options::default()).expect("analysable");
+        let analysis =
+            analyse_minmax_csv("sim.csv", text.as_bytes(), Options::default()).expect("analysable");
         let mut svg = String::new();
         {
             let root = SVGBackend::with_string(&mut svg, (1200, 500)).into_drawing_area();
@@ -68,13 +76,22 @@ mod tests {
         assert!(svg.starts_with("<svg"));
         assert!(svg.contains("Level-plane field"), "circle plot title");
         assert!(svg.contains("Heading error"), "heading plot title");
-        assert!(svg.matches("<circle").count() > 1000, "the points are drawn");
+        assert!(
+            svg.matches("<circle").count() > 1000,
+            "the points are drawn"
+        );
     }
 
     #[test]
     fn thinning_keeps_short_series_whole() {
-        assert_eq!(thinned_indices(5, 10).collect::<Vec<_>>(), vec![0, 1, 2, 3, 4]);
-        assert_eq!(thinned_indices(10, 5).collect::<Vec<_>>(), vec![0, 2, 4, 6, 8]);
+        assert_eq!(
+            thinned_indices(5, 10).collect::<Vec<_>>(),
+            vec![0, 1, 2, 3, 4]
+        );
+        assert_eq!(
+            thinned_indices(10, 5).collect::<Vec<_>>(),
+            vec![0, 2, 4, 6, 8]
+        );
         assert_eq!(thinned_indices(0, 5).count(), 0);
     }
 }

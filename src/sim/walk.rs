@@ -55,7 +55,13 @@ impl WalkConfig {
     /// to 30 µT per axis, scale factors 0.9-1.1, noise 0.3 µT.
     pub fn from_seed(seed: u64, duration_s: f64) -> Self {
         let mut rng = SplitMix64::new(seed ^ 0x00C0_FFEE);
-        let mut draw3 = |low: f64, high: f64| [rng.uniform_in(low, high), rng.uniform_in(low, high), rng.uniform_in(low, high)];
+        let mut draw3 = |low: f64, high: f64| {
+            [
+                rng.uniform_in(low, high),
+                rng.uniform_in(low, high),
+                rng.uniform_in(low, high),
+            ]
+        };
         let hard_iron_ut = draw3(-30.0, 30.0);
         let scale = draw3(0.9, 1.1);
         let gyro_bias_radps = draw3(-0.01, 0.01);
@@ -95,21 +101,42 @@ struct Phase {
 fn plan_route(config: &WalkConfig, rng: &mut SplitMix64) -> Vec<Phase> {
     let circle_s = 24.0;
     let mut phases = vec![
-        Phase { duration_s: 3.0, is_walking: false, turn_rate_radps: 0.0 },
-        Phase { duration_s: circle_s, is_walking: true, turn_rate_radps: std::f64::consts::TAU / circle_s },
+        Phase {
+            duration_s: 3.0,
+            is_walking: false,
+            turn_rate_radps: 0.0,
+        },
+        Phase {
+            duration_s: circle_s,
+            is_walking: true,
+            turn_rate_radps: std::f64::consts::TAU / circle_s,
+        },
     ];
     let mut planned_s: f64 = phases.iter().map(|phase| phase.duration_s).sum();
     let mut leg_idx = 0usize;
     while planned_s < config.duration_s {
         let leg_s = rng.uniform_in(10.0, 25.0);
-        phases.push(Phase { duration_s: leg_s, is_walking: true, turn_rate_radps: 0.0 });
-        let turn_deg: f64 = [90.0, -90.0, 45.0, -135.0, 180.0, -45.0][(rng.next_u64() % 6) as usize];
+        phases.push(Phase {
+            duration_s: leg_s,
+            is_walking: true,
+            turn_rate_radps: 0.0,
+        });
+        let turn_deg: f64 =
+            [90.0, -90.0, 45.0, -135.0, 180.0, -45.0][(rng.next_u64() % 6) as usize];
         let turn_s = 2.0 + turn_deg.abs() / 90.0;
-        phases.push(Phase { duration_s: turn_s, is_walking: true, turn_rate_radps: f64::to_radians(turn_deg) / turn_s });
+        phases.push(Phase {
+            duration_s: turn_s,
+            is_walking: true,
+            turn_rate_radps: f64::to_radians(turn_deg) / turn_s,
+        });
         planned_s += leg_s + turn_s;
         leg_idx += 1;
-        if leg_idx % 4 == 0 {
-            phases.push(Phase { duration_s: 4.0, is_walking: false, turn_rate_radps: 0.0 });
+        if leg_idx.is_multiple_of(4) {
+            phases.push(Phase {
+                duration_s: 4.0,
+                is_walking: false,
+                turn_rate_radps: 0.0,
+            });
             planned_s += 4.0;
         }
     }
@@ -148,7 +175,11 @@ pub fn simulate(config: &WalkConfig) -> Vec<CanonicalRow> {
             phase_start_s += phases[phase_idx].duration_s;
             phase_idx += 1;
         }
-        let phase = phases.get(phase_idx).copied().unwrap_or(Phase { duration_s: 0.0, is_walking: false, turn_rate_radps: 0.0 });
+        let phase = phases.get(phase_idx).copied().unwrap_or(Phase {
+            duration_s: 0.0,
+            is_walking: false,
+            turn_rate_radps: 0.0,
+        });
         let target_weight = if phase.is_walking { 1.0 } else { 0.0 };
         gait_weight += (target_weight - gait_weight) * (dt_s / 0.5).min(1.0);
         let gait_phase_rad = step_omega_radps * t_s;
@@ -157,7 +188,8 @@ pub fn simulate(config: &WalkConfig) -> Vec<CanonicalRow> {
         let sway_pitch_rad = gait_weight * config.sway_pitch_deg.to_radians();
         let sway_roll_rad = gait_weight * config.sway_roll_deg.to_radians();
         let pitch_rad = config.mean_pitch_deg.to_radians() + sway_pitch_rad * gait_phase_rad.sin();
-        let roll_rad = config.mean_roll_deg.to_radians() + sway_roll_rad * (gait_phase_rad / 2.0).sin();
+        let roll_rad =
+            config.mean_roll_deg.to_radians() + sway_roll_rad * (gait_phase_rad / 2.0).sin();
         let pitch_rate_radps = sway_pitch_rad * step_omega_radps * gait_phase_rad.cos();
         let roll_rate_radps = sway_roll_rad * step_omega_radps / 2.0 * (gait_phase_rad / 2.0).cos();
         let yaw_rate_radps = phase.turn_rate_radps;
@@ -167,9 +199,14 @@ pub fn simulate(config: &WalkConfig) -> Vec<CanonicalRow> {
         // Specific force: body acceleration minus gravity (NED, down positive).
         let bounce_mps2 = gait_weight * 1.5 * gait_phase_rad.sin();
         let surge_mps2 = gait_weight * 0.8 * gait_phase_rad.cos();
-        let acc_in_ned_mps2 = Vector3::new(surge_mps2 * heading_rad.cos(), surge_mps2 * heading_rad.sin(), bounce_mps2);
+        let acc_in_ned_mps2 = Vector3::new(
+            surge_mps2 * heading_rad.cos(),
+            surge_mps2 * heading_rad.sin(),
+            bounce_mps2,
+        );
         let f_in_ned_mps2 = acc_in_ned_mps2 - Vector3::new(0.0, 0.0, G_MPS2);
-        let f_in_body_mps2 = body_from_ned * f_in_ned_mps2 + noise3(&mut rng, config.acc_noise_mps2);
+        let f_in_body_mps2 =
+            body_from_ned * f_in_ned_mps2 + noise3(&mut rng, config.acc_noise_mps2);
 
         // Body rates of a yaw-pitch-roll motion.
         let (sin_roll, cos_roll) = roll_rad.sin_cos();
@@ -179,9 +216,12 @@ pub fn simulate(config: &WalkConfig) -> Vec<CanonicalRow> {
             pitch_rate_radps * cos_roll + yaw_rate_radps * sin_roll * cos_pitch,
             -pitch_rate_radps * sin_roll + yaw_rate_radps * cos_roll * cos_pitch,
         );
-        let gyro_radps = rate_in_body_radps + gyro_bias_radps + noise3(&mut rng, config.gyro_noise_radps);
+        let gyro_radps =
+            rate_in_body_radps + gyro_bias_radps + noise3(&mut rng, config.gyro_noise_radps);
 
-        let mag_ut = (body_from_ned * field_in_ned_ut).component_mul(&scale) + hard_iron_ut + noise3(&mut rng, config.mag_noise_ut);
+        let mag_ut = (body_from_ned * field_in_ned_ut).component_mul(&scale)
+            + hard_iron_ut
+            + noise3(&mut rng, config.mag_noise_ut);
 
         rows.push(CanonicalRow {
             t_s,
@@ -226,7 +266,10 @@ mod tests {
         assert_eq!(rows.len(), 3000);
         let first_acc = rows[0].acc_mps2.unwrap_or_default();
         assert!((first_acc.norm() - G_MPS2).abs() < 0.3, "{first_acc:?}");
-        assert!(first_acc.z < -9.0, "a nearly level device reads z ≈ −g: {first_acc:?}");
+        assert!(
+            first_acc.z < -9.0,
+            "a nearly level device reads z ≈ −g: {first_acc:?}"
+        );
     }
 
     #[test]
@@ -237,7 +280,8 @@ mod tests {
         // second cannot follow, amplified by tan(60°) inclination.
         let config = WalkConfig::from_seed(11, 120.0);
         let text = canonical_csv::write(&simulate(&config));
-        let analysis = analyse_minmax_csv("sim.csv", text.as_bytes(), Options::default()).expect("analysable");
+        let analysis =
+            analyse_minmax_csv("sim.csv", text.as_bytes(), Options::default()).expect("analysable");
         let summary = &analysis.summary;
         let before = summary.heading_error_before.expect("reference present");
         let after = summary.heading_error_after.expect("reference present");
@@ -245,7 +289,15 @@ mod tests {
         assert!(after.rms_deg < 3.0, "{after:?}");
         // The level-plane centre is the hard iron's horizontal part, tilted slightly.
         let hard_iron_ut = config.hard_iron_ut;
-        assert!((summary.calibration.center_x_ut - hard_iron_ut[0]).abs() < 6.0, "{:?} vs {hard_iron_ut:?}", summary.calibration);
-        assert!((summary.calibration.center_y_ut - hard_iron_ut[1]).abs() < 6.0, "{:?} vs {hard_iron_ut:?}", summary.calibration);
+        assert!(
+            (summary.calibration.center_x_ut - hard_iron_ut[0]).abs() < 6.0,
+            "{:?} vs {hard_iron_ut:?}",
+            summary.calibration
+        );
+        assert!(
+            (summary.calibration.center_y_ut - hard_iron_ut[1]).abs() < 6.0,
+            "{:?} vs {hard_iron_ut:?}",
+            summary.calibration
+        );
     }
 }

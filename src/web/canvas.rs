@@ -14,8 +14,13 @@ pub enum Plot {
     HeadingError,
 }
 
-pub fn draw(canvas: &HtmlCanvasElement, plot: Plot, analysis: &MinMaxAnalysis) -> Result<(), String> {
-    let backend = CanvasBackend::with_canvas_object(canvas.clone()).ok_or("the canvas has no 2D context")?;
+pub fn draw(
+    canvas: &HtmlCanvasElement,
+    plot: Plot,
+    analysis: &MinMaxAnalysis,
+) -> Result<(), String> {
+    let backend =
+        CanvasBackend::with_canvas_object(canvas.clone()).ok_or("the canvas has no 2D context")?;
     let area = backend.into_drawing_area();
     area.fill(&WHITE).map_err(|error| format!("{error:?}"))?;
     let drawn: Result<(), PlotError> = match plot {
@@ -29,9 +34,11 @@ pub fn draw(canvas: &HtmlCanvasElement, plot: Plot, analysis: &MinMaxAnalysis) -
 /// Replaces a plot by a message, so that a failed analysis never leaves a blank or
 /// stale canvas.
 pub fn draw_message(canvas: &HtmlCanvasElement, message: &str) -> Result<(), String> {
-    let backend = CanvasBackend::with_canvas_object(canvas.clone()).ok_or("the canvas has no 2D context")?;
+    let backend =
+        CanvasBackend::with_canvas_object(canvas.clone()).ok_or("the canvas has no 2D context")?;
     let area = backend.into_drawing_area();
-    area.fill(&RGBColor(250, 246, 240)).map_err(|error| format!("{error:?}"))?;
+    area.fill(&RGBColor(250, 246, 240))
+        .map_err(|error| format!("{error:?}"))?;
     let (width_px, height_px) = area.dim_in_pixel();
     // About 8 px per character of a 15 px sans-serif font.
     let lines = wrap_words(message, (width_px as usize).saturating_sub(32) / 8);
@@ -39,8 +46,12 @@ pub fn draw_message(canvas: &HtmlCanvasElement, message: &str) -> Result<(), Str
     let line_height_px = 22;
     let top_px = height_px as i32 / 2 - line_height_px * lines.len() as i32 / 2;
     for (line_idx, line) in lines.iter().enumerate() {
-        area.draw(&Text::new(line.clone(), (16, top_px + line_height_px * line_idx as i32), style.clone()))
-            .map_err(|error| format!("{error:?}"))?;
+        area.draw(&Text::new(
+            line.clone(),
+            (16, top_px + line_height_px * line_idx as i32),
+            style.clone(),
+        ))
+        .map_err(|error| format!("{error:?}"))?;
     }
     area.present().map_err(|error| format!("{error:?}"))
 }

@@ -32,9 +32,11 @@ pub fn run_page() -> Result<(), JsError> {
 /// with the file and what to do.
 #[wasm_bindgen]
 pub fn analyse_csv(file_name: &str, bytes: &[u8]) -> Result<JsValue, JsError> {
-    let analysis = analyse_minmax_csv(file_name, bytes, Options::default()).map_err(|error| JsError::new(&error.to_string()))?;
+    let analysis = analyse_minmax_csv(file_name, bytes, Options::default())
+        .map_err(|error| JsError::new(&error.to_string()))?;
     let serializer = serde_wasm_bindgen::Serializer::json_compatible();
-    serde::Serialize::serialize(&analysis.summary, &serializer).map_err(|error| JsError::new(&error.to_string()))
+    serde::Serialize::serialize(&analysis.summary, &serializer)
+        .map_err(|error| JsError::new(&error.to_string()))
 }
 
 /// A panic is a bug: report it in the console and in the page's status area, so the

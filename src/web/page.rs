@@ -39,11 +39,19 @@ pub struct Page {
 impl Page {
     /// Finds the page's elements; the message names the first one missing.
     pub fn from_document() -> Result<Rc<Page>, String> {
-        let document = web_sys::window().and_then(|window| window.document()).ok_or("no document")?;
+        let document = web_sys::window()
+            .and_then(|window| window.document())
+            .ok_or("no document")?;
         let body = document.body().ok_or("the page has no body")?;
-        let element = |id: &str| document.get_element_by_id(id).ok_or(format!("the page has no element #{id}"));
+        let element = |id: &str| {
+            document
+                .get_element_by_id(id)
+                .ok_or(format!("the page has no element #{id}"))
+        };
         let canvas = |id: &str| {
-            element(id)?.dyn_into::<HtmlCanvasElement>().map_err(|_| format!("#{id} is not a canvas"))
+            element(id)?
+                .dyn_into::<HtmlCanvasElement>()
+                .map_err(|_| format!("#{id} is not a canvas"))
         };
         Ok(Rc::new(Page {
             status: element(STATUS_ID)?,
@@ -62,7 +70,9 @@ impl Page {
     pub fn start(self: Rc<Self>) {
         let page = Rc::clone(&self);
         EventListener::new(&self.file_input, "change", move |_| {
-            let Some(files) = page.file_input.files() else { return };
+            let Some(files) = page.file_input.files() else {
+                return;
+            };
             page.analyse_files(files);
             // Choosing the same file again should analyse it again.
             page.file_input.set_value("");
@@ -72,8 +82,10 @@ impl Page {
         // Without preventDefault on dragover and drop, the browser opens the file.
         let prevent_default = EventListenerOptions::enable_prevent_default();
         for event_name in ["dragover", "drop"] {
-            EventListener::new_with_options(&self.document, event_name, prevent_default, |event| event.prevent_default())
-                .forget();
+            EventListener::new_with_options(&self.document, event_name, prevent_default, |event| {
+                event.prevent_default()
+            })
+            .forget();
         }
         let drop_zone = self.drop_zone.clone();
         EventListener::new(&self.drop_zone, "dragover", move |_| {
@@ -89,10 +101,15 @@ impl Page {
         EventListener::new_with_options(&self.drop_zone, "drop", prevent_default, move |event| {
             event.prevent_default();
             let _ = page.drop_zone.class_list().remove_1("dragging");
-            let files = event.dyn_ref::<DragEvent>().and_then(DragEvent::data_transfer).and_then(|transfer| transfer.files());
+            let files = event
+                .dyn_ref::<DragEvent>()
+                .and_then(DragEvent::data_transfer)
+                .and_then(|transfer| transfer.files());
             match files {
                 Some(files) if files.length() > 0 => page.analyse_files(files),
-                _ => page.show_error("Nothing to read in what was dropped. Drop a CSV file from your computer."),
+                _ => page.show_error(
+                    "Nothing to read in what was dropped. Drop a CSV file from your computer.",
+                ),
             }
         })
         .forget();
@@ -124,10 +141,14 @@ impl Page {
                 Ok(bytes) => {
                     page.analyse_and_show(&file_name, &bytes);
                     if n_files > 1 {
-                        page.append_status(&format!(" Only the first of the {n_files} files was analysed."));
+                        page.append_status(&format!(
+                            " Only the first of the {n_files} files was analysed."
+                        ));
                     }
                 }
-                Err(error) => page.show_error(&format!("Could not read {file_name}: {error}. Try choosing it again.")),
+                Err(error) => page.show_error(&format!(
+                    "Could not read {file_name}: {error}. Try choosing it again."
+                )),
             }
         });
     }
@@ -141,16 +162,24 @@ impl Page {
 
     pub fn show_analysis(&self, analysis: &MinMaxAnalysis) {
         let summary = &analysis.summary;
-        self.body.set_attribute("data-file", &summary.file_name).ok();
+        self.body
+            .set_attribute("data-file", &summary.file_name)
+            .ok();
         self.set_text("result-file", &summary.file_name);
         self.show_stats("before", summary.heading_error_before.as_ref());
         self.show_stats("after", summary.heading_error_after.as_ref());
         self.show_calibration(summary);
         self.fill_list("notes", or_none(summary.notes.iter().cloned()));
         self.show_diagnostics(summary);
-        for (canvas, plot) in [(&self.circle_canvas, Plot::CircleFit), (&self.heading_canvas, Plot::HeadingError)] {
+        for (canvas, plot) in [
+            (&self.circle_canvas, Plot::CircleFit),
+            (&self.heading_canvas, Plot::HeadingError),
+        ] {
             if let Err(message) = canvas::draw(canvas, plot, analysis) {
-                let _ = canvas::draw_message(canvas, &format!("This plot could not be drawn: {message}"));
+                let _ = canvas::draw_message(
+                    canvas,
+                    &format!("This plot could not be drawn: {message}"),
+                );
             }
         }
         let n_problems = summary.diagnostics.total();
@@ -161,7 +190,10 @@ impl Page {
         };
         self.set_state(
             "ready",
-            &format!("Analysed {}: {} magnetometer samples.{problems}", summary.file_name, summary.n_samples_used),
+            &format!(
+                "Analysed {}: {} magnetometer samples.{problems}",
+                summary.file_name, summary.n_samples_used
+            ),
         );
     }
 
@@ -182,12 +214,20 @@ impl Page {
     }
 
     fn show_stats(&self, which: &str, stats: Option<&HeadingErrorStats>) {
-        let format = |value: Option<f64>, unit: &str| value.map_or("—".to_string(), |value| format!("{value:.2}{unit}"));
-        self.set_text(&format!("stat-{which}-mean"), &format(stats.map(|s| s.mean_deg), "°"));
-        self.set_text(&format!("stat-{which}-std"), &format(stats.map(|s| s.std_deg), "°"));
-        self.set_text(&format!("stat-{which}-rms"), &format(stats.map(|s| s.rms_deg), "°"));
-        self.set_text(&format!("stat-{which}-p95"), &format(stats.map(|s| s.p95_abs_deg), "°"));
-        self.set_text(&format!("stat-{which}-within5"), &format(stats.map(|s| s.within_5_deg_pct), " %"));
+        type Cell = (&'static str, fn(&HeadingErrorStats) -> f64, &'static str);
+        let cells: [Cell; 5] = [
+            ("mean", |stats| stats.mean_deg, "°"),
+            ("std", |stats| stats.std_deg, "°"),
+            ("rms", |stats| stats.rms_deg, "°"),
+            ("p95", |stats| stats.p95_abs_deg, "°"),
+            ("within5", |stats| stats.within_5_deg_pct, " %"),
+        ];
+        for (name, value_of, unit) in cells {
+            let text = stats.map_or("—".to_string(), |stats| {
+                format!("{:.2}{unit}", value_of(stats))
+            });
+            self.set_text(&format!("stat-{which}-{name}"), &text);
+        }
     }
 
     fn show_calibration(&self, summary: &MinMaxSummary) {
@@ -196,9 +236,18 @@ impl Page {
         self.fill_list(
             "calibration",
             [
-                format!("Scale factors Sx = {:.4}, Sy = {:.4}", calibration.scale_x, calibration.scale_y),
-                format!("Biases Bx = {:.2} µT, By = {:.2} µT", calibration.bias_x_ut, calibration.bias_y_ut),
-                format!("Ellipse centre ({:.2}, {:.2}) µT", calibration.center_x_ut, calibration.center_y_ut),
+                format!(
+                    "Scale factors Sx = {:.4}, Sy = {:.4}",
+                    calibration.scale_x, calibration.scale_y
+                ),
+                format!(
+                    "Biases Bx = {:.2} µT, By = {:.2} µT",
+                    calibration.bias_x_ut, calibration.bias_y_ut
+                ),
+                format!(
+                    "Ellipse centre ({:.2}, {:.2}) µT",
+                    calibration.center_x_ut, calibration.center_y_ut
+                ),
                 format!(
                     "Coverage {} of {} heading bins of 10°, largest gap {:.0}°",
                     coverage.n_bins_covered, coverage.n_bins, coverage.largest_gap_deg
@@ -210,18 +259,25 @@ impl Page {
 
     fn show_diagnostics(&self, summary: &MinMaxSummary) {
         let diagnostics = &summary.diagnostics;
-        let shown = diagnostics.kept.iter().take(MAX_DIAGNOSTICS_SHOWN).map(|diagnostic| match diagnostic.line {
-            Some(line) => format!("{}, line {line}: {}", summary.file_name, diagnostic.message),
-            None => format!("{}: {}", summary.file_name, diagnostic.message),
-        });
+        let shown = diagnostics
+            .kept
+            .iter()
+            .take(MAX_DIAGNOSTICS_SHOWN)
+            .map(|diagnostic| match diagnostic.line {
+                Some(line) => format!("{}, line {line}: {}", summary.file_name, diagnostic.message),
+                None => format!("{}: {}", summary.file_name, diagnostic.message),
+            });
         let n_not_shown = diagnostics.total().saturating_sub(MAX_DIAGNOSTICS_SHOWN);
-        let more = (n_not_shown > 0).then(|| format!("… and {n_not_shown} more (the CLI lists them all)."));
+        let more = (n_not_shown > 0)
+            .then(|| format!("… and {n_not_shown} more (the CLI lists them all)."));
         self.fill_list("diagnostics", or_none(shown.chain(more)));
     }
 
     /// Replaces the items of list `#id` with one `<li>` of text per item.
     fn fill_list(&self, id: &str, items: impl Iterator<Item = String>) {
-        let Some(list) = self.document.get_element_by_id(id) else { return };
+        let Some(list) = self.document.get_element_by_id(id) else {
+            return;
+        };
         list.set_text_content(None);
         for item in items {
             if let Ok(list_item) = self.document.create_element("li") {
@@ -258,7 +314,9 @@ fn or_none(items: impl Iterator<Item = String>) -> impl Iterator<Item = String> 
 
 /// Puts a bug report into the status area, whatever state the page is in.
 pub fn show_bug(message: &str) {
-    let Some(document) = web_sys::window().and_then(|window| window.document()) else { return };
+    let Some(document) = web_sys::window().and_then(|window| window.document()) else {
+        return;
+    };
     if let Some(body) = document.body() {
         body.set_attribute("data-state", "error").ok();
     }
@@ -270,12 +328,18 @@ pub fn show_bug(message: &str) {
 /// The bytes at a URL of the page's own origin.
 async fn fetch_bytes(url: &str) -> Result<Vec<u8>, String> {
     let window = web_sys::window().ok_or("no window")?;
-    let response = JsFuture::from(window.fetch_with_str(url)).await.map_err(describe_js_error)?;
-    let response: web_sys::Response = response.dyn_into().map_err(|_| "the answer was not an HTTP response".to_string())?;
+    let response = JsFuture::from(window.fetch_with_str(url))
+        .await
+        .map_err(describe_js_error)?;
+    let response: web_sys::Response = response
+        .dyn_into()
+        .map_err(|_| "the answer was not an HTTP response".to_string())?;
     if !response.ok() {
         return Err(format!("HTTP {}", response.status()));
     }
-    let buffer = JsFuture::from(response.array_buffer().map_err(describe_js_error)?).await.map_err(describe_js_error)?;
+    let buffer = JsFuture::from(response.array_buffer().map_err(describe_js_error)?)
+        .await
+        .map_err(describe_js_error)?;
     Ok(js_sys::Uint8Array::new(&buffer).to_vec())
 }
 

@@ -16,46 +16,78 @@ fn simulated_csv() -> Vec<u8> {
 }
 
 fn new_canvas(width_px: u32, height_px: u32) -> HtmlCanvasElement {
-    let document = web_sys::window().and_then(|window| window.document()).expect("a document");
-    let canvas: HtmlCanvasElement = document.create_element("canvas").expect("canvas").dyn_into().expect("a canvas");
+    let document = web_sys::window()
+        .and_then(|window| window.document())
+        .expect("a document");
+    let canvas: HtmlCanvasElement = document
+        .create_element("canvas")
+        .expect("canvas")
+        .dyn_into()
+        .expect("a canvas");
     canvas.set_width(width_px);
     canvas.set_height(height_px);
-    document.body().expect("a body").append_child(&canvas).expect("appended");
+    document
+        .body()
+        .expect("a body")
+        .append_child(&canvas)
+        .expect("appended");
     canvas
 }
 
 /// Pixels that are not the white background.
 fn n_drawn_pixels(canvas: &HtmlCanvasElement) -> usize {
-    let context: CanvasRenderingContext2d =
-        canvas.get_context("2d").expect("context").expect("2d").dyn_into().expect("a 2D context");
-    let data = context.get_image_data(0, 0, canvas.width() as i32, canvas.height() as i32).expect("pixels").data();
-    data.chunks_exact(4).filter(|rgba| rgba[0] < 250 || rgba[1] < 250 || rgba[2] < 250).count()
+    let context: CanvasRenderingContext2d = canvas
+        .get_context("2d")
+        .expect("context")
+        .expect("2d")
+        .dyn_into()
+        .expect("a 2D context");
+    let data = context
+        .get_image_data(0, 0, canvas.width() as i32, canvas.height() as i32)
+        .expect("pixels")
+        .data();
+    data.chunks_exact(4)
+        .filter(|rgba| rgba[0] < 250 || rgba[1] < 250 || rgba[2] < 250)
+        .count()
 }
 
 #[wasm_bindgen_test]
 fn analyse_csv_returns_the_summary_as_a_plain_object() {
-    let value = super::analyse_csv("walk.csv", &simulated_csv()).map_err(wasm_bindgen::JsValue::from).expect("analysable");
+    let value = super::analyse_csv("walk.csv", &simulated_csv())
+        .map_err(wasm_bindgen::JsValue::from)
+        .expect("analysable");
     let rms = js_sys::Reflect::get(&value, &"heading_error_after".into())
         .and_then(|after| js_sys::Reflect::get(&after, &"rms_deg".into()))
         .ok()
         .and_then(|rms| rms.as_f64())
         .expect("heading_error_after.rms_deg is a number");
     assert!(rms > 0.0 && rms < 3.0, "{rms}");
-    let file_name = js_sys::Reflect::get(&value, &"file_name".into()).ok().and_then(|name| name.as_string());
+    let file_name = js_sys::Reflect::get(&value, &"file_name".into())
+        .ok()
+        .and_then(|name| name.as_string());
     assert_eq!(file_name.as_deref(), Some("walk.csv"));
 }
 
 #[wasm_bindgen_test]
 fn analyse_csv_throws_a_message_that_names_the_file() {
-    let garbage: Vec<u8> = (0..2000u32).map(|idx| (idx.wrapping_mul(2_654_435_761) >> 7) as u8).collect();
-    let error = super::analyse_csv("noise.bin", &garbage).map_err(wasm_bindgen::JsValue::from).expect_err("garbage is refused");
-    let message: String = error.dyn_into::<js_sys::Error>().expect("an Error").message().into();
+    let garbage: Vec<u8> = (0..2000u32)
+        .map(|idx| (idx.wrapping_mul(2_654_435_761) >> 7) as u8)
+        .collect();
+    let error = super::analyse_csv("noise.bin", &garbage)
+        .map_err(wasm_bindgen::JsValue::from)
+        .expect_err("garbage is refused");
+    let message: String = error
+        .dyn_into::<js_sys::Error>()
+        .expect("an Error")
+        .message()
+        .into();
     assert!(message.contains("noise.bin is not a text log"), "{message}");
 }
 
 #[wasm_bindgen_test]
 fn both_plots_draw_on_a_canvas() {
-    let analysis = analyse_minmax_csv("walk.csv", &simulated_csv(), Options::default()).expect("analysable");
+    let analysis =
+        analyse_minmax_csv("walk.csv", &simulated_csv(), Options::default()).expect("analysable");
     for plot in [Plot::CircleFit, Plot::HeadingError] {
         let canvas = new_canvas(480, 360);
         canvas::draw(&canvas, plot, &analysis).expect("drawn");
@@ -67,13 +99,22 @@ fn both_plots_draw_on_a_canvas() {
 #[wasm_bindgen_test]
 fn an_error_message_replaces_the_plot() {
     let canvas = new_canvas(480, 360);
-    canvas::draw_message(&canvas, "noise.bin is not a text log (binary data near byte 0).").expect("drawn");
-    assert!(n_drawn_pixels(&canvas) > 10_000, "the message panel is drawn");
+    canvas::draw_message(
+        &canvas,
+        "noise.bin is not a text log (binary data near byte 0).",
+    )
+    .expect("drawn");
+    assert!(
+        n_drawn_pixels(&canvas) > 10_000,
+        "the message panel is drawn"
+    );
 }
 
 /// The elements `www/index.html` gives the page, enough for [`super::page::Page`].
 fn add_page_skeleton() {
-    let document = web_sys::window().and_then(|window| window.document()).expect("a document");
+    let document = web_sys::window()
+        .and_then(|window| window.document())
+        .expect("a document");
     let skeleton = document.create_element("div").expect("div");
     skeleton.set_inner_html(
         r#"<div id="drop-zone"><input id="file-input" type="file"></div><p id="status"></p>
@@ -81,19 +122,34 @@ fn add_page_skeleton() {
            <span id="stat-after-mean"></span><ul id="calibration"></ul><ul id="notes"></ul><ul id="diagnostics"></ul>
            <canvas id="plot-circle" width="320" height="240"></canvas><canvas id="plot-heading" width="320" height="240"></canvas>"#,
     );
-    document.body().expect("a body").append_child(&skeleton).expect("appended");
+    document
+        .body()
+        .expect("a body")
+        .append_child(&skeleton)
+        .expect("appended");
 }
 
 #[wasm_bindgen_test]
 fn the_page_shows_an_analysis_then_an_error() {
     add_page_skeleton();
     let page = super::page::Page::from_document().expect("the skeleton has every element");
-    let document = web_sys::window().and_then(|window| window.document()).expect("a document");
-    let text = |id: &str| document.get_element_by_id(id).and_then(|element| element.text_content()).unwrap_or_default();
+    let document = web_sys::window()
+        .and_then(|window| window.document())
+        .expect("a document");
+    let text = |id: &str| {
+        document
+            .get_element_by_id(id)
+            .and_then(|element| element.text_content())
+            .unwrap_or_default()
+    };
 
-    let analysis = analyse_minmax_csv("walk.csv", &simulated_csv(), Options::default()).expect("analysable");
+    let analysis =
+        analyse_minmax_csv("walk.csv", &simulated_csv(), Options::default()).expect("analysable");
     page.show_analysis(&analysis);
-    let after = analysis.summary.heading_error_after.expect("reference present");
+    let after = analysis
+        .summary
+        .heading_error_after
+        .expect("reference present");
     assert_eq!(text("stat-after-rms"), format!("{:.2}°", after.rms_deg));
     assert_eq!(text("result-file"), "walk.csv");
     assert_eq!(text("diagnostics"), "None.");
@@ -103,7 +159,10 @@ fn the_page_shows_an_analysis_then_an_error() {
     let body = document.body().expect("a body");
     assert_eq!(body.get_attribute("data-state").as_deref(), Some("error"));
     assert_eq!(text("stat-after-rms"), "—");
-    assert_eq!(text("status"), "bad.csv is empty. Choose a log with a header line and samples.");
+    assert_eq!(
+        text("status"),
+        "bad.csv is empty. Choose a log with a header line and samples."
+    );
     // Text from a log is inserted as text: markup in a file name stays visible text.
     page.show_error("<b>x</b>.csv is empty.");
     assert_eq!(text("status"), "<b>x</b>.csv is empty.");
