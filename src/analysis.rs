@@ -140,10 +140,12 @@ pub fn analyse_minmax(
         file_name,
         recording,
         diagnostics,
-        header_columns,
-        header_line,
+        header,
         n_data_lines,
+        ..
     } = report;
+    let (header_line, header_columns) =
+        header.map_or((1, Vec::new()), |header| (header.line, header.columns));
     let mag = &recording.mag_in_body_ut;
     if mag.is_empty() {
         let has_mag_columns = header_columns

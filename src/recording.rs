@@ -112,11 +112,39 @@ impl Stream<Vector3<f64>> {
 pub struct GnssFix {
     pub lat_deg: Option<f64>,
     pub lon_deg: Option<f64>,
+    /// Altitude above mean sea level (or the ellipsoid, as the source gives it).
+    pub alt_m: Option<f64>,
     pub speed_mps: Option<f64>,
     /// Course over ground, clockwise from true north.
     pub course_rad: Option<f64>,
     /// Horizontal accuracy (1 σ) as reported.
     pub hacc_m: Option<f64>,
+}
+
+/// Roll, pitch and yaw of the body frame as the device itself reports them (for
+/// example Android's rotation vector or a compass module's HPR sentence). Yaw is
+/// clockwise from north; `None` where the device gives only tilt.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Attitude {
+    pub roll_rad: f64,
+    pub pitch_rad: f64,
+    pub yaw_rad: Option<f64>,
+}
+
+/// Which north a heading is measured from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum North {
+    Magnetic,
+    True,
+}
+
+/// A heading that a compass device computed itself (NMEA HDG/HDM/HDT, a compass
+/// module's HPR), clockwise from the stated north.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct DeviceHeading {
+    pub heading_rad: f64,
+    pub north: North,
 }
 
 /// Everything read from one log, in the units and frames stated in the module header.
@@ -126,12 +154,21 @@ pub struct Recording {
     pub acc_in_body_mps2: Stream<Vector3<f64>>,
     pub gyro_in_body_radps: Stream<Vector3<f64>>,
     pub mag_in_body_ut: Stream<Vector3<f64>>,
+    /// The device's own hard-iron estimate, where it reports one (Android's
+    /// `TYPE_MAGNETIC_FIELD_UNCALIBRATED`): raw field minus this is its calibrated field.
+    pub mag_bias_in_body_ut: Stream<Vector3<f64>>,
     pub temp_c: Stream<f64>,
+    pub pressure_hpa: Stream<f64>,
     pub gnss: Stream<GnssFix>,
+    pub attitude: Stream<Attitude>,
+    pub device_heading: Stream<DeviceHeading>,
     /// Reference (true) heading, clockwise from true north.
     pub ref_heading_rad: Stream<f64>,
-    /// Reference position, metres east and north of a local origin.
+    /// Reference positions (landmarks, waypoints), metres east and north of a local
+    /// origin.
     pub ref_position_en_m: Stream<Vector2<f64>>,
+    /// Reference positions given as latitude and longitude, in degrees.
+    pub ref_position_lat_lon_deg: Stream<Vector2<f64>>,
 }
 
 #[cfg(test)]

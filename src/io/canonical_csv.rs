@@ -18,8 +18,10 @@ use std::fmt::Write as _;
 use nalgebra::{Vector2, Vector3};
 
 use super::lines::decode_all;
-use super::{first_binary_offset, Diagnostics, ImportError, ImportReport};
+use super::{first_binary_offset, Diagnostics, HeaderInfo, ImportError, ImportReport};
 use crate::recording::{GnssFix, Recording};
+
+pub const FORMAT_NAME: &str = "canonical CSV";
 
 /// The canonical columns, in the order the writer uses.
 pub const COLUMNS: [&str; 19] = [
@@ -260,6 +262,7 @@ impl Reader {
         let fix = GnssFix {
             lat_deg: values[col::LAT],
             lon_deg: values[col::LON],
+            alt_m: None,
             speed_mps: values[col::SPEED],
             course_rad: values[col::COURSE].map(f64::to_radians),
             hacc_m: values[col::HACC],
@@ -321,11 +324,15 @@ impl Reader {
         self.sort_streams(header.line);
         Ok(ImportReport {
             file_name,
+            format: FORMAT_NAME,
             recording: self.recording,
             diagnostics: self.diagnostics,
-            header_columns: header.names,
-            header_line: header.line,
+            header: Some(HeaderInfo {
+                line: header.line,
+                columns: header.names,
+            }),
             n_data_lines: self.n_data_lines,
+            notes: Vec::new(),
         })
     }
 
@@ -456,7 +463,7 @@ mod tests {
     fn delimiters_quotes_comments_and_case_are_accepted() {
         let text = "# exported by hand\n\"T_S\";\"MAG_X_UT\";\"mag_y_ut\";\"mag_z_ut\"\r\n0;1;2;3\r\n\r\n1;4;5;6\r\n";
         let report = read_text(text).expect("readable");
-        assert_eq!(report.header_line, 2);
+        assert_eq!(report.header.map(|header| header.line), Some(2));
         assert_eq!(report.recording.mag_in_body_ut.len(), 2);
         assert!(report.diagnostics.is_empty());
     }

@@ -4,6 +4,7 @@
 //! with its line number and the reason, and the rest of the file is still read. Only a
 //! file from which nothing at all can be read is an [`ImportError`].
 
+pub mod axes;
 pub mod canonical_csv;
 pub mod lines;
 
@@ -57,13 +58,24 @@ impl Diagnostics {
 #[derive(Debug, Clone, PartialEq)]
 pub struct ImportReport {
     pub file_name: String,
+    /// The format as the user would name it ("canonical CSV", "NMEA 0183", …).
+    pub format: &'static str,
     pub recording: Recording,
     pub diagnostics: Diagnostics,
-    /// The header's column names as written, and the line they were on.
-    pub header_columns: Vec<String>,
-    pub header_line: usize,
-    /// Lines after the header that were neither blank nor comments.
+    /// The header line of a delimited file, where there is one.
+    pub header: Option<HeaderInfo>,
+    /// Lines that were neither blank, comments nor the header.
     pub n_data_lines: usize,
+    /// What the importer understood and assumed (units guessed, axes mapped), for the
+    /// user to check.
+    pub notes: Vec<String>,
+}
+
+/// The header of a delimited file: its column names as written and its line number.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct HeaderInfo {
+    pub line: usize,
+    pub columns: Vec<String>,
 }
 
 /// A file from which nothing could be read. Each message names the file and says what
