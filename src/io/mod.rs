@@ -108,6 +108,18 @@ pub enum ImportError {
         line: usize,
         found: String,
     },
+
+    #[error(
+        "{file_name}: none of its {n_lines} lines could be read as {format}{first_problem}. \
+         Check that the file is a {format} log, or export it as CSV with a header line."
+    )]
+    NothingRecognised {
+        file_name: String,
+        format: &'static str,
+        n_lines: usize,
+        /// The first problem met, as " (line N: reason)", or empty.
+        first_problem: String,
+    },
 }
 
 /// Whether `bytes` look like text, judged from their start. Returns the offset of the
