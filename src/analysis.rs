@@ -15,7 +15,8 @@ use crate::calib::heading::heading_rad;
 use crate::calib::minmax::MinMaxCalibration;
 use crate::calib::tilt::{smooth_specific_force, Tilt};
 use crate::calib::CalibError;
-use crate::io::{canonical_csv, Diagnostics, ImportError, ImportReport};
+use crate::io::import::import_files;
+use crate::io::{Diagnostics, ImportError, ImportReport};
 use crate::stats::HeadingErrorStats;
 
 /// Choices that change the result.
@@ -121,14 +122,22 @@ pub enum AnalysisError {
     },
 }
 
-/// Reads a canonical CSV and runs the min/max analysis on it.
-pub fn analyse_minmax_csv(
+/// Reads a log (any format [`crate::io::import`] knows) and runs the min/max analysis.
+pub fn analyse_minmax_file(
     file_name: &str,
     bytes: &[u8],
     options: Options,
 ) -> Result<MinMaxAnalysis, AnalysisError> {
-    let report = canonical_csv::read(file_name, bytes)?;
-    analyse_minmax(report, options)
+    analyse_minmax_files(&[(file_name, bytes)], options)
+}
+
+/// Reads the files of one recording together (phyphox writes one file per sensor),
+/// merges them, and runs the min/max analysis.
+pub fn analyse_minmax_files(
+    files: &[(&str, &[u8])],
+    options: Options,
+) -> Result<MinMaxAnalysis, AnalysisError> {
+    analyse_minmax(import_files(files)?, options)
 }
 
 /// Runs the min/max analysis on an imported recording.
@@ -301,7 +310,7 @@ mod tests {
     use super::*;
 
     fn analyse(text: &str) -> Result<MinMaxAnalysis, AnalysisError> {
-        analyse_minmax_csv("log.csv", text.as_bytes(), Options::default())
+        analyse_minmax_file("log.csv", text.as_bytes(), Options::default())
     }
 
     #[test]

@@ -171,6 +171,24 @@ pub struct Recording {
     pub ref_position_lat_lon_deg: Stream<Vector2<f64>>,
 }
 
+impl Recording {
+    /// Sorts every stream by time; returns how many samples were out of order in all.
+    pub fn sort_all_by_time(&mut self) -> usize {
+        self.acc_in_body_mps2.sort_by_time()
+            + self.gyro_in_body_radps.sort_by_time()
+            + self.mag_in_body_ut.sort_by_time()
+            + self.mag_bias_in_body_ut.sort_by_time()
+            + self.temp_c.sort_by_time()
+            + self.pressure_hpa.sort_by_time()
+            + self.gnss.sort_by_time()
+            + self.attitude.sort_by_time()
+            + self.device_heading.sort_by_time()
+            + self.ref_heading_rad.sort_by_time()
+            + self.ref_position_en_m.sort_by_time()
+            + self.ref_position_lat_lon_deg.sort_by_time()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -5,8 +5,10 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand, ValueEnum};
-use compass_pdr::analysis::{analyse_minmax_csv, MinMaxSummary, Options};
+use compass_pdr::analysis::{analyse_minmax_files, MinMaxSummary, Options};
 use compass_pdr::io::canonical_csv;
+use compass_pdr::io::import::{import_files, Inspection};
+use compass_pdr::io::Diagnostics;
 use compass_pdr::plot::draw_minmax_figure;
 use compass_pdr::sim::walk::{simulate, WalkConfig};
 use compass_pdr::stats::HeadingErrorStats;
@@ -39,8 +41,10 @@ enum Command {
     },
     /// Calibrate the magnetometer of a log and compare headings with its reference.
     Calibrate {
-        /// A canonical CSV log.
-        file: PathBuf,
+        /// The log: one file, or the files of one recording (e.g. phyphox's per-sensor
+        /// CSVs), merged by time. Any format `inspect` reads.
+        #[arg(required = true)]
+        files: Vec<PathBuf>,
         #[arg(long, value_enum, default_value_t = Method::Minmax)]
         method: Method,
         /// Declination in degrees (true north from magnetic north, east positive).
@@ -52,6 +56,16 @@ enum Command {
         /// Also draw the circle-fit and heading-error plots to this SVG file.
         #[arg(long)]
         plot: Option<PathBuf>,
+    },
+    /// Show what a log holds: its format, streams (count, rate, duration, gaps), what
+    /// was assumed, and every line that was skipped.
+    Inspect {
+        /// One file, or the files of one recording, merged by time.
+        #[arg(required = true)]
+        files: Vec<PathBuf>,
+        /// Print the result as JSON.
+        #[arg(long)]
+        json: bool,
     },
 }
 
@@ -70,14 +84,15 @@ pub fn main() -> ExitCode {
             out,
             truth,
         } => run_simulate(seed, duration_s, &out, truth.as_deref()),
+        Command::Inspect { files, json } => run_inspect(&files, json),
         Command::Calibrate {
-            file,
+            files,
             method: Method::Minmax,
             declination,
             json,
             plot,
         } => run_calibrate(
-            &file,
+            &files,
             Options {
                 declination_deg: declination,
                 ..Options::default()
@@ -119,17 +134,86 @@ fn run_simulate(
     Ok(())
 }
 
+/// Reads every file; a file that cannot be read ends the command with its name.
+fn read_files(files: &[PathBuf]) -> Result<Vec<(String, Vec<u8>)>, String> {
+    files
+        .iter()
+        .map(|file| {
+            let bytes = std::fs::read(file)
+                .map_err(|error| format!("cannot read {}: {error}", file.display()))?;
+            Ok((file.display().to_string(), bytes))
+        })
+        .collect()
+}
+
+fn as_slices(files: &[(String, Vec<u8>)]) -> Vec<(&str, &[u8])> {
+    files
+        .iter()
+        .map(|(name, bytes)| (name.as_str(), bytes.as_slice()))
+        .collect()
+}
+
+fn run_inspect(files: &[PathBuf], json: bool) -> Result<(), String> {
+    let contents = read_files(files)?;
+    let report = import_files(&as_slices(&contents)).map_err(|error| error.to_string())?;
+    let inspection = Inspection::of(&report);
+    print_import_diagnostics(&inspection.file_name, &inspection.diagnostics);
+    if json {
+        let text = serde_json::to_string_pretty(&inspection)
+            .map_err(|error| format!("cannot encode the result: {error}"))?;
+        return print_out(&(text + "\n"));
+    }
+    use std::fmt::Write as _;
+    let mut text = String::new();
+    let _ = writeln!(
+        text,
+        "{}: {}, {} data lines, {} lines skipped or suspect",
+        inspection.file_name,
+        inspection.format,
+        inspection.n_data_lines,
+        inspection.diagnostics.total()
+    );
+    let _ = writeln!(
+        text,
+        "  {:<34} {:>9} {:>9} {:>10} {:>5} {:>9} {:>8} {:>11}",
+        "stream", "samples", "rate Hz", "duration s", "gaps", "max gap s", "repeats", "mean |v|"
+    );
+    for stream in &inspection.streams {
+        let _ = writeln!(
+            text,
+            "  {:<34} {:>9} {:>9} {:>10.2} {:>5} {:>9.3} {:>8} {:>11}",
+            stream.stream,
+            stream.n_samples,
+            stream
+                .rate_hz
+                .map_or("—".to_string(), |rate_hz| format!("{rate_hz:.2}")),
+            stream.duration_s,
+            stream.n_gaps,
+            stream.largest_gap_s,
+            stream.n_repeated_times,
+            stream
+                .mean_magnitude
+                .map_or(String::new(), |magnitude| format!(
+                    "{magnitude:.3} {}",
+                    stream.unit
+                )),
+        );
+    }
+    for note in &inspection.notes {
+        let _ = writeln!(text, "  note: {note}");
+    }
+    print_out(&text)
+}
+
 fn run_calibrate(
-    file: &Path,
+    files: &[PathBuf],
     options: Options,
     json: bool,
     plot: Option<&Path>,
 ) -> Result<(), String> {
-    let bytes =
-        std::fs::read(file).map_err(|error| format!("cannot read {}: {error}", file.display()))?;
-    let file_name = file.display().to_string();
+    let contents = read_files(files)?;
     let analysis =
-        analyse_minmax_csv(&file_name, &bytes, options).map_err(|error| error.to_string())?;
+        analyse_minmax_files(&as_slices(&contents), options).map_err(|error| error.to_string())?;
     let summary = &analysis.summary;
     print_diagnostics(summary);
     if let Some(plot) = plot {
@@ -163,19 +247,21 @@ fn print_out(text: &str) -> Result<(), String> {
 
 /// Every skipped or suspect line goes to stderr as `file:line: message`.
 fn print_diagnostics(summary: &MinMaxSummary) {
-    for diagnostic in &summary.diagnostics.kept {
+    print_import_diagnostics(&summary.file_name, &summary.diagnostics);
+}
+
+fn print_import_diagnostics(file_name: &str, diagnostics: &Diagnostics) {
+    for diagnostic in &diagnostics.kept {
+        let file_name = diagnostic.file_name.as_deref().unwrap_or(file_name);
         match diagnostic.line {
-            Some(line) => eprintln!(
-                "warning: {}:{line}: {}",
-                summary.file_name, diagnostic.message
-            ),
-            None => eprintln!("warning: {}: {}", summary.file_name, diagnostic.message),
+            Some(line) => eprintln!("warning: {file_name}:{line}: {}", diagnostic.message),
+            None => eprintln!("warning: {file_name}: {}", diagnostic.message),
         }
     }
-    if summary.diagnostics.n_not_kept > 0 {
+    if diagnostics.n_not_kept > 0 {
         eprintln!(
-            "warning: {}: {} more lines had problems (not listed)",
-            summary.file_name, summary.diagnostics.n_not_kept
+            "warning: {file_name}: {} more lines had problems (not listed)",
+            diagnostics.n_not_kept
         );
     }
 }

@@ -6,7 +6,13 @@
 
 pub mod axes;
 pub mod canonical_csv;
+pub mod delimited;
+pub mod import;
 pub mod lines;
+pub mod nmea;
+pub mod serial_lines;
+pub mod summary;
+pub mod tagged_lines;
 
 use serde::Serialize;
 use thiserror::Error;
@@ -23,6 +29,9 @@ pub struct Diagnostic {
     /// 1-based line number, where the problem belongs to one line.
     pub line: Option<usize>,
     pub message: String,
+    /// The file, where several files were imported together.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub file_name: Option<String>,
 }
 
 /// Diagnostics of one import, bounded in memory.
@@ -39,10 +48,26 @@ impl Diagnostics {
             self.kept.push(Diagnostic {
                 line,
                 message: message.into(),
+                file_name: None,
             });
         } else {
             self.n_not_kept += 1;
         }
+    }
+
+    /// Appends another file's diagnostics, marking each with its file.
+    pub fn absorb(&mut self, other: Diagnostics, file_name: &str) {
+        for diagnostic in other.kept {
+            if self.kept.len() < MAX_DIAGNOSTICS_KEPT {
+                self.kept.push(Diagnostic {
+                    file_name: Some(file_name.to_string()),
+                    ..diagnostic
+                });
+            } else {
+                self.n_not_kept += 1;
+            }
+        }
+        self.n_not_kept += other.n_not_kept;
     }
 
     pub fn total(&self) -> usize {
@@ -120,6 +145,34 @@ pub enum ImportError {
         /// The first problem met, as " (line N: reason)", or empty.
         first_problem: String,
     },
+}
+
+/// Refuses a file that is empty (or only white space) or not text, with the message
+/// that names it; every importer starts here.
+pub fn ensure_text(file_name: &str, bytes: &[u8]) -> Result<(), ImportError> {
+    if bytes.iter().all(|byte| byte.is_ascii_whitespace()) {
+        return Err(ImportError::Empty {
+            file_name: file_name.to_string(),
+        });
+    }
+    if let Some(byte_offset) = first_binary_offset(bytes) {
+        return Err(ImportError::NotText {
+            file_name: file_name.to_string(),
+            byte_offset,
+        });
+    }
+    Ok(())
+}
+
+/// Cuts text quoted in a message (a field, a line, a header) to a readable length.
+pub fn shorten(text: &str) -> String {
+    const MAX_CHARS: usize = 80;
+    if text.chars().count() <= MAX_CHARS {
+        text.to_string()
+    } else {
+        let head: String = text.chars().take(MAX_CHARS).collect();
+        format!("{head}…")
+    }
 }
 
 /// Whether `bytes` look like text, judged from their start. Returns the offset of the

@@ -59,15 +59,15 @@ pub(crate) fn thinned_indices(len: usize, max_points: usize) -> impl Iterator<It
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::analysis::{analyse_minmax_csv, Options};
+    use crate::analysis::{analyse_minmax_file, Options};
     use crate::io::canonical_csv;
     use crate::sim::walk::{simulate, WalkConfig};
 
     #[test]
     fn the_figure_draws_to_svg() {
         let text = canonical_csv::write(&simulate(&WalkConfig::from_seed(5, 60.0)));
-        let analysis =
-            analyse_minmax_csv("sim.csv", text.as_bytes(), Options::default()).expect("analysable");
+        let analysis = analyse_minmax_file("sim.csv", text.as_bytes(), Options::default())
+            .expect("analysable");
         let mut svg = String::new();
         {
             let root = SVGBackend::with_string(&mut svg, (1200, 500)).into_drawing_area();

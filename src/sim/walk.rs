@@ -249,7 +249,7 @@ fn noise3(rng: &mut SplitMix64, sigma: f64) -> Vector3<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::analysis::{analyse_minmax_csv, Options};
+    use crate::analysis::{analyse_minmax_file, Options};
     use crate::io::canonical_csv;
 
     #[test]
@@ -280,8 +280,8 @@ mod tests {
         // second cannot follow, amplified by tan(60°) inclination.
         let config = WalkConfig::from_seed(11, 120.0);
         let text = canonical_csv::write(&simulate(&config));
-        let analysis =
-            analyse_minmax_csv("sim.csv", text.as_bytes(), Options::default()).expect("analysable");
+        let analysis = analyse_minmax_file("sim.csv", text.as_bytes(), Options::default())
+            .expect("analysable");
         let summary = &analysis.summary;
         let before = summary.heading_error_before.expect("reference present");
         let after = summary.heading_error_after.expect("reference present");

@@ -2,7 +2,7 @@
 //! DOM. It reads what the user drops, hands bytes to the core, and puts the core's
 //! results into the page. No calibration or statistics are computed here.
 //!
-//! `www/bootstrap.js` loads the module and calls [`run_page`]; [`analyse_csv`] is the
+//! `www/bootstrap.js` loads the module and calls [`run_page`]; [`analyse_file`] is the
 //! same analysis for scripts, returning the summary as a plain object.
 
 mod canvas;
@@ -15,7 +15,7 @@ use std::sync::Once;
 
 use wasm_bindgen::prelude::*;
 
-use crate::analysis::{analyse_minmax_csv, Options};
+use crate::analysis::{analyse_minmax_file, Options};
 
 /// Wires up the page (`www/index.html`) and analyses the demo log named by the body's
 /// `data-demo-url`.
@@ -31,8 +31,8 @@ pub fn run_page() -> Result<(), JsError> {
 /// `compass-pdr calibrate --json`). Throws an `Error` whose message says what is wrong
 /// with the file and what to do.
 #[wasm_bindgen]
-pub fn analyse_csv(file_name: &str, bytes: &[u8]) -> Result<JsValue, JsError> {
-    let analysis = analyse_minmax_csv(file_name, bytes, Options::default())
+pub fn analyse_file(file_name: &str, bytes: &[u8]) -> Result<JsValue, JsError> {
+    let analysis = analyse_minmax_file(file_name, bytes, Options::default())
         .map_err(|error| JsError::new(&error.to_string()))?;
     let serializer = serde_wasm_bindgen::Serializer::json_compatible();
     serde::Serialize::serialize(&analysis.summary, &serializer)

@@ -13,7 +13,7 @@ use wasm_bindgen_futures::{spawn_local, JsFuture};
 use web_sys::{Document, DragEvent, Element, HtmlCanvasElement, HtmlElement, HtmlInputElement};
 
 use super::canvas::{self, Plot};
-use crate::analysis::{analyse_minmax_csv, MinMaxAnalysis, MinMaxSummary, Options};
+use crate::analysis::{analyse_minmax_files, MinMaxAnalysis, MinMaxSummary, Options};
 use crate::stats::HeadingErrorStats;
 
 /// The ids of the elements the page must have (see `www/index.html`).
@@ -125,36 +125,46 @@ impl Page {
         let file_name = demo_url.rsplit('/').next().unwrap_or(&demo_url).to_string();
         self.set_state("loading", &format!("Loading the demo log {file_name}…"));
         match fetch_bytes(&demo_url).await {
-            Ok(bytes) => self.analyse_and_show(&file_name, &bytes),
+            Ok(bytes) => self.analyse_and_show(&[(file_name.as_str(), bytes.as_slice())]),
             Err(message) => self.show_error(&format!("Could not load the demo log {demo_url}: {message}. Drop a log to analyse it instead.")),
         }
     }
 
+    /// Reads every file dropped or chosen and analyses them as one recording (phyphox
+    /// writes one file per sensor).
     fn analyse_files(self: &Rc<Self>, files: web_sys::FileList) {
-        let Some(file) = files.get(0) else { return };
-        let n_files = files.length();
+        let files: Vec<web_sys::File> = (0..files.length())
+            .filter_map(|idx| files.get(idx))
+            .collect();
+        if files.is_empty() {
+            return;
+        }
         let page = Rc::clone(self);
         spawn_local(async move {
-            let file_name = file.name();
-            page.set_state("loading", &format!("Reading {file_name}…"));
-            match gloo_file::futures::read_as_bytes(&gloo::file::Blob::from(file)).await {
-                Ok(bytes) => {
-                    page.analyse_and_show(&file_name, &bytes);
-                    if n_files > 1 {
-                        page.append_status(&format!(
-                            " Only the first of the {n_files} files was analysed."
+            let names: Vec<String> = files.iter().map(web_sys::File::name).collect();
+            page.set_state("loading", &format!("Reading {}…", names.join(", ")));
+            let mut contents: Vec<(String, Vec<u8>)> = Vec::with_capacity(files.len());
+            for (file, file_name) in files.into_iter().zip(names) {
+                match gloo_file::futures::read_as_bytes(&gloo::file::Blob::from(file)).await {
+                    Ok(bytes) => contents.push((file_name, bytes)),
+                    Err(error) => {
+                        page.show_error(&format!(
+                            "Could not read {file_name}: {error}. Try choosing it again."
                         ));
+                        return;
                     }
                 }
-                Err(error) => page.show_error(&format!(
-                    "Could not read {file_name}: {error}. Try choosing it again."
-                )),
             }
+            let slices: Vec<(&str, &[u8])> = contents
+                .iter()
+                .map(|(name, bytes)| (name.as_str(), bytes.as_slice()))
+                .collect();
+            page.analyse_and_show(&slices);
         });
     }
 
-    fn analyse_and_show(&self, file_name: &str, bytes: &[u8]) {
-        match analyse_minmax_csv(file_name, bytes, Options::default()) {
+    fn analyse_and_show(&self, files: &[(&str, &[u8])]) {
+        match analyse_minmax_files(files, Options::default()) {
             Ok(analysis) => self.show_analysis(&analysis),
             Err(error) => self.show_error(&error.to_string()),
         }
@@ -263,9 +273,15 @@ impl Page {
             .kept
             .iter()
             .take(MAX_DIAGNOSTICS_SHOWN)
-            .map(|diagnostic| match diagnostic.line {
-                Some(line) => format!("{}, line {line}: {}", summary.file_name, diagnostic.message),
-                None => format!("{}: {}", summary.file_name, diagnostic.message),
+            .map(|diagnostic| {
+                let file_name = diagnostic
+                    .file_name
+                    .as_deref()
+                    .unwrap_or(&summary.file_name);
+                match diagnostic.line {
+                    Some(line) => format!("{file_name}, line {line}: {}", diagnostic.message),
+                    None => format!("{file_name}: {}", diagnostic.message),
+                }
             });
         let n_not_shown = diagnostics.total().saturating_sub(MAX_DIAGNOSTICS_SHOWN);
         let more = (n_not_shown > 0)
@@ -296,11 +312,6 @@ impl Page {
     fn set_state(&self, state: &str, message: &str) {
         self.body.set_attribute("data-state", state).ok();
         self.status.set_text_content(Some(message));
-    }
-
-    fn append_status(&self, text: &str) {
-        let current = self.status.text_content().unwrap_or_default();
-        self.status.set_text_content(Some(&(current + text)));
     }
 }
 

@@ -5,7 +5,7 @@ use wasm_bindgen_test::*;
 use web_sys::{CanvasRenderingContext2d, HtmlCanvasElement};
 
 use super::canvas::{self, Plot};
-use crate::analysis::{analyse_minmax_csv, Options};
+use crate::analysis::{analyse_minmax_file, Options};
 use crate::io::canonical_csv;
 use crate::sim::walk::{simulate, WalkConfig};
 
@@ -52,8 +52,8 @@ fn n_drawn_pixels(canvas: &HtmlCanvasElement) -> usize {
 }
 
 #[wasm_bindgen_test]
-fn analyse_csv_returns_the_summary_as_a_plain_object() {
-    let value = super::analyse_csv("walk.csv", &simulated_csv())
+fn analyse_file_returns_the_summary_as_a_plain_object() {
+    let value = super::analyse_file("walk.csv", &simulated_csv())
         .map_err(wasm_bindgen::JsValue::from)
         .expect("analysable");
     let rms = js_sys::Reflect::get(&value, &"heading_error_after".into())
@@ -69,11 +69,11 @@ fn analyse_csv_returns_the_summary_as_a_plain_object() {
 }
 
 #[wasm_bindgen_test]
-fn analyse_csv_throws_a_message_that_names_the_file() {
+fn analyse_file_throws_a_message_that_names_the_file() {
     let garbage: Vec<u8> = (0..2000u32)
         .map(|idx| (idx.wrapping_mul(2_654_435_761) >> 7) as u8)
         .collect();
-    let error = super::analyse_csv("noise.bin", &garbage)
+    let error = super::analyse_file("noise.bin", &garbage)
         .map_err(wasm_bindgen::JsValue::from)
         .expect_err("garbage is refused");
     let message: String = error
@@ -87,7 +87,7 @@ fn analyse_csv_throws_a_message_that_names_the_file() {
 #[wasm_bindgen_test]
 fn both_plots_draw_on_a_canvas() {
     let analysis =
-        analyse_minmax_csv("walk.csv", &simulated_csv(), Options::default()).expect("analysable");
+        analyse_minmax_file("walk.csv", &simulated_csv(), Options::default()).expect("analysable");
     for plot in [Plot::CircleFit, Plot::HeadingError] {
         let canvas = new_canvas(480, 360);
         canvas::draw(&canvas, plot, &analysis).expect("drawn");
@@ -144,7 +144,7 @@ fn the_page_shows_an_analysis_then_an_error() {
     };
 
     let analysis =
-        analyse_minmax_csv("walk.csv", &simulated_csv(), Options::default()).expect("analysable");
+        analyse_minmax_file("walk.csv", &simulated_csv(), Options::default()).expect("analysable");
     page.show_analysis(&analysis);
     let after = analysis
         .summary

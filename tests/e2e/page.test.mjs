@@ -3,7 +3,7 @@
 // www/ and writes the expected figures (from the CLI) into E2E_OUT.
 import { test, before, after } from 'node:test';
 import assert from 'node:assert/strict';
-import { readFileSync } from 'node:fs';
+import { existsSync, readFileSync } from 'node:fs';
 import { join } from 'node:path';
 import { chromium } from 'playwright-core';
 
@@ -76,13 +76,17 @@ async function assertPlotsDrawn(page) {
 
 /** Drops files on the drop zone the way a browser does: a drop event with a DataTransfer. */
 async function dropFile(page, name, content) {
-  await page.evaluate(({ name, content }) => {
+  await dropFiles(page, [{ name, content }]);
+}
+
+async function dropFiles(page, files) {
+  await page.evaluate((files) => {
     const transfer = new DataTransfer();
-    transfer.items.add(new File([content], name, { type: 'text/csv' }));
+    for (const { name, content } of files) transfer.items.add(new File([content], name, { type: 'text/csv' }));
     const zone = document.getElementById('drop-zone');
     zone.dispatchEvent(new DragEvent('dragover', { dataTransfer: transfer, bubbles: true, cancelable: true }));
     zone.dispatchEvent(new DragEvent('drop', { dataTransfer: transfer, bubbles: true, cancelable: true }));
-  }, { name, content });
+  }, files);
 }
 
 test('the demo is analysed and drawn on load, with the CLI\'s figures', async () => {
@@ -111,6 +115,24 @@ test('a dropped canonical CSV replaces the demo', async () => {
   await assertPlotsDrawn(page);
   assert.equal(await text(page, 'result-file'), 'drop-walk.csv');
   await page.screenshot({ path: join(out, 'dropped.png'), fullPage: true });
+  assert.deepEqual(problems, []);
+  await close();
+});
+
+test('phyphox files dropped together are merged into one recording', async (t) => {
+  const dir = join(import.meta.dirname, '../../../shared/data/phyphox-hallway-loop');
+  if (!existsSync(dir)) { t.skip(`${dir} not found (the real recordings live beside the project; CI has them)`); return; }
+  const { page, problems, close } = await openPage();
+  await waitForState(page, 'ready', 'demo-walk.csv');
+  const names = ['Accelerometer.csv', 'Gyroscope.csv', 'Magnetometer.csv', 'Location.csv'];
+  await dropFiles(page, names.map((name) => ({ name, content: readFileSync(join(dir, name), 'utf8') })));
+  await waitForState(page, 'ready', names.join(' + '));
+  assert.match(await text(page, 'status'), /10575 magnetometer samples/);
+  // No reference heading in a phyphox walk: the figures say so instead of inventing one.
+  assert.equal(await text(page, 'stat-after-rms'), '—');
+  assert.match(await text(page, 'notes'), /no reference heading/);
+  await assertPlotsDrawn(page);
+  await page.screenshot({ path: join(out, 'phyphox.png'), fullPage: true });
   assert.deepEqual(problems, []);
   await close();
 });

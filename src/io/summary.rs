@@ -1,0 +1,143 @@
+//! Stream summaries: what an import found, per stream, for the user to check against
+//! what they recorded (count, rate, duration, gaps, repeated times, magnitude).
+
+use nalgebra::Vector3;
+use serde::Serialize;
+
+use crate::recording::{Recording, Stream};
+
+/// One stream of a recording, summarised.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StreamSummary {
+    pub stream: &'static str,
+    pub unit: &'static str,
+    pub n_samples: usize,
+    pub duration_s: f64,
+    /// Samples per second over the stream's duration (not from the median interval:
+    /// buffered sensors deliver in bursts); `None` for fewer than two samples.
+    pub rate_hz: Option<f64>,
+    /// Intervals longer than three mean intervals (and than 0.1 s).
+    pub n_gaps: usize,
+    pub largest_gap_s: f64,
+    /// Samples that share their time with the one before.
+    pub n_repeated_times: usize,
+    /// Mean magnitude of a vector stream (|B| in µT, |f| in m/s², |ω| in rad/s).
+    pub mean_magnitude: Option<f64>,
+}
+
+/// Summaries of the streams of a recording that hold any samples.
+pub fn summarize(recording: &Recording) -> Vec<StreamSummary> {
+    let mut summaries = Vec::new();
+    let mut vector = |name: &'static str, unit: &'static str, stream: &Stream<Vector3<f64>>| {
+        if !stream.is_empty() {
+            let mean =
+                stream.values.iter().map(|value| value.norm()).sum::<f64>() / stream.len() as f64;
+            summaries.push(StreamSummary {
+                mean_magnitude: Some(mean),
+                ..timing(name, unit, &stream.t_s)
+            });
+        }
+    };
+    vector("accelerometer", "m/s²", &recording.acc_in_body_mps2);
+    vector("gyroscope", "rad/s", &recording.gyro_in_body_radps);
+    vector("magnetometer", "µT", &recording.mag_in_body_ut);
+    vector(
+        "magnetometer bias (device's own)",
+        "µT",
+        &recording.mag_bias_in_body_ut,
+    );
+    let streams: [(&'static str, &'static str, &[f64]); 8] = [
+        ("temperature", "°C", &recording.temp_c.t_s),
+        ("pressure", "hPa", &recording.pressure_hpa.t_s),
+        ("GNSS", "fix", &recording.gnss.t_s),
+        ("attitude (device's own)", "rad", &recording.attitude.t_s),
+        (
+            "heading (device's own)",
+            "rad",
+            &recording.device_heading.t_s,
+        ),
+        ("reference heading", "rad", &recording.ref_heading_rad.t_s),
+        ("reference positions", "m", &recording.ref_position_en_m.t_s),
+        (
+            "reference positions (lat/lon)",
+            "deg",
+            &recording.ref_position_lat_lon_deg.t_s,
+        ),
+    ];
+    for (name, unit, t_s) in streams {
+        if !t_s.is_empty() {
+            summaries.push(timing(name, unit, t_s));
+        }
+    }
+    summaries
+}
+
+fn timing(stream: &'static str, unit: &'static str, t_s: &[f64]) -> StreamSummary {
+    let duration_s = match (t_s.first(), t_s.last()) {
+        (Some(first_s), Some(last_s)) => last_s - first_s,
+        _ => 0.0,
+    };
+    let n_intervals = t_s.len().saturating_sub(1);
+    let mean_interval_s =
+        (n_intervals > 0 && duration_s > 0.0).then(|| duration_s / n_intervals as f64);
+    let gap_threshold_s = mean_interval_s.map_or(f64::INFINITY, |mean_s| (3.0 * mean_s).max(0.1));
+    let (mut n_gaps, mut largest_gap_s, mut n_repeated_times) = (0usize, 0.0f64, 0usize);
+    for pair in t_s.windows(2) {
+        let interval_s = pair[1] - pair[0];
+        largest_gap_s = largest_gap_s.max(interval_s);
+        if interval_s == 0.0 {
+            n_repeated_times += 1;
+        }
+        if interval_s > gap_threshold_s {
+            n_gaps += 1;
+        }
+    }
+    StreamSummary {
+        stream,
+        unit,
+        n_samples: t_s.len(),
+        duration_s,
+        rate_hz: mean_interval_s.map(|mean_s| 1.0 / mean_s),
+        n_gaps,
+        largest_gap_s,
+        n_repeated_times,
+        mean_magnitude: None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rate_gaps_and_repeats_are_counted() {
+        let mut recording = Recording::default();
+        for idx in 0..100 {
+            recording
+                .mag_in_body_ut
+                .push(idx as f64 * 0.02, Vector3::new(30.0, 0.0, 40.0));
+        }
+        // A 2 s gap (1.98 s to 3.98 s) and a repeated time.
+        recording
+            .mag_in_body_ut
+            .push(2.98 + 1.0, Vector3::new(30.0, 0.0, 40.0));
+        recording
+            .mag_in_body_ut
+            .push(2.98 + 1.0, Vector3::new(30.0, 0.0, 40.0));
+        let summaries = summarize(&recording);
+        assert_eq!(summaries.len(), 1);
+        let mag = &summaries[0];
+        assert_eq!(mag.n_samples, 102);
+        // 101 intervals over 3.98 s.
+        assert!((mag.rate_hz.unwrap_or(0.0) - 101.0 / 3.98).abs() < 1e-6);
+        assert_eq!(mag.n_gaps, 1);
+        assert!((mag.largest_gap_s - 2.0).abs() < 1e-9);
+        assert_eq!(mag.n_repeated_times, 1);
+        assert!((mag.mean_magnitude.unwrap_or(0.0) - 50.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn empty_streams_are_left_out() {
+        assert!(summarize(&Recording::default()).is_empty());
+    }
+}

@@ -1,0 +1,206 @@
+//! Replay tests on the real recordings in `../shared/data` (see its README): each file
+//! imports with the stream summaries its README states. Skipped, with a message, when
+//! `../shared/data` is absent (a user's clone); CI has it.
+#![cfg(not(target_arch = "wasm32"))]
+
+use std::path::{Path, PathBuf};
+
+use compass_pdr::io::import::{import_files, Inspection};
+use compass_pdr::io::summary::StreamSummary;
+
+fn shared_data() -> Option<PathBuf> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data");
+    if dir.is_dir() {
+        Some(dir)
+    } else {
+        eprintln!(
+            "skipped: {} not found (the real recordings live beside the project; CI has them)",
+            dir.display()
+        );
+        None
+    }
+}
+
+fn inspect(paths: &[PathBuf]) -> Inspection {
+    let contents: Vec<(String, Vec<u8>)> = paths
+        .iter()
+        .map(|path| {
+            (
+                path.file_name()
+                    .map(|name| name.to_string_lossy().into_owned())
+                    .unwrap_or_default(),
+                std::fs::read(path).expect("readable file"),
+            )
+        })
+        .collect();
+    let slices: Vec<(&str, &[u8])> = contents
+        .iter()
+        .map(|(name, bytes)| (name.as_str(), bytes.as_slice()))
+        .collect();
+    let report = import_files(&slices).expect("imports");
+    Inspection::of(&report)
+}
+
+fn stream<'a>(inspection: &'a Inspection, name: &str) -> &'a StreamSummary {
+    inspection
+        .streams
+        .iter()
+        .find(|stream| stream.stream == name)
+        .unwrap_or_else(|| panic!("no {name} stream in {:?}", inspection.streams))
+}
+
+fn assert_near(value: f64, expect: f64, tolerance: f64, what: &str) {
+    assert!(
+        (value - expect).abs() <= tolerance,
+        "{what}: {value}, expected {expect} ± {tolerance}"
+    );
+}
+
+#[test]
+fn phyphox_hallway_loop_merges_its_four_files() {
+    let Some(data) = shared_data() else { return };
+    let dir = data.join("phyphox-hallway-loop");
+    let files: Vec<PathBuf> = [
+        "Accelerometer.csv",
+        "Gyroscope.csv",
+        "Magnetometer.csv",
+        "Location.csv",
+    ]
+    .iter()
+    .map(|name| dir.join(name))
+    .collect();
+    // Counts are the data lines of each file (the files end without a newline).
+    let inspection = inspect(&files);
+    assert!(
+        inspection.diagnostics.is_empty(),
+        "{:?}",
+        inspection.diagnostics
+    );
+    assert!(
+        inspection
+            .notes
+            .iter()
+            .any(|note| note.contains("Vertical Accuracy")),
+        "the ignored column is named"
+    );
+    for (name, n_samples) in [
+        ("accelerometer", 10_577),
+        ("gyroscope", 10_575),
+        ("magnetometer", 10_575),
+    ] {
+        let summary = stream(&inspection, name);
+        assert_eq!(summary.n_samples, n_samples, "{name}");
+        assert_near(summary.rate_hz.unwrap_or(0.0), 100.0, 2.0, name);
+        assert_near(summary.duration_s, 105.0, 0.5, name);
+    }
+    // Held in hand: specific force ≈ g, Earth's field 25-65 µT.
+    assert_near(
+        stream(&inspection, "accelerometer")
+            .mean_magnitude
+            .unwrap_or(0.0),
+        9.8,
+        0.5,
+        "|f|",
+    );
+    let field_ut = stream(&inspection, "magnetometer")
+        .mean_magnitude
+        .unwrap_or(0.0);
+    assert!((25.0..65.0).contains(&field_ut), "|B| = {field_ut} µT");
+    assert_eq!(stream(&inspection, "GNSS").n_samples, 35);
+    assert!(
+        inspection
+            .notes
+            .iter()
+            .any(|note| note.contains("phone held flat")),
+        "{:?}",
+        inspection.notes
+    );
+}
+
+#[test]
+fn vehicle_sensor_logger_csv_is_upright_at_one_hertz() {
+    let Some(data) = shared_data() else { return };
+    let inspection = inspect(&[data.join("vehicle-pixel6a/2023-08-09_12-47-42.csv")]);
+    let mag = stream(&inspection, "magnetometer");
+    assert_eq!(mag.n_samples, 5209);
+    assert_near(mag.rate_hz.unwrap_or(0.0), 1.0, 0.01, "rate");
+    assert_near(mag.duration_s / 60.0, 86.8, 0.2, "duration (min)");
+    // 37 of the 5210 rows have no fix: their location fields are empty.
+    assert_eq!(stream(&inspection, "GNSS").n_samples, 5173);
+    assert!(
+        inspection
+            .notes
+            .iter()
+            .any(|note| note.contains("phone upright")),
+        "{:?}",
+        inspection.notes
+    );
+    // Gravity along device y, so body z carries it.
+    assert_near(
+        stream(&inspection, "accelerometer")
+            .mean_magnitude
+            .unwrap_or(0.0),
+        9.8,
+        0.3,
+        "|f|",
+    );
+}
+
+#[test]
+fn hmc5883l_sphere_files_are_converted_from_gauss_g_and_degrees() {
+    let Some(data) = shared_data() else { return };
+    for (run, n_mag, n_imu, duration_s) in [
+        ("full-sphere", 8190, 10_528, 106.3),
+        ("rotate-ccw-around-z-pointing-up", 1860, 2393, 24.0),
+        ("unmoved-with-x-pointing-forward", 9486, 12_243, 123.2),
+    ] {
+        let dir = data.join("hmc5883l-sphere").join(run);
+        let files: Vec<PathBuf> = [
+            "hmc5883l_compass.csv",
+            "mpu6050_accelerometer.csv",
+            "mpu6050_gyroscope.csv",
+            "mpu6050_temperature.csv",
+        ]
+        .iter()
+        .map(|name| dir.join(name))
+        .collect();
+        let inspection = inspect(&files);
+        let mag = stream(&inspection, "magnetometer");
+        assert_eq!(mag.n_samples, n_mag, "{run}");
+        assert_near(mag.rate_hz.unwrap_or(0.0), 77.0, 8.0, run);
+        assert_near(mag.duration_s, duration_s, 0.5, run);
+        // Gauss to µT: the raw field (with hard iron) is tens of µT, not tenths.
+        let field_ut = mag.mean_magnitude.unwrap_or(0.0);
+        assert!(
+            (20.0..120.0).contains(&field_ut),
+            "{run}: |B| = {field_ut} µT"
+        );
+        let acc = stream(&inspection, "accelerometer");
+        assert_eq!(acc.n_samples, n_imu, "{run}");
+        assert_near(acc.rate_hz.unwrap_or(0.0), 100.0, 5.0, run);
+        assert_near(acc.mean_magnitude.unwrap_or(0.0), 9.8, 0.5, run);
+        assert_eq!(stream(&inspection, "temperature").n_samples, n_imu, "{run}");
+        assert_eq!(stream(&inspection, "gyroscope").n_samples, n_imu, "{run}");
+    }
+}
+
+#[test]
+fn a_stats_file_dropped_with_the_data_is_left_out_with_a_reason() {
+    let Some(data) = shared_data() else { return };
+    let dir = data.join("hmc5883l-sphere/full-sphere");
+    let inspection = inspect(&[
+        dir.join("hmc5883l_compass.csv"),
+        dir.join("sensor-stats.csv"),
+    ]);
+    assert_eq!(stream(&inspection, "magnetometer").n_samples, 8190);
+    let left_out = inspection
+        .diagnostics
+        .kept
+        .iter()
+        .find(|diagnostic| diagnostic.file_name.as_deref() == Some("sensor-stats.csv"));
+    assert!(
+        left_out.is_some_and(|diagnostic| diagnostic.message.contains("left out")),
+        "{:?}",
+        inspection.diagnostics
+    );
+}
