@@ -47,6 +47,7 @@
 //! the 2007 paper, which needs a full level turn and cannot correct cross-axis soft
 //! iron.
 
+pub mod align;
 pub mod analysis;
 pub mod angle;
 pub mod calib;
