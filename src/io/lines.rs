@@ -40,7 +40,8 @@ impl LineDecoder {
         }
     }
 
-    /// Feeds one chunk, calling `on_line` for each line it completes.
+    /// Feeds one chunk, calling `on_line` for each line it completes. A line that lies
+    /// wholly inside the chunk is handed over without a copy.
     pub fn feed(&mut self, chunk: &[u8], mut on_line: impl FnMut(Line<'_>)) {
         let mut rest = chunk;
         if self.after_cr {
@@ -51,9 +52,20 @@ impl LineDecoder {
                 self.after_cr = false;
             }
         }
-        while let Some(end_idx) = rest.iter().position(|&byte| byte == b'\n' || byte == b'\r') {
+        while let Some(end_idx) = memchr::memchr2(b'\n', b'\r', rest) {
             let (content, tail) = rest.split_at(end_idx);
-            self.append(content);
+            if self.buffer.is_empty() && !self.truncated {
+                let kept = &content[..content.len().min(self.max_line_bytes)];
+                self.n_lines_emitted += 1;
+                on_line(Line {
+                    number: self.n_lines_emitted,
+                    text: decode_utf8(kept),
+                    truncated: kept.len() < content.len(),
+                });
+            } else {
+                self.append(content);
+                self.emit(&mut on_line);
+            }
             let terminator = tail.first().copied();
             let mut tail = tail.get(1..).unwrap_or_default();
             if terminator == Some(b'\r') {
@@ -63,7 +75,6 @@ impl LineDecoder {
                     self.after_cr = true;
                 }
             }
-            self.emit(&mut on_line);
             rest = tail;
         }
         self.append(rest);
@@ -95,11 +106,20 @@ impl LineDecoder {
         self.n_lines_emitted += 1;
         on_line(Line {
             number: self.n_lines_emitted,
-            text: String::from_utf8_lossy(&self.buffer),
+            text: decode_utf8(&self.buffer),
             truncated: self.truncated,
         });
         self.buffer.clear();
         self.truncated = false;
+    }
+}
+
+/// Text of a line: borrowed when it is valid UTF-8 (the usual case, checked by the
+/// standard library's fast validator), otherwise with U+FFFD for the invalid bytes.
+fn decode_utf8(bytes: &[u8]) -> Cow<'_, str> {
+    match std::str::from_utf8(bytes) {
+        Ok(text) => Cow::Borrowed(text),
+        Err(_) => String::from_utf8_lossy(bytes),
     }
 }
 
