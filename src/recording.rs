@@ -172,6 +172,29 @@ pub struct Recording {
 }
 
 impl Recording {
+    /// Appends every stream of `other` to this one's (sorting is the caller's).
+    pub fn append(&mut self, other: Recording) {
+        fn append<T>(into: &mut Stream<T>, from: Stream<T>) {
+            into.t_s.extend(from.t_s);
+            into.values.extend(from.values);
+        }
+        append(&mut self.acc_in_body_mps2, other.acc_in_body_mps2);
+        append(&mut self.gyro_in_body_radps, other.gyro_in_body_radps);
+        append(&mut self.mag_in_body_ut, other.mag_in_body_ut);
+        append(&mut self.mag_bias_in_body_ut, other.mag_bias_in_body_ut);
+        append(&mut self.temp_c, other.temp_c);
+        append(&mut self.pressure_hpa, other.pressure_hpa);
+        append(&mut self.gnss, other.gnss);
+        append(&mut self.attitude, other.attitude);
+        append(&mut self.device_heading, other.device_heading);
+        append(&mut self.ref_heading_rad, other.ref_heading_rad);
+        append(&mut self.ref_position_en_m, other.ref_position_en_m);
+        append(
+            &mut self.ref_position_lat_lon_deg,
+            other.ref_position_lat_lon_deg,
+        );
+    }
+
     /// Sorts every stream by time; returns how many samples were out of order in all.
     pub fn sort_all_by_time(&mut self) -> usize {
         self.acc_in_body_mps2.sort_by_time()

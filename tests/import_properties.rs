@@ -4,7 +4,7 @@
 #![cfg(not(target_arch = "wasm32"))]
 
 use compass_pdr::analysis::{analyse_minmax_file, Options};
-use compass_pdr::io::import::{import, import_files, Inspection};
+use compass_pdr::io::import::{import, import_files, merge, ChunkedImport, Inspection};
 use compass_pdr::io::lines::LineDecoder;
 use proptest::prelude::*;
 
@@ -33,6 +33,20 @@ const SEED_LINES: &[&str] = &[
     "NaN,NaN,NaN",
     "1e400,-1e400,1e-400",
 ];
+
+/// A canonical CSV whose data rows are drawn from `picks`.
+fn csv_of(picks: &[usize]) -> String {
+    let mut text = String::from("t_s,mag_x_ut,mag_y_ut,mag_z_ut,ref_heading_deg\n");
+    for (row_idx, &pick) in picks.iter().enumerate() {
+        text.push_str(&format!(
+            "{row_idx}.5,{},{}.25,-3{pick},x{}\n",
+            pick * 3,
+            pick,
+            row_idx % 7
+        ));
+    }
+    text
+}
 
 fn lines_of(bytes: &[u8], chunk_ends: &[usize]) -> Vec<(usize, String, bool)> {
     let mut lines = Vec::new();
@@ -76,6 +90,35 @@ proptest! {
         let _ = import("mixed.txt", &text).map(|report| Inspection::of(&report));
         let _ = import_files(&[("a.txt", &text), ("b.txt", &text[..text.len() / 2])]);
         let _ = analyse_minmax_file("mixed.txt", &text, Options::default());
+    }
+
+    #[test]
+    fn a_file_read_in_any_chunks_imports_as_when_read_whole(
+        picks in proptest::collection::vec(0..SEED_LINES.len(), 1..80),
+        mut chunk_ends in proptest::collection::vec(0usize..4000, 0..10),
+    ) {
+        // NMEA only, a canonical CSV, and a mixture: each must import the same in chunks.
+        let nmea: Vec<&str> = picks.iter().map(|&idx| SEED_LINES[idx]).filter(|line| line.starts_with('$')).collect();
+        let mixed: Vec<&str> = picks.iter().map(|&idx| SEED_LINES[idx]).collect();
+        for candidate in [nmea.join("\n"), csv_of(&picks), mixed.join("\r\n")] {
+            let bytes = candidate.as_bytes();
+            chunk_ends.sort_unstable();
+            let mut chunked = ChunkedImport::new("f.txt", Some(bytes.len()));
+            let mut start = 0;
+            let mut fed = Ok(());
+            for &end in chunk_ends.iter().chain(std::iter::once(&bytes.len())) {
+                let end = end.clamp(start, bytes.len());
+                fed = fed.and_then(|()| chunked.feed(&bytes[start..end]));
+                start = end;
+            }
+            let chunked_result = fed.and_then(|()| chunked.finish()).map(|file| merge(vec![("f.txt".to_string(), Ok(file))]));
+            let whole = import("f.txt", bytes);
+            match (chunked_result, whole) {
+                (Ok(Ok(chunked)), Ok(whole)) => prop_assert_eq!(chunked, whole),
+                (Ok(Err(chunked)), Err(whole)) | (Err(chunked), Err(whole)) => prop_assert_eq!(chunked, whole),
+                (chunked, whole) => prop_assert!(false, "chunked {:?} but whole {:?}", chunked.is_ok(), whole.is_ok()),
+            }
+        }
     }
 
     #[test]

@@ -5,10 +5,10 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand, ValueEnum};
-use compass_pdr::analysis::{analyse_minmax_files, MinMaxSummary, Options};
+use compass_pdr::analysis::{analyse_minmax, MinMaxSummary, Options};
 use compass_pdr::io::canonical_csv;
-use compass_pdr::io::import::{import_files, Inspection};
-use compass_pdr::io::Diagnostics;
+use compass_pdr::io::import::{merge, ChunkedImport, Inspection};
+use compass_pdr::io::{Diagnostics, ImportReport};
 use compass_pdr::plot::draw_minmax_figure;
 use compass_pdr::sim::walk::{simulate, WalkConfig};
 use compass_pdr::stats::HeadingErrorStats;
@@ -134,28 +134,41 @@ fn run_simulate(
     Ok(())
 }
 
-/// Reads every file; a file that cannot be read ends the command with its name.
-fn read_files(files: &[PathBuf]) -> Result<Vec<(String, Vec<u8>)>, String> {
-    files
-        .iter()
-        .map(|file| {
-            let bytes = std::fs::read(file)
-                .map_err(|error| format!("cannot read {}: {error}", file.display()))?;
-            Ok((file.display().to_string(), bytes))
-        })
-        .collect()
-}
-
-fn as_slices(files: &[(String, Vec<u8>)]) -> Vec<(&str, &[u8])> {
-    files
-        .iter()
-        .map(|(name, bytes)| (name.as_str(), bytes.as_slice()))
-        .collect()
+/// Reads the files of one recording in chunks (memory holds the samples, not the
+/// text) and merges them. A file that cannot be opened ends the command with its name;
+/// one that cannot be parsed is left out with a diagnostic unless all fail.
+fn import_paths(files: &[PathBuf]) -> Result<ImportReport, String> {
+    use std::io::Read as _;
+    const CHUNK_BYTES: usize = 1 << 20;
+    let mut results = Vec::with_capacity(files.len());
+    let mut buffer = vec![0u8; CHUNK_BYTES];
+    for path in files {
+        let file_name = path.display().to_string();
+        let cannot_read = |error: std::io::Error| format!("cannot read {file_name}: {error}");
+        let mut file = std::fs::File::open(path).map_err(cannot_read)?;
+        let size_hint = file
+            .metadata()
+            .ok()
+            .and_then(|metadata| usize::try_from(metadata.len()).ok());
+        let mut import = ChunkedImport::new(&file_name, size_hint);
+        let mut result = Ok(());
+        loop {
+            let n_read = file.read(&mut buffer).map_err(cannot_read)?;
+            let Some(chunk) = buffer.get(..n_read).filter(|chunk| !chunk.is_empty()) else {
+                break;
+            };
+            result = import.feed(chunk);
+            if result.is_err() {
+                break;
+            }
+        }
+        results.push((file_name, result.and_then(|()| import.finish())));
+    }
+    merge(results).map_err(|error| error.to_string())
 }
 
 fn run_inspect(files: &[PathBuf], json: bool) -> Result<(), String> {
-    let contents = read_files(files)?;
-    let report = import_files(&as_slices(&contents)).map_err(|error| error.to_string())?;
+    let report = import_paths(files)?;
     let inspection = Inspection::of(&report);
     print_import_diagnostics(&inspection.file_name, &inspection.diagnostics);
     if json {
@@ -211,9 +224,8 @@ fn run_calibrate(
     json: bool,
     plot: Option<&Path>,
 ) -> Result<(), String> {
-    let contents = read_files(files)?;
-    let analysis =
-        analyse_minmax_files(&as_slices(&contents), options).map_err(|error| error.to_string())?;
+    let report = import_paths(files)?;
+    let analysis = analyse_minmax(report, options).map_err(|error| error.to_string())?;
     let summary = &analysis.summary;
     print_diagnostics(summary);
     if let Some(plot) = plot {

@@ -31,7 +31,8 @@
 use nalgebra::{Vector2, Vector3};
 
 use super::axes::PhoneMount;
-use super::lines::decode_all;
+use super::lines::{decode_all, Line};
+use super::number::{parse_f64, parse_prefix};
 use super::{ensure_text, shorten, Diagnostics, HeaderInfo, ImportError, ImportReport};
 use crate::recording::{Attitude, GnssFix, Recording, Stream};
 
@@ -89,6 +90,77 @@ pub struct RawImport {
     pub axes: SensorAxes,
 }
 
+/// A user's mapping of a file's column names to names this reader knows, for files whose
+/// header it cannot read by itself: `Bx=mag_x_gauss,By=mag_y_gauss,Bz=mag_z_gauss,
+/// time=t_ms`. The target `ignore` leaves a column out. Column names match without
+/// regard to case or surrounding quotes.
+#[derive(Debug, Clone, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct ColumnMapping {
+    /// (the file's column name, the name to read it as)
+    pub renames: Vec<(String, String)>,
+}
+
+/// A mapping that cannot be used, with what to write instead.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum MappingError {
+    #[error("the mapping entry '{entry}' is not COLUMN=NAME; write for example Bx=mag_x_gauss")]
+    NotAnAssignment { entry: String },
+    #[error(
+        "'{target}' (for column '{column}') is not a name this tool reads; use a name such as \
+         mag_x_ut, mag_x_gauss, acc_x_mps2, acc_x_g, gyro_x_radps, gyro_x_dps, t_s, t_ms, temp_c, \
+         lat_deg, lon_deg, ref_heading_deg, or ignore"
+    )]
+    UnknownTarget { column: String, target: String },
+}
+
+impl ColumnMapping {
+    /// Parses `COLUMN=NAME,COLUMN=NAME,…`, checking every name.
+    pub fn parse(spec: &str) -> Result<ColumnMapping, MappingError> {
+        let mut renames = Vec::new();
+        for entry in spec
+            .split(',')
+            .map(str::trim)
+            .filter(|entry| !entry.is_empty())
+        {
+            let Some((column, target)) = entry.split_once('=') else {
+                return Err(MappingError::NotAnAssignment {
+                    entry: entry.to_string(),
+                });
+            };
+            let (column, target) = (
+                column.trim().trim_matches('"').to_string(),
+                target.trim().to_string(),
+            );
+            if !target.eq_ignore_ascii_case(IGNORE) && resolve(&target).is_none() {
+                return Err(MappingError::UnknownTarget { column, target });
+            }
+            renames.push((column, target));
+        }
+        Ok(ColumnMapping { renames })
+    }
+
+    /// The name a column is to be read as, if the mapping names it.
+    fn target_of(&self, column: &str) -> Option<&str> {
+        self.renames
+            .iter()
+            .find(|(from, _)| from.eq_ignore_ascii_case(column))
+            .map(|(_, to)| to.as_str())
+    }
+}
+
+/// The mapping target that leaves a column out.
+const IGNORE: &str = "ignore";
+
+/// The header's column names, as written, of delimited text (its first non-comment
+/// line), for a mapping dialog and for remembering mappings by header.
+pub fn header_columns(sample_lines: &[&str]) -> Option<Vec<String>> {
+    let first = sample_lines
+        .iter()
+        .map(|line| line.trim())
+        .find(|line| !line.is_empty() && !line.starts_with('#'))?;
+    Some(Header::parse(1, first, None).names)
+}
+
 /// Reads one delimited file and turns it into body axes and this crate's units.
 pub fn read(file_name: &str, bytes: &[u8]) -> Result<ImportReport, ImportError> {
     read_raw(file_name, bytes).map(RawImport::into_report)
@@ -96,19 +168,134 @@ pub fn read(file_name: &str, bytes: &[u8]) -> Result<ImportReport, ImportError> 
 
 /// Reads one delimited file, leaving vectors in the file's axes (see [`RawImport`]).
 pub fn read_raw(file_name: &str, bytes: &[u8]) -> Result<RawImport, ImportError> {
+    read_raw_mapped(file_name, bytes, None)
+}
+
+/// [`read_raw`] with the user's column mapping applied to the header.
+pub fn read_raw_mapped(
+    file_name: &str,
+    bytes: &[u8],
+    mapping: Option<&ColumnMapping>,
+) -> Result<RawImport, ImportError> {
     ensure_text(file_name, bytes)?;
-    let file_name = file_name.to_string();
-    let mut reader = Reader::default();
-    decode_all(bytes, MAX_LINE_BYTES, |line| {
-        if line.truncated {
-            reader.diagnostics.push(
-                Some(line.number),
-                format!("line longer than {MAX_LINE_BYTES} bytes; its end was ignored"),
-            );
-        }
-        reader.read_line(line.number, &line.text);
-    });
+    #[cfg(not(target_arch = "wasm32"))]
+    if let Some(raw) = parallel::read_raw(file_name, bytes, mapping) {
+        return raw;
+    }
+    let mut reader = DelimitedReader::new(Some(bytes.len())).with_mapping(mapping.cloned());
+    decode_all(bytes, MAX_LINE_BYTES, |line| reader.read_line(&line));
     reader.finish(file_name)
+}
+
+/// Large files on native builds: the data lines are cut into one part per core at line
+/// boundaries, parsed side by side, and joined in order, with line numbers counted on
+/// across the parts. The result is the same as reading line by line (a test checks it);
+/// only the time differs. The browser build reads on one thread.
+#[cfg(not(target_arch = "wasm32"))]
+mod parallel {
+    use super::*;
+    use crate::io::lines::LineDecoder;
+
+    /// Below this size one thread is as fast.
+    const MIN_PARALLEL_BYTES: usize = 4 << 20;
+
+    /// `None` when the file is better read on one thread: small, on one core, without a
+    /// time column (the sample number is then counted across the whole file), or with
+    /// lone-CR line endings (no LF to cut at).
+    pub(super) fn read_raw(
+        file_name: &str,
+        bytes: &[u8],
+        mapping: Option<&ColumnMapping>,
+    ) -> Option<Result<RawImport, ImportError>> {
+        let n_threads = std::thread::available_parallelism().map_or(1, usize::from);
+        if bytes.len() < MIN_PARALLEL_BYTES || n_threads < 2 {
+            return None;
+        }
+        // Read up to the header on this thread.
+        let mut reader = DelimitedReader::new(None).with_mapping(mapping.cloned());
+        let mut decoder = LineDecoder::new(MAX_LINE_BYTES);
+        let mut offset = 0usize;
+        while reader.header.is_none() {
+            let line_end = offset + memchr::memchr(b'\n', bytes.get(offset..)?)? + 1;
+            decoder.feed(bytes.get(offset..line_end)?, |line| reader.read_line(&line));
+            offset = line_end;
+        }
+        if reader.plan.time.is_none()
+            || memchr::memchr(b'\r', bytes.get(offset..)?).is_some_and(|_| has_lone_cr(bytes))
+        {
+            return None;
+        }
+        let n_header_lines = decoder.n_lines();
+        // Cut the rest into parts that end just after a newline.
+        let rest = bytes.get(offset..)?;
+        let part_len = rest.len() / n_threads + 1;
+        let mut parts: Vec<&[u8]> = Vec::with_capacity(n_threads);
+        let mut start = 0usize;
+        while start < rest.len() {
+            let tentative = (start + part_len).min(rest.len());
+            let end = match rest
+                .get(tentative..)
+                .and_then(|tail| memchr::memchr(b'\n', tail))
+            {
+                Some(newline) if tentative < rest.len() => tentative + newline + 1,
+                _ => rest.len(),
+            };
+            parts.push(rest.get(start..end)?);
+            start = end;
+        }
+        let header = reader.header.as_ref()?;
+        let results: Vec<(DelimitedReader, usize)> = std::thread::scope(|scope| {
+            let handles: Vec<_> = parts
+                .iter()
+                .map(|part| {
+                    let mut part_reader = DelimitedReader {
+                        header: Some(header.clone()),
+                        plan: Plan::of(header),
+                        row: vec![f64::NAN; header.columns.len()],
+                        recording: Recording::default(),
+                        diagnostics: Diagnostics::default(),
+                        n_data_lines: 0,
+                        size_hint_bytes: Some(part.len()),
+                        mapping: None,
+                    };
+                    scope.spawn(move || {
+                        let mut part_decoder = LineDecoder::new(MAX_LINE_BYTES);
+                        part_decoder.feed(part, |line| part_reader.read_line(&line));
+                        part_decoder.finish(|line| part_reader.read_line(&line));
+                        let n_lines = part_decoder.n_lines();
+                        (part_reader, n_lines)
+                    })
+                })
+                .collect();
+            handles
+                .into_iter()
+                .filter_map(|handle| handle.join().ok())
+                .collect()
+        });
+        if results.len() != parts.len() {
+            return None;
+        }
+        // Join in order; each part's line numbers count on from the lines before it.
+        let mut lines_before = n_header_lines;
+        for (part_reader, n_lines) in results {
+            for diagnostic in part_reader.diagnostics.kept {
+                reader.diagnostics.push(
+                    diagnostic.line.map(|line| line + lines_before),
+                    diagnostic.message,
+                );
+            }
+            reader.diagnostics.n_not_kept += part_reader.diagnostics.n_not_kept;
+            reader.n_data_lines += part_reader.n_data_lines;
+            reader.recording.append(part_reader.recording);
+            lines_before += n_lines;
+        }
+        Some(reader.finish(file_name))
+    }
+
+    /// Whether any CR is not followed by LF.
+    fn has_lone_cr(bytes: &[u8]) -> bool {
+        memchr::memchr_iter(b'\r', bytes).any(|idx| bytes.get(idx + 1) != Some(&b'\n'))
+    }
 }
 
 /// True when the first non-comment line of a sample reads as a header with at least one
@@ -121,7 +308,7 @@ pub fn looks_like(sample_lines: &[&str]) -> bool {
     else {
         return false;
     };
-    let header = Header::parse(1, first);
+    let header = Header::parse(1, first, None);
     header.columns.iter().any(Option::is_some) && first.chars().any(|c| c.is_ascii_alphabetic())
 }
 
@@ -165,95 +352,252 @@ impl RawImport {
     }
 }
 
-#[derive(Default)]
-struct Reader {
+/// The delimited reader, line by line, for files read in chunks (see
+/// [`super::lines::LineDecoder`]). Values go straight into the recording in the file's
+/// units and are converted in place by [`DelimitedReader::finish`], so that memory holds
+/// one copy of the samples.
+pub struct DelimitedReader {
     header: Option<Header>,
-    /// Raw values in the file's units; scaled in `finish`.
-    raw: RawStreams,
+    plan: Plan,
+    /// One value per field of the current line; NaN where the field is empty, unused or
+    /// unreadable.
+    row: Vec<f64>,
+    recording: Recording,
     diagnostics: Diagnostics,
     n_data_lines: usize,
+    size_hint_bytes: Option<usize>,
+    mapping: Option<ColumnMapping>,
 }
 
-#[derive(Default)]
-struct RawStreams {
-    time: Vec<f64>,
-    acc: Stream<Vector3<f64>>,
-    gyro: Stream<Vector3<f64>>,
-    mag: Stream<Vector3<f64>>,
-    temp: Stream<f64>,
-    gnss: Stream<GnssFix>,
-    attitude: Stream<(f64, f64, Option<f64>)>,
-    pressure: Stream<f64>,
-    ref_heading: Stream<f64>,
-    ref_position: Stream<Vector2<f64>>,
+/// Where each quantity sits in a data line, resolved once from the header.
+#[derive(Debug, Default)]
+struct Plan {
+    time: Option<usize>,
+    acc: Option<[usize; 3]>,
+    gyro: Option<[usize; 3]>,
+    mag: Option<[usize; 3]>,
+    /// Indexed by `Quantity as usize` for the scalar quantities.
+    scalar: [Option<usize>; N_QUANTITIES],
+    /// Whether a field is used at all (unused fields are not parsed).
+    used: Vec<bool>,
+    /// Vector quantities whose header lacks an axis.
+    incomplete: Vec<&'static str>,
 }
 
-struct Header {
-    line: usize,
-    delimiter: char,
-    names: Vec<String>,
-    columns: Vec<Option<Column>>,
-    axes: SensorAxes,
-    /// The time column, if any: a preferred one (seconds elapsed) wins over others.
-    time_field: Option<usize>,
+impl Plan {
+    fn of(header: &Header) -> Plan {
+        let mut plan = Plan {
+            time: header.time_field,
+            used: vec![false; header.columns.len()],
+            ..Plan::default()
+        };
+        let mut axes: [[Option<usize>; 3]; 3] = [[None; 3]; 3];
+        for (field_idx, column) in header.columns.iter().enumerate() {
+            let Some(column) = column else { continue };
+            let vector_idx = match column.quantity {
+                Quantity::Acc => Some(0),
+                Quantity::Gyro => Some(1),
+                Quantity::Mag => Some(2),
+                _ => None,
+            };
+            match vector_idx {
+                Some(vector_idx) => {
+                    if let Some(slot) = axes
+                        .get_mut(vector_idx)
+                        .and_then(|axes| axes.get_mut(column.axis))
+                    {
+                        slot.get_or_insert(field_idx);
+                    }
+                }
+                None if column.quantity != Quantity::Time => {
+                    if let Some(slot) = plan.scalar.get_mut(column.quantity as usize) {
+                        slot.get_or_insert(field_idx);
+                    }
+                }
+                None => {}
+            }
+        }
+        for (vector_idx, (name, found)) in ["accelerometer", "gyroscope", "magnetometer"]
+            .iter()
+            .zip(axes)
+            .enumerate()
+        {
+            let complete = match found {
+                [Some(x), Some(y), Some(z)] => Some([x, y, z]),
+                [None, None, None] => None,
+                _ => {
+                    plan.incomplete.push(name);
+                    None
+                }
+            };
+            match vector_idx {
+                0 => plan.acc = complete,
+                1 => plan.gyro = complete,
+                _ => plan.mag = complete,
+            }
+        }
+        let vector_fields = [plan.acc, plan.gyro, plan.mag]
+            .into_iter()
+            .flatten()
+            .flatten();
+        let scalar_fields = plan.scalar.iter().flatten().copied();
+        for field_idx in vector_fields.chain(scalar_fields).chain(plan.time) {
+            if let Some(used) = plan.used.get_mut(field_idx) {
+                *used = true;
+            }
+        }
+        plan
+    }
 }
 
-impl Reader {
-    fn read_line(&mut self, line_number: usize, text: &str) {
-        let trimmed = text.trim_start_matches('\u{feff}').trim();
+impl DelimitedReader {
+    /// A reader; `size_hint_bytes` (the file's size, where known) lets it reserve room
+    /// for the samples once instead of growing.
+    pub fn new(size_hint_bytes: Option<usize>) -> Self {
+        DelimitedReader {
+            header: None,
+            plan: Plan::default(),
+            row: Vec::new(),
+            recording: Recording::default(),
+            diagnostics: Diagnostics::default(),
+            n_data_lines: 0,
+            size_hint_bytes,
+            mapping: None,
+        }
+    }
+
+    /// Reads the header through the user's mapping.
+    pub fn with_mapping(mut self, mapping: Option<ColumnMapping>) -> Self {
+        self.mapping = mapping;
+        self
+    }
+
+    pub fn read_line(&mut self, line: &Line<'_>) {
+        if line.truncated {
+            self.diagnostics.push(
+                Some(line.number),
+                format!("line longer than {MAX_LINE_BYTES} bytes; its end was ignored"),
+            );
+        }
+        let text: &str = &line.text;
+        // A byte-order mark can only start the file.
+        let text = if line.number == 1 {
+            text.trim_start_matches('\u{feff}')
+        } else {
+            text
+        };
+        let trimmed = text.trim_ascii();
         if trimmed.is_empty() || trimmed.starts_with('#') {
             return;
         }
-        if self.header.is_none() {
-            self.header = Some(Header::parse(line_number, trimmed));
-            return;
+        match &self.header {
+            None => {
+                let header = Header::parse(line.number, trimmed, self.mapping.as_ref());
+                self.plan = Plan::of(&header);
+                self.row = vec![f64::NAN; header.columns.len()];
+                self.header = Some(header);
+            }
+            Some(_) => {
+                if self.n_data_lines == 0 {
+                    self.reserve(trimmed.len() + 1);
+                }
+                self.n_data_lines += 1;
+                self.read_data_line(line.number, trimmed);
+            }
         }
-        self.n_data_lines += 1;
-        self.read_data_line(line_number, trimmed);
+    }
+
+    /// Reserves room for the rows the file probably holds, judged from its size and the
+    /// length of its first data line.
+    fn reserve(&mut self, first_line_bytes: usize) {
+        let Some(size_hint_bytes) = self.size_hint_bytes else {
+            return;
+        };
+        let n_rows = size_hint_bytes / first_line_bytes.max(1)
+            + size_hint_bytes / first_line_bytes.max(1) / 50
+            + 16;
+        let plan = &self.plan;
+        let recording = &mut self.recording;
+        for (planned, stream) in [
+            (plan.acc.is_some(), &mut recording.acc_in_body_mps2),
+            (plan.gyro.is_some(), &mut recording.gyro_in_body_radps),
+            (plan.mag.is_some(), &mut recording.mag_in_body_ut),
+        ] {
+            if planned {
+                stream.t_s.reserve_exact(n_rows);
+                stream.values.reserve_exact(n_rows);
+            }
+        }
+        let scalar = |quantity: Quantity| plan.scalar[quantity as usize].is_some();
+        for (planned, stream) in [
+            (scalar(Quantity::Temp), &mut recording.temp_c),
+            (scalar(Quantity::Pressure), &mut recording.pressure_hpa),
+            (scalar(Quantity::RefHeading), &mut recording.ref_heading_rad),
+        ] {
+            if planned {
+                stream.t_s.reserve_exact(n_rows);
+                stream.values.reserve_exact(n_rows);
+            }
+        }
+        if scalar(Quantity::RefEast) && scalar(Quantity::RefNorth) {
+            recording.ref_position_en_m.t_s.reserve_exact(n_rows);
+            recording.ref_position_en_m.values.reserve_exact(n_rows);
+        }
     }
 
     fn read_data_line(&mut self, line_number: usize, text: &str) {
         let Some(header) = &self.header else { return };
-        // One slot per quantity and axis, in the file's units.
-        let mut values: [[Option<f64>; 3]; N_QUANTITIES] = [[None; 3]; N_QUANTITIES];
-        let mut time: Option<f64> = None;
+        let delimiter = header.delimiter as u8;
         let mut problems: Vec<String> = Vec::new();
+        self.row.fill(f64::NAN);
+        let bytes = text.as_bytes();
+        let mut field_start = 0usize;
         let mut n_fields = 0usize;
-        for (field_idx, field) in text.split(header.delimiter).enumerate() {
+        loop {
+            let field_idx = n_fields;
             n_fields += 1;
-            let Some(Some(column)) = header.columns.get(field_idx) else {
-                continue;
+            let rest = bytes.get(field_start..).unwrap_or_default();
+            let used = self.plan.used.get(field_idx).copied().unwrap_or(false);
+            // The usual case in one pass: a plain number, then the delimiter or the end.
+            let fast = if used {
+                parse_prefix(rest).filter(|&(_, consumed)| {
+                    rest.get(consumed).is_none_or(|&byte| byte == delimiter)
+                })
+            } else {
+                None
             };
-            let field = field.trim().trim_matches('"').trim();
-            if field.is_empty() {
-                continue;
-            }
-            let name = header
-                .names
-                .get(field_idx)
-                .map(String::as_str)
-                .unwrap_or("?");
-            let parsed = match field.parse::<f64>() {
-                Ok(value) => Some(value),
-                Err(_) if column.quantity == Quantity::Time => parse_datetime_s(field),
-                Err(_) => None,
-            };
-            match parsed {
-                Some(value) if value.is_finite() => {
-                    if column.quantity == Quantity::Time {
-                        if header.time_field == Some(field_idx) {
-                            time = Some(value);
-                        }
-                    } else if let Some(slot) = values
-                        .get_mut(column.quantity as usize)
-                        .and_then(|axes| axes.get_mut(column.axis))
-                    {
-                        *slot = Some(value);
+            let field_len = match fast {
+                Some((value, consumed)) => {
+                    if let Some(slot) = self.row.get_mut(field_idx) {
+                        *slot = value;
                     }
+                    consumed
                 }
-                Some(_) => problems.push(format!("{name} is {field}")),
-                None => problems.push(format!("{name} is not a number ({})", shorten(field))),
+                None => {
+                    let field_len = rest
+                        .iter()
+                        .position(|&byte| byte == delimiter)
+                        .unwrap_or(rest.len());
+                    if used && field_len > 0 {
+                        let field = text.get(field_start..field_start + field_len).unwrap_or("");
+                        let is_time = self.plan.time == Some(field_idx);
+                        read_field_slowly(
+                            header,
+                            is_time,
+                            field_idx,
+                            field,
+                            &mut self.row,
+                            &mut problems,
+                        );
+                    }
+                    field_len
+                }
+            };
+            let field_end = field_start + field_len;
+            if field_end >= bytes.len() {
+                break;
             }
+            field_start = field_end + 1;
         }
         if n_fields > header.columns.len() {
             problems.push(format!(
@@ -262,66 +606,78 @@ impl Reader {
                 header.columns.len()
             ));
         }
-        let t_raw = match (header.time_field, time) {
-            (Some(_), Some(t_raw)) => t_raw,
-            (Some(_), None) => {
-                problems.push("no time, so the line was skipped".to_string());
-                self.diagnostics
-                    .push(Some(line_number), problems.join("; "));
-                return;
-            }
-            // Without a time column the sample number stands in for time.
-            (None, _) => self.n_data_lines as f64 - 1.0,
+        let row = &self.row;
+        let value_at = |field: Option<usize>| {
+            field
+                .and_then(|idx| row.get(idx).copied())
+                .filter(|value| !value.is_nan())
         };
-        let index = self.raw.time.len() as f64;
-        self.raw.time.push(t_raw);
-        // Streams hold the sample's index into `time` until `finish` converts it.
-        let get = |quantity: Quantity| values[quantity as usize];
-        let single = |quantity: Quantity| values[quantity as usize][0];
-        let raw = &mut self.raw;
-        for (quantity, stream, label) in [
-            (Quantity::Acc, &mut raw.acc, "accelerometer"),
-            (Quantity::Gyro, &mut raw.gyro, "gyroscope"),
-            (Quantity::Mag, &mut raw.mag, "magnetometer"),
+        let t_raw = match self.plan.time {
+            Some(time_field) => match value_at(Some(time_field)) {
+                Some(t_raw) => t_raw,
+                None => {
+                    problems.push("no time, so the line was skipped".to_string());
+                    self.diagnostics
+                        .push(Some(line_number), problems.join("; "));
+                    return;
+                }
+            },
+            // Without a time column the sample number stands in for time.
+            None => self.n_data_lines as f64 - 1.0,
+        };
+        let plan = &self.plan;
+        let recording = &mut self.recording;
+        for (fields, stream, label) in [
+            (plan.acc, &mut recording.acc_in_body_mps2, "accelerometer"),
+            (plan.gyro, &mut recording.gyro_in_body_radps, "gyroscope"),
+            (plan.mag, &mut recording.mag_in_body_ut, "magnetometer"),
         ] {
-            match get(quantity) {
-                [Some(x), Some(y), Some(z)] => stream.push(index, Vector3::new(x, y, z)),
-                [None, None, None] => {}
+            let Some([x, y, z]) = fields else { continue };
+            match (value_at(Some(x)), value_at(Some(y)), value_at(Some(z))) {
+                (Some(x), Some(y), Some(z)) => stream.push(t_raw, Vector3::new(x, y, z)),
+                (None, None, None) => {}
                 _ => problems.push(format!(
                     "{label} has only some of x, y, z; that sample was skipped"
                 )),
             }
         }
-        if let Some(temp) = single(Quantity::Temp) {
-            raw.temp.push(index, temp);
+        let scalar = |quantity: Quantity| value_at(plan.scalar[quantity as usize]);
+        if let Some(temp) = scalar(Quantity::Temp) {
+            recording.temp_c.push(t_raw, temp);
         }
-        if let Some(pressure) = single(Quantity::Pressure) {
-            raw.pressure.push(index, pressure);
+        if let Some(pressure) = scalar(Quantity::Pressure) {
+            recording.pressure_hpa.push(t_raw, pressure);
         }
         // A negative speed, course or accuracy is an "invalid" marker (phyphox: −1).
-        let non_negative = |value: Option<f64>| value.filter(|value| *value >= 0.0);
+        let non_negative = |quantity: Quantity| scalar(quantity).filter(|value| *value >= 0.0);
         let fix = GnssFix {
-            lat_deg: single(Quantity::Lat),
-            lon_deg: single(Quantity::Lon),
-            alt_m: single(Quantity::Alt),
-            speed_mps: non_negative(single(Quantity::Speed)),
-            course_rad: non_negative(single(Quantity::Course)),
-            hacc_m: non_negative(single(Quantity::HorizontalAccuracy)),
+            lat_deg: scalar(Quantity::Lat),
+            lon_deg: scalar(Quantity::Lon),
+            alt_m: scalar(Quantity::Alt),
+            speed_mps: non_negative(Quantity::Speed),
+            course_rad: non_negative(Quantity::Course),
+            hacc_m: non_negative(Quantity::HorizontalAccuracy),
         };
         if fix != GnssFix::default() {
-            raw.gnss.push(index, fix);
+            recording.gnss.push(t_raw, fix);
         }
-        if let (Some(roll), Some(pitch)) = (single(Quantity::Roll), single(Quantity::Pitch)) {
-            raw.attitude
-                .push(index, (roll, pitch, single(Quantity::Yaw)));
+        if let (Some(roll), Some(pitch)) = (scalar(Quantity::Roll), scalar(Quantity::Pitch)) {
+            recording.attitude.push(
+                t_raw,
+                Attitude {
+                    roll_rad: roll,
+                    pitch_rad: pitch,
+                    yaw_rad: scalar(Quantity::Yaw),
+                },
+            );
         }
-        if let Some(heading) = single(Quantity::RefHeading) {
-            raw.ref_heading.push(index, heading);
+        if let Some(heading) = scalar(Quantity::RefHeading) {
+            recording.ref_heading_rad.push(t_raw, heading);
         }
-        match (single(Quantity::RefEast), single(Quantity::RefNorth)) {
-            (Some(east_m), Some(north_m)) => {
-                raw.ref_position.push(index, Vector2::new(east_m, north_m))
-            }
+        match (scalar(Quantity::RefEast), scalar(Quantity::RefNorth)) {
+            (Some(east_m), Some(north_m)) => recording
+                .ref_position_en_m
+                .push(t_raw, Vector2::new(east_m, north_m)),
             (None, None) => {}
             _ => problems.push("reference position has only one of east and north".to_string()),
         }
@@ -331,7 +687,10 @@ impl Reader {
         }
     }
 
-    fn finish(mut self, file_name: String) -> Result<RawImport, ImportError> {
+    /// Converts times and units in place and hands over the import, still in the file's
+    /// axes.
+    pub fn finish(mut self, file_name: &str) -> Result<RawImport, ImportError> {
+        let file_name = file_name.to_string();
         let Some(header) = self.header.take() else {
             return Err(ImportError::NoHeader { file_name });
         };
@@ -343,6 +702,8 @@ impl Reader {
             });
         }
         let mut notes = Vec::new();
+        // Ignored columns and a missing time are facts about the file, not problems of a
+        // line: they are notes.
         let unknown: Vec<&str> = header
             .names
             .iter()
@@ -350,12 +711,15 @@ impl Reader {
             .filter(|(_, column)| column.is_none())
             .map(|(name, _)| name.as_str())
             .collect();
-        // Ignored columns and a missing time are facts about the file, not problems of a
-        // line: they are notes.
         if !unknown.is_empty() {
             notes.push(format!(
                 "columns ignored (not recognised): {}",
                 shorten(&unknown.join(", "))
+            ));
+        }
+        for name in &self.plan.incomplete {
+            notes.push(format!(
+                "{name} columns ignored: the header lacks one of x, y, z"
             ));
         }
         if header.time_field.is_none() {
@@ -370,11 +734,11 @@ impl Reader {
                 .find(|column| column.quantity == quantity)
                 .and_then(|column| column.scale)
         };
-        let raw = &self.raw;
+        let recording = &mut self.recording;
         let time_scale = match scale_of(Quantity::Time) {
             Some(scale) => scale,
             None => {
-                let (scale, guess) = guess_time_scale(&raw.time);
+                let (scale, guess) = guess_time_scale(recording);
                 if header.time_field.is_some() {
                     notes.push(format!("time unit guessed from the values: {guess}"));
                 }
@@ -384,7 +748,7 @@ impl Reader {
         // Absolute times (epoch seconds, from date-times or epoch counters) are made
         // relative to the first sample; times that already count from a start are kept,
         // so that times the user quotes from the file still mean the same.
-        let first_raw = raw.time.iter().copied().fold(f64::INFINITY, f64::min);
+        let first_raw = first_time(recording);
         let t0_raw = if first_raw.is_finite() && first_raw * time_scale > ABSOLUTE_TIME_S {
             first_raw
         } else {
@@ -396,76 +760,58 @@ impl Reader {
                 t0_raw * time_scale
             ));
         }
-        let time_of = |index: f64| {
-            raw.time
-                .get(index as usize)
-                .map_or(0.0, |t_raw| (t_raw - t0_raw) * time_scale)
-        };
+        for_each_time(recording, |t| *t = (*t - t0_raw) * time_scale);
 
-        let mut recording = Recording::default();
-        let (acc_scale, acc_note) =
-            unit_or_guess(scale_of(Quantity::Acc), &raw.acc.values, guess_acc_scale);
-        let (gyro_scale, gyro_note) =
-            unit_or_guess(scale_of(Quantity::Gyro), &raw.gyro.values, guess_gyro_scale);
-        let (mag_scale, mag_note) =
-            unit_or_guess(scale_of(Quantity::Mag), &raw.mag.values, guess_mag_scale);
+        let (acc_scale, acc_note) = unit_or_guess(
+            scale_of(Quantity::Acc),
+            &recording.acc_in_body_mps2.values,
+            guess_acc_scale,
+        );
+        let (gyro_scale, gyro_note) = unit_or_guess(
+            scale_of(Quantity::Gyro),
+            &recording.gyro_in_body_radps.values,
+            guess_gyro_scale,
+        );
+        let (mag_scale, mag_note) = unit_or_guess(
+            scale_of(Quantity::Mag),
+            &recording.mag_in_body_ut.values,
+            guess_mag_scale,
+        );
         notes.extend([acc_note, gyro_note, mag_note].into_iter().flatten());
-        let convert = |stream: &Stream<Vector3<f64>>, scale: f64| Stream {
-            t_s: stream.t_s.iter().map(|&index| time_of(index)).collect(),
-            values: stream.values.iter().map(|value| value * scale).collect(),
-        };
-        recording.acc_in_body_mps2 = convert(&raw.acc, acc_scale);
-        recording.gyro_in_body_radps = convert(&raw.gyro, gyro_scale);
-        recording.mag_in_body_ut = convert(&raw.mag, mag_scale);
-        let convert_scalar = |stream: &Stream<f64>, scale: f64| Stream {
-            t_s: stream.t_s.iter().map(|&index| time_of(index)).collect(),
-            values: stream.values.iter().map(|value| value * scale).collect(),
-        };
-        recording.temp_c = convert_scalar(&raw.temp, scale_of(Quantity::Temp).unwrap_or(1.0));
-        recording.pressure_hpa =
-            convert_scalar(&raw.pressure, scale_of(Quantity::Pressure).unwrap_or(1.0));
-        recording.ref_heading_rad = convert_scalar(&raw.ref_heading, DEG_TO_RAD);
+        for (stream, scale) in [
+            (&mut recording.acc_in_body_mps2, acc_scale),
+            (&mut recording.gyro_in_body_radps, gyro_scale),
+            (&mut recording.mag_in_body_ut, mag_scale),
+        ] {
+            if scale != 1.0 {
+                stream.values.iter_mut().for_each(|value| *value *= scale);
+            }
+        }
+        for (stream, scale) in [
+            (
+                &mut recording.temp_c,
+                scale_of(Quantity::Temp).unwrap_or(1.0),
+            ),
+            (
+                &mut recording.pressure_hpa,
+                scale_of(Quantity::Pressure).unwrap_or(1.0),
+            ),
+            (&mut recording.ref_heading_rad, DEG_TO_RAD),
+        ] {
+            if scale != 1.0 {
+                stream.values.iter_mut().for_each(|value| *value *= scale);
+            }
+        }
         let course_scale = scale_of(Quantity::Course).unwrap_or(DEG_TO_RAD);
-        recording.gnss = Stream {
-            t_s: raw.gnss.t_s.iter().map(|&index| time_of(index)).collect(),
-            values: raw
-                .gnss
-                .values
-                .iter()
-                .map(|fix| GnssFix {
-                    course_rad: fix.course_rad.map(|course| course * course_scale),
-                    ..*fix
-                })
-                .collect(),
-        };
+        for fix in &mut recording.gnss.values {
+            fix.course_rad = fix.course_rad.map(|course| course * course_scale);
+        }
         let angle_scale = scale_of(Quantity::Roll).unwrap_or(1.0);
-        recording.attitude = Stream {
-            t_s: raw
-                .attitude
-                .t_s
-                .iter()
-                .map(|&index| time_of(index))
-                .collect(),
-            values: raw
-                .attitude
-                .values
-                .iter()
-                .map(|&(roll, pitch, yaw)| Attitude {
-                    roll_rad: roll * angle_scale,
-                    pitch_rad: pitch * angle_scale,
-                    yaw_rad: yaw.map(|yaw| yaw * angle_scale),
-                })
-                .collect(),
-        };
-        recording.ref_position_en_m = Stream {
-            t_s: raw
-                .ref_position
-                .t_s
-                .iter()
-                .map(|&index| time_of(index))
-                .collect(),
-            values: raw.ref_position.values.clone(),
-        };
+        for attitude in &mut recording.attitude.values {
+            attitude.roll_rad *= angle_scale;
+            attitude.pitch_rad *= angle_scale;
+            attitude.yaw_rad = attitude.yaw_rad.map(|yaw| yaw * angle_scale);
+        }
         if !recording.attitude.is_empty() && header.axes == SensorAxes::AndroidDevice {
             // The app's orientation angles are in its own conventions, which are not
             // converted yet; they are kept out rather than passed on wrong.
@@ -481,11 +827,12 @@ impl Reader {
                 ),
             );
         }
+        shrink_all(recording);
         Ok(RawImport {
             report: ImportReport {
                 file_name,
                 format: FORMAT_NAME,
-                recording,
+                recording: std::mem::take(recording),
                 diagnostics: self.diagnostics,
                 header: Some(HeaderInfo {
                     line: header.line,
@@ -499,6 +846,99 @@ impl Reader {
     }
 }
 
+/// A field that is not a plain number: quoted, padded, a date-time, non-finite or not a
+/// number at all.
+fn read_field_slowly(
+    header: &Header,
+    is_time: bool,
+    field_idx: usize,
+    field: &str,
+    row: &mut [f64],
+    problems: &mut Vec<String>,
+) {
+    match parse_f64(field).or_else(|| parse_field_slowly(field, is_time)) {
+        Some(value) if value.is_finite() => {
+            if let Some(slot) = row.get_mut(field_idx) {
+                *slot = value;
+            }
+        }
+        Some(_) => problems.push(format!(
+            "{} is {}",
+            field_name(header, field_idx),
+            field.trim()
+        )),
+        None if field.trim().trim_matches('"').trim().is_empty() => {}
+        None => problems.push(format!(
+            "{} is not a number ({})",
+            field_name(header, field_idx),
+            shorten(field.trim())
+        )),
+    }
+}
+
+fn field_name(header: &Header, field_idx: usize) -> &str {
+    header
+        .names
+        .get(field_idx)
+        .map(String::as_str)
+        .unwrap_or("?")
+}
+
+/// A field the fast parser did not take: quoted or padded numbers, and date-times in
+/// the time column.
+fn parse_field_slowly(field: &str, is_time: bool) -> Option<f64> {
+    let field = field.trim().trim_matches('"').trim();
+    if field.is_empty() {
+        return None;
+    }
+    parse_f64(field).or_else(|| {
+        if is_time {
+            parse_datetime_s(field)
+        } else {
+            None
+        }
+    })
+}
+
+/// Calls `f` on every sample time of every stream.
+fn for_each_time(recording: &mut Recording, mut f: impl FnMut(&mut f64)) {
+    for t_s in [
+        &mut recording.acc_in_body_mps2.t_s,
+        &mut recording.gyro_in_body_radps.t_s,
+        &mut recording.mag_in_body_ut.t_s,
+        &mut recording.temp_c.t_s,
+        &mut recording.pressure_hpa.t_s,
+        &mut recording.gnss.t_s,
+        &mut recording.attitude.t_s,
+        &mut recording.ref_heading_rad.t_s,
+        &mut recording.ref_position_en_m.t_s,
+    ] {
+        t_s.iter_mut().for_each(&mut f);
+    }
+}
+
+/// The earliest sample time of any stream, in the file's units.
+fn first_time(recording: &mut Recording) -> f64 {
+    let mut first = f64::INFINITY;
+    for_each_time(recording, |t| first = first.min(*t));
+    first
+}
+
+/// Gives back the room reserved for rows the file did not have.
+fn shrink_all(recording: &mut Recording) {
+    fn shrink<T>(stream: &mut Stream<T>) {
+        stream.t_s.shrink_to_fit();
+        stream.values.shrink_to_fit();
+    }
+    shrink(&mut recording.acc_in_body_mps2);
+    shrink(&mut recording.gyro_in_body_radps);
+    shrink(&mut recording.mag_in_body_ut);
+    shrink(&mut recording.temp_c);
+    shrink(&mut recording.pressure_hpa);
+    shrink(&mut recording.ref_heading_rad);
+    shrink(&mut recording.ref_position_en_m);
+}
+
 /// Times beyond this many seconds (about three years) are taken as absolute (epoch).
 const ABSOLUTE_TIME_S: f64 = 1e8;
 const N_QUANTITIES: usize = Quantity::Pressure as usize + 1;
@@ -506,8 +946,20 @@ const DEG_TO_RAD: f64 = std::f64::consts::PI / 180.0;
 /// Standard gravity (CGPM 1901), for accelerometers that report in g.
 const STANDARD_GRAVITY_MPS2: f64 = 9.806_65;
 
+/// The header line, resolved.
+#[derive(Debug, Clone)]
+struct Header {
+    line: usize,
+    delimiter: char,
+    names: Vec<String>,
+    columns: Vec<Option<Column>>,
+    axes: SensorAxes,
+    /// The time column, if any: a preferred one (seconds elapsed) wins over others.
+    time_field: Option<usize>,
+}
+
 impl Header {
-    fn parse(line: usize, text: &str) -> Header {
+    fn parse(line: usize, text: &str, mapping: Option<&ColumnMapping>) -> Header {
         let delimiter = if text.contains(',') {
             ','
         } else if text.contains('\t') {
@@ -521,8 +973,16 @@ impl Header {
             .split(delimiter)
             .map(|name| name.trim().trim_matches('"').trim().to_string())
             .collect();
-        let resolved: Vec<Option<(Column, Naming)>> =
-            names.iter().map(|name| resolve(name)).collect();
+        let resolved: Vec<Option<(Column, Naming)>> = names
+            .iter()
+            .map(
+                |name| match mapping.and_then(|mapping| mapping.target_of(name)) {
+                    Some(target) if target.eq_ignore_ascii_case(IGNORE) => None,
+                    Some(target) => resolve(target),
+                    None => resolve(name),
+                },
+            )
+            .collect();
         let axes = if resolved
             .iter()
             .flatten()
@@ -813,12 +1273,13 @@ fn guess_gyro_scale(median: f64) -> (f64, &'static str) {
 
 /// Time unit from the values: epoch nanoseconds, microseconds, milliseconds or
 /// seconds, told apart by magnitude.
-fn guess_time_scale(times: &[f64]) -> (f64, &'static str) {
-    let largest = times
-        .iter()
-        .copied()
-        .filter(|t| t.is_finite())
-        .fold(0.0f64, |a, b| a.max(b.abs()));
+fn guess_time_scale(recording: &mut Recording) -> (f64, &'static str) {
+    let mut largest = 0.0f64;
+    for_each_time(recording, |t| {
+        if t.is_finite() {
+            largest = largest.max(t.abs());
+        }
+    });
     if largest > 1e17 {
         (1e-9, "nanoseconds")
     } else if largest > 1e14 {
@@ -978,6 +1439,43 @@ mod tests {
         assert_eq!((fix.speed_mps, fix.course_rad), (None, None));
         assert_eq!(fix.hacc_m, Some(669.0));
         assert_eq!(fix.lat_deg, Some(43.5));
+    }
+
+    #[test]
+    fn a_large_file_read_in_parts_equals_reading_it_line_by_line() {
+        let rows = crate::sim::walk::simulate(&crate::sim::walk::WalkConfig::from_seed(4, 900.0));
+        let mut text = crate::io::canonical_csv::write(&rows);
+        // Bad lines scattered through the file keep their line numbers.
+        text = text
+            .lines()
+            .enumerate()
+            .map(|(idx, line)| {
+                if idx % 9973 == 5 {
+                    "1.0,oops,2,3".to_string()
+                } else {
+                    line.to_string()
+                }
+            })
+            .collect::<Vec<_>>()
+            .join("\r\n");
+        assert!(
+            text.len() > 4 << 20,
+            "large enough to be read in parts: {}",
+            text.len()
+        );
+        let in_parts = read_raw("big.csv", text.as_bytes()).expect("readable");
+        let mut reader = DelimitedReader::new(None);
+        decode_all(text.as_bytes(), MAX_LINE_BYTES, |line| {
+            reader.read_line(&line)
+        });
+        let line_by_line = reader.finish("big.csv").expect("readable");
+        assert_eq!(in_parts, line_by_line);
+        assert!(in_parts
+            .report
+            .diagnostics
+            .kept
+            .iter()
+            .any(|diagnostic| diagnostic.line == Some(9979)));
     }
 
     #[test]

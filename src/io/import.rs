@@ -6,13 +6,15 @@
 //! file per sensor) are read one by one and merged into one recording; a file that
 //! cannot be read becomes a diagnostic of the merge, and the rest is still used.
 
-use super::delimited::{self, RawImport, SensorAxes};
-use super::lines::decode_all;
+use super::delimited::{self, ColumnMapping, DelimitedReader, RawImport, SensorAxes};
+use super::lines::{decode_all, Line, LineDecoder};
 use super::summary::{summarize, StreamSummary};
+use super::tagged_lines::LineReader as _;
 use super::{
-    ensure_text, nmea, serial_lines, tagged_lines, Diagnostics, ImportError, ImportReport,
+    ensure_text, first_binary_offset, nmea, serial_lines, tagged_lines, Diagnostics, ImportError,
+    ImportReport,
 };
-use crate::recording::{Recording, Stream};
+use crate::recording::Recording;
 
 /// How many leading lines detection looks at.
 const N_SAMPLE_LINES: usize = 60;
@@ -53,15 +55,19 @@ pub fn detect(bytes: &[u8]) -> Option<Format> {
     }
 }
 
-/// One file as read, before merging.
-enum FileImport {
+/// One file as read, before merging (see [`merge`]).
+pub enum FileImport {
     /// Delimited text still in its own axes: merged before the axes are converted, so
     /// that a phone's mount is judged from its accelerometer file.
     Raw(RawImport),
     Final(ImportReport),
 }
 
-fn import_one(file_name: &str, bytes: &[u8]) -> Result<FileImport, ImportError> {
+fn import_one(
+    file_name: &str,
+    bytes: &[u8],
+    mapping: Option<&ColumnMapping>,
+) -> Result<FileImport, ImportError> {
     ensure_text(file_name, bytes)?;
     Ok(match detect(bytes) {
         Some(Format::Nmea) => FileImport::Final(nmea::read(file_name, bytes)?),
@@ -74,7 +80,9 @@ fn import_one(file_name: &str, bytes: &[u8]) -> Result<FileImport, ImportError> 
         Some(Format::SerialLines) => FileImport::Final(serial_lines::read(file_name, bytes)?),
         // Delimited text, or nothing recognisable: the delimited reader's error says
         // which header it found and what names it expects.
-        Some(Format::Delimited) | None => FileImport::Raw(delimited::read_raw(file_name, bytes)?),
+        Some(Format::Delimited) | None => {
+            FileImport::Raw(delimited::read_raw_mapped(file_name, bytes, mapping)?)
+        }
     })
 }
 
@@ -86,12 +94,35 @@ pub fn import(file_name: &str, bytes: &[u8]) -> Result<ImportReport, ImportError
 /// Reads several files of one recording and merges them. Fails only when no file could
 /// be read; then the error is the first file's.
 pub fn import_files(files: &[(&str, &[u8])]) -> Result<ImportReport, ImportError> {
+    import_files_mapped(files, None)
+}
+
+/// [`import_files`] with the user's column mapping for delimited files.
+pub fn import_files_mapped(
+    files: &[(&str, &[u8])],
+    mapping: Option<&ColumnMapping>,
+) -> Result<ImportReport, ImportError> {
+    merge(
+        files
+            .iter()
+            .map(|&(file_name, bytes)| {
+                (file_name.to_string(), import_one(file_name, bytes, mapping))
+            })
+            .collect(),
+    )
+}
+
+/// Merges files read one by one (with [`import_files`]'s rules): a file that failed
+/// becomes a diagnostic, unless every file failed.
+pub fn merge(
+    results: Vec<(String, Result<FileImport, ImportError>)>,
+) -> Result<ImportReport, ImportError> {
     let mut imports: Vec<(String, FileImport)> = Vec::new();
     let mut failures: Vec<(String, ImportError)> = Vec::new();
-    for &(file_name, bytes) in files {
-        match import_one(file_name, bytes) {
-            Ok(import) => imports.push((file_name.to_string(), import)),
-            Err(error) => failures.push((file_name.to_string(), error)),
+    for (file_name, result) in results {
+        match result {
+            Ok(import) => imports.push((file_name, import)),
+            Err(error) => failures.push((file_name, error)),
         }
     }
     if imports.is_empty() {
@@ -136,7 +167,7 @@ pub fn import_files(files: &[(&str, &[u8])]) -> Result<ImportReport, ImportError
         } else {
             &mut merged.recording
         };
-        append_recording(target, recording);
+        target.append(recording);
     }
     if let Some(recording) = device_recording {
         let raw = RawImport {
@@ -148,7 +179,7 @@ pub fn import_files(files: &[(&str, &[u8])]) -> Result<ImportReport, ImportError
         };
         let converted = raw.into_report();
         merged.notes.extend(converted.notes);
-        append_recording(&mut merged.recording, converted.recording);
+        merged.recording.append(converted.recording);
     }
     for (file_name, error) in failures {
         merged.diagnostics.absorb(
@@ -210,29 +241,157 @@ fn empty_like(report: &ImportReport) -> ImportReport {
     }
 }
 
-fn append<T>(into: &mut Stream<T>, from: Stream<T>) {
-    into.t_s.extend(from.t_s);
-    into.values.extend(from.values);
+/// How many leading bytes a chunked import holds back to tell the format.
+const SNIFF_BYTES: usize = SAMPLE_BYTES;
+
+/// A file read in chunks (from disk, or from a `File` in the browser), so that memory
+/// holds the samples and one chunk, never the whole text. The format is told from the
+/// first 16 KiB; from then on every chunk goes through the line decoder into that
+/// format's reader. Feeding the same bytes in any chunks gives the same result.
+pub struct ChunkedImport {
+    file_name: String,
+    size_hint_bytes: Option<usize>,
+    /// The first bytes, held until the format is known.
+    prefix: Vec<u8>,
+    reader: Option<(LineDecoder, FormatReader)>,
+    saw_text: bool,
+    n_bytes_read: usize,
+    mapping: Option<ColumnMapping>,
 }
 
-/// Appends every stream of `from` to `into` (sorting is the caller's).
-fn append_recording(into: &mut Recording, from: Recording) {
-    append(&mut into.acc_in_body_mps2, from.acc_in_body_mps2);
-    append(&mut into.gyro_in_body_radps, from.gyro_in_body_radps);
-    append(&mut into.mag_in_body_ut, from.mag_in_body_ut);
-    append(&mut into.mag_bias_in_body_ut, from.mag_bias_in_body_ut);
-    append(&mut into.temp_c, from.temp_c);
-    append(&mut into.pressure_hpa, from.pressure_hpa);
-    append(&mut into.gnss, from.gnss);
-    append(&mut into.attitude, from.attitude);
-    append(&mut into.device_heading, from.device_heading);
-    append(&mut into.ref_heading_rad, from.ref_heading_rad);
-    append(&mut into.ref_position_en_m, from.ref_position_en_m);
-    append(
-        &mut into.ref_position_lat_lon_deg,
-        from.ref_position_lat_lon_deg,
-    );
+enum FormatReader {
+    Delimited(DelimitedReader),
+    Nmea(nmea::NmeaReader),
+    Serial(serial_lines::SerialReader),
+    Android(tagged_lines::AndroidReader),
+    GetSensorData(tagged_lines::GetSensorDataReader),
 }
+
+impl FormatReader {
+    fn read_line(&mut self, line: &Line<'_>) {
+        match self {
+            FormatReader::Delimited(reader) => reader.read_line(line),
+            FormatReader::Nmea(reader) => reader.read_decoded(line),
+            FormatReader::Serial(reader) => reader.read_line(line.number, &line.text, None),
+            FormatReader::Android(reader) => {
+                reader.read_line(line.number, &line.text, line.truncated)
+            }
+            FormatReader::GetSensorData(reader) => {
+                reader.read_line(line.number, &line.text, line.truncated)
+            }
+        }
+    }
+
+    fn finish(self, file_name: &str) -> Result<FileImport, ImportError> {
+        Ok(match self {
+            FormatReader::Delimited(reader) => FileImport::Raw(reader.finish(file_name)?),
+            FormatReader::Nmea(reader) => FileImport::Final(reader.finish(file_name)?),
+            FormatReader::Serial(reader) => FileImport::Final(reader.finish(file_name)?),
+            FormatReader::Android(reader) => {
+                FileImport::Final(reader.finish(file_name.to_string())?)
+            }
+            FormatReader::GetSensorData(reader) => {
+                FileImport::Final(reader.finish(file_name.to_string())?)
+            }
+        })
+    }
+}
+
+impl ChunkedImport {
+    /// `size_hint_bytes`, the file's size where known, lets readers reserve room once.
+    pub fn new(file_name: &str, size_hint_bytes: Option<usize>) -> Self {
+        ChunkedImport {
+            file_name: file_name.to_string(),
+            size_hint_bytes,
+            prefix: Vec::new(),
+            reader: None,
+            saw_text: false,
+            n_bytes_read: 0,
+            mapping: None,
+        }
+    }
+
+    /// Reads a delimited file's header through the user's mapping.
+    pub fn with_mapping(mut self, mapping: Option<ColumnMapping>) -> Self {
+        self.mapping = mapping;
+        self
+    }
+
+    /// Bytes fed so far, for progress.
+    pub fn n_bytes_read(&self) -> usize {
+        self.n_bytes_read
+    }
+
+    /// Feeds the next chunk. Fails only when the first bytes show the file is not text.
+    pub fn feed(&mut self, chunk: &[u8]) -> Result<(), ImportError> {
+        self.n_bytes_read += chunk.len();
+        if !self.saw_text {
+            self.saw_text = chunk.iter().any(|byte| !byte.is_ascii_whitespace());
+        }
+        match &mut self.reader {
+            Some((decoder, reader)) => decoder.feed(chunk, |line| reader.read_line(&line)),
+            None => {
+                self.prefix.extend_from_slice(chunk);
+                if self.prefix.len() >= SNIFF_BYTES {
+                    self.start_reading()?;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Tells the format from the held-back prefix and replays it into the reader.
+    fn start_reading(&mut self) -> Result<(), ImportError> {
+        if let Some(byte_offset) = first_binary_offset(&self.prefix) {
+            return Err(ImportError::NotText {
+                file_name: self.file_name.clone(),
+                byte_offset,
+            });
+        }
+        let mut reader = match detect(&self.prefix) {
+            Some(Format::Nmea) => FormatReader::Nmea(nmea::NmeaReader::new()),
+            Some(Format::AndroidDump) => {
+                FormatReader::Android(tagged_lines::AndroidReader::default())
+            }
+            Some(Format::GetSensorData) => {
+                FormatReader::GetSensorData(tagged_lines::GetSensorDataReader::default())
+            }
+            Some(Format::SerialLines) => FormatReader::Serial(serial_lines::SerialReader::new(
+                serial_lines::ASSUMED_FILE_RATE_HZ,
+            )),
+            Some(Format::Delimited) | None => {
+                FormatReader::Delimited(DelimitedReader::new(self.size_hint_bytes))
+            }
+        };
+        let mut decoder = LineDecoder::new(MAX_LINE_BYTES);
+        decoder.feed(&self.prefix, |line| reader.read_line(&line));
+        self.prefix = Vec::new();
+        self.reader = Some((decoder, reader));
+        Ok(())
+    }
+
+    /// Ends the file and hands over what was read, for [`merge`].
+    pub fn finish(mut self) -> Result<FileImport, ImportError> {
+        if !self.saw_text {
+            return Err(ImportError::Empty {
+                file_name: self.file_name,
+            });
+        }
+        if self.reader.is_none() {
+            self.start_reading()?;
+        }
+        let Some((mut decoder, mut reader)) = self.reader.take() else {
+            return Err(ImportError::Empty {
+                file_name: self.file_name,
+            });
+        };
+        decoder.finish(|line| reader.read_line(&line));
+        reader.finish(&self.file_name)
+    }
+}
+
+/// Lines longer than this are cut by the chunked reader (the readers report it).
+const MAX_LINE_BYTES: usize = 64 * 1024;
 
 /// An import with its stream summaries: what `compass-pdr inspect` prints and the page
 /// shows.

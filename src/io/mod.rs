@@ -10,6 +10,7 @@ pub mod delimited;
 pub mod import;
 pub mod lines;
 pub mod nmea;
+pub mod number;
 pub mod serial_lines;
 pub mod summary;
 pub mod tagged_lines;

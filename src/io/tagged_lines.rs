@@ -173,7 +173,7 @@ pub fn read_get_sensor_data(file_name: &str, bytes: &[u8]) -> Result<ImportRepor
 }
 
 /// A reader of one format, fed line by line, so that files and chunked input share it.
-trait LineReader {
+pub trait LineReader {
     fn read_line(&mut self, number: usize, text: &str, truncated: bool);
     fn finish(self, file_name: String) -> Result<ImportReport, ImportError>;
 }
@@ -605,7 +605,7 @@ fn split_fields(text: &str, separator: char) -> Vec<&str> {
 // Android sensor dump
 
 #[derive(Default)]
-struct AndroidReader {
+pub struct AndroidReader {
     collector: Collector,
     start_time_ms: Option<f64>,
 }
@@ -769,7 +769,7 @@ fn number_of(text: &str, name: &str) -> Result<f64, String> {
 // GetSensorData
 
 #[derive(Default)]
-struct GetSensorDataReader {
+pub struct GetSensorDataReader {
     collector: Collector,
     /// Per tag, the smallest and largest SensorTimestamp − AppTimestamp.
     clock_offsets_s: BTreeMap<&'static str, (f64, f64)>,

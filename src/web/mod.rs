@@ -39,6 +39,19 @@ pub fn analyse_file(file_name: &str, bytes: &[u8]) -> Result<JsValue, JsError> {
         .map_err(|error| JsError::new(&error.to_string()))
 }
 
+/// What a log holds, as `compass-pdr inspect --json` prints it (format, stream
+/// summaries, notes, diagnostics), returned as a plain object. Throws an `Error` whose
+/// message says what is wrong with the file and what to do.
+#[wasm_bindgen]
+pub fn inspect_file(file_name: &str, bytes: &[u8]) -> Result<JsValue, JsError> {
+    let report = crate::io::import::import(file_name, bytes)
+        .map_err(|error| JsError::new(&error.to_string()))?;
+    let inspection = crate::io::import::Inspection::of(&report);
+    let serializer = serde_wasm_bindgen::Serializer::json_compatible();
+    serde::Serialize::serialize(&inspection, &serializer)
+        .map_err(|error| JsError::new(&error.to_string()))
+}
+
 /// A panic is a bug: report it in the console and in the page's status area, so the
 /// user sees that something broke instead of a page that silently stops.
 fn install_panic_hook() {

@@ -1,0 +1,99 @@
+// Runs the import benchmark in headless Chromium: serves bench/wasm/ (the page),
+// target/bench-wasm/pkg/ (the release module, built by bench/run) as pkg/ and
+// target/bench-data/ (the inputs) as data/ on 127.0.0.1, opens the page with
+// playwright-core driving /usr/bin/chromium, waits for its results and prints them as
+// JSON on stdout.
+//
+// Usage: node bench/wasm-bench.mjs [--runs N]     (bench/run builds the module first)
+import { createServer } from 'node:http';
+import { createReadStream, existsSync, statSync } from 'node:fs';
+import { dirname, extname, join, normalize, resolve, sep } from 'node:path';
+import { fileURLToPath } from 'node:url';
+
+const here = dirname(fileURLToPath(import.meta.url));
+const root = resolve(here, '..');
+const { chromium } = await import(join(root, 'tests/e2e/node_modules/playwright-core/index.mjs'));
+
+const runsIdx = process.argv.indexOf('--runs');
+const runs = runsIdx > 0 ? Number(process.argv[runsIdx + 1]) : 5;
+
+const MOUNTS = [
+  ['/pkg/', join(root, 'target/bench-wasm/pkg')],
+  ['/data/', join(root, 'target/bench-data')],
+  ['/', join(here, 'wasm')],
+];
+const TYPES = {
+  '.html': 'text/html; charset=utf-8',
+  '.js': 'text/javascript; charset=utf-8',
+  '.wasm': 'application/wasm',
+};
+
+for (const needed of ['target/bench-wasm/pkg/compass_pdr_bg.wasm', 'target/bench-data/walk.csv',
+  'target/bench-data/track.nmea']) {
+  if (!existsSync(join(root, needed))) {
+    console.error(`${needed} is missing: run bench/run (it builds the module and the inputs)`);
+    process.exit(1);
+  }
+}
+
+/** The file a URL path names, or null when it is outside the served folders. */
+function fileFor(urlPath) {
+  const path = decodeURIComponent(urlPath === '/' ? '/index.html' : urlPath);
+  for (const [prefix, dir] of MOUNTS) {
+    if (path.startsWith(prefix)) {
+      const file = normalize(join(dir, path.slice(prefix.length)));
+      return file.startsWith(dir + sep) ? file : null;
+    }
+  }
+  return null;
+}
+
+const server = createServer((request, response) => {
+  const file = fileFor(new URL(request.url, 'http://127.0.0.1').pathname);
+  if (!file || !existsSync(file) || !statSync(file).isFile()) {
+    response.writeHead(404).end('not found');
+    return;
+  }
+  response.writeHead(200, {
+    'Content-Type': TYPES[extname(file)] || 'application/octet-stream',
+    'Content-Length': statSync(file).size,
+    'Cache-Control': 'no-store',
+  });
+  createReadStream(file).pipe(response);
+});
+await new Promise((ready) => server.listen(0, '127.0.0.1', ready));
+const url = `http://127.0.0.1:${server.address().port}/index.html?runs=${runs}`;
+
+const browser = await chromium.launch({
+  executablePath: '/usr/bin/chromium',
+  headless: true,
+  args: ['--no-sandbox', '--disable-gpu', '--disable-dev-shm-usage', '--disable-quic', '--no-first-run',
+    '--disable-background-networking', '--disable-component-update', '--disable-sync'],
+});
+let exitCode = 0;
+try {
+  const page = await browser.newPage();
+  const problems = [];
+  page.on('pageerror', (error) => problems.push(`page error: ${error.message}`));
+  page.on('console', (message) => {
+    if (message.type() === 'error') problems.push(`console: ${message.text()}`);
+  });
+  await page.goto(url);
+  await page.waitForFunction(() => window.benchResults || window.benchError, null, {
+    timeout: 600_000,
+    polling: 500,
+  });
+  const { results, error } = await page.evaluate(() => ({
+    results: window.benchResults,
+    error: window.benchError,
+  }));
+  if (error) throw new Error(`the benchmark page failed: ${error}\n${problems.join('\n')}`);
+  console.log(JSON.stringify({ chromium: browser.version(), ...results }, null, 2));
+} catch (error) {
+  console.error(String((error && error.stack) || error));
+  exitCode = 1;
+} finally {
+  await browser.close();
+  server.close();
+}
+process.exit(exitCode);

@@ -1,0 +1,61 @@
+// The import benchmark in the browser: the release module's `inspect_file` (import +
+// stream summaries + conversion to a JS object, what the page does with a dropped file)
+// on each benchmark input. One warm-up call, then `runs` timed calls; the median is
+// reported. The result is left in `window.benchResults` (or `window.benchError`) for
+// bench/wasm-bench.mjs, and shown in the page.
+import init, { inspect_file } from './pkg/compass_pdr.js';
+
+const INPUTS = [
+  { name: 'walk.csv', url: 'data/walk.csv' },
+  { name: 'track.nmea', url: 'data/track.nmea' },
+];
+
+function median(values) {
+  const sorted = [...values].sort((a, b) => a - b);
+  const mid = Math.floor(sorted.length / 2);
+  return sorted.length % 2 ? sorted[mid] : (sorted[mid - 1] + sorted[mid]) / 2;
+}
+
+async function run() {
+  const params = new URLSearchParams(location.search);
+  const runs = Math.max(1, Number(params.get('runs') || 5));
+  await init();
+  const results = { runs, inputs: {} };
+  for (const input of INPUTS) {
+    const response = await fetch(input.url);
+    if (!response.ok) throw new Error(`${input.url}: HTTP ${response.status}`);
+    const bytes = new Uint8Array(await response.arrayBuffer());
+    let inspection = inspect_file(input.name, bytes);
+    const ms = [];
+    for (let i = 0; i < runs; i += 1) {
+      const start = performance.now();
+      inspection = inspect_file(input.name, bytes);
+      ms.push(performance.now() - start);
+    }
+    const medianMs = median(ms);
+    results.inputs[input.name] = {
+      bytes: bytes.length,
+      ms: ms.map((value) => Math.round(value * 10) / 10),
+      median_ms: medianMs,
+      mb_per_s: bytes.length / 1e6 / (medianMs / 1e3),
+      format: inspection.format,
+      n_data_lines: inspection.n_data_lines,
+      streams: inspection.streams.map((stream) => `${stream.stream} ${stream.n_samples}`),
+      n_diagnostics: inspection.diagnostics.kept.length + inspection.diagnostics.n_not_kept,
+    };
+    document.getElementById('status').textContent = JSON.stringify(results, null, 2);
+  }
+  return results;
+}
+
+run().then(
+  (results) => {
+    window.benchResults = results;
+    document.body.dataset.state = 'done';
+  },
+  (error) => {
+    window.benchError = String((error && error.stack) || error);
+    document.getElementById('status').textContent = window.benchError;
+    document.body.dataset.state = 'error';
+  },
+);
