@@ -13,7 +13,11 @@ use wasm_bindgen_futures::{spawn_local, JsFuture};
 use web_sys::{Document, DragEvent, Element, HtmlCanvasElement, HtmlElement, HtmlInputElement};
 
 use super::canvas::{self, Plot};
-use crate::analysis::{analyse_minmax_files, MinMaxAnalysis, MinMaxSummary, Options};
+use crate::analysis::{
+    analyse_minmax, analyse_minmax_files, AnalysisError, MinMaxAnalysis, MinMaxSummary, Options,
+};
+use crate::io::import::{merge, ChunkedImport, FileImport};
+use crate::io::ImportError;
 use crate::stats::HeadingErrorStats;
 
 /// The ids of the elements the page must have (see `www/index.html`).
@@ -22,6 +26,11 @@ const FILE_INPUT_ID: &str = "file-input";
 const DROP_ZONE_ID: &str = "drop-zone";
 const CIRCLE_CANVAS_ID: &str = "plot-circle";
 const HEADING_CANVAS_ID: &str = "plot-heading";
+const PROGRESS_ID: &str = "progress";
+
+/// Bytes read from a file at a time: small enough that the page answers between
+/// chunks, large enough that the reads cost little.
+const CHUNK_BYTES: f64 = 4.0 * 1024.0 * 1024.0;
 
 /// Diagnostics listed on the page at most; the rest are counted.
 const MAX_DIAGNOSTICS_SHOWN: usize = 50;
@@ -130,8 +139,9 @@ impl Page {
         }
     }
 
-    /// Reads every file dropped or chosen and analyses them as one recording (phyphox
-    /// writes one file per sensor).
+    /// Reads every file dropped or chosen, in chunks, and analyses them as one recording
+    /// (phyphox writes one file per sensor). Each chunk is read asynchronously, so the
+    /// page repaints and answers between chunks, and the progress bar moves.
     fn analyse_files(self: &Rc<Self>, files: web_sys::FileList) {
         let files: Vec<web_sys::File> = (0..files.length())
             .filter_map(|idx| files.get(idx))
@@ -143,31 +153,88 @@ impl Page {
         spawn_local(async move {
             let names: Vec<String> = files.iter().map(web_sys::File::name).collect();
             page.set_state("loading", &format!("Reading {}…", names.join(", ")));
-            let mut contents: Vec<(String, Vec<u8>)> = Vec::with_capacity(files.len());
-            for (file, file_name) in files.into_iter().zip(names) {
-                match gloo_file::futures::read_as_bytes(&gloo::file::Blob::from(file)).await {
-                    Ok(bytes) => contents.push((file_name, bytes)),
-                    Err(error) => {
-                        page.show_error(&format!(
-                            "Could not read {file_name}: {error}. Try choosing it again."
-                        ));
+            let total_bytes: f64 = files.iter().map(|file| file.size()).sum();
+            let mut bytes_done = 0.0;
+            let mut results = Vec::with_capacity(files.len());
+            for (file, file_name) in files.iter().zip(&names) {
+                let result = page
+                    .read_in_chunks(file, file_name, &mut bytes_done, total_bytes)
+                    .await;
+                match result {
+                    Ok(result) => results.push((file_name.clone(), result)),
+                    Err(message) => {
+                        page.hide_progress();
+                        page.show_error(&message);
                         return;
                     }
                 }
             }
-            let slices: Vec<(&str, &[u8])> = contents
-                .iter()
-                .map(|(name, bytes)| (name.as_str(), bytes.as_slice()))
-                .collect();
-            page.analyse_and_show(&slices);
+            page.hide_progress();
+            page.set_state("loading", &format!("Analysing {}…", names.join(", ")));
+            match merge(results) {
+                Ok(report) => page.show_result(analyse_minmax(report, Options::default())),
+                Err(error) => page.show_error(&error.to_string()),
+            }
         });
     }
 
-    fn analyse_and_show(&self, files: &[(&str, &[u8])]) {
-        match analyse_minmax_files(files, Options::default()) {
+    /// One file through a [`ChunkedImport`]; `Err` only when the browser cannot read it.
+    async fn read_in_chunks(
+        &self,
+        file: &web_sys::File,
+        file_name: &str,
+        bytes_done: &mut f64,
+        total_bytes: f64,
+    ) -> Result<Result<FileImport, ImportError>, String> {
+        let size = file.size();
+        let mut import = ChunkedImport::new(file_name, Some(size as usize));
+        let mut start = 0.0;
+        while start < size {
+            let end = (start + CHUNK_BYTES).min(size);
+            let slice = file
+                .slice_with_f64_and_f64(start, end)
+                .map_err(|_| format!("Could not read {file_name}. Try choosing it again."))?;
+            let bytes = gloo_file::futures::read_as_bytes(&gloo::file::Blob::from(slice))
+                .await
+                .map_err(|error| {
+                    format!("Could not read {file_name}: {error}. Try choosing it again.")
+                })?;
+            if let Err(error) = import.feed(&bytes) {
+                return Ok(Err(error));
+            }
+            *bytes_done += end - start;
+            start = end;
+            self.show_progress(*bytes_done / total_bytes.max(1.0), file_name);
+        }
+        Ok(import.finish())
+    }
+
+    fn show_result(&self, result: Result<MinMaxAnalysis, AnalysisError>) {
+        match result {
             Ok(analysis) => self.show_analysis(&analysis),
             Err(error) => self.show_error(&error.to_string()),
         }
+    }
+
+    fn show_progress(&self, fraction: f64, file_name: &str) {
+        if let Some(progress) = self.document.get_element_by_id(PROGRESS_ID) {
+            let _ = progress.set_attribute("value", &format!("{:.4}", fraction.clamp(0.0, 1.0)));
+            let _ = progress.remove_attribute("hidden");
+        }
+        self.status.set_text_content(Some(&format!(
+            "Reading {file_name}… {:.0} %",
+            100.0 * fraction.clamp(0.0, 1.0)
+        )));
+    }
+
+    fn hide_progress(&self) {
+        if let Some(progress) = self.document.get_element_by_id(PROGRESS_ID) {
+            let _ = progress.set_attribute("hidden", "");
+        }
+    }
+
+    fn analyse_and_show(&self, files: &[(&str, &[u8])]) {
+        self.show_result(analyse_minmax_files(files, Options::default()));
     }
 
     pub fn show_analysis(&self, analysis: &MinMaxAnalysis) {

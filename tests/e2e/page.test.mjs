@@ -137,6 +137,37 @@ test('phyphox files dropped together are merged into one recording', async (t) =
   await close();
 });
 
+test('a 50 MB log is read in chunks with a progress bar, and the page keeps answering', async () => {
+  const { page, problems, close } = await openPage();
+  await waitForState(page, 'ready', 'demo-walk.csv');
+  await page.setInputFiles('#file-input', join(out, 'large-walk.csv'));
+  const progressSeen = [];
+  let slowestAnswerMs = 0;
+  for (let poll = 0; poll < 2000; poll += 1) {
+    const askedAt = Date.now();
+    const now = await page.evaluate(() => {
+      const progress = document.getElementById('progress');
+      return { state: document.body.dataset.state, file: document.body.dataset.file,
+               progress: progress.hidden ? null : Number(progress.value) };
+    });
+    slowestAnswerMs = Math.max(slowestAnswerMs, Date.now() - askedAt);
+    if (now.progress !== null) progressSeen.push(now.progress);
+    if (now.state === 'ready' && now.file === 'large-walk.csv') break;
+    await new Promise((resolve) => setTimeout(resolve, 20));
+  }
+  await waitForState(page, 'ready', 'large-walk.csv');
+  assert.ok(progressSeen.some((fraction) => fraction > 0 && fraction < 1), `progress seen: ${progressSeen.slice(0, 20)}`);
+  // Reading never blocks; the one synchronous step is the analysis of 450,000 samples.
+  assert.ok(slowestAnswerMs < 2000, `the page took ${slowestAnswerMs} ms to answer`);
+  console.log(`large file: ${progressSeen.length} progress readings, slowest answer ${slowestAnswerMs} ms`);
+  assert.match(await text(page, 'status'), /Analysed large-walk\.csv: 450000 magnetometer samples\./);
+  assert.equal(await page.getAttribute('#progress', 'hidden'), '', 'the bar is hidden again');
+  await assertPlotsDrawn(page);
+  await page.screenshot({ path: join(out, 'large.png'), fullPage: true });
+  assert.deepEqual(problems, []);
+  await close();
+});
+
 // Bad files: each gives a clear message naming the file and what to do, the previous
 // figures are cleared, the canvases say why, and the page still works afterwards.
 const badFiles = [
