@@ -168,3 +168,75 @@ fn bad_lines_are_listed_with_their_line_numbers_and_the_rest_is_used() {
     let json: serde_json::Value = serde_json::from_slice(&output.stdout).expect("JSON");
     assert_eq!(json["n_samples_used"], 99);
 }
+
+#[test]
+fn a_column_mapping_reads_an_unknown_header_and_is_remembered() {
+    let dir = scratch_dir("mapping");
+    let config_dir = dir.join("config");
+    let _ = std::fs::remove_dir_all(&config_dir);
+    let path = dir.join("logger.csv");
+    let mut text = String::from("time,ch1,ch2,ch3,note\n");
+    for idx in 0..200 {
+        let angle_rad = (idx as f64 * 1.8).to_radians();
+        text.push_str(&format!(
+            "{},{},{},0.4,ok\n",
+            idx * 10,
+            0.2 * angle_rad.cos(),
+            0.2 * angle_rad.sin()
+        ));
+    }
+    std::fs::write(&path, text).expect("written");
+    let path_text = path.to_str().unwrap_or_default();
+    let run = |args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_compass-pdr"))
+            .args(args)
+            .env("XDG_CONFIG_HOME", &config_dir)
+            .output()
+            .expect("the CLI runs")
+    };
+
+    // Without a mapping, ch1..ch3 are not magnetometer columns.
+    let refused = run(&["calibrate", path_text]);
+    assert_eq!(refused.status.code(), Some(1), "{}", stderr(&refused));
+    assert!(
+        stderr(&refused).contains("no magnetometer columns"),
+        "{}",
+        stderr(&refused)
+    );
+
+    // A bad mapping says what to write.
+    let bad = run(&["inspect", path_text, "--map", "ch1=magnet"]);
+    assert_eq!(bad.status.code(), Some(1));
+    assert!(
+        stderr(&bad).contains("--map: 'magnet' (for column 'ch1') is not a name this tool reads"),
+        "{}",
+        stderr(&bad)
+    );
+
+    // With one, the gauss values become µT and time in ms becomes seconds.
+    let mapped = run(&[
+        "inspect",
+        path_text,
+        "--json",
+        "--map",
+        "ch1=mag_x_gauss,ch2=mag_y_gauss,ch3=mag_z_gauss,time=t_ms",
+    ]);
+    assert!(mapped.status.success(), "{}", stderr(&mapped));
+    let json: serde_json::Value = serde_json::from_slice(&mapped.stdout).expect("JSON");
+    let magnetometer = &json["streams"][0];
+    assert_eq!(magnetometer["stream"], "magnetometer");
+    assert_eq!(magnetometer["n_samples"], 200);
+    assert!((magnetometer["duration_s"].as_f64().unwrap_or(0.0) - 1.99).abs() < 1e-9);
+    assert!(
+        (magnetometer["mean_magnitude"].as_f64().unwrap_or(0.0) - (20f64.hypot(40.0))).abs() < 1e-6
+    );
+
+    // The next run remembers it, and says so.
+    let remembered = run(&["calibrate", path_text]);
+    assert!(remembered.status.success(), "{}", stderr(&remembered));
+    assert!(
+        stderr(&remembered).contains("using the column mapping remembered for this header"),
+        "{}",
+        stderr(&remembered)
+    );
+}

@@ -7,7 +7,8 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand, ValueEnum};
 use compass_pdr::analysis::{analyse_minmax, MinMaxSummary, Options};
 use compass_pdr::io::canonical_csv;
-use compass_pdr::io::import::{merge, ChunkedImport, Inspection};
+use compass_pdr::io::delimited::ColumnMapping;
+use compass_pdr::io::import::{header_signature, merge, ChunkedImport, Inspection};
 use compass_pdr::io::{Diagnostics, ImportReport};
 use compass_pdr::plot::draw_minmax_figure;
 use compass_pdr::sim::walk::{simulate, WalkConfig};
@@ -41,10 +42,8 @@ enum Command {
     },
     /// Calibrate the magnetometer of a log and compare headings with its reference.
     Calibrate {
-        /// The log: one file, or the files of one recording (e.g. phyphox's per-sensor
-        /// CSVs), merged by time. Any format `inspect` reads.
-        #[arg(required = true)]
-        files: Vec<PathBuf>,
+        #[command(flatten)]
+        input: ImportArgs,
         #[arg(long, value_enum, default_value_t = Method::Minmax)]
         method: Method,
         /// Declination in degrees (true north from magnetic north, east positive).
@@ -60,13 +59,27 @@ enum Command {
     /// Show what a log holds: its format, streams (count, rate, duration, gaps), what
     /// was assumed, and every line that was skipped.
     Inspect {
-        /// One file, or the files of one recording, merged by time.
-        #[arg(required = true)]
-        files: Vec<PathBuf>,
+        #[command(flatten)]
+        input: ImportArgs,
         /// Print the result as JSON.
         #[arg(long)]
         json: bool,
     },
+}
+
+/// The files to read, and how to read their columns.
+#[derive(Debug, clap::Args)]
+struct ImportArgs {
+    /// The log: one file, or the files of one recording (e.g. phyphox's per-sensor CSVs),
+    /// merged by time. The format is told from the content.
+    #[arg(required = true)]
+    files: Vec<PathBuf>,
+    /// Read columns of a delimited file under other names, `COLUMN=NAME,…`, for example
+    /// `Bx=mag_x_gauss,By=mag_y_gauss,Bz=mag_z_gauss,time=t_ms` (the unit in the name
+    /// overrides a guessed one; `ignore` leaves a column out). It is remembered for
+    /// files with the same header, in $XDG_CONFIG_HOME/compass-pdr/mappings.json.
+    #[arg(long)]
+    map: Option<String>,
 }
 
 #[derive(Debug, Clone, Copy, ValueEnum)]
@@ -74,6 +87,8 @@ enum Method {
     /// Min/max autocalibration (Eq. 6-7 of the 2007 paper).
     Minmax,
 }
+
+mod mapping_store;
 
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
@@ -84,15 +99,15 @@ pub fn main() -> ExitCode {
             out,
             truth,
         } => run_simulate(seed, duration_s, &out, truth.as_deref()),
-        Command::Inspect { files, json } => run_inspect(&files, json),
+        Command::Inspect { input, json } => run_inspect(&input, json),
         Command::Calibrate {
-            files,
+            input,
             method: Method::Minmax,
             declination,
             json,
             plot,
         } => run_calibrate(
-            &files,
+            &input,
             Options {
                 declination_deg: declination,
                 ..Options::default()
@@ -136,13 +151,22 @@ fn run_simulate(
 
 /// Reads the files of one recording in chunks (memory holds the samples, not the
 /// text) and merges them. A file that cannot be opened ends the command with its name;
-/// one that cannot be parsed is left out with a diagnostic unless all fail.
-fn import_paths(files: &[PathBuf]) -> Result<ImportReport, String> {
+/// one that cannot be parsed is left out with a diagnostic unless all fail. A column
+/// mapping given with `--map` is remembered for the file's header; without one, a
+/// remembered mapping is used and said so.
+fn import_paths(input: &ImportArgs) -> Result<ImportReport, String> {
     use std::io::Read as _;
     const CHUNK_BYTES: usize = 1 << 20;
-    let mut results = Vec::with_capacity(files.len());
+    let given_mapping = input
+        .map
+        .as_deref()
+        .map(ColumnMapping::parse)
+        .transpose()
+        .map_err(|error| format!("--map: {error}"))?;
+    let mut store = mapping_store::MappingStore::load();
+    let mut results = Vec::with_capacity(input.files.len());
     let mut buffer = vec![0u8; CHUNK_BYTES];
-    for path in files {
+    for path in &input.files {
         let file_name = path.display().to_string();
         let cannot_read = |error: std::io::Error| format!("cannot read {file_name}: {error}");
         let mut file = std::fs::File::open(path).map_err(cannot_read)?;
@@ -150,25 +174,45 @@ fn import_paths(files: &[PathBuf]) -> Result<ImportReport, String> {
             .metadata()
             .ok()
             .and_then(|metadata| usize::try_from(metadata.len()).ok());
-        let mut import = ChunkedImport::new(&file_name, size_hint);
+        let mut n_read = file.read(&mut buffer).map_err(cannot_read)?;
+        let first_chunk = buffer.get(..n_read).unwrap_or_default();
+        let signature = header_signature(first_chunk);
+        let mapping = match (&given_mapping, &signature) {
+            (Some(mapping), Some(signature)) => {
+                store.remember(signature, mapping);
+                Some(mapping.clone())
+            }
+            (Some(mapping), None) => Some(mapping.clone()),
+            (None, Some(signature)) => store.recall(signature).inspect(|_| {
+                eprintln!(
+                    "note: {file_name}: using the column mapping remembered for this header ({}); pass --map to change it",
+                    store.path_text()
+                );
+            }),
+            (None, None) => None,
+        };
+        let mut import = ChunkedImport::new(&file_name, size_hint).with_mapping(mapping);
         let mut result = Ok(());
-        loop {
-            let n_read = file.read(&mut buffer).map_err(cannot_read)?;
-            let Some(chunk) = buffer.get(..n_read).filter(|chunk| !chunk.is_empty()) else {
+        while n_read > 0 {
+            let Some(chunk) = buffer.get(..n_read) else {
                 break;
             };
             result = import.feed(chunk);
             if result.is_err() {
                 break;
             }
+            n_read = file.read(&mut buffer).map_err(cannot_read)?;
         }
         results.push((file_name, result.and_then(|()| import.finish())));
+    }
+    if let Err(message) = store.save_if_changed() {
+        eprintln!("warning: {message}");
     }
     merge(results).map_err(|error| error.to_string())
 }
 
-fn run_inspect(files: &[PathBuf], json: bool) -> Result<(), String> {
-    let report = import_paths(files)?;
+fn run_inspect(input: &ImportArgs, json: bool) -> Result<(), String> {
+    let report = import_paths(input)?;
     let inspection = Inspection::of(&report);
     print_import_diagnostics(&inspection.file_name, &inspection.diagnostics);
     if json {
@@ -219,12 +263,12 @@ fn run_inspect(files: &[PathBuf], json: bool) -> Result<(), String> {
 }
 
 fn run_calibrate(
-    files: &[PathBuf],
+    input: &ImportArgs,
     options: Options,
     json: bool,
     plot: Option<&Path>,
 ) -> Result<(), String> {
-    let report = import_paths(files)?;
+    let report = import_paths(input)?;
     let analysis = analyse_minmax(report, options).map_err(|error| error.to_string())?;
     let summary = &analysis.summary;
     print_diagnostics(summary);

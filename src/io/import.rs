@@ -55,6 +55,30 @@ pub fn detect(bytes: &[u8]) -> Option<Format> {
     }
 }
 
+/// The header of a delimited file, as a key under which a column mapping can be
+/// remembered: its column names, lower-cased, in order. `None` for other formats.
+pub fn header_signature(prefix: &[u8]) -> Option<String> {
+    let mut sample_lines: Vec<String> = Vec::new();
+    decode_all(&prefix[..prefix.len().min(SAMPLE_BYTES)], 4096, |line| {
+        if sample_lines.len() < N_SAMPLE_LINES && !line.text.trim().is_empty() {
+            sample_lines.push(line.text.trim().to_string());
+        }
+    });
+    let sample: Vec<&str> = sample_lines.iter().map(String::as_str).collect();
+    if matches!(detect(prefix), Some(Format::Delimited) | None) {
+        let columns = delimited::header_columns(&sample)?;
+        Some(
+            columns
+                .iter()
+                .map(|name| name.to_lowercase())
+                .collect::<Vec<_>>()
+                .join(","),
+        )
+    } else {
+        None
+    }
+}
+
 /// One file as read, before merging (see [`merge`]).
 pub enum FileImport {
     /// Delimited text still in its own axes: merged before the axes are converted, so
@@ -359,9 +383,9 @@ impl ChunkedImport {
             Some(Format::SerialLines) => FormatReader::Serial(serial_lines::SerialReader::new(
                 serial_lines::ASSUMED_FILE_RATE_HZ,
             )),
-            Some(Format::Delimited) | None => {
-                FormatReader::Delimited(DelimitedReader::new(self.size_hint_bytes))
-            }
+            Some(Format::Delimited) | None => FormatReader::Delimited(
+                DelimitedReader::new(self.size_hint_bytes).with_mapping(self.mapping.clone()),
+            ),
         };
         let mut decoder = LineDecoder::new(MAX_LINE_BYTES);
         decoder.feed(&self.prefix, |line| reader.read_line(&line));
