@@ -151,6 +151,85 @@ impl ColumnMapping {
 /// The mapping target that leaves a column out.
 const IGNORE: &str = "ignore";
 
+/// What a column can be mapped to, with a label for people: the choices of the page's
+/// mapping dialog, and valid `--map` names.
+pub const MAPPING_TARGETS: &[(&str, &str)] = &[
+    ("ignore", "ignore"),
+    ("t_s", "time (s)"),
+    ("t_ms", "time (ms)"),
+    ("mag_x_ut", "magnetometer x (µT)"),
+    ("mag_y_ut", "magnetometer y (µT)"),
+    ("mag_z_ut", "magnetometer z (µT)"),
+    ("mag_x_gauss", "magnetometer x (gauss)"),
+    ("mag_y_gauss", "magnetometer y (gauss)"),
+    ("mag_z_gauss", "magnetometer z (gauss)"),
+    ("mag_x_mg", "magnetometer x (mG)"),
+    ("mag_y_mg", "magnetometer y (mG)"),
+    ("mag_z_mg", "magnetometer z (mG)"),
+    ("mag_x_nt", "magnetometer x (nT)"),
+    ("mag_y_nt", "magnetometer y (nT)"),
+    ("mag_z_nt", "magnetometer z (nT)"),
+    ("acc_x_mps2", "accelerometer x (m/s²)"),
+    ("acc_y_mps2", "accelerometer y (m/s²)"),
+    ("acc_z_mps2", "accelerometer z (m/s²)"),
+    ("acc_x_g", "accelerometer x (g)"),
+    ("acc_y_g", "accelerometer y (g)"),
+    ("acc_z_g", "accelerometer z (g)"),
+    ("gyro_x_radps", "gyroscope x (rad/s)"),
+    ("gyro_y_radps", "gyroscope y (rad/s)"),
+    ("gyro_z_radps", "gyroscope z (rad/s)"),
+    ("gyro_x_dps", "gyroscope x (deg/s)"),
+    ("gyro_y_dps", "gyroscope y (deg/s)"),
+    ("gyro_z_dps", "gyroscope z (deg/s)"),
+    ("temp_c", "temperature (°C)"),
+    ("ref_heading_deg", "reference heading (°)"),
+    ("lat_deg", "latitude (°)"),
+    ("lon_deg", "longitude (°)"),
+];
+
+/// The mapping target suggested for a column: the one it already reads as, where it is
+/// among [`MAPPING_TARGETS`], else `ignore`.
+pub fn suggested_target(column: &str) -> &'static str {
+    let Some((resolved, _)) = resolve(column) else {
+        return IGNORE;
+    };
+    MAPPING_TARGETS
+        .iter()
+        .find(|(target, _)| resolve(target).is_some_and(|(candidate, _)| candidate == resolved))
+        .map_or(IGNORE, |(target, _)| target)
+}
+
+/// The header and first data line of delimited text, for a mapping dialog.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Preview {
+    pub columns: Vec<String>,
+    /// The first data line's fields, one per column ("" where it has none).
+    pub first_values: Vec<String>,
+}
+
+/// A preview of delimited text from its first lines; `None` when there is no header.
+pub fn preview(sample_lines: &[&str]) -> Option<Preview> {
+    let mut lines = sample_lines
+        .iter()
+        .map(|line| line.trim())
+        .filter(|line| !line.is_empty() && !line.starts_with('#'));
+    let header = Header::parse(1, lines.next()?, None);
+    let first_values: Vec<String> = match lines.next() {
+        Some(line) => line
+            .split(header.delimiter)
+            .map(|field| field.trim().trim_matches('"').to_string())
+            .collect(),
+        None => Vec::new(),
+    };
+    let first_values = (0..header.names.len())
+        .map(|idx| first_values.get(idx).cloned().unwrap_or_default())
+        .collect();
+    Some(Preview {
+        columns: header.names,
+        first_values,
+    })
+}
+
 /// The header's column names, as written, of delimited text (its first non-comment
 /// line), for a mapping dialog and for remembering mappings by header.
 pub fn header_columns(sample_lines: &[&str]) -> Option<Vec<String>> {
@@ -1476,6 +1555,48 @@ mod tests {
             .kept
             .iter()
             .any(|diagnostic| diagnostic.line == Some(9979)));
+    }
+
+    #[test]
+    fn a_mapping_renames_columns_and_every_offered_target_is_valid() {
+        for (target, _) in MAPPING_TARGETS {
+            assert!(
+                ColumnMapping::parse(&format!("c={target}")).is_ok(),
+                "{target}"
+            );
+        }
+        let mapping = ColumnMapping::parse(
+            "ch1=mag_x_gauss, ch2=mag_y_gauss ,ch3=mag_z_gauss,when=t_ms,junk=ignore",
+        )
+        .expect("valid");
+        let mut reader = DelimitedReader::new(None).with_mapping(Some(mapping));
+        decode_all(
+            b"when;ch1;ch2;ch3;junk\n1000;0.2;0.1;-0.4;7\n",
+            MAX_LINE_BYTES,
+            |line| reader.read_line(&line),
+        );
+        let report = reader.finish("m.csv").expect("readable").into_report();
+        let mag = &report.recording.mag_in_body_ut;
+        assert_eq!(mag.t_s, vec![1.0]);
+        assert!((mag.values[0] - Vector3::new(20.0, 10.0, -40.0)).norm() < 1e-9);
+        assert!(matches!(
+            ColumnMapping::parse("x"),
+            Err(MappingError::NotAnAssignment { .. })
+        ));
+        assert!(matches!(
+            ColumnMapping::parse("x=mag"),
+            Err(MappingError::UnknownTarget { .. })
+        ));
+    }
+
+    #[test]
+    fn suggestions_and_previews_for_the_mapping_dialog() {
+        assert_eq!(suggested_target("mag_x_gauss"), "mag_x_gauss");
+        assert_eq!(suggested_target("Time (s)"), "t_s");
+        assert_eq!(suggested_target("ch1"), "ignore");
+        let preview = preview(&["# a comment", "t;ch1;ch2", "0.5;1.25"]).expect("a header");
+        assert_eq!(preview.columns, vec!["t", "ch1", "ch2"]);
+        assert_eq!(preview.first_values, vec!["0.5", "1.25", ""]);
     }
 
     #[test]

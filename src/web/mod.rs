@@ -6,6 +6,7 @@
 //! same analysis for scripts, returning the summary as a plain object.
 
 mod canvas;
+mod mapping;
 mod page;
 
 #[cfg(test)]

@@ -13,10 +13,12 @@ use wasm_bindgen_futures::{spawn_local, JsFuture};
 use web_sys::{Document, DragEvent, Element, HtmlCanvasElement, HtmlElement, HtmlInputElement};
 
 use super::canvas::{self, Plot};
+use super::mapping;
 use crate::analysis::{
     analyse_minmax, analyse_minmax_files, AnalysisError, MinMaxAnalysis, MinMaxSummary, Options,
 };
-use crate::io::import::{merge, ChunkedImport, FileImport};
+use crate::io::delimited::{preview, ColumnMapping, Preview};
+use crate::io::import::{header_signature, merge, ChunkedImport, FileImport};
 use crate::io::ImportError;
 use crate::stats::HeadingErrorStats;
 
@@ -32,11 +34,33 @@ const PROGRESS_ID: &str = "progress";
 /// chunks, large enough that the reads cost little.
 const CHUNK_BYTES: f64 = 4.0 * 1024.0 * 1024.0;
 
+/// How much of a file's start is kept for the mapping dialog's preview.
+const PREVIEW_BYTES: usize = 64 * 1024;
+
+/// What reading one file gave.
+struct ChunkedRead {
+    result: Result<FileImport, ImportError>,
+    first_chunk: Vec<u8>,
+    used_remembered_mapping: bool,
+}
+
+/// The preview of delimited text from its first bytes.
+fn preview_of(first_chunk: &[u8]) -> Option<Preview> {
+    let mut lines = Vec::new();
+    crate::io::lines::decode_all(first_chunk, 4096, |line| {
+        if lines.len() < 20 {
+            lines.push(line.text.into_owned());
+        }
+    });
+    let sample: Vec<&str> = lines.iter().map(String::as_str).collect();
+    preview(&sample)
+}
+
 /// Diagnostics listed on the page at most; the rest are counted.
 const MAX_DIAGNOSTICS_SHOWN: usize = 50;
 
 pub struct Page {
-    document: Document,
+    pub(super) document: Document,
     body: HtmlElement,
     status: Element,
     file_input: HtmlInputElement,
@@ -146,9 +170,19 @@ impl Page {
         let files: Vec<web_sys::File> = (0..files.length())
             .filter_map(|idx| files.get(idx))
             .collect();
-        if files.is_empty() {
-            return;
+        if !files.is_empty() {
+            self.analyse_file_list(files, None);
         }
+    }
+
+    /// Reads the files in chunks and analyses them as one recording. `mapping` is the
+    /// one the user just made in the mapping dialog; otherwise a remembered one is used
+    /// for a header seen before.
+    pub fn analyse_file_list(
+        self: &Rc<Self>,
+        files: Vec<web_sys::File>,
+        mapping: Option<ColumnMapping>,
+    ) {
         let page = Rc::clone(self);
         spawn_local(async move {
             let names: Vec<String> = files.iter().map(web_sys::File::name).collect();
@@ -156,12 +190,26 @@ impl Page {
             let total_bytes: f64 = files.iter().map(|file| file.size()).sum();
             let mut bytes_done = 0.0;
             let mut results = Vec::with_capacity(files.len());
+            let mut first_chunks = Vec::with_capacity(files.len());
+            let mut remembered_for = Vec::new();
             for (file, file_name) in files.iter().zip(&names) {
-                let result = page
-                    .read_in_chunks(file, file_name, &mut bytes_done, total_bytes)
+                let read = page
+                    .read_in_chunks(
+                        file,
+                        file_name,
+                        mapping.as_ref(),
+                        &mut bytes_done,
+                        total_bytes,
+                    )
                     .await;
-                match result {
-                    Ok(result) => results.push((file_name.clone(), result)),
+                match read {
+                    Ok(read) => {
+                        if read.used_remembered_mapping {
+                            remembered_for.push(file_name.clone());
+                        }
+                        results.push((file_name.clone(), read.result));
+                        first_chunks.push(read.first_chunk);
+                    }
                     Err(message) => {
                         page.hide_progress();
                         page.show_error(&message);
@@ -171,9 +219,42 @@ impl Page {
             }
             page.hide_progress();
             page.set_state("loading", &format!("Analysing {}…", names.join(", ")));
-            match merge(results) {
-                Ok(report) => page.show_result(analyse_minmax(report, Options::default())),
-                Err(error) => page.show_error(&error.to_string()),
+            let result = merge(results)
+                .map_err(AnalysisError::from)
+                .and_then(|report| analyse_minmax(report, Options::default()));
+            // A single delimited file whose columns were not understood: ask the user.
+            let unreadable_header = matches!(
+                result,
+                Err(AnalysisError::NoMagnetometerColumns { .. }
+                    | AnalysisError::Import(ImportError::UnknownHeader { .. }))
+            );
+            if let (true, [file], [first_chunk]) =
+                (unreadable_header, files.as_slice(), first_chunks.as_slice())
+            {
+                if let Some(preview) = preview_of(first_chunk) {
+                    let reason = result
+                        .as_ref()
+                        .err()
+                        .map(ToString::to_string)
+                        .unwrap_or_default();
+                    page.show_error(&reason);
+                    mapping::open_dialog(
+                        &page,
+                        file.clone(),
+                        &preview,
+                        &reason,
+                        header_signature(first_chunk),
+                    );
+                    return;
+                }
+            }
+            page.show_result(result);
+            if !remembered_for.is_empty() {
+                let status = page.status.text_content().unwrap_or_default();
+                page.status.set_text_content(Some(&format!(
+                    "{status} Read with your saved column mapping for {}.",
+                    remembered_for.join(", ")
+                )));
             }
         });
     }
@@ -183,13 +264,16 @@ impl Page {
         &self,
         file: &web_sys::File,
         file_name: &str,
+        mapping: Option<&ColumnMapping>,
         bytes_done: &mut f64,
         total_bytes: f64,
-    ) -> Result<Result<FileImport, ImportError>, String> {
+    ) -> Result<ChunkedRead, String> {
         let size = file.size();
-        let mut import = ChunkedImport::new(file_name, Some(size as usize));
+        let mut import: Option<ChunkedImport> = None;
+        let mut first_chunk = Vec::new();
+        let mut used_remembered_mapping = false;
         let mut start = 0.0;
-        while start < size {
+        loop {
             let end = (start + CHUNK_BYTES).min(size);
             let slice = file
                 .slice_with_f64_and_f64(start, end)
@@ -199,14 +283,46 @@ impl Page {
                 .map_err(|error| {
                     format!("Could not read {file_name}: {error}. Try choosing it again.")
                 })?;
-            if let Err(error) = import.feed(&bytes) {
-                return Ok(Err(error));
+            let chunked = import.get_or_insert_with(|| {
+                // The header is in the first chunk: it picks a remembered mapping.
+                let signature = header_signature(&bytes);
+                let remembered = match (mapping, &signature) {
+                    (None, Some(signature)) => mapping::remembered(signature),
+                    _ => None,
+                };
+                used_remembered_mapping = remembered.is_some();
+                first_chunk = bytes
+                    .get(..bytes.len().min(PREVIEW_BYTES))
+                    .unwrap_or_default()
+                    .to_vec();
+                ChunkedImport::new(file_name, Some(size as usize))
+                    .with_mapping(mapping.cloned().or(remembered))
+            });
+            if let Err(error) = chunked.feed(&bytes) {
+                return Ok(ChunkedRead {
+                    result: Err(error),
+                    first_chunk,
+                    used_remembered_mapping,
+                });
             }
             *bytes_done += end - start;
             start = end;
             self.show_progress(*bytes_done / total_bytes.max(1.0), file_name);
+            if start >= size {
+                break;
+            }
         }
-        Ok(import.finish())
+        let result = match import {
+            Some(import) => import.finish(),
+            None => Err(ImportError::Empty {
+                file_name: file_name.to_string(),
+            }),
+        };
+        Ok(ChunkedRead {
+            result,
+            first_chunk,
+            used_remembered_mapping,
+        })
     }
 
     fn show_result(&self, result: Result<MinMaxAnalysis, AnalysisError>) {

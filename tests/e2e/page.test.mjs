@@ -168,6 +168,43 @@ test('a 50 MB log is read in chunks with a progress bar, and the page keeps answ
   await close();
 });
 
+test('an unknown CSV opens the column-mapping dialog, and the mapping is remembered', async () => {
+  const { page, problems, close } = await openPage();
+  await waitForState(page, 'ready', 'demo-walk.csv');
+  // A level turn logged in gauss and milliseconds under names no tool could guess.
+  let csv = 'when_ms;ch1;ch2;ch3\n';
+  for (let step = 0; step < 360; step += 1) {
+    const angle = (step * Math.PI) / 180;
+    csv += `${step * 20};${(0.1 + 0.22 * Math.cos(angle)).toFixed(4)};${(-0.05 - 0.22 * Math.sin(angle)).toFixed(4)};0.38\n`;
+  }
+  const chooseLogger = () => page.setInputFiles('#file-input', { name: 'logger.csv', mimeType: 'text/csv', buffer: Buffer.from(csv) });
+  await chooseLogger();
+  await page.waitForSelector('#mapping-dialog[open]');
+  assert.match(await text(page, 'mapping-reason'), /logger\.csv, line 1: the header names no column this tool knows/);
+  assert.equal(await page.$eval('#mapping-1', (select) => select.value), 'ignore', 'nothing is guessed for ch1');
+  await page.screenshot({ path: join(out, 'mapping-dialog.png') });
+  await page.selectOption('#mapping-0', 't_ms');
+  await page.selectOption('#mapping-1', 'mag_x_gauss');
+  await page.selectOption('#mapping-2', 'mag_y_gauss');
+  await page.selectOption('#mapping-3', 'mag_z_gauss');
+  await page.click('#mapping-apply');
+  await waitForState(page, 'ready', 'logger.csv');
+  assert.match(await text(page, 'status'), /Analysed logger\.csv: 360 magnetometer samples\./);
+  assert.equal(await page.$eval('#mapping-dialog', (dialog) => dialog.open), false);
+  // The level-plane centre is the offset written into the file, in µT.
+  assert.match(await text(page, 'calibration'), /Ellipse centre \(10\.00, -5\.00\) µT/);
+
+  // After a reload the same columns are read without asking.
+  await page.reload();
+  await waitForState(page, 'ready', 'demo-walk.csv');
+  await chooseLogger();
+  await waitForState(page, 'ready', 'logger.csv');
+  assert.match(await text(page, 'status'), /Read with your saved column mapping for logger\.csv\./);
+  assert.equal(await page.$eval('#mapping-dialog', (dialog) => dialog.open), false);
+  assert.deepEqual(problems, []);
+  await close();
+});
+
 // Bad files: each gives a clear message naming the file and what to do, the previous
 // figures are cleared, the canvases say why, and the page still works afterwards.
 const badFiles = [
