@@ -175,8 +175,13 @@ impl Recording {
     /// Appends every stream of `other` to this one's (sorting is the caller's).
     pub fn append(&mut self, other: Recording) {
         fn append<T>(into: &mut Stream<T>, from: Stream<T>) {
-            into.t_s.extend(from.t_s);
-            into.values.extend(from.values);
+            // Moving into an empty stream keeps the other's memory instead of copying it.
+            if into.is_empty() {
+                *into = from;
+            } else {
+                into.t_s.extend(from.t_s);
+                into.values.extend(from.values);
+            }
         }
         append(&mut self.acc_in_body_mps2, other.acc_in_body_mps2);
         append(&mut self.gyro_in_body_radps, other.gyro_in_body_radps);

@@ -326,7 +326,15 @@ mod parallel {
         let results: Vec<(DelimitedReader, usize)> = std::thread::scope(|scope| {
             let handles: Vec<_> = parts
                 .iter()
-                .map(|part| {
+                .enumerate()
+                .map(|(part_idx, part)| {
+                    // The first part's streams become the file's: they reserve room for
+                    // every row, so that the others are appended without moving them.
+                    let size_hint_bytes = if part_idx == 0 {
+                        rest.len()
+                    } else {
+                        part.len()
+                    };
                     let mut part_reader = DelimitedReader {
                         header: Some(header.clone()),
                         plan: Plan::of(header),
@@ -334,7 +342,7 @@ mod parallel {
                         recording: Recording::default(),
                         diagnostics: Diagnostics::default(),
                         n_data_lines: 0,
-                        size_hint_bytes: Some(part.len()),
+                        size_hint_bytes: Some(size_hint_bytes),
                         mapping: None,
                     };
                     scope.spawn(move || {

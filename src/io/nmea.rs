@@ -719,8 +719,8 @@ fn number(
     if text.is_empty() {
         return Ok(None);
     }
-    match text.parse::<f64>() {
-        Ok(value) if value.is_finite() => Ok(Some(value)),
+    match super::number::parse_f64(text) {
+        Some(value) if value.is_finite() => Ok(Some(value)),
         _ => Err(SentenceError::bad_number(sentence, field, text)),
     }
 }
@@ -888,7 +888,7 @@ fn time_of_day_s(sentence: &'static str, text: &str) -> Result<Option<f64>, Sent
     // boundary. A leap second (60) is allowed.
     let seconds = text
         .get(4..)
-        .and_then(|rest| rest.parse::<f64>().ok())
+        .and_then(super::number::parse_f64)
         .ok_or_else(bad)?;
     if hours > 23 || minutes > 59 || !(0.0..61.0).contains(&seconds) {
         return Err(bad());
