@@ -6,6 +6,7 @@
 
 pub mod heading;
 pub mod minmax;
+pub mod model;
 pub mod tilt;
 
 use thiserror::Error;

@@ -11,5 +11,6 @@
 //! crate so that a seed gives the same log forever, on every platform: the demo in
 //! `assets/` depends on it.
 
+pub mod field;
 pub mod rng;
 pub mod walk;
