@@ -54,6 +54,7 @@ pub mod calib;
 pub mod io;
 pub mod plot;
 pub mod recording;
+pub mod reference;
 pub mod sim;
 pub mod stats;
 

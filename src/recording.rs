@@ -150,6 +150,9 @@ pub struct DeviceHeading {
 /// Everything read from one log, in the units and frames stated in the module header.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Recording {
+    /// When `t_s = 0` was, in seconds since 1970 (UTC), where the log says (date-times,
+    /// epoch timestamps, NMEA dates): it dates the log for the magnetic model.
+    pub start_unix_s: Option<f64>,
     /// Specific force in the body frame (a level device at rest reads z ≈ −9.81).
     pub acc_in_body_mps2: Stream<Vector3<f64>>,
     pub gyro_in_body_radps: Stream<Vector3<f64>>,
@@ -172,8 +175,10 @@ pub struct Recording {
 }
 
 impl Recording {
-    /// Appends every stream of `other` to this one's (sorting is the caller's).
+    /// Appends every stream of `other` to this one's (sorting is the caller's). The start
+    /// time kept is this one's, else the other's.
     pub fn append(&mut self, other: Recording) {
+        self.start_unix_s = self.start_unix_s.or(other.start_unix_s);
         fn append<T>(into: &mut Stream<T>, from: Stream<T>) {
             // Moving into an empty stream keeps the other's memory instead of copying it.
             if into.is_empty() {

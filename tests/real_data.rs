@@ -204,3 +204,34 @@ fn a_stats_file_dropped_with_the_data_is_left_out_with_a_reason() {
         inspection.diagnostics
     );
 }
+
+#[test]
+fn logs_with_absolute_times_are_dated() {
+    let Some(data) = shared_data() else { return };
+    for (path, expect_unix_s) in [
+        // 2023-08-09 12:47:45 UTC, the first row's date-time.
+        (
+            data.join("vehicle-pixel6a/2023-08-09_12-47-42.csv"),
+            1_691_585_265.0,
+        ),
+        // The startTime header, in ms.
+        (
+            data.join("msft-indoor-2020/site1/F1/5dd9ef979191710006b57086.txt"),
+            1_574_562_661.929,
+        ),
+    ] {
+        let bytes = std::fs::read(&path).expect("readable");
+        let report = compass_pdr::io::import::import("log", &bytes).expect("imports");
+        let start_unix_s = report.recording.start_unix_s.unwrap_or(f64::NAN);
+        assert!(
+            (start_unix_s - expect_unix_s).abs() < 1e-3,
+            "{}: {start_unix_s}",
+            path.display()
+        );
+    }
+    // phyphox counts from its own start and says no date.
+    let bytes =
+        std::fs::read(data.join("phyphox-hallway-loop/Magnetometer.csv")).expect("readable");
+    let report = compass_pdr::io::import::import("Magnetometer.csv", &bytes).expect("imports");
+    assert_eq!(report.recording.start_unix_s, None);
+}

@@ -848,6 +848,9 @@ impl DelimitedReader {
             ));
         }
         for_each_time(recording, |t| *t = (*t - t0_raw) * time_scale);
+        if t0_raw != 0.0 {
+            recording.start_unix_s = Some(t0_raw * time_scale);
+        }
 
         let (acc_scale, acc_note) = unit_or_guess(
             scale_of(Quantity::Acc),

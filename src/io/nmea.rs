@@ -1447,6 +1447,11 @@ impl NmeaReader {
         let mut notes = Vec::new();
         self.note_counts(&mut notes);
         let s_per_line = self.note_time(&mut notes);
+        // t_s = 0 is the first timed sentence, on the day the first RMC date fixes.
+        self.recording.start_unix_s = self.clock.first_date.map(|(first_days, first_day)| {
+            (first_days - first_day) as f64 * SECONDS_PER_DAY
+                + self.clock.first_time_of_day_s.unwrap_or(0.0)
+        });
         let (leading, trailing) = self
             .untimed
             .split_at(self.n_leading.min(self.untimed.len()));
@@ -1822,6 +1827,16 @@ mod tests {
             -3.1f64.to_radians()
         ));
         assert_eq!(rmc.mode, None);
+    }
+
+    #[test]
+    fn a_dated_log_knows_when_it_started() {
+        let text = format!("{GOLDEN_RMC}\r\n{GOLDEN_GGA}\r\n");
+        let report = read("dated.nmea", text.as_bytes()).expect("readable");
+        // 1994-03-23 12:35:19 UTC.
+        assert_eq!(report.recording.start_unix_s, Some(764_426_119.0));
+        let undated = read("undated.nmea", format!("{GOLDEN_GGA}\n").as_bytes()).expect("readable");
+        assert_eq!(undated.recording.start_unix_s, None);
     }
 
     #[test]

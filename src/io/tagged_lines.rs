@@ -663,7 +663,10 @@ impl LineReader for AndroidReader {
                 note: String::new(),
             },
         };
-        self.collector.finish(file_name, ANDROID_DUMP, clock)
+        let start_unix_s = (clock.origin != 0.0).then_some(clock.origin * clock.scale);
+        let mut report = self.collector.finish(file_name, ANDROID_DUMP, clock)?;
+        report.recording.start_unix_s = start_unix_s;
+        Ok(report)
     }
 }
 
