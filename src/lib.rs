@@ -51,6 +51,7 @@ pub mod align;
 pub mod analysis;
 pub mod angle;
 pub mod calib;
+pub mod calibration;
 pub mod io;
 pub mod plot;
 pub mod recording;

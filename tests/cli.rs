@@ -57,12 +57,14 @@ fn calibrate_prints_json_with_the_heading_errors() {
     ]);
     assert!(output.status.success(), "{}", stderr(&output));
     let json: serde_json::Value = serde_json::from_slice(&output.stdout).expect("JSON on stdout");
-    assert_eq!(json["method"], "minmax");
     assert_eq!(json["n_samples_used"], 9000);
-    let rms_before = json["heading_error_before"]["rms_deg"]
+    assert_eq!(json["methods"].as_array().map(Vec::len), Some(1));
+    let method = &json["methods"][0];
+    assert_eq!(method["method"], "min_max");
+    let rms_before = json["raw_heading_error_check"]["rms_deg"]
         .as_f64()
         .unwrap_or(f64::NAN);
-    let rms_after = json["heading_error_after"]["rms_deg"]
+    let rms_after = method["heading_error_check"]["rms_deg"]
         .as_f64()
         .unwrap_or(f64::NAN);
     assert!(
@@ -70,8 +72,63 @@ fn calibrate_prints_json_with_the_heading_errors() {
         "before {rms_before}, after {rms_after}"
     );
     for key in ["scale_x", "scale_y", "bias_x_ut", "bias_y_ut"] {
-        assert!(json["calibration"][key].is_f64(), "{key}");
+        assert!(method["parameters"][key].is_f64(), "{key}");
     }
+    assert_eq!(json["reference"]["kind"], "column");
+}
+
+#[test]
+fn calibrate_all_methods_and_export_the_device_calibration() {
+    let dir = scratch_dir("exports");
+    let demo = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/demo-walk.csv");
+    let (c_path, packet_path) = (dir.join("calibration.h"), dir.join("calibration.bin"));
+    let output = compass_pdr(&[
+        "calibrate",
+        demo.to_str().unwrap_or_default(),
+        "--export-c",
+        c_path.to_str().unwrap_or_default(),
+        "--export-packet",
+        packet_path.to_str().unwrap_or_default(),
+        "--declination",
+        "-3.5",
+    ]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    let text = String::from_utf8_lossy(&output.stdout);
+    for label in [
+        "uncalibrated",
+        "min/max",
+        "ellipse (tilt-aware 2D)",
+        "ellipsoid (3D)",
+        "reference LS (Eq. 8)",
+        "best:",
+    ] {
+        assert!(text.contains(label), "{label} in {text}");
+    }
+    assert!(
+        text.contains("declination: -3.50° (given by the user)"),
+        "{text}"
+    );
+    let snippet = std::fs::read_to_string(&c_path).expect("C snippet written");
+    assert!(
+        snippet.contains("float hard_iron[3]") && snippet.contains("float soft_iron[3][3]"),
+        "{snippet}"
+    );
+    let packet = std::fs::read(&packet_path).expect("packet written");
+    assert_eq!(packet.len(), 68);
+    assert_eq!(&packet[..2], b"uT");
+    assert!(compass_pdr::calib::export::parse_motioncal_packet(&packet).is_ok());
+    let bad = compass_pdr(&[
+        "calibrate",
+        demo.to_str().unwrap_or_default(),
+        "--declination",
+        "east",
+    ]);
+    assert_eq!(bad.status.code(), Some(1));
+    assert!(
+        stderr(&bad).contains("--declination east: give `auto` or degrees"),
+        "{}",
+        stderr(&bad)
+    );
 }
 
 #[test]
@@ -89,9 +146,9 @@ fn calibrate_draws_the_plots_to_svg() {
     let text = std::fs::read_to_string(&svg).expect("SVG written");
     assert!(
         text.contains("Level-plane field")
-            && text.contains("Heading error against ref_heading_deg")
+            && text.contains("Heading error against the reference heading")
     );
-    assert!(String::from_utf8_lossy(&output.stdout).contains("heading error after"));
+    assert!(String::from_utf8_lossy(&output.stdout).contains("best:"));
 }
 
 /// Bad input: exit code 1, a message naming the file and what to do, never a panic.

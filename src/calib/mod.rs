@@ -4,10 +4,16 @@
 //! [`heading`] turns levelled components into a heading (Eq. 1), and [`minmax`] is the
 //! min/max autocalibration (Eq. 6-7, after Caruso 1997).
 
+pub mod ellipsoid;
+pub mod export;
 pub mod heading;
 pub mod minmax;
 pub mod model;
+pub mod plane;
+pub mod refls;
+pub mod sphere_coverage;
 pub mod tilt;
+pub mod wmm;
 
 use thiserror::Error;
 

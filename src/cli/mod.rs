@@ -5,12 +5,16 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand, ValueEnum};
-use compass_pdr::analysis::{analyse_minmax, MinMaxSummary, Options};
+use compass_pdr::calib::export::{c_snippet, motioncal_packet};
+use compass_pdr::calibration::{
+    calibrate, CalibrationOptions, CalibrationReport, DeclinationChoice, Method,
+};
 use compass_pdr::io::canonical_csv;
 use compass_pdr::io::delimited::ColumnMapping;
 use compass_pdr::io::import::{header_signature, merge, ChunkedImport, Inspection};
 use compass_pdr::io::{Diagnostics, ImportReport};
-use compass_pdr::plot::draw_minmax_figure;
+use compass_pdr::plot::draw_calibration_figure;
+use compass_pdr::reference::ReferenceSource;
 use compass_pdr::sim::walk::{simulate, WalkConfig};
 use compass_pdr::stats::HeadingErrorStats;
 use plotters::prelude::{IntoDrawingArea, SVGBackend};
@@ -44,17 +48,33 @@ enum Command {
     Calibrate {
         #[command(flatten)]
         input: ImportArgs,
-        #[arg(long, value_enum, default_value_t = Method::Minmax)]
-        method: Method,
-        /// Declination in degrees (true north from magnetic north, east positive).
-        #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
-        declination: f64,
+        /// Which method to run, or all of them side by side.
+        #[arg(long, value_enum, default_value_t = MethodChoice::All)]
+        method: MethodChoice,
+        /// Samples up to this time (s) train the methods, later ones check them
+        /// (default: half-way through the part that has a reference heading).
+        #[arg(long)]
+        train_until: Option<f64>,
+        /// Declination: `auto` (the World Magnetic Model at the log's first position and
+        /// date), or degrees, east positive (true north from magnetic north).
+        #[arg(long, default_value = "auto", allow_hyphen_values = true)]
+        declination: String,
+        /// Where the log was recorded, `LAT,LON` in degrees, for logs without GNSS
+        /// (indoors): the magnetic model needs a place for the expected field.
+        #[arg(long, allow_hyphen_values = true)]
+        position: Option<String>,
         /// Print the result as JSON.
         #[arg(long)]
         json: bool,
-        /// Also draw the circle-fit and heading-error plots to this SVG file.
+        /// Also draw the circle-fit, heading-error and |B| plots to this SVG file.
         #[arg(long)]
         plot: Option<PathBuf>,
+        /// Write the device calibration as a C/Arduino snippet to this file.
+        #[arg(long)]
+        export_c: Option<PathBuf>,
+        /// Write the device calibration as a MotionCal 68-byte packet to this file.
+        #[arg(long)]
+        export_packet: Option<PathBuf>,
     },
     /// Show what a log holds: its format, streams (count, rate, duration, gaps), what
     /// was assumed, and every line that was skipped.
@@ -82,10 +102,30 @@ struct ImportArgs {
     map: Option<String>,
 }
 
-#[derive(Debug, Clone, Copy, ValueEnum)]
-enum Method {
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum MethodChoice {
     /// Min/max autocalibration (Eq. 6-7 of the 2007 paper).
     Minmax,
+    /// The tilt-aware level-plane fit (a general conic): for flat, circle-only data.
+    Ellipse,
+    /// The 3D ellipsoid fit (Eq. 5): for data turned through many orientations.
+    Ellipsoid,
+    /// Reference-heading least squares (Eq. 8): needs a reference heading.
+    Refls,
+    /// Every method, side by side.
+    All,
+}
+
+impl MethodChoice {
+    fn methods(self) -> Vec<Method> {
+        match self {
+            MethodChoice::Minmax => vec![Method::MinMax],
+            MethodChoice::Ellipse => vec![Method::Ellipse],
+            MethodChoice::Ellipsoid => vec![Method::Ellipsoid],
+            MethodChoice::Refls => vec![Method::RefLs],
+            MethodChoice::All => Method::ALL.to_vec(),
+        }
+    }
 }
 
 mod mapping_store;
@@ -102,19 +142,37 @@ pub fn main() -> ExitCode {
         Command::Inspect { input, json } => run_inspect(&input, json),
         Command::Calibrate {
             input,
-            method: Method::Minmax,
+            method,
+            train_until,
             declination,
+            position,
             json,
             plot,
-        } => run_calibrate(
-            &input,
-            Options {
-                declination_deg: declination,
-                ..Options::default()
-            },
-            json,
-            plot.as_deref(),
-        ),
+            export_c,
+            export_packet,
+        } => {
+            let position = position.as_deref().map(parse_position).transpose();
+            position
+                .and_then(|position_deg| {
+                    parse_declination(&declination).map(|declination| (position_deg, declination))
+                })
+                .and_then(|(position_deg, declination)| {
+                    let options = CalibrationOptions {
+                        methods: method.methods(),
+                        train_until_s: train_until,
+                        declination,
+                        position_deg,
+                        ..CalibrationOptions::default()
+                    };
+                    let outputs = Outputs {
+                        json,
+                        plot: plot.as_deref(),
+                        export_c: export_c.as_deref(),
+                        export_packet: export_packet.as_deref(),
+                    };
+                    run_calibrate(&input, &options, &outputs)
+                })
+        }
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -262,27 +320,86 @@ fn run_inspect(input: &ImportArgs, json: bool) -> Result<(), String> {
     print_out(&text)
 }
 
+/// What `calibrate` writes besides its summary.
+struct Outputs<'a> {
+    json: bool,
+    plot: Option<&'a Path>,
+    export_c: Option<&'a Path>,
+    export_packet: Option<&'a Path>,
+}
+
+fn parse_position(text: &str) -> Result<(f64, f64), String> {
+    let parsed = text.split_once(',').and_then(|(lat, lon)| {
+        Some((
+            lat.trim().parse::<f64>().ok()?,
+            lon.trim().parse::<f64>().ok()?,
+        ))
+    });
+    match parsed {
+        Some((lat_deg, lon_deg))
+            if (-90.0..=90.0).contains(&lat_deg) && (-180.0..=180.0).contains(&lon_deg) =>
+        {
+            Ok((lat_deg, lon_deg))
+        }
+        _ => Err(format!(
+            "--position {text}: give LAT,LON in degrees, e.g. 30.3,120.1"
+        )),
+    }
+}
+
+fn parse_declination(text: &str) -> Result<DeclinationChoice, String> {
+    if text.eq_ignore_ascii_case("auto") {
+        return Ok(DeclinationChoice::Auto);
+    }
+    match text.parse::<f64>() {
+        Ok(degrees) if degrees.is_finite() && degrees.abs() <= 180.0 => {
+            Ok(DeclinationChoice::Degrees(degrees))
+        }
+        _ => Err(format!(
+            "--declination {text}: give `auto` or degrees from -180 to 180 (east positive)"
+        )),
+    }
+}
+
 fn run_calibrate(
     input: &ImportArgs,
-    options: Options,
-    json: bool,
-    plot: Option<&Path>,
+    options: &CalibrationOptions,
+    outputs: &Outputs<'_>,
 ) -> Result<(), String> {
     let report = import_paths(input)?;
-    let analysis = analyse_minmax(report, options).map_err(|error| error.to_string())?;
-    let summary = &analysis.summary;
-    print_diagnostics(summary);
-    if let Some(plot) = plot {
-        let root = SVGBackend::new(plot, (1200, 520)).into_drawing_area();
-        draw_minmax_figure(&root, &analysis)
+    let analysis = calibrate(report, options).map_err(|error| error.to_string())?;
+    let report = &analysis.report;
+    print_import_diagnostics(&report.file_name, &report.diagnostics);
+    if let Some(plot) = outputs.plot {
+        let root = SVGBackend::new(plot, (1800, 540)).into_drawing_area();
+        draw_calibration_figure(&root, &analysis)
             .map_err(|error| format!("{error} ({})", plot.display()))?;
     }
-    if json {
-        let text = serde_json::to_string_pretty(summary)
+    if outputs.export_c.is_some() || outputs.export_packet.is_some() {
+        let Some((method, calibration)) = analysis.device_calibration() else {
+            return Err("no 3D calibration to export: the ellipse and ellipsoid methods both failed (see above)".to_string());
+        };
+        if let Some(path) = outputs.export_c {
+            let text = format!(
+                "// {} calibration of {}\n{}",
+                method.label(),
+                report.file_name,
+                c_snippet(&calibration)
+            );
+            std::fs::write(path, text)
+                .map_err(|error| format!("cannot write {}: {error}", path.display()))?;
+        }
+        if let Some(path) = outputs.export_packet {
+            std::fs::write(path, motioncal_packet(&calibration))
+                .map_err(|error| format!("cannot write {}: {error}", path.display()))?;
+        }
+    }
+    if outputs.json {
+        let text = serde_json::to_string_pretty(report)
             .map_err(|error| format!("cannot encode the result: {error}"))?;
         print_out(&(text + "\n"))
     } else {
-        print_out(&summary_text(summary))
+        print_out(&calibration_text(report))
     }
 }
 
@@ -302,10 +419,6 @@ fn print_out(text: &str) -> Result<(), String> {
 }
 
 /// Every skipped or suspect line goes to stderr as `file:line: message`.
-fn print_diagnostics(summary: &MinMaxSummary) {
-    print_import_diagnostics(&summary.file_name, &summary.diagnostics);
-}
-
 fn print_import_diagnostics(file_name: &str, diagnostics: &Diagnostics) {
     for diagnostic in &diagnostics.kept {
         let file_name = diagnostic.file_name.as_deref().unwrap_or(file_name);
@@ -322,55 +435,93 @@ fn print_import_diagnostics(file_name: &str, diagnostics: &Diagnostics) {
     }
 }
 
-fn summary_text(summary: &MinMaxSummary) -> String {
+fn calibration_text(report: &CalibrationReport) -> String {
     use std::fmt::Write as _;
     let mut text = String::new();
-    let calibration = &summary.calibration;
     let _ = writeln!(
         text,
-        "{}: min/max calibration of {} magnetometer samples",
-        summary.file_name, summary.n_samples_used
+        "{}: {} magnetometer samples ({} train, {} check{})",
+        report.file_name,
+        report.n_samples_used,
+        report.n_train,
+        report.n_check,
+        report
+            .train_until_s
+            .map_or(String::new(), |until_s| format!(
+                ", split at {until_s:.1} s"
+            ))
     );
+    let reference = match report.reference {
+        Some(ReferenceSource::Column) => "the log's reference-heading column".to_string(),
+        Some(ReferenceSource::GpsCourse { min_speed_mps }) => {
+            format!("GPS course above {min_speed_mps} m/s")
+        }
+        None => "none".to_string(),
+    };
+    let _ = writeln!(text, "  reference heading: {reference}");
     let _ = writeln!(
         text,
-        "  scale   Sx = {:.4}, Sy = {:.4}",
-        calibration.scale_x, calibration.scale_y
+        "  declination: {:.2}° ({})",
+        report.declination.declination_deg, report.declination.source
     );
-    let _ = writeln!(
-        text,
-        "  bias    Bx = {:.2} µT, By = {:.2} µT",
-        calibration.bias_x_ut, calibration.bias_y_ut
-    );
-    let _ = writeln!(
-        text,
-        "  centre  ({:.2}, {:.2}) µT in the level plane",
-        calibration.center_x_ut, calibration.center_y_ut
-    );
-    let _ = writeln!(
-        text,
-        "  coverage {}/{} heading bins of 10°, largest gap {:.0}°",
-        calibration.coverage.n_bins_covered,
-        calibration.coverage.n_bins,
-        calibration.coverage.largest_gap_deg
-    );
-    let mut print_stats = |label: &str, stats: &Option<HeadingErrorStats>| {
-        if let Some(stats) = stats {
+    match &report.expected_field {
+        Some(expected) => {
             let _ = writeln!(
                 text,
-                "  heading error {label}: mean {:.2}°, std {:.2}°, RMS {:.2}°, p95 {:.2}°, \
-                 within ±5° {:.1}% (n = {})",
-                stats.mean_deg,
-                stats.std_deg,
-                stats.rms_deg,
-                stats.p95_abs_deg,
-                stats.within_5_deg_pct,
-                stats.n_samples
+                "  field: measured {:.1} µT raw, expected {:.1} µT (inclination {:.1}°)",
+                report.mean_raw_field_ut, expected.total_ut, expected.inclination_deg
             );
         }
+        None => {
+            let _ = writeln!(
+                text,
+                "  field: measured {:.1} µT raw (no model value: no position or date)",
+                report.mean_raw_field_ut
+            );
+        }
+    }
+    let _ = writeln!(
+        text,
+        "  {:<26} {:>17} {:>17} {:>10}",
+        "heading error (RMS)", "train", "check", "check p95"
+    );
+    let row = |label: &str, train: Option<HeadingErrorStats>, check: Option<HeadingErrorStats>| {
+        let cell = |stats: Option<HeadingErrorStats>| {
+            stats.map_or("—".to_string(), |stats| {
+                format!("{:.2}° ({:+.2}°)", stats.rms_deg, stats.mean_deg)
+            })
+        };
+        format!(
+            "  {label:<26} {:>17} {:>17} {:>10}\n",
+            cell(train),
+            cell(check),
+            check.map_or("—".to_string(), |stats| format!(
+                "{:.2}°",
+                stats.p95_abs_deg
+            ))
+        )
     };
-    print_stats("before", &summary.heading_error_before);
-    print_stats("after ", &summary.heading_error_after);
-    for note in &summary.notes {
+    text.push_str(&row(
+        "uncalibrated",
+        report.raw_heading_error_train,
+        report.raw_heading_error_check,
+    ));
+    for method in &report.methods {
+        match &method.error {
+            None => text.push_str(&row(
+                method.label,
+                method.heading_error_train,
+                method.heading_error_check,
+            )),
+            Some(error) => {
+                let _ = writeln!(text, "  {:<26} not fitted: {error}", method.label);
+            }
+        }
+    }
+    if let Some(best) = report.best {
+        let _ = writeln!(text, "  best: {}", best.label());
+    }
+    for note in &report.notes {
         let _ = writeln!(text, "  note: {note}");
     }
     text

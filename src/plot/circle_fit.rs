@@ -1,12 +1,12 @@
-//! The circle-fit plot: raw levelled field points, the ellipse that min/max fitted to
-//! them, and the corrected points on their circle. Axes are drawn to equal scale, so a
-//! circle looks like one.
+//! The circle-fit plot: raw levelled field points, the ellipse a level-plane method
+//! fitted to them, and the corrected points on their circle. Axes are drawn to equal
+//! scale, so a circle looks like one.
 
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
 use super::{thinned_indices, PlotError, MAX_POINTS_PER_SERIES};
-use crate::analysis::MinMaxAnalysis;
+use crate::calibration::CalibrationAnalysis;
 
 pub const RAW_COLOR: RGBColor = RGBColor(230, 120, 30);
 pub const CORRECTED_COLOR: RGBColor = RGBColor(30, 100, 200);
@@ -15,10 +15,9 @@ const N_CURVE_POINTS: usize = 240;
 
 pub fn draw_circle_fit<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
-    analysis: &MinMaxAnalysis,
+    analysis: &CalibrationAnalysis,
 ) -> Result<(), PlotError> {
     let error = PlotError::from_backend::<DrawingAreaErrorKind<DB::ErrorType>>("circle-fit");
-    let calibration = &analysis.summary.calibration;
     let all_points = analysis
         .level_raw_ut
         .iter()
@@ -34,7 +33,7 @@ pub fn draw_circle_fit<DB: DrawingBackend>(
 
     let mut chart = ChartBuilder::on(area)
         .caption(
-            "Level-plane field (µT): raw, min/max ellipse, corrected",
+            "Level-plane field (µT): raw, fitted ellipse, corrected",
             ("sans-serif", 16),
         )
         .margin(12)
@@ -60,18 +59,26 @@ pub fn draw_circle_fit<DB: DrawingBackend>(
         .label("raw")
         .legend(|(x, y)| Circle::new((x + 8, y), 3, RAW_COLOR.filled()));
 
-    let ellipse = (0..=N_CURVE_POINTS).map(|idx| {
-        let angle_rad = std::f64::consts::TAU * idx as f64 / N_CURVE_POINTS as f64;
-        (
-            calibration.center_x_ut + calibration.semi_axis_x_ut * angle_rad.cos(),
-            calibration.center_y_ut + calibration.semi_axis_y_ut * angle_rad.sin(),
-        )
-    });
-    chart
-        .draw_series(LineSeries::new(ellipse, RAW_COLOR.stroke_width(2)))
-        .map_err(&error)?
-        .label("min/max ellipse")
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], RAW_COLOR.stroke_width(2)));
+    // The fitted ellipse is the corrected circle mapped back: centre + M·(R cos t, R sin t).
+    if let Some((center_ut, circle_to_ellipse, radius_ut)) = analysis.fitted_ellipse {
+        let ellipse = (0..=N_CURVE_POINTS).map(|idx| {
+            let angle_rad = std::f64::consts::TAU * idx as f64 / N_CURVE_POINTS as f64;
+            let point = center_ut
+                + circle_to_ellipse
+                    * nalgebra::Vector2::new(
+                        radius_ut * angle_rad.cos(),
+                        radius_ut * angle_rad.sin(),
+                    );
+            (point.x, point.y)
+        });
+        chart
+            .draw_series(LineSeries::new(ellipse, RAW_COLOR.stroke_width(2)))
+            .map_err(&error)?
+            .label("fitted ellipse")
+            .legend(|(x, y)| {
+                PathElement::new(vec![(x, y), (x + 16, y)], RAW_COLOR.stroke_width(2))
+            });
+    }
 
     let corrected = &analysis.level_corrected_ut;
     chart
@@ -88,7 +95,13 @@ pub fn draw_circle_fit<DB: DrawingBackend>(
         .label("corrected")
         .legend(|(x, y)| Circle::new((x + 8, y), 3, CORRECTED_COLOR.filled()));
 
-    let radius_ut = calibration.corrected_radius_ut();
+    let radius_ut = analysis.fitted_ellipse.map_or_else(
+        || {
+            let corrected = &analysis.level_corrected_ut;
+            corrected.iter().map(|point| point.norm()).sum::<f64>() / corrected.len().max(1) as f64
+        },
+        |(_, _, radius_ut)| radius_ut,
+    );
     let circle = (0..=N_CURVE_POINTS).map(|idx| {
         let angle_rad = std::f64::consts::TAU * idx as f64 / N_CURVE_POINTS as f64;
         (radius_ut * angle_rad.cos(), radius_ut * angle_rad.sin())

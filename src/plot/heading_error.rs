@@ -1,19 +1,32 @@
-//! Heading error over time, before and after calibration, against the log's reference
-//! heading. Without a reference, the two headings themselves are drawn.
+//! Heading error over time, before calibration and after the best method, against the
+//! reference heading. Without a reference, the two headings themselves are drawn.
 
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
 use super::circle_fit::{CORRECTED_COLOR, RAW_COLOR};
 use super::{thinned_indices, PlotError, MAX_POINTS_PER_SERIES};
-use crate::analysis::MinMaxAnalysis;
 use crate::angle::heading_difference_rad;
+use crate::calibration::CalibrationAnalysis;
 
 pub fn draw_heading_error<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
-    analysis: &MinMaxAnalysis,
+    analysis: &CalibrationAnalysis,
 ) -> Result<(), PlotError> {
     let error = PlotError::from_backend::<DrawingAreaErrorKind<DB::ErrorType>>("heading");
+    let best = analysis
+        .report
+        .best
+        .or_else(|| analysis.headings_deg.first().map(|(method, _)| *method));
+    let best_headings_deg: &[f64] = analysis
+        .headings_deg
+        .iter()
+        .find(|(method, _)| Some(*method) == best)
+        .map_or(&[], |(_, headings_deg)| headings_deg.as_slice());
+    let best_label = format!(
+        "after {}",
+        best.map_or("calibration", |method| method.label())
+    );
     let t_s = &analysis.t_s;
     let (t_first_s, t_last_s) = (
         t_s.first().copied().unwrap_or(0.0),
@@ -43,8 +56,8 @@ pub fn draw_heading_error<DB: DrawingBackend>(
             })
             .collect()
     };
-    let before = series(&analysis.heading_before_deg);
-    let after = series(&analysis.heading_after_deg);
+    let before = series(&analysis.raw_heading_deg);
+    let after = series(best_headings_deg);
 
     let (caption, y_desc, y_range) = if has_reference {
         let largest_deg = before
@@ -54,7 +67,7 @@ pub fn draw_heading_error<DB: DrawingBackend>(
             .fold(5.0, f64::max);
         let limit_deg = (largest_deg * 1.1).min(180.0);
         (
-            "Heading error against ref_heading_deg",
+            "Heading error against the reference heading",
             "error (°)",
             -limit_deg..limit_deg,
         )
@@ -97,7 +110,7 @@ pub fn draw_heading_error<DB: DrawingBackend>(
                 .map(|&point| Circle::new(point, 1, CORRECTED_COLOR.filled())),
         )
         .map_err(&error)?
-        .label("after min/max")
+        .label(best_label.as_str())
         .legend(|(x, y)| Circle::new((x + 8, y), 3, CORRECTED_COLOR.filled()));
     chart
         .configure_series_labels()

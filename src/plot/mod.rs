@@ -5,15 +5,17 @@
 //! sizes, backends and files belong to the caller.
 
 pub mod circle_fit;
+pub mod field_magnitude;
 pub mod heading_error;
 
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use thiserror::Error;
 
-use crate::analysis::MinMaxAnalysis;
+use crate::calibration::CalibrationAnalysis;
 
 pub use circle_fit::draw_circle_fit;
+pub use field_magnitude::draw_field_magnitude;
 pub use heading_error::draw_heading_error;
 
 /// At most this many points of one series are drawn; longer series are thinned evenly.
@@ -36,18 +38,44 @@ impl PlotError {
     }
 }
 
-/// Both min/max plots side by side: the circle fit on the left, heading error on the
-/// right. This is the figure `compass-pdr calibrate --plot` writes.
-pub fn draw_minmax_figure<DB: DrawingBackend>(
+/// The calibration figure: the circle fit, the heading error and |B| side by side. This
+/// is what `compass-pdr calibrate --plot` writes.
+pub fn draw_calibration_figure<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
-    analysis: &MinMaxAnalysis,
+    analysis: &CalibrationAnalysis,
 ) -> Result<(), PlotError> {
     area.fill(&WHITE)
         .map_err(PlotError::from_backend("figure"))?;
-    let (left, right) = area.split_horizontally(area.dim_in_pixel().0 / 2);
-    draw_circle_fit(&left, analysis)?;
-    draw_heading_error(&right, analysis)?;
+    let panels = area.split_evenly((1, 3));
+    let [circle, heading, field] = panels.as_slice() else {
+        return Err(PlotError {
+            plot: "figure",
+            reason: "the drawing area did not split in three".to_string(),
+        });
+    };
+    draw_circle_fit(circle, analysis)?;
+    draw_heading_error(heading, analysis)?;
+    draw_field_magnitude_of(field, analysis)?;
     area.present().map_err(PlotError::from_backend("figure"))
+}
+
+/// |B| raw and corrected against the magnetic model's value.
+pub fn draw_field_magnitude_of<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    analysis: &CalibrationAnalysis,
+) -> Result<(), PlotError> {
+    let expected_ut = analysis
+        .report
+        .expected_field
+        .as_ref()
+        .map(|expected| expected.total_ut);
+    draw_field_magnitude(
+        area,
+        &analysis.t_s,
+        &analysis.field_raw_ut,
+        &analysis.field_corrected_ut,
+        expected_ut,
+    )
 }
 
 /// The indices of at most `max_points` evenly spaced elements of `0..len`.
@@ -59,19 +87,20 @@ pub(crate) fn thinned_indices(len: usize, max_points: usize) -> impl Iterator<It
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::analysis::{analyse_minmax_file, Options};
+    use crate::calibration::{calibrate, CalibrationOptions};
     use crate::io::canonical_csv;
+    use crate::io::import::import;
     use crate::sim::walk::{simulate, WalkConfig};
 
     #[test]
     fn the_figure_draws_to_svg() {
         let text = canonical_csv::write(&simulate(&WalkConfig::from_seed(5, 60.0)));
-        let analysis = analyse_minmax_file("sim.csv", text.as_bytes(), Options::default())
-            .expect("analysable");
+        let report = import("sim.csv", text.as_bytes()).expect("readable");
+        let analysis = calibrate(report, &CalibrationOptions::default()).expect("analysable");
         let mut svg = String::new();
         {
-            let root = SVGBackend::with_string(&mut svg, (1200, 500)).into_drawing_area();
-            draw_minmax_figure(&root, &analysis).expect("drawable");
+            let root = SVGBackend::with_string(&mut svg, (1800, 500)).into_drawing_area();
+            draw_calibration_figure(&root, &analysis).expect("drawable");
         }
         assert!(svg.starts_with("<svg"));
         assert!(svg.contains("Level-plane field"), "circle plot title");

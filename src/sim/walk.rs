@@ -249,7 +249,8 @@ fn noise3(rng: &mut SplitMix64, sigma: f64) -> Vector3<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::analysis::{analyse_minmax_file, Options};
+    use crate::analysis::analyse_file;
+    use crate::calibration::{CalibrationOptions, Method, MethodParameters};
     use crate::io::canonical_csv;
 
     #[test]
@@ -274,30 +275,32 @@ mod tests {
 
     #[test]
     fn minmax_recovers_the_simulated_heading() {
-        // Simulator truth for the thin slice: levelling + min/max brings the heading
-        // error from tens of degrees to a few. What is left is mostly the hand's sway
-        // (±2° pitch at the step frequency), which an accelerometer averaged over a
-        // second cannot follow, amplified by tan(60°) inclination.
         let config = WalkConfig::from_seed(11, 120.0);
         let text = canonical_csv::write(&simulate(&config));
-        let analysis = analyse_minmax_file("sim.csv", text.as_bytes(), Options::default())
+        let analysis = analyse_file("sim.csv", text.as_bytes(), &CalibrationOptions::default())
             .expect("analysable");
-        let summary = &analysis.summary;
-        let before = summary.heading_error_before.expect("reference present");
-        let after = summary.heading_error_after.expect("reference present");
-        assert!(before.rms_deg > 10.0, "{before:?}");
+        let report = &analysis.report;
+        let raw = report.raw_heading_error_check.expect("reference present");
+        let min_max = report
+            .methods
+            .iter()
+            .find(|method| method.method == Method::MinMax)
+            .expect("min/max ran");
+        let after = min_max.heading_error_check.expect("reference present");
+        assert!(raw.rms_deg > 10.0, "{raw:?}");
         assert!(after.rms_deg < 3.0, "{after:?}");
         // The level-plane centre is the hard iron's horizontal part, tilted slightly.
+        let Some(MethodParameters::MinMax(calibration)) = &min_max.parameters else {
+            panic!("min/max parameters: {min_max:?}");
+        };
         let hard_iron_ut = config.hard_iron_ut;
         assert!(
-            (summary.calibration.center_x_ut - hard_iron_ut[0]).abs() < 6.0,
-            "{:?} vs {hard_iron_ut:?}",
-            summary.calibration
+            (calibration.center_x_ut - hard_iron_ut[0]).abs() < 6.0,
+            "{calibration:?} vs {hard_iron_ut:?}"
         );
         assert!(
-            (summary.calibration.center_y_ut - hard_iron_ut[1]).abs() < 6.0,
-            "{:?} vs {hard_iron_ut:?}",
-            summary.calibration
+            (calibration.center_y_ut - hard_iron_ut[1]).abs() < 6.0,
+            "{calibration:?} vs {hard_iron_ut:?}"
         );
     }
 }

@@ -4,20 +4,21 @@ use plotters::prelude::*;
 use plotters_canvas::CanvasBackend;
 use web_sys::HtmlCanvasElement;
 
-use crate::analysis::MinMaxAnalysis;
-use crate::plot::{draw_circle_fit, draw_heading_error, PlotError};
+use crate::calibration::CalibrationAnalysis;
+use crate::plot::{draw_circle_fit, draw_field_magnitude_of, draw_heading_error, PlotError};
 
 /// Which plot goes on a canvas.
 #[derive(Debug, Clone, Copy)]
 pub enum Plot {
     CircleFit,
     HeadingError,
+    FieldMagnitude,
 }
 
 pub fn draw(
     canvas: &HtmlCanvasElement,
     plot: Plot,
-    analysis: &MinMaxAnalysis,
+    analysis: &CalibrationAnalysis,
 ) -> Result<(), String> {
     let backend =
         CanvasBackend::with_canvas_object(canvas.clone()).ok_or("the canvas has no 2D context")?;
@@ -26,6 +27,7 @@ pub fn draw(
     let drawn: Result<(), PlotError> = match plot {
         Plot::CircleFit => draw_circle_fit(&area, analysis),
         Plot::HeadingError => draw_heading_error(&area, analysis),
+        Plot::FieldMagnitude => draw_field_magnitude_of(&area, analysis),
     };
     drawn.map_err(|error| error.to_string())?;
     area.present().map_err(|error| format!("{error:?}"))

@@ -16,7 +16,8 @@ use std::sync::Once;
 
 use wasm_bindgen::prelude::*;
 
-use crate::analysis::{analyse_minmax_file, Options};
+use crate::analysis::analyse_file as analyse_log;
+use crate::calibration::CalibrationOptions;
 
 /// Wires up the page (`www/index.html`) and analyses the demo log named by the body's
 /// `data-demo-url`.
@@ -33,10 +34,10 @@ pub fn run_page() -> Result<(), JsError> {
 /// with the file and what to do.
 #[wasm_bindgen]
 pub fn analyse_file(file_name: &str, bytes: &[u8]) -> Result<JsValue, JsError> {
-    let analysis = analyse_minmax_file(file_name, bytes, Options::default())
+    let analysis = analyse_log(file_name, bytes, &CalibrationOptions::default())
         .map_err(|error| JsError::new(&error.to_string()))?;
     let serializer = serde_wasm_bindgen::Serializer::json_compatible();
-    serde::Serialize::serialize(&analysis.summary, &serializer)
+    serde::Serialize::serialize(&analysis.report, &serializer)
         .map_err(|error| JsError::new(&error.to_string()))
 }
 

@@ -14,12 +14,14 @@ use web_sys::{Document, DragEvent, Element, HtmlCanvasElement, HtmlElement, Html
 
 use super::canvas::{self, Plot};
 use super::mapping;
-use crate::analysis::{
-    analyse_minmax, analyse_minmax_files, AnalysisError, MinMaxAnalysis, MinMaxSummary, Options,
+use crate::analysis::{analyse_files, AnalysisError};
+use crate::calibration::{
+    calibrate, CalibrationAnalysis, CalibrationOptions, CalibrationReport, Method,
 };
 use crate::io::delimited::{preview, ColumnMapping, Preview};
 use crate::io::import::{header_signature, merge, ChunkedImport, FileImport};
 use crate::io::ImportError;
+use crate::reference::ReferenceSource;
 use crate::stats::HeadingErrorStats;
 
 /// The ids of the elements the page must have (see `www/index.html`).
@@ -28,6 +30,7 @@ const FILE_INPUT_ID: &str = "file-input";
 const DROP_ZONE_ID: &str = "drop-zone";
 const CIRCLE_CANVAS_ID: &str = "plot-circle";
 const HEADING_CANVAS_ID: &str = "plot-heading";
+const FIELD_CANVAS_ID: &str = "plot-field";
 const PROGRESS_ID: &str = "progress";
 
 /// Bytes read from a file at a time: small enough that the page answers between
@@ -67,6 +70,7 @@ pub struct Page {
     drop_zone: Element,
     circle_canvas: HtmlCanvasElement,
     heading_canvas: HtmlCanvasElement,
+    field_canvas: HtmlCanvasElement,
 }
 
 impl Page {
@@ -94,6 +98,7 @@ impl Page {
             drop_zone: element(DROP_ZONE_ID)?,
             circle_canvas: canvas(CIRCLE_CANVAS_ID)?,
             heading_canvas: canvas(HEADING_CANVAS_ID)?,
+            field_canvas: canvas(FIELD_CANVAS_ID)?,
             body,
             document,
         }))
@@ -221,7 +226,7 @@ impl Page {
             page.set_state("loading", &format!("Analysing {}…", names.join(", ")));
             let result = merge(results)
                 .map_err(AnalysisError::from)
-                .and_then(|report| analyse_minmax(report, Options::default()));
+                .and_then(|report| calibrate(report, &CalibrationOptions::default()));
             // A single delimited file whose columns were not understood: ask the user.
             let unreadable_header = matches!(
                 result,
@@ -325,7 +330,7 @@ impl Page {
         })
     }
 
-    fn show_result(&self, result: Result<MinMaxAnalysis, AnalysisError>) {
+    fn show_result(&self, result: Result<CalibrationAnalysis, AnalysisError>) {
         match result {
             Ok(analysis) => self.show_analysis(&analysis),
             Err(error) => self.show_error(&error.to_string()),
@@ -350,23 +355,22 @@ impl Page {
     }
 
     fn analyse_and_show(&self, files: &[(&str, &[u8])]) {
-        self.show_result(analyse_minmax_files(files, Options::default()));
+        self.show_result(analyse_files(files, &CalibrationOptions::default()));
     }
 
-    pub fn show_analysis(&self, analysis: &MinMaxAnalysis) {
-        let summary = &analysis.summary;
-        self.body
-            .set_attribute("data-file", &summary.file_name)
-            .ok();
-        self.set_text("result-file", &summary.file_name);
-        self.show_stats("before", summary.heading_error_before.as_ref());
-        self.show_stats("after", summary.heading_error_after.as_ref());
-        self.show_calibration(summary);
-        self.fill_list("notes", or_none(summary.notes.iter().cloned()));
-        self.show_diagnostics(summary);
+    pub fn show_analysis(&self, analysis: &CalibrationAnalysis) {
+        let report = &analysis.report;
+        self.body.set_attribute("data-file", &report.file_name).ok();
+        self.set_text("result-file", &report.file_name);
+        self.show_context(report);
+        self.show_methods(report);
+        self.show_device_calibration(analysis);
+        self.fill_list("notes", or_none(report.notes.iter().cloned()));
+        self.show_diagnostics(report);
         for (canvas, plot) in [
             (&self.circle_canvas, Plot::CircleFit),
             (&self.heading_canvas, Plot::HeadingError),
+            (&self.field_canvas, Plot::FieldMagnitude),
         ] {
             if let Err(message) = canvas::draw(canvas, plot, analysis) {
                 let _ = canvas::draw_message(
@@ -375,17 +379,19 @@ impl Page {
                 );
             }
         }
-        let n_problems = summary.diagnostics.total();
-        let problems = match n_problems {
+        let problems = match report.diagnostics.total() {
             0 => String::new(),
             1 => " 1 line had a problem; see below.".to_string(),
             n => format!(" {n} lines had problems; see below."),
         };
+        let best = report
+            .best
+            .map_or(String::new(), |best| format!(" Best: {}.", best.label()));
         self.set_state(
             "ready",
             &format!(
-                "Analysed {}: {} magnetometer samples.{problems}",
-                summary.file_name, summary.n_samples_used
+                "Analysed {}: {} magnetometer samples.{best}{problems}",
+                report.file_name, report.n_samples_used
             ),
         );
     }
@@ -395,72 +401,189 @@ impl Page {
     pub fn show_error(&self, message: &str) {
         self.body.remove_attribute("data-file").ok();
         self.set_text("result-file", "—");
-        self.show_stats("before", None);
-        self.show_stats("after", None);
-        self.fill_list("calibration", std::iter::empty());
-        self.fill_list("notes", std::iter::empty());
-        self.fill_list("diagnostics", std::iter::empty());
-        for canvas in [&self.circle_canvas, &self.heading_canvas] {
+        for id in [
+            "context",
+            "methods-body",
+            "calibration",
+            "notes",
+            "diagnostics",
+        ] {
+            self.fill_list(id, std::iter::empty());
+        }
+        for canvas in [
+            &self.circle_canvas,
+            &self.heading_canvas,
+            &self.field_canvas,
+        ] {
             let _ = canvas::draw_message(canvas, &format!("No plot: {message}"));
         }
         self.set_state("error", message);
     }
 
-    fn show_stats(&self, which: &str, stats: Option<&HeadingErrorStats>) {
-        type Cell = (&'static str, fn(&HeadingErrorStats) -> f64, &'static str);
-        let cells: [Cell; 5] = [
-            ("mean", |stats| stats.mean_deg, "°"),
-            ("std", |stats| stats.std_deg, "°"),
-            ("rms", |stats| stats.rms_deg, "°"),
-            ("p95", |stats| stats.p95_abs_deg, "°"),
-            ("within5", |stats| stats.within_5_deg_pct, " %"),
-        ];
-        for (name, value_of, unit) in cells {
-            let text = stats.map_or("—".to_string(), |stats| {
-                format!("{:.2}{unit}", value_of(stats))
-            });
-            self.set_text(&format!("stat-{which}-{name}"), &text);
-        }
-    }
-
-    fn show_calibration(&self, summary: &MinMaxSummary) {
-        let calibration = &summary.calibration;
-        let coverage = &calibration.coverage;
+    /// Where the reference, declination and expected field came from, and the split.
+    fn show_context(&self, report: &CalibrationReport) {
+        let reference = match report.reference {
+            Some(ReferenceSource::Column) => "the log's reference-heading column".to_string(),
+            Some(ReferenceSource::GpsCourse { min_speed_mps }) => {
+                format!("GPS course above {min_speed_mps} m/s")
+            }
+            None => "none in the log".to_string(),
+        };
+        let field = match &report.expected_field {
+            Some(expected) => format!(
+                "Field: {:.1} µT measured (raw), {:.1} µT expected, inclination {:.1}° ({})",
+                report.mean_raw_field_ut,
+                expected.total_ut,
+                expected.inclination_deg,
+                expected.model
+            ),
+            None => format!(
+                "Field: {:.1} µT measured (raw); no model value without a position and a date",
+                report.mean_raw_field_ut
+            ),
+        };
+        let split = match report.train_until_s {
+            Some(until_s) => format!(
+                "Train on the first {until_s:.1} s ({} samples), check on the rest ({} samples)",
+                report.n_train, report.n_check
+            ),
+            None => format!(
+                "All {} samples train the methods (no reference to check against)",
+                report.n_train
+            ),
+        };
         self.fill_list(
-            "calibration",
+            "context",
             [
+                format!("Reference heading: {reference}"),
                 format!(
-                    "Scale factors Sx = {:.4}, Sy = {:.4}",
-                    calibration.scale_x, calibration.scale_y
+                    "Declination: {:.2}° ({})",
+                    report.declination.declination_deg, report.declination.source
                 ),
-                format!(
-                    "Biases Bx = {:.2} µT, By = {:.2} µT",
-                    calibration.bias_x_ut, calibration.bias_y_ut
-                ),
-                format!(
-                    "Ellipse centre ({:.2}, {:.2}) µT",
-                    calibration.center_x_ut, calibration.center_y_ut
-                ),
-                format!(
-                    "Coverage {} of {} heading bins of 10°, largest gap {:.0}°",
-                    coverage.n_bins_covered, coverage.n_bins, coverage.largest_gap_deg
-                ),
+                field,
+                split,
             ]
             .into_iter(),
         );
     }
 
-    fn show_diagnostics(&self, summary: &MinMaxSummary) {
-        let diagnostics = &summary.diagnostics;
+    /// The comparison table: one row per method, train and check heading errors.
+    fn show_methods(&self, report: &CalibrationReport) {
+        let Some(body) = self.document.get_element_by_id("methods-body") else {
+            return;
+        };
+        body.set_text_content(None);
+        /// key, label, train, check, why it failed
+        type Row = (
+            String,
+            String,
+            Option<HeadingErrorStats>,
+            Option<HeadingErrorStats>,
+            Option<String>,
+        );
+        let mut rows: Vec<Row> = vec![(
+            "raw".to_string(),
+            "uncalibrated".to_string(),
+            report.raw_heading_error_train,
+            report.raw_heading_error_check,
+            None,
+        )];
+        for method in &report.methods {
+            rows.push((
+                method_key(method.method),
+                method.label.to_string(),
+                method.heading_error_train,
+                method.heading_error_check,
+                method.error.clone(),
+            ));
+        }
+        for (key, label, train, check, error) in rows {
+            let Ok(row) = self.document.create_element("tr") else {
+                continue;
+            };
+            row.set_id(&format!("row-{key}"));
+            if report.best.is_some_and(|best| method_key(best) == key) {
+                let _ = row.class_list().add_1("best");
+            }
+            let Ok(header) = self.document.create_element("th") else {
+                continue;
+            };
+            let _ = header.set_attribute("scope", "row");
+            header.set_text_content(Some(&label));
+            let _ = row.append_child(&header);
+            match error {
+                Some(error) => {
+                    if let Ok(cell) = self.document.create_element("td") {
+                        let _ = cell.set_attribute("colspan", "6");
+                        let _ = cell.class_list().add_1("method-error");
+                        cell.set_id(&format!("error-{key}"));
+                        cell.set_text_content(Some(&error));
+                        let _ = row.append_child(&cell);
+                    }
+                }
+                None => {
+                    let format = |value: Option<f64>, unit: &str| {
+                        value.map_or("—".to_string(), |value| format!("{value:.2}{unit}"))
+                    };
+                    let cells = [
+                        ("train-rms", format(train.map(|stats| stats.rms_deg), "°")),
+                        ("check-rms", format(check.map(|stats| stats.rms_deg), "°")),
+                        ("check-mean", format(check.map(|stats| stats.mean_deg), "°")),
+                        ("check-std", format(check.map(|stats| stats.std_deg), "°")),
+                        (
+                            "check-p95",
+                            format(check.map(|stats| stats.p95_abs_deg), "°"),
+                        ),
+                        (
+                            "check-within5",
+                            format(check.map(|stats| stats.within_5_deg_pct), " %"),
+                        ),
+                    ];
+                    for (name, text) in cells {
+                        if let Ok(cell) = self.document.create_element("td") {
+                            cell.set_id(&format!("stat-{key}-{name}"));
+                            cell.set_text_content(Some(&text));
+                            let _ = row.append_child(&cell);
+                        }
+                    }
+                }
+            }
+            let _ = body.append_child(&row);
+        }
+    }
+
+    /// The calibration to store in the device, as numbers a person can copy.
+    fn show_device_calibration(&self, analysis: &CalibrationAnalysis) {
+        let lines: Vec<String> = match analysis.device_calibration() {
+            Some((method, calibration)) => {
+                let hard = calibration.hard_iron_ut;
+                let soft = calibration.soft_iron;
+                vec![
+                    format!("From the {} method", method.label()),
+                    format!("Hard iron ({:.2}, {:.2}, {:.2}) µT", hard.x, hard.y, hard.z),
+                    format!(
+                        "Soft iron [[{:.4}, {:.4}, {:.4}], [{:.4}, {:.4}, {:.4}], [{:.4}, {:.4}, {:.4}]]",
+                        soft[(0, 0)], soft[(0, 1)], soft[(0, 2)], soft[(1, 0)], soft[(1, 1)], soft[(1, 2)], soft[(2, 0)], soft[(2, 1)], soft[(2, 2)]
+                    ),
+                    format!("Field {:.2} µT after correction", calibration.field_ut),
+                ]
+            }
+            None => vec![
+                "No 3D calibration: the ellipse and ellipsoid methods both failed (see the table)."
+                    .to_string(),
+            ],
+        };
+        self.fill_list("calibration", lines.into_iter());
+    }
+
+    fn show_diagnostics(&self, report: &CalibrationReport) {
+        let diagnostics = &report.diagnostics;
         let shown = diagnostics
             .kept
             .iter()
             .take(MAX_DIAGNOSTICS_SHOWN)
             .map(|diagnostic| {
-                let file_name = diagnostic
-                    .file_name
-                    .as_deref()
-                    .unwrap_or(&summary.file_name);
+                let file_name = diagnostic.file_name.as_deref().unwrap_or(&report.file_name);
                 match diagnostic.line {
                     Some(line) => format!("{file_name}, line {line}: {}", diagnostic.message),
                     None => format!("{file_name}: {}", diagnostic.message),
@@ -504,6 +627,17 @@ fn or_none(items: impl Iterator<Item = String>) -> impl Iterator<Item = String> 
     let mut items = items.peekable();
     let none = items.peek().is_none().then(|| "None.".to_string());
     items.chain(none)
+}
+
+/// The key of a method in element ids, as in the JSON report (`min_max`, `ref_ls`, …).
+fn method_key(method: Method) -> String {
+    match method {
+        Method::MinMax => "min_max",
+        Method::Ellipse => "ellipse",
+        Method::Ellipsoid => "ellipsoid",
+        Method::RefLs => "ref_ls",
+    }
+    .to_string()
 }
 
 /// Puts a bug report into the status area, whatever state the page is in.

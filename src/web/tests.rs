@@ -5,7 +5,8 @@ use wasm_bindgen_test::*;
 use web_sys::{CanvasRenderingContext2d, HtmlCanvasElement};
 
 use super::canvas::{self, Plot};
-use crate::analysis::{analyse_minmax_file, Options};
+use crate::analysis::analyse_file as analyse_log;
+use crate::calibration::{CalibrationOptions, Method};
 use crate::io::canonical_csv;
 use crate::sim::walk::{simulate, WalkConfig};
 
@@ -56,11 +57,13 @@ fn analyse_file_returns_the_summary_as_a_plain_object() {
     let value = super::analyse_file("walk.csv", &simulated_csv())
         .map_err(wasm_bindgen::JsValue::from)
         .expect("analysable");
-    let rms = js_sys::Reflect::get(&value, &"heading_error_after".into())
-        .and_then(|after| js_sys::Reflect::get(&after, &"rms_deg".into()))
+    let rms = js_sys::Reflect::get(&value, &"methods".into())
+        .and_then(|methods| js_sys::Reflect::get(&methods, &0u32.into()))
+        .and_then(|min_max| js_sys::Reflect::get(&min_max, &"heading_error_check".into()))
+        .and_then(|check| js_sys::Reflect::get(&check, &"rms_deg".into()))
         .ok()
         .and_then(|rms| rms.as_f64())
-        .expect("heading_error_after.rms_deg is a number");
+        .expect("methods[0].heading_error_check.rms_deg is a number");
     assert!(rms > 0.0 && rms < 3.0, "{rms}");
     let file_name = js_sys::Reflect::get(&value, &"file_name".into())
         .ok()
@@ -86,9 +89,9 @@ fn analyse_file_throws_a_message_that_names_the_file() {
 
 #[wasm_bindgen_test]
 fn both_plots_draw_on_a_canvas() {
-    let analysis =
-        analyse_minmax_file("walk.csv", &simulated_csv(), Options::default()).expect("analysable");
-    for plot in [Plot::CircleFit, Plot::HeadingError] {
+    let analysis = analyse_log("walk.csv", &simulated_csv(), &CalibrationOptions::default())
+        .expect("analysable");
+    for plot in [Plot::CircleFit, Plot::HeadingError, Plot::FieldMagnitude] {
         let canvas = new_canvas(480, 360);
         canvas::draw(&canvas, plot, &analysis).expect("drawn");
         let n_drawn = n_drawn_pixels(&canvas);
@@ -118,9 +121,10 @@ fn add_page_skeleton() {
     let skeleton = document.create_element("div").expect("div");
     skeleton.set_inner_html(
         r#"<div id="drop-zone"><input id="file-input" type="file"></div><p id="status"></p>
-           <span id="result-file"></span><span id="stat-before-rms"></span><span id="stat-after-rms"></span>
-           <span id="stat-after-mean"></span><ul id="calibration"></ul><ul id="notes"></ul><ul id="diagnostics"></ul>
-           <canvas id="plot-circle" width="320" height="240"></canvas><canvas id="plot-heading" width="320" height="240"></canvas>"#,
+           <span id="result-file"></span><ul id="context"></ul><table><tbody id="methods-body"></tbody></table>
+           <ul id="calibration"></ul><ul id="notes"></ul><ul id="diagnostics"></ul>
+           <canvas id="plot-circle" width="320" height="240"></canvas><canvas id="plot-heading" width="320" height="240"></canvas>
+           <canvas id="plot-field" width="320" height="240"></canvas>"#,
     );
     document
         .body()
@@ -143,14 +147,20 @@ fn the_page_shows_an_analysis_then_an_error() {
             .unwrap_or_default()
     };
 
-    let analysis =
-        analyse_minmax_file("walk.csv", &simulated_csv(), Options::default()).expect("analysable");
+    let analysis = analyse_log("walk.csv", &simulated_csv(), &CalibrationOptions::default())
+        .expect("analysable");
     page.show_analysis(&analysis);
-    let after = analysis
-        .summary
-        .heading_error_after
-        .expect("reference present");
-    assert_eq!(text("stat-after-rms"), format!("{:.2}°", after.rms_deg));
+    let min_max = analysis
+        .report
+        .methods
+        .iter()
+        .find(|method| method.method == Method::MinMax)
+        .expect("min/max ran");
+    let check = min_max.heading_error_check.expect("reference present");
+    assert_eq!(
+        text("stat-min_max-check-rms"),
+        format!("{:.2}°", check.rms_deg)
+    );
     assert_eq!(text("result-file"), "walk.csv");
     assert_eq!(text("diagnostics"), "None.");
     assert!(text("status").starts_with("Analysed walk.csv"));
@@ -158,7 +168,7 @@ fn the_page_shows_an_analysis_then_an_error() {
     page.show_error("bad.csv is empty. Choose a log with a header line and samples.");
     let body = document.body().expect("a body");
     assert_eq!(body.get_attribute("data-state").as_deref(), Some("error"));
-    assert_eq!(text("stat-after-rms"), "—");
+    assert_eq!(text("methods-body"), "", "the table is emptied");
     assert_eq!(
         text("status"),
         "bad.csv is empty. Choose a log with a header line and samples."

@@ -54,21 +54,32 @@ function drawnPixels(page, id) {
 
 const text = (page, id) => page.textContent(`#${id}`);
 
-/** The page shows the same statistics as `compass-pdr calibrate --json`. */
+/** The page shows the same statistics as `compass-pdr calibrate --json`, method by method. */
 async function assertStatsMatch(page, expected) {
-  for (const which of ['before', 'after']) {
-    const stats = expected[`heading_error_${which}`];
-    assert.ok(stats, `the CLI found a reference heading (${which})`);
-    assert.equal(await text(page, `stat-${which}-mean`), `${stats.mean_deg.toFixed(2)}°`);
-    assert.equal(await text(page, `stat-${which}-std`), `${stats.std_deg.toFixed(2)}°`);
-    assert.equal(await text(page, `stat-${which}-rms`), `${stats.rms_deg.toFixed(2)}°`);
-    assert.equal(await text(page, `stat-${which}-p95`), `${stats.p95_abs_deg.toFixed(2)}°`);
-    assert.equal(await text(page, `stat-${which}-within5`), `${stats.within_5_deg_pct.toFixed(2)} %`);
+  const rows = [['raw', expected.raw_heading_error_train, expected.raw_heading_error_check, null]];
+  for (const method of expected.methods) {
+    rows.push([method.method, method.heading_error_train, method.heading_error_check, method.error]);
+  }
+  const fixed = (value, unit = '°') => (value === undefined || value === null ? '—' : `${value.toFixed(2)}${unit}`);
+  for (const [key, train, check, error] of rows) {
+    if (error) {
+      assert.equal(await text(page, `error-${key}`), error, `${key} failed for the same reason`);
+      continue;
+    }
+    assert.equal(await text(page, `stat-${key}-train-rms`), fixed(train?.rms_deg), `${key} train RMS`);
+    assert.equal(await text(page, `stat-${key}-check-rms`), fixed(check?.rms_deg), `${key} check RMS`);
+    assert.equal(await text(page, `stat-${key}-check-mean`), fixed(check?.mean_deg));
+    assert.equal(await text(page, `stat-${key}-check-std`), fixed(check?.std_deg));
+    assert.equal(await text(page, `stat-${key}-check-p95`), fixed(check?.p95_abs_deg));
+    assert.equal(await text(page, `stat-${key}-check-within5`), fixed(check?.within_5_deg_pct, ' %'));
   }
 }
 
+/** The check RMS of one method in the CLI's report. */
+const checkRms = (report, method) => report.methods.find((entry) => entry.method === method)?.heading_error_check?.rms_deg;
+
 async function assertPlotsDrawn(page) {
-  for (const id of ['plot-circle', 'plot-heading']) {
+  for (const id of ['plot-circle', 'plot-heading', 'plot-field']) {
     const n = await drawnPixels(page, id);
     assert.ok(n > 10_000, `#${id} has ${n} drawn pixels`);
   }
@@ -95,11 +106,13 @@ test('the demo is analysed and drawn on load, with the CLI\'s figures', async ()
   const expected = JSON.parse(readFileSync(join(out, 'demo-walk.json'), 'utf8'));
   await assertStatsMatch(page, expected);
   // The demo shows what calibration is for: tens of degrees before, a few after.
-  assert.ok(expected.heading_error_before.rms_deg > 10, 'large error before');
-  assert.ok(expected.heading_error_after.rms_deg < 3, 'small error after');
+  assert.ok(expected.raw_heading_error_check.rms_deg > 10, 'large error before');
+  assert.ok(checkRms(expected, 'ellipse') < 3, 'small error after the ellipse fit');
+  assert.ok(checkRms(expected, 'min_max') < 3, 'small error after min/max');
   await assertPlotsDrawn(page);
   assert.match(await text(page, 'status'), /Analysed demo-walk\.csv: 9000 magnetometer samples\./);
-  assert.match(await text(page, 'calibration'), /Scale factors Sx = 1\.0000/);
+  assert.match(await text(page, 'context'), /Reference heading: the log's reference-heading column/);
+  assert.match(await text(page, 'calibration'), /Hard iron \(/);
   await page.screenshot({ path: join(out, 'demo.png'), fullPage: true });
   assert.deepEqual(problems, []);
   await close();
@@ -129,7 +142,7 @@ test('phyphox files dropped together are merged into one recording', async (t) =
   await waitForState(page, 'ready', names.join(' + '));
   assert.match(await text(page, 'status'), /10575 magnetometer samples/);
   // No reference heading in a phyphox walk: the figures say so instead of inventing one.
-  assert.equal(await text(page, 'stat-after-rms'), '—');
+  assert.equal(await text(page, 'stat-min_max-check-rms'), '—');
   assert.match(await text(page, 'notes'), /no reference heading/);
   await assertPlotsDrawn(page);
   await page.screenshot({ path: join(out, 'phyphox.png'), fullPage: true });
@@ -191,8 +204,8 @@ test('an unknown CSV opens the column-mapping dialog, and the mapping is remembe
   await waitForState(page, 'ready', 'logger.csv');
   assert.match(await text(page, 'status'), /Analysed logger\.csv: 360 magnetometer samples\./);
   assert.equal(await page.$eval('#mapping-dialog', (dialog) => dialog.open), false);
-  // The level-plane centre is the offset written into the file, in µT.
-  assert.match(await text(page, 'calibration'), /Ellipse centre \(10\.00, -5\.00\) µT/);
+  // The hard iron is the offset written into the file, in µT.
+  assert.match(await text(page, 'calibration'), /Hard iron \(10\.0\d, -5\.0\d, /);
 
   // After a reload the same columns are read without asking.
   await page.reload();
@@ -224,7 +237,7 @@ for (const bad of badFiles) {
     await page.setInputFiles('#file-input', { name: bad.name, mimeType: 'application/octet-stream', buffer: bad.buffer });
     await waitForState(page, 'error');
     assert.match(await text(page, 'status'), bad.message);
-    assert.equal(await text(page, 'stat-after-rms'), '—', 'the demo\'s figures are cleared');
+    assert.equal(await page.$$eval('#methods-body tr', (rows) => rows.length), 0, 'the demo\'s figures are cleared');
     assert.equal(await text(page, 'result-file'), '—');
     // The canvases carry the message instead of a stale or blank plot.
     await assertPlotsDrawn(page);

@@ -1,0 +1,517 @@
+//! A [`FieldCalibration`] in the forms other tools read: JSON, a C/Arduino snippet, and
+//! the MotionCal calibration packet.
+//!
+//! Every form means the same correction, `corrected = soft_iron · (raw − hard_iron)`
+//! with the field in µT (see [`crate::calib::model`]).
+//!
+//! The MotionCal packet is the one PJRC's MotionCal sends to a board over the serial
+//! port, and which Adafruit's `Adafruit_Sensor_Calibration` examples and PJRC's
+//! `NXPMotionSense` receive and store. Its layout is `send_calibration()` in MotionCal's
+//! `rawdata.c` (IanBUK/MotionCal, commit 0bc48368026da9c8fe436addafb4be0fe96df929; the
+//! older upstream PaulStoffregen/MotionCal 1d9800ae sent a 52-byte form without the
+//! accelerometer, gyroscope and field values):
+//!
+//! ```text
+//! bytes  0-1   117, 84 ("uT")
+//! bytes  2-65  16 little-endian float32:
+//!              0-2   accelerometer offsets (written as 0)
+//!              3-5   gyroscope offsets (written as 0)
+//!              6-8   hard-iron offset V (µT)
+//!              9     field strength B (µT)
+//!              10-15 inverse soft-iron invW[0][0], [1][1], [2][2], [0][1], [0][2], [1][2]
+//! bytes 66-67  CRC-16 of bytes 0-65, little-endian: reflected polynomial 0xA001,
+//!              initial value 0xFFFF, no final XOR (CRC-16/MODBUS)
+//! ```
+//!
+//! MotionCal's `invW` is the correction matrix applied after subtracting `V`, exactly
+//! this crate's `soft_iron`. A receiver runs the CRC over all 68 bytes and accepts the
+//! packet when the result is 0, which is what appending the CRC low byte first gives.
+//! The packet holds only six soft-iron entries, so it carries a symmetric matrix; an
+//! asymmetric one (never produced by the fits here) is written as its symmetric part.
+
+use nalgebra::{Matrix3, Vector3};
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+use super::model::FieldCalibration;
+
+/// The length of a MotionCal calibration packet.
+pub const MOTIONCAL_PACKET_LEN: usize = 68;
+
+/// The packet's first two bytes, "uT".
+const MOTIONCAL_MAGIC: [u8; 2] = [117, 84];
+
+/// Where the floats start, and their order (indices into the 16 floats).
+const FLOATS_OFFSET: usize = 2;
+const HARD_IRON_FLOAT_IDX: usize = 6;
+const FIELD_FLOAT_IDX: usize = 9;
+/// The soft-iron entries (row, column) carried by floats 10 to 15.
+const SOFT_IRON_ENTRIES: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
+const SOFT_IRON_FIRST_FLOAT_IDX: usize = 10;
+const N_FLOATS: usize = 16;
+const CRC_OFFSET: usize = FLOATS_OFFSET + 4 * N_FLOATS;
+
+/// Why a saved calibration could not be read back. Messages say what the user can do.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum ExportError {
+    #[error(
+        "a MotionCal calibration packet is {MOTIONCAL_PACKET_LEN} bytes, but this one has \
+         {n_bytes}. Save the whole packet, as compass-pdr or MotionCal wrote it."
+    )]
+    PacketLength { n_bytes: usize },
+
+    #[error(
+        "this is not a MotionCal calibration packet: it starts with bytes {found:?} instead \
+         of [117, 84] (\"uT\"). Check that you chose the packet file."
+    )]
+    PacketMagic { found: [u8; 2] },
+
+    #[error(
+        "the MotionCal packet is damaged: its checksum is {found:#06x} but its contents give \
+         {calculated:#06x}. Export the calibration again."
+    )]
+    PacketChecksum { calculated: u16, found: u16 },
+
+    #[error(
+        "the calibration's {what} is not a finite number. Export the calibration again, or \
+         fix the value in the file."
+    )]
+    NonFinite { what: &'static str },
+
+    #[error(
+        "the calibration's field strength is {field_ut} µT; it must be positive. Export the \
+         calibration again, or fix field_ut in the file."
+    )]
+    FieldNotPositive { field_ut: f64 },
+
+    #[error(
+        "could not read the calibration JSON: {reason}. It should look like {{\"hard_iron_ut\": \
+         [x, y, z], \"soft_iron\": [[a, b, c], [d, e, f], [g, h, i]], \"field_ut\": B}}, \
+         as compass-pdr writes it."
+    )]
+    Json { reason: String },
+}
+
+/// A calibration as JSON-friendly arrays: `soft_iron` row by row, so that
+/// `corrected[i] = Σ_j soft_iron[i][j] · (raw[j] − hard_iron_ut[j])`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct CalibrationExport {
+    pub hard_iron_ut: [f64; 3],
+    pub soft_iron: [[f64; 3]; 3],
+    pub field_ut: f64,
+}
+
+impl From<&FieldCalibration> for CalibrationExport {
+    fn from(cal: &FieldCalibration) -> Self {
+        let soft_iron = &cal.soft_iron;
+        let row = |i: usize| [soft_iron[(i, 0)], soft_iron[(i, 1)], soft_iron[(i, 2)]];
+        CalibrationExport {
+            hard_iron_ut: [cal.hard_iron_ut.x, cal.hard_iron_ut.y, cal.hard_iron_ut.z],
+            soft_iron: [row(0), row(1), row(2)],
+            field_ut: cal.field_ut,
+        }
+    }
+}
+
+impl CalibrationExport {
+    /// The calibration these arrays describe, checked: every number finite and the
+    /// field strength positive.
+    pub fn to_calibration(&self) -> Result<FieldCalibration, ExportError> {
+        let hard_iron_ut = Vector3::from(self.hard_iron_ut);
+        let soft_iron = Matrix3::from_fn(|i, j| self.soft_iron[i][j]);
+        checked(hard_iron_ut, soft_iron, self.field_ut)
+    }
+}
+
+/// The JSON-friendly form of `cal`.
+pub fn calibration_export(cal: &FieldCalibration) -> CalibrationExport {
+    CalibrationExport::from(cal)
+}
+
+/// Reads a calibration saved as JSON (a [`CalibrationExport`]; other keys are ignored).
+///
+/// Native builds only: the page reads JSON with the browser's parser and passes the
+/// parsed [`CalibrationExport`] to [`CalibrationExport::to_calibration`].
+#[cfg(not(target_arch = "wasm32"))]
+pub fn calibration_from_json(text: &str) -> Result<FieldCalibration, ExportError> {
+    let export: CalibrationExport =
+        serde_json::from_str(text).map_err(|error| ExportError::Json {
+            reason: error.to_string(),
+        })?;
+    export.to_calibration()
+}
+
+/// The calibration as C (Arduino) declarations, with a comment saying how to apply it.
+/// Numbers are written with the shortest digits that give back the same `float`.
+pub fn c_snippet(cal: &FieldCalibration) -> String {
+    let export = calibration_export(cal);
+    let row = |values: &[f64; 3]| {
+        format!(
+            "{{ {}, {}, {} }}",
+            c_float(values[0]),
+            c_float(values[1]),
+            c_float(values[2])
+        )
+    };
+    format!(
+        "// Magnetometer calibration made by compass-pdr.\n\
+         // Apply it to every raw reading, in microtesla (uT):\n\
+         //   corrected = soft_iron * (raw - hard_iron)\n\
+         // that is, for each i: corrected[i] = sum over j of soft_iron[i][j] * (raw[j] - hard_iron[j]).\n\
+         // mag_field is the field strength after correction, in uT.\n\
+         float hard_iron[3] = {hard_iron};\n\
+         float soft_iron[3][3] = {{\n  {row_0},\n  {row_1},\n  {row_2}\n}};\n\
+         float mag_field = {field};\n",
+        hard_iron = row(&export.hard_iron_ut),
+        row_0 = row(&export.soft_iron[0]),
+        row_1 = row(&export.soft_iron[1]),
+        row_2 = row(&export.soft_iron[2]),
+        field = c_float(export.field_ut),
+    )
+}
+
+/// The MotionCal calibration packet for `cal` (layout in the module header).
+pub fn motioncal_packet(cal: &FieldCalibration) -> [u8; MOTIONCAL_PACKET_LEN] {
+    let mut floats = [0.0f32; N_FLOATS];
+    for axis_idx in 0..3 {
+        floats[HARD_IRON_FLOAT_IDX + axis_idx] = cal.hard_iron_ut[axis_idx] as f32;
+    }
+    floats[FIELD_FLOAT_IDX] = cal.field_ut as f32;
+    for (entry_idx, &(row, col)) in SOFT_IRON_ENTRIES.iter().enumerate() {
+        // The symmetric part: the matrix itself when it is symmetric, as it should be.
+        let value = 0.5 * (cal.soft_iron[(row, col)] + cal.soft_iron[(col, row)]);
+        floats[SOFT_IRON_FIRST_FLOAT_IDX + entry_idx] = value as f32;
+    }
+
+    let mut packet = [0u8; MOTIONCAL_PACKET_LEN];
+    packet[..2].copy_from_slice(&MOTIONCAL_MAGIC);
+    for (float_idx, value) in floats.iter().enumerate() {
+        let at = FLOATS_OFFSET + 4 * float_idx;
+        packet[at..at + 4].copy_from_slice(&value.to_le_bytes());
+    }
+    let crc = crc16_modbus(&packet[..CRC_OFFSET]);
+    packet[CRC_OFFSET..].copy_from_slice(&crc.to_le_bytes());
+    packet
+}
+
+/// Reads a MotionCal calibration packet back: checks its length, its "uT" start and its
+/// checksum, then the values. The accelerometer and gyroscope offsets are ignored.
+pub fn parse_motioncal_packet(bytes: &[u8]) -> Result<FieldCalibration, ExportError> {
+    let packet: &[u8; MOTIONCAL_PACKET_LEN] =
+        bytes.try_into().map_err(|_| ExportError::PacketLength {
+            n_bytes: bytes.len(),
+        })?;
+    let found_magic = [packet[0], packet[1]];
+    if found_magic != MOTIONCAL_MAGIC {
+        return Err(ExportError::PacketMagic { found: found_magic });
+    }
+    let calculated = crc16_modbus(&packet[..CRC_OFFSET]);
+    let found = u16::from_le_bytes([packet[CRC_OFFSET], packet[CRC_OFFSET + 1]]);
+    if calculated != found {
+        return Err(ExportError::PacketChecksum { calculated, found });
+    }
+
+    let float_at = |float_idx: usize| {
+        let at = FLOATS_OFFSET + 4 * float_idx;
+        f64::from(f32::from_le_bytes([
+            packet[at],
+            packet[at + 1],
+            packet[at + 2],
+            packet[at + 3],
+        ]))
+    };
+    let hard_iron_ut = Vector3::from_fn(|axis_idx, _| float_at(HARD_IRON_FLOAT_IDX + axis_idx));
+    let mut soft_iron = Matrix3::zeros();
+    for (entry_idx, &(row, col)) in SOFT_IRON_ENTRIES.iter().enumerate() {
+        let value = float_at(SOFT_IRON_FIRST_FLOAT_IDX + entry_idx);
+        soft_iron[(row, col)] = value;
+        soft_iron[(col, row)] = value;
+    }
+    checked(hard_iron_ut, soft_iron, float_at(FIELD_FLOAT_IDX))
+}
+
+/// CRC-16/MODBUS: reflected polynomial 0x8005 (0xA001 reflected), initial value 0xFFFF,
+/// no final XOR, as MotionCal's `crc16()` and avr-libc's `_crc16_update()` compute it.
+pub fn crc16_modbus(bytes: &[u8]) -> u16 {
+    let mut crc: u16 = 0xFFFF;
+    for &byte in bytes {
+        crc ^= u16::from(byte);
+        for _ in 0..8 {
+            crc = if crc & 1 == 1 {
+                (crc >> 1) ^ 0xA001
+            } else {
+                crc >> 1
+            };
+        }
+    }
+    crc
+}
+
+fn checked(
+    hard_iron_ut: Vector3<f64>,
+    soft_iron: Matrix3<f64>,
+    field_ut: f64,
+) -> Result<FieldCalibration, ExportError> {
+    if !hard_iron_ut.iter().all(|value| value.is_finite()) {
+        return Err(ExportError::NonFinite { what: "hard iron" });
+    }
+    if !soft_iron.iter().all(|value| value.is_finite()) {
+        return Err(ExportError::NonFinite { what: "soft iron" });
+    }
+    if !field_ut.is_finite() {
+        return Err(ExportError::NonFinite {
+            what: "field strength",
+        });
+    }
+    if field_ut <= 0.0 {
+        return Err(ExportError::FieldNotPositive { field_ut });
+    }
+    Ok(FieldCalibration {
+        hard_iron_ut,
+        soft_iron,
+        field_ut,
+    })
+}
+
+/// A C `float` literal: the shortest decimal that reads back as the same `f32`.
+fn c_float(value: f64) -> String {
+    let value = value as f32;
+    if value.is_nan() {
+        return "NAN".to_owned();
+    }
+    if value.is_infinite() {
+        return if value > 0.0 { "INFINITY" } else { "-INFINITY" }.to_owned();
+    }
+    // Rust's `Display` for floats never uses an exponent and drops ".0" from whole
+    // numbers; C needs a decimal point before the `f` suffix.
+    let digits = value.to_string();
+    if digits.contains('.') {
+        format!("{digits}f")
+    } else {
+        format!("{digits}.0f")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The calibration whose packet is the golden one below.
+    fn known_calibration() -> FieldCalibration {
+        FieldCalibration {
+            hard_iron_ut: Vector3::new(12.5, -7.25, 30.0),
+            soft_iron: Matrix3::new(
+                1.02, 0.015, -0.01, //
+                0.015, 0.98, 0.005, //
+                -0.01, 0.005, 1.01,
+            ),
+            field_ut: 48.3,
+        }
+    }
+
+    /// Computed independently in Python 3:
+    /// `body = struct.pack('<2s16f', b'uT', 0, 0, 0, 0, 0, 0, 12.5, -7.25, 30.0, 48.3,
+    /// 1.02, 0.98, 1.01, 0.015, -0.01, 0.005)`, then `body + struct.pack('<H', crc)`
+    /// with a bitwise CRC (init 0xFFFF, `crc = (crc >> 1) ^ 0xA001` when the low bit is
+    /// set) that gives 0x4B37 for b"123456789".
+    const GOLDEN_PACKET_HEX: &str = "7554000000000000000000000000000000000000000000000000\
+                                     000048410000e8c00000f041333341425c8f823f48e17a3fae47\
+                                     813f8fc2753c0ad723bc0ad7a33bb572";
+
+    fn hex(bytes: &[u8]) -> String {
+        bytes.iter().map(|byte| format!("{byte:02x}")).collect()
+    }
+
+    fn assert_close(actual: &FieldCalibration, expected: &FieldCalibration, tolerance: f64) {
+        assert!(
+            (actual.hard_iron_ut - expected.hard_iron_ut).amax() <= tolerance
+                && (actual.soft_iron - expected.soft_iron).amax() <= tolerance
+                && (actual.field_ut - expected.field_ut).abs() <= tolerance,
+            "{actual:?} differs from {expected:?}"
+        );
+    }
+
+    #[test]
+    fn the_crc_is_crc16_modbus() {
+        // The CRC catalogue's check value for CRC-16/MODBUS.
+        assert_eq!(crc16_modbus(b"123456789"), 0x4B37);
+        assert_eq!(crc16_modbus(b""), 0xFFFF);
+    }
+
+    #[test]
+    fn the_packet_matches_the_golden_bytes() {
+        let packet = motioncal_packet(&known_calibration());
+        assert_eq!(hex(&packet), GOLDEN_PACKET_HEX);
+        // What the receiving sketches check: the CRC over all 68 bytes is zero.
+        assert_eq!(crc16_modbus(&packet), 0);
+    }
+
+    #[test]
+    fn the_packet_reads_back() {
+        let cal = known_calibration();
+        let read = parse_motioncal_packet(&motioncal_packet(&cal)).expect("a valid packet");
+        // float32 keeps about 7 digits.
+        assert_close(&read, &cal, 1e-5);
+        // And once in float32, writing it again gives the same bytes.
+        assert_eq!(motioncal_packet(&read), motioncal_packet(&cal));
+    }
+
+    #[test]
+    fn damaged_packets_are_refused() {
+        let packet = motioncal_packet(&known_calibration());
+
+        assert_eq!(
+            parse_motioncal_packet(&packet[..67]),
+            Err(ExportError::PacketLength { n_bytes: 67 })
+        );
+        assert_eq!(
+            parse_motioncal_packet(&[packet.as_slice(), &[0]].concat()),
+            Err(ExportError::PacketLength { n_bytes: 69 })
+        );
+        assert_eq!(
+            parse_motioncal_packet(&[]),
+            Err(ExportError::PacketLength { n_bytes: 0 })
+        );
+
+        let mut wrong_magic = packet;
+        wrong_magic[1] = b'X';
+        assert_eq!(
+            parse_motioncal_packet(&wrong_magic),
+            Err(ExportError::PacketMagic { found: [117, 88] })
+        );
+
+        // A single flipped bit anywhere after the magic is caught by the checksum.
+        for byte_idx in 2..MOTIONCAL_PACKET_LEN {
+            for bit in 0..8 {
+                let mut damaged = packet;
+                damaged[byte_idx] ^= 1 << bit;
+                assert!(
+                    matches!(
+                        parse_motioncal_packet(&damaged),
+                        Err(ExportError::PacketChecksum { .. })
+                    ),
+                    "byte {byte_idx} bit {bit}"
+                );
+            }
+        }
+        let message = ExportError::PacketChecksum {
+            calculated: 0x72b5,
+            found: 0x72b4,
+        }
+        .to_string();
+        assert!(message.contains("0x72b4") && message.contains("Export the calibration again"));
+    }
+
+    #[test]
+    fn packets_with_impossible_values_are_refused() {
+        let mut cal = known_calibration();
+        cal.field_ut = f64::NAN;
+        assert_eq!(
+            parse_motioncal_packet(&motioncal_packet(&cal)),
+            Err(ExportError::NonFinite {
+                what: "field strength"
+            })
+        );
+        cal.field_ut = 0.0;
+        assert_eq!(
+            parse_motioncal_packet(&motioncal_packet(&cal)),
+            Err(ExportError::FieldNotPositive { field_ut: 0.0 })
+        );
+    }
+
+    #[test]
+    fn an_asymmetric_soft_iron_is_written_as_its_symmetric_part() {
+        let mut cal = known_calibration();
+        cal.soft_iron[(0, 1)] = 0.02;
+        cal.soft_iron[(1, 0)] = 0.01;
+        let read = parse_motioncal_packet(&motioncal_packet(&cal)).expect("a valid packet");
+        assert!((read.soft_iron[(0, 1)] - 0.015).abs() < 1e-7);
+        assert!((read.soft_iron[(1, 0)] - 0.015).abs() < 1e-7);
+    }
+
+    // serde_json is a native-only dependency.
+    #[cfg(not(target_arch = "wasm32"))]
+    #[test]
+    fn json_is_row_major_and_reads_back_exactly() {
+        let cal = known_calibration();
+        let export = calibration_export(&cal);
+        assert_eq!(export.soft_iron[0], [1.02, 0.015, -0.01]);
+        assert_eq!(export.soft_iron[2], [-0.01, 0.005, 1.01]);
+        assert_eq!(export.hard_iron_ut, [12.5, -7.25, 30.0]);
+
+        let text = serde_json::to_string(&export).expect("serialisable");
+        assert_eq!(
+            text,
+            "{\"hard_iron_ut\":[12.5,-7.25,30.0],\"soft_iron\":[[1.02,0.015,-0.01],\
+             [0.015,0.98,0.005],[-0.01,0.005,1.01]],\"field_ut\":48.3}"
+        );
+        assert_eq!(calibration_from_json(&text), Ok(cal));
+
+        // The row-major arrays mean the same correction as the matrix.
+        let raw_ut = Vector3::new(40.0, -20.0, 10.0);
+        let centred = raw_ut - Vector3::from(export.hard_iron_ut);
+        let by_rows = Vector3::from_fn(|i, _| {
+            (0..3)
+                .map(|j| export.soft_iron[i][j] * centred[j])
+                .sum::<f64>()
+        });
+        assert!((by_rows - cal.apply(raw_ut)).amax() < 1e-12);
+    }
+
+    // serde_json is a native-only dependency.
+    #[cfg(not(target_arch = "wasm32"))]
+    #[test]
+    fn bad_json_is_refused_with_the_expected_shape() {
+        let error = calibration_from_json("{\"hard_iron_ut\": [1, 2]}").expect_err("refused");
+        assert!(matches!(error, ExportError::Json { .. }));
+        assert!(error.to_string().contains("\"soft_iron\": [[a, b, c]"));
+        assert_eq!(
+            calibration_from_json(
+                "{\"hard_iron_ut\":[0,0,0],\"soft_iron\":[[1,0,0],[0,1,0],[0,0,1]],\
+                 \"field_ut\":-3}"
+            ),
+            Err(ExportError::FieldNotPositive { field_ut: -3.0 })
+        );
+        // Extra keys (a summary around the calibration) are ignored.
+        assert!(calibration_from_json(
+            "{\"method\":\"ellipsoid\",\"hard_iron_ut\":[0,0,0],\
+             \"soft_iron\":[[1,0,0],[0,1,0],[0,0,1]],\"field_ut\":50}"
+        )
+        .is_ok());
+    }
+
+    #[test]
+    fn the_c_snippet_declares_the_arrays_and_says_how_to_apply_them() {
+        let snippet = c_snippet(&known_calibration());
+        let expected = "\
+// Magnetometer calibration made by compass-pdr.
+// Apply it to every raw reading, in microtesla (uT):
+//   corrected = soft_iron * (raw - hard_iron)
+// that is, for each i: corrected[i] = sum over j of soft_iron[i][j] * (raw[j] - hard_iron[j]).
+// mag_field is the field strength after correction, in uT.
+float hard_iron[3] = { 12.5f, -7.25f, 30.0f };
+float soft_iron[3][3] = {
+  { 1.02f, 0.015f, -0.01f },
+  { 0.015f, 0.98f, 0.005f },
+  { -0.01f, 0.005f, 1.01f }
+};
+float mag_field = 48.3f;
+";
+        assert_eq!(snippet, expected);
+    }
+
+    #[test]
+    fn c_floats_read_back_as_the_same_float() {
+        for value in [1.0, -0.0, 1e-7, 123456.789, 0.1, -3.0e5, 48.3] {
+            let literal = c_float(value);
+            assert!(literal.ends_with('f') && literal.contains('.'), "{literal}");
+            let read: f32 = literal
+                .trim_end_matches('f')
+                .parse()
+                .expect("a decimal number");
+            assert_eq!(read, value as f32, "{literal}");
+        }
+        assert_eq!(c_float(f64::NAN), "NAN");
+        assert_eq!(c_float(f64::NEG_INFINITY), "-INFINITY");
+    }
+}

@@ -1,0 +1,1206 @@
+//! Calibration from flat, circle-only data: a general conic in the level plane, made
+//! tilt-aware so that the hard iron does not leak through the levelling.
+//!
+//! This is the method for the data people really have: walkers and vehicles turn
+//! through every heading but tilt only a few degrees (about ±10°), which leaves a 3D
+//! ellipsoid fit badly conditioned. It needs, for every magnetometer sample (µT, body
+//! frame x forward, y right, z down), the roll and pitch of that moment ([`Tilt`], from
+//! the accelerometer averaged over about a second, see [`super::tilt`]). An expected
+//! inclination (dip, from a field model) helps but is not needed.
+//!
+//! ## Why levelling the raw field is not enough
+//!
+//! The magnetometer reads `m = S·b + h + noise`, where `b = Tᵀ·n(ψ)` is the Earth's
+//! field in the body frame, `T = Ry(θ)·Rx(φ)` the levelling rotation of Eq. 4 and
+//! `n(ψ) = (H·cosψ, −H·sinψ, V)` the field in the level frame of a device facing ψ.
+//! The hard iron `h` is fixed in the *body* frame, so levelling the raw field rotates
+//! it with the tilt:
+//!
+//! ```text
+//! T·m = (T·S·Tᵀ)·n(ψ) + T·h ≈ S·n(ψ) + h + (θ·h_z, −φ·h_z) + …   (horizontal part)
+//! ```
+//!
+//! A vertical hard iron of tens of µT thus adds `h_z·sin 10° ≈ 5-10 µT` to a horizontal
+//! field of about 20 µT, varying with the tilt rather than the heading: the levelled raw
+//! field is not an ellipse in ψ, and neither min/max (Eq. 6-7) nor a conic fitted to it
+//! can remove what is not a function of the heading. The second-order terms (`θ²·h_x/2`,
+//! with a non-zero mean) also move the centre of such a fit by tenths of a µT, i.e.
+//! about a degree.
+//!
+//! ## The model
+//!
+//! Let `A = S⁻¹` (symmetric, as in [`super::model`]). For every sample,
+//! `l = T·A·(m − h)` must equal `n(ψ)` for some ψ, which is two scalar conditions that
+//! do not involve the unknown heading:
+//!
+//! ```text
+//! r_horizontal = |(l_x, l_y)| − H      (the corrected horizontal field is a circle)
+//! r_vertical   = l_z − V               (the corrected vertical field is constant)
+//! ```
+//!
+//! Both residuals are in µT. The unknowns are the six entries of `A`, the three of `h`
+//! and `V`; `H` is held at the radius of the first fit, because headings cannot tell
+//! the overall scale (it is fixed at the end, below). With the inclination given,
+//! `V = H·tan(dip)` is no longer an unknown.
+//!
+//! What the data observes, to first order in the tilt: a level turn fixes the in-plane
+//! part of `A`, the coupling `A_xz`, `A_yz` (the vertical residual must not vary with
+//! the heading, and `A` is symmetric) and hence the horizontal hard iron; it leaves one
+//! combination `A_zz·V − h_z − V` free. Tilt separates it: the horizontal residual
+//! moves with `(θ, −φ)·(A_zz·V − h_z)` and the vertical one with
+//! `A_zz·(θ·n_x − φ·n_y)`. The tilt must therefore *vary* (a constant tilt is only a
+//! re-mounted sensor); when it varies by less than [`MIN_TILT_SPREAD_DEG`], `A_zz = 1`
+//! and (without an inclination) `h_z = 0` are held fixed, which costs nothing at level
+//! and is reported as `vertical_estimated = false`. The symmetric form of `A` is what
+//! fixes the rotation about the vertical: a rotation between sensor and body axes is
+//! not observable without a reference heading (see [`super::refls`]).
+//!
+//! ## The fit, step by step
+//!
+//! 1. Level the raw field with Eq. 4 and fit a general conic to it: the direct,
+//!    ellipse-specific least squares of Fitzgibbon, Pilu and Fisher (1999, *Direct
+//!    least square fitting of ellipses*, IEEE PAMI 21(5)), in the numerically stable
+//!    form of Halíř and Flusser (1998, *Numerically stable direct least squares fitting
+//!    of ellipses*, WSCG), on centred and scaled coordinates. This gives the in-plane
+//!    start and the gauge `H` ([`fit_ellipse`] on its own is the calibration for
+//!    levelled 2D data).
+//! 2. Minimise the residuals above by Levenberg-Marquardt (the `levenberg-marquardt`
+//!    crate, analytic Jacobian), starting from the conic, `A_zz = 1`, no vertical
+//!    coupling, `h_z = 0` (or `h_z` from the dip, when given). The model is nearly
+//!    linear in `h`, so this start converges. The residuals are geometric (distances in
+//!    µT in the corrected space), so this step is also the geometric refinement of the
+//!    algebraic conic; it removes the conic's small noise bias as well.
+//! 3. Fix the scale: `A`, `H` and `V` are multiplied by `k = √det(S_hh)` so that the
+//!    level-plane correction preserves area, i.e. the corrected circle's radius is the
+//!    geometric mean of the raw level ellipse's semi-axes (the "mean horizontal field").
+//!
+//! The fit keeps the full model: [`PlaneFit::heading_rad`] computes `T·A·(m − h)` for
+//! any tilt. [`PlaneFit::plane`] is its level-plane form, `corrected = W·(p − c)` on
+//! `p = level(m − h)`, with `W = S_hh⁻¹` (symmetric, determinant 1) and `c = S_hz·V`;
+//! it is exact for level samples and leaves, when tilted, the second-order terms
+//! `(S_zz − S_xx)·θ·V` (about 1 µT at 10° for 10 % soft iron) that only the full model
+//! removes.
+//!
+//! ## Limits
+//!
+//! The heading is only as good as the tilt: a 1° error in roll or pitch moves the
+//! levelled field by `V·sin 1°`, about 0.8 µT (2° of heading) at 65° inclination. In
+//! the fit such errors average out: with 1° RMS of random tilt error in the training
+//! data, the level heading RMS of the simulated test below stays under 0.3°. The
+//! model assumes one field (one place, no changing disturbance) and a symmetric soft
+//! iron. An algebraic conic from a partial turn is poorly determined, so the fit
+//! refuses a heading gap larger than [`PlaneOptions::max_heading_gap_deg`] and names
+//! the missing headings.
+
+use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
+use nalgebra::{DMatrix, DVector, Dyn, Matrix2, Matrix3, Owned, SymmetricEigen, Vector2, Vector3};
+use serde::Serialize;
+use thiserror::Error;
+
+use super::heading;
+use super::minmax::Coverage;
+use super::model::PlaneCalibration;
+use super::tilt::Tilt;
+
+/// Fewer samples than this cannot determine the ten parameters of the model with any
+/// redundancy, nor trace a turn.
+pub const MIN_SAMPLES: usize = 30;
+
+/// Below this spread of roll and pitch (standard deviation, combined), the vertical
+/// hard iron is not estimated: its signature is the tilt times `h_z`, under the noise.
+pub const MIN_TILT_SPREAD_DEG: f64 = 1.0;
+
+/// A level ellipse whose axes differ by more than this factor is not soft iron (real
+/// soft iron changes the axes by tens of per cent) but a partial turn or a changing
+/// disturbance.
+const MAX_AXIS_RATIO: f64 = 3.0;
+
+/// A residual RMS above this share of the horizontal field means the data does not
+/// follow the model: sensor noise (0.1-0.5 µT) and tilt errors of a degree or two
+/// (`V·sin 2°`, about 1.5 µT) stay well below a tenth of a 20 µT horizontal field.
+const MAX_RELATIVE_RESIDUAL: f64 = 0.15;
+
+/// Inclinations steeper than this leave almost no horizontal field to steer by.
+const MAX_INCLINATION_DEG: f64 = 85.0;
+
+/// Why a plane calibration could not be fitted. Messages say what the user can do.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum PlaneError {
+    #[error("too few magnetometer samples ({n_samples}; at least {min} are needed). Record longer, turning through a full circle.")]
+    TooFewSamples { n_samples: usize, min: usize },
+
+    #[error("{n_mag} magnetometer samples but {n_tilt} tilts: give one roll/pitch per magnetometer sample (interpolate the accelerometer onto the magnetometer's times).")]
+    LengthMismatch { n_mag: usize, n_tilt: usize },
+
+    #[error("sample {sample_idx} is not a finite number (magnetometer or tilt). Remove NaN or infinite values from the input.")]
+    NonFinite { sample_idx: usize },
+
+    #[error("the inclination {inclination_deg}° is not usable: give the dip of the local field between −{max_deg}° and {max_deg}°, or none to estimate it.", max_deg = MAX_INCLINATION_DEG)]
+    InvalidInclination { inclination_deg: f64 },
+
+    #[error("no data between {gap_from_deg:.0}° and {gap_to_deg:.0}° magnetic heading: turn that way too (a full circle) and record again.")]
+    NoTurn { gap_from_deg: f64, gap_to_deg: f64 },
+
+    #[error("the levelled field does not trace an ellipse ({reason}). Turn through a full circle, away from iron and electronics that move with you, and check that the magnetometer values change as you turn.")]
+    DegenerateConic { reason: &'static str },
+
+    #[error("the levelled field traces an ellipse {axis_ratio:.1} times longer than wide, which is not soft iron but a partial turn or a changing disturbance. Turn through a full circle, away from moving iron.")]
+    TooElongated { axis_ratio: f64 },
+
+    #[error("the samples do not follow one field turned through every heading (residual {residual_rms_ut:.1} µT against a horizontal field of {horizontal_field_ut:.1} µT). Turn the device rather than only tilting it, stay away from moving iron, and check that each roll/pitch belongs to the magnetometer sample at the same time.")]
+    PoorFit {
+        residual_rms_ut: f64,
+        horizontal_field_ut: f64,
+    },
+
+    #[error("the tilt-aware fit did not settle ({reason}). Check that each roll/pitch belongs to the magnetometer sample at the same time, and that the data comes from one place.")]
+    NotConverged { reason: String },
+}
+
+/// What [`fit_plane`] may assume.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct PlaneOptions {
+    /// The expected inclination (dip) of the Earth's field, degrees, positive when the
+    /// field points down (northern hemisphere), e.g. from a field model. `None`
+    /// estimates the vertical field from the tilt instead.
+    pub inclination_deg: Option<f64>,
+    /// The widest arc of magnetic heading without samples that the fit accepts.
+    pub max_heading_gap_deg: f64,
+}
+
+impl Default for PlaneOptions {
+    fn default() -> Self {
+        PlaneOptions {
+            inclination_deg: None,
+            max_heading_gap_deg: 90.0,
+        }
+    }
+}
+
+/// The tilt-aware calibration and how well it fits.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct PlaneFit {
+    /// The hard iron `h` in the body frame, subtracted before levelling.
+    pub hard_iron_ut: Vector3<f64>,
+    /// The correction `A = S⁻¹` (symmetric, dimensionless), applied before levelling.
+    pub soft_iron: Matrix3<f64>,
+    /// The level-plane form of the model, for `level(mag − hard_iron)`: exact when
+    /// level (see the module header).
+    pub plane: PlaneCalibration,
+    /// The corrected horizontal field `H` (the radius of `plane`).
+    pub horizontal_field_ut: f64,
+    /// The corrected vertical field `V`, positive down.
+    pub vertical_field_ut: f64,
+    /// `atan(V / H)`: estimated, or the one given.
+    pub inclination_deg: f64,
+    /// Whether the tilt varied enough to estimate `A_zz` (and, without an inclination,
+    /// `h_z`); when not, they are held at 1 and 0, which is exact for level use only.
+    pub vertical_estimated: bool,
+    /// Spread of roll and pitch in the data (standard deviations, combined).
+    pub tilt_spread_deg: f64,
+    /// RMS of both residuals (horizontal circle and constant vertical field).
+    pub residual_rms_ut: f64,
+    /// Standard deviation of the corrected horizontal magnitude.
+    pub horizontal_magnitude_std_ut: f64,
+    /// Heading coverage of the corrected samples (magnetic).
+    pub coverage: Coverage,
+    pub n_samples: usize,
+}
+
+impl PlaneFit {
+    /// The corrected, levelled field `(Xh, Yh)` of a raw sample at a tilt.
+    pub fn level_corrected_ut(&self, mag_ut: Vector3<f64>, tilt: Tilt) -> Vector2<f64> {
+        tilt.level(self.soft_iron * (mag_ut - self.hard_iron_ut))
+    }
+
+    /// The heading of a raw sample at a tilt, clockwise from north, in `[0, 2π)`, with
+    /// the declination (true north from magnetic north, east positive) added.
+    pub fn heading_rad(&self, mag_ut: Vector3<f64>, tilt: Tilt, declination_rad: f64) -> f64 {
+        heading::heading_rad(self.level_corrected_ut(mag_ut, tilt), declination_rad)
+    }
+}
+
+/// Fits the tilt-aware plane calibration to magnetometer samples (µT, body frame) and
+/// the tilt at each of them.
+pub fn fit_plane(
+    mag_ut: &[Vector3<f64>],
+    tilt: &[Tilt],
+    options: &PlaneOptions,
+) -> Result<PlaneFit, PlaneError> {
+    if mag_ut.len() != tilt.len() {
+        return Err(PlaneError::LengthMismatch {
+            n_mag: mag_ut.len(),
+            n_tilt: tilt.len(),
+        });
+    }
+    if mag_ut.len() < MIN_SAMPLES {
+        return Err(PlaneError::TooFewSamples {
+            n_samples: mag_ut.len(),
+            min: MIN_SAMPLES,
+        });
+    }
+    if let Some(sample_idx) = mag_ut.iter().zip(tilt).position(|(mag, tilt)| {
+        !(mag.iter().all(|value| value.is_finite())
+            && tilt.roll_rad.is_finite()
+            && tilt.pitch_rad.is_finite())
+    }) {
+        return Err(PlaneError::NonFinite { sample_idx });
+    }
+    let tan_inclination = match options.inclination_deg {
+        None => None,
+        Some(inclination_deg)
+            if inclination_deg.is_finite() && inclination_deg.abs() <= MAX_INCLINATION_DEG =>
+        {
+            Some(inclination_deg.to_radians().tan())
+        }
+        Some(inclination_deg) => return Err(PlaneError::InvalidInclination { inclination_deg }),
+    };
+
+    let levelling: Vec<Matrix3<f64>> = tilt.iter().map(levelling_rotation).collect();
+    let level_raw_ut: Vec<Vector2<f64>> = mag_ut
+        .iter()
+        .zip(tilt)
+        .map(|(&mag, tilt)| tilt.level(mag))
+        .collect();
+
+    // Step 1: the conic of the levelled raw field. Its centre and shape are blurred by
+    // the hard iron's leak, but they start the refinement close enough.
+    let start = direct_ellipse_fit(&level_raw_ut)?.to_plane_calibration()?;
+
+    let tilt_spread_deg = tilt_spread_rad(tilt).to_degrees();
+    let vertical_estimated = tilt_spread_deg >= MIN_TILT_SPREAD_DEG;
+
+    // Step 2: the tilt-aware model. The start's transform has determinant 1, so it is
+    // the in-plane block of a dimensionless `A`; `H` is the start's radius.
+    let horizontal_field_ut = start.radius_ut;
+    let mut full = [0.0; N_PARAMS];
+    full[A_XX] = start.transform[(0, 0)];
+    full[A_YY] = start.transform[(1, 1)];
+    full[A_XY] = start.transform[(0, 1)];
+    full[A_ZZ] = 1.0;
+    full[H_X] = start.center_ut.x;
+    full[H_Y] = start.center_ut.y;
+    let mut free: Vec<usize> = vec![A_XX, A_YY, A_XY, A_XZ, A_YZ, H_X, H_Y];
+    match tan_inclination {
+        Some(tan_inclination) => {
+            // With the dip known, the level part of the vertical residual fixes `h_z`
+            // from the mean levelled vertical field.
+            full[V] = horizontal_field_ut * tan_inclination;
+            let mean_level_z_ut = mag_ut
+                .iter()
+                .zip(&levelling)
+                .map(|(mag, levelling)| (levelling * mag).z)
+                .sum::<f64>()
+                / mag_ut.len() as f64;
+            full[H_Z] = mean_level_z_ut - full[V];
+            free.push(H_Z);
+        }
+        None => {
+            full[V] = mean_vertical_ut(mag_ut, &levelling, &full);
+            free.push(V);
+            if vertical_estimated {
+                free.push(H_Z);
+            }
+        }
+    }
+    if vertical_estimated {
+        free.push(A_ZZ);
+    }
+    let problem = TiltAwareProblem {
+        mag_ut,
+        levelling: &levelling,
+        horizontal_field_ut,
+        full,
+        free,
+    };
+    let (problem, report) = LevenbergMarquardt::new().minimize(problem);
+    // Running out of evaluations still leaves the best parameters found; the residual
+    // check below judges them like any other.
+    if !(report.termination.was_successful()
+        || report.termination == levenberg_marquardt::TerminationReason::LostPatience)
+    {
+        return Err(PlaneError::NotConverged {
+            reason: format!("{:?}", report.termination),
+        });
+    }
+    let full = problem.full;
+    if !full.iter().all(|value| value.is_finite()) {
+        return Err(PlaneError::NotConverged {
+            reason: "the parameters became infinite".to_string(),
+        });
+    }
+
+    // Step 3: the scale gauge. `S = A⁻¹`; scaling `A`, `H` and `V` by `k` changes no
+    // heading, and `k = √det(S_hh)` makes the level-plane correction `S_hh⁻¹` preserve
+    // area.
+    let soft_iron = soft_iron_of(&full);
+    let eigen = SymmetricEigen::new(soft_iron);
+    if eigen
+        .eigenvalues
+        .iter()
+        .any(|&value| value.is_nan() || value <= 0.0)
+    {
+        return Err(PlaneError::DegenerateConic {
+            reason: "the fitted soft iron is not positive definite",
+        });
+    }
+    let distortion = soft_iron.try_inverse().ok_or(PlaneError::DegenerateConic {
+        reason: "the fitted soft iron is singular",
+    })?;
+    let distortion_hh: Matrix2<f64> = distortion.fixed_view::<2, 2>(0, 0).into_owned();
+    let scale = distortion_hh.determinant().sqrt();
+    if !(scale.is_finite() && scale > 0.0) {
+        return Err(PlaneError::DegenerateConic {
+            reason: "the fitted horizontal distortion is singular",
+        });
+    }
+    let soft_iron = soft_iron * scale;
+    let horizontal_field_ut = horizontal_field_ut * scale;
+    let vertical_field_ut = full[V] * scale;
+    let distortion_hh = distortion_hh / scale;
+    let transform = distortion_hh
+        .try_inverse()
+        .ok_or(PlaneError::DegenerateConic {
+            reason: "the fitted horizontal distortion is singular",
+        })?;
+    let distortion_hz = Vector2::new(distortion[(0, 2)], distortion[(1, 2)]) / scale;
+    let hard_iron_ut = Vector3::new(full[H_X], full[H_Y], full[H_Z]);
+
+    let mut fit = PlaneFit {
+        hard_iron_ut,
+        soft_iron,
+        plane: PlaneCalibration {
+            center_ut: distortion_hz * vertical_field_ut,
+            transform,
+            radius_ut: horizontal_field_ut,
+        },
+        horizontal_field_ut,
+        vertical_field_ut,
+        inclination_deg: vertical_field_ut.atan2(horizontal_field_ut).to_degrees(),
+        vertical_estimated,
+        tilt_spread_deg,
+        residual_rms_ut: 0.0,
+        horizontal_magnitude_std_ut: 0.0,
+        coverage: Coverage::of_headings(std::iter::empty()),
+        n_samples: mag_ut.len(),
+    };
+    let level_corrected_ut: Vec<Vector3<f64>> = mag_ut
+        .iter()
+        .zip(&levelling)
+        .map(|(&mag, levelling)| levelling * (fit.soft_iron * (mag - fit.hard_iron_ut)))
+        .collect();
+    let n_samples = mag_ut.len() as f64;
+    let magnitudes_ut: Vec<f64> = level_corrected_ut
+        .iter()
+        .map(|level| level.xy().norm())
+        .collect();
+    let mean_magnitude_ut = magnitudes_ut.iter().sum::<f64>() / n_samples;
+    fit.horizontal_magnitude_std_ut = (magnitudes_ut
+        .iter()
+        .map(|magnitude| (magnitude - mean_magnitude_ut).powi(2))
+        .sum::<f64>()
+        / n_samples)
+        .sqrt();
+    fit.residual_rms_ut = (level_corrected_ut
+        .iter()
+        .zip(&magnitudes_ut)
+        .map(|(level, magnitude)| {
+            (magnitude - horizontal_field_ut).powi(2) + (level.z - vertical_field_ut).powi(2)
+        })
+        .sum::<f64>()
+        / (2.0 * n_samples))
+        .sqrt();
+    fit.coverage = Coverage::of_headings(
+        level_corrected_ut
+            .iter()
+            .map(|level| heading::heading_rad(level.xy(), 0.0).to_degrees()),
+    );
+    let residual_limit_ut = MAX_RELATIVE_RESIDUAL * horizontal_field_ut;
+    if fit.residual_rms_ut.is_nan() || fit.residual_rms_ut > residual_limit_ut {
+        return Err(PlaneError::PoorFit {
+            residual_rms_ut: fit.residual_rms_ut,
+            horizontal_field_ut,
+        });
+    }
+    if fit.coverage.largest_gap_deg > options.max_heading_gap_deg {
+        return Err(PlaneError::NoTurn {
+            gap_from_deg: fit.coverage.largest_gap_start_deg,
+            gap_to_deg: (fit.coverage.largest_gap_start_deg + fit.coverage.largest_gap_deg)
+                .rem_euclid(360.0),
+        });
+    }
+    Ok(fit)
+}
+
+/// Fits a general ellipse to levelled field samples (µT) and returns the correction
+/// that maps it onto a circle: the calibration for data that is already level (or
+/// levelled after removing a known 3D hard iron). The transform is symmetric with
+/// determinant 1, so the circle's radius is the geometric mean of the semi-axes.
+pub fn fit_ellipse(level_ut: &[Vector2<f64>]) -> Result<PlaneCalibration, PlaneError> {
+    if level_ut.len() < MIN_SAMPLES {
+        return Err(PlaneError::TooFewSamples {
+            n_samples: level_ut.len(),
+            min: MIN_SAMPLES,
+        });
+    }
+    if let Some(sample_idx) = level_ut
+        .iter()
+        .position(|sample| !(sample.x.is_finite() && sample.y.is_finite()))
+    {
+        return Err(PlaneError::NonFinite { sample_idx });
+    }
+    direct_ellipse_fit(level_ut)?.to_plane_calibration()
+}
+
+/// An ellipse `(p − center)ᵀ·shape·(p − center) = 1`, `shape` positive definite.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Ellipse {
+    center_ut: Vector2<f64>,
+    shape_per_ut2: Matrix2<f64>,
+}
+
+impl Ellipse {
+    /// The symmetric square root `W` of `shape` maps the ellipse onto the unit circle;
+    /// `radius·W` with `radius = det(shape)^(−1/4)` (the geometric mean of the
+    /// semi-axes) maps it onto a circle of the same area.
+    fn to_plane_calibration(self) -> Result<PlaneCalibration, PlaneError> {
+        let eigen = SymmetricEigen::new(self.shape_per_ut2);
+        let (small, large) = (eigen.eigenvalues.min(), eigen.eigenvalues.max());
+        if !(small > 0.0 && large.is_finite()) {
+            return Err(PlaneError::DegenerateConic {
+                reason: "the fitted conic is not a real ellipse",
+            });
+        }
+        let axis_ratio = (large / small).sqrt();
+        if axis_ratio > MAX_AXIS_RATIO {
+            return Err(PlaneError::TooElongated { axis_ratio });
+        }
+        let radius_ut = (small * large).powf(-0.25);
+        let sqrt_eigenvalues = Matrix2::from_diagonal(&eigen.eigenvalues.map(f64::sqrt));
+        let transform =
+            eigen.eigenvectors * sqrt_eigenvalues * eigen.eigenvectors.transpose() * radius_ut;
+        // Symmetrise away the rounding of the product.
+        let transform = (transform + transform.transpose()) / 2.0;
+        Ok(PlaneCalibration {
+            center_ut: self.center_ut,
+            transform,
+            radius_ut,
+        })
+    }
+}
+
+/// The direct ellipse-specific fit (Fitzgibbon et al. 1999) as Halíř and Flusser (1998)
+/// solve it. The conic `a·x² + b·xy + c·y² + d·x + e·y + f = 0` is split into its
+/// quadratic part `a1 = (a, b, c)` and linear part `a2 = (d, e, f)`; with the scatter
+/// matrices `S1 = D1ᵀD1`, `S2 = D1ᵀD2`, `S3 = D2ᵀD2` of the design rows
+/// `D1 = (x², xy, y²)`, `D2 = (x, y, 1)`, minimising `|D1·a1 + D2·a2|²` under
+/// `4ac − b² = 1` gives `a2 = −S3⁻¹·S2ᵀ·a1` and the 3×3 eigenproblem
+/// `C1⁻¹·(S1 − S2·S3⁻¹·S2ᵀ)·a1 = λ·a1`, whose one eigenvector with `4ac − b² > 0` is
+/// the ellipse. Centring and scaling the data first keeps the scatter matrices well
+/// conditioned (Halíř and Flusser's remedy for the singular `S1` of the original).
+fn direct_ellipse_fit(points_ut: &[Vector2<f64>]) -> Result<Ellipse, PlaneError> {
+    let n_points = points_ut.len() as f64;
+    let mean_ut = points_ut.iter().sum::<Vector2<f64>>() / n_points;
+    let scale_ut = (points_ut
+        .iter()
+        .map(|point| (point - mean_ut).norm_squared())
+        .sum::<f64>()
+        / n_points)
+        .sqrt();
+    if !(scale_ut.is_finite() && scale_ut > 0.0) {
+        return Err(PlaneError::DegenerateConic {
+            reason: "all samples are the same point",
+        });
+    }
+    let (mut s1, mut s2, mut s3) = (Matrix3::zeros(), Matrix3::zeros(), Matrix3::zeros());
+    for point in points_ut {
+        let q = (point - mean_ut) / scale_ut;
+        let quadratic = Vector3::new(q.x * q.x, q.x * q.y, q.y * q.y);
+        let linear = Vector3::new(q.x, q.y, 1.0);
+        s1 += quadratic * quadratic.transpose();
+        s2 += quadratic * linear.transpose();
+        s3 += linear * linear.transpose();
+    }
+    let s3_inverse = s3.try_inverse().ok_or(PlaneError::DegenerateConic {
+        reason: "the samples lie on a line",
+    })?;
+    let linear_from_quadratic = -s3_inverse * s2.transpose();
+    let reduced_scatter = s1 + s2 * linear_from_quadratic;
+    // C1⁻¹ for the constraint matrix C1 = [[0, 0, 2], [0, −1, 0], [2, 0, 0]].
+    let eigen_problem = Matrix3::from_rows(&[
+        reduced_scatter.row(2) / 2.0,
+        -reduced_scatter.row(1),
+        reduced_scatter.row(0) / 2.0,
+    ]);
+    if !eigen_problem.iter().all(|value| value.is_finite()) {
+        return Err(PlaneError::DegenerateConic {
+            reason: "the scatter matrices are not finite",
+        });
+    }
+    let eigen_problem_norm = eigen_problem.norm();
+    let mut best: Option<(f64, Vector3<f64>)> = None;
+    for eigenvalue in eigen_problem.complex_eigenvalues().iter() {
+        let Some(eigenvector) = null_vector(&(eigen_problem - Matrix3::identity() * eigenvalue.re))
+        else {
+            continue;
+        };
+        let eigen_residual = (eigen_problem * eigenvector - eigenvector * eigenvalue.re).norm();
+        let constraint = 4.0 * eigenvector.x * eigenvector.z - eigenvector.y * eigenvector.y;
+        let is_eigenvector = eigen_residual <= 1e-6 * eigen_problem_norm.max(f64::MIN_POSITIVE);
+        if is_eigenvector && constraint > 0.0 && best.is_none_or(|(best, _)| constraint > best) {
+            best = Some((constraint, eigenvector));
+        }
+    }
+    let (_, quadratic) = best.ok_or(PlaneError::DegenerateConic {
+        reason: "no ellipse fits the samples",
+    })?;
+    let linear = linear_from_quadratic * quadratic;
+
+    // The centre solves `2·Q·x0 = −(d, e)`; then `(q − x0)ᵀ·Q·(q − x0) = x0ᵀ·Q·x0 − f`.
+    let q_matrix = Matrix2::new(
+        quadratic.x,
+        quadratic.y / 2.0,
+        quadratic.y / 2.0,
+        quadratic.z,
+    );
+    let q_inverse = q_matrix.try_inverse().ok_or(PlaneError::DegenerateConic {
+        reason: "the fitted conic is singular",
+    })?;
+    let center = -q_inverse * Vector2::new(linear.x, linear.y) / 2.0;
+    let level = center.dot(&(q_matrix * center)) - linear.z;
+    let shape = q_matrix / level;
+    if !(shape[(0, 0)] > 0.0 && shape.determinant() > 0.0 && shape.iter().all(|v| v.is_finite())) {
+        return Err(PlaneError::DegenerateConic {
+            reason: "the fitted conic is an imaginary or degenerate ellipse",
+        });
+    }
+    Ok(Ellipse {
+        center_ut: mean_ut + center * scale_ut,
+        shape_per_ut2: shape / (scale_ut * scale_ut),
+    })
+}
+
+/// A unit vector spanning the null space of a (nearly) rank-2 3×3 matrix: the largest
+/// cross product of two of its rows, which is orthogonal to all three rows.
+fn null_vector(matrix: &Matrix3<f64>) -> Option<Vector3<f64>> {
+    let rows = [
+        matrix.row(0).transpose(),
+        matrix.row(1).transpose(),
+        matrix.row(2).transpose(),
+    ];
+    let candidates = [
+        rows[0].cross(&rows[1]),
+        rows[0].cross(&rows[2]),
+        rows[1].cross(&rows[2]),
+    ];
+    let largest = candidates
+        .into_iter()
+        .max_by(|a, b| a.norm_squared().total_cmp(&b.norm_squared()))?;
+    let norm = largest.norm();
+    (norm > 0.0 && norm.is_finite()).then(|| largest / norm)
+}
+
+/// The levelling rotation `T = Ry(θ)·Rx(φ)`: its first two rows are Eq. 4 as
+/// [`Tilt::level`] computes it, the third the vertical component.
+fn levelling_rotation(tilt: &Tilt) -> Matrix3<f64> {
+    let (sin_roll, cos_roll) = tilt.roll_rad.sin_cos();
+    let (sin_pitch, cos_pitch) = tilt.pitch_rad.sin_cos();
+    Matrix3::new(
+        cos_pitch,
+        sin_roll * sin_pitch,
+        cos_roll * sin_pitch,
+        0.0,
+        cos_roll,
+        -sin_roll,
+        -sin_pitch,
+        sin_roll * cos_pitch,
+        cos_roll * cos_pitch,
+    )
+}
+
+/// The combined standard deviation of roll and pitch: what separates the vertical hard
+/// iron from the vertical field.
+fn tilt_spread_rad(tilt: &[Tilt]) -> f64 {
+    let n_samples = tilt.len().max(1) as f64;
+    let mean_roll_rad = tilt.iter().map(|tilt| tilt.roll_rad).sum::<f64>() / n_samples;
+    let mean_pitch_rad = tilt.iter().map(|tilt| tilt.pitch_rad).sum::<f64>() / n_samples;
+    (tilt
+        .iter()
+        .map(|tilt| {
+            (tilt.roll_rad - mean_roll_rad).powi(2) + (tilt.pitch_rad - mean_pitch_rad).powi(2)
+        })
+        .sum::<f64>()
+        / n_samples)
+        .sqrt()
+}
+
+/// The mean corrected vertical field for the parameters `full`: the start of `V`.
+fn mean_vertical_ut(
+    mag_ut: &[Vector3<f64>],
+    levelling: &[Matrix3<f64>],
+    full: &[f64; N_PARAMS],
+) -> f64 {
+    let soft_iron = soft_iron_of(full);
+    let hard_iron_ut = Vector3::new(full[H_X], full[H_Y], full[H_Z]);
+    mag_ut
+        .iter()
+        .zip(levelling)
+        .map(|(&mag, levelling)| (levelling * (soft_iron * (mag - hard_iron_ut))).z)
+        .sum::<f64>()
+        / mag_ut.len().max(1) as f64
+}
+
+// The parameters of the tilt-aware model, in this order: the six entries of the
+// symmetric `A`, the hard iron, and the vertical field.
+const A_XX: usize = 0;
+const A_YY: usize = 1;
+const A_ZZ: usize = 2;
+const A_XY: usize = 3;
+const A_XZ: usize = 4;
+const A_YZ: usize = 5;
+const H_X: usize = 6;
+const H_Y: usize = 7;
+const H_Z: usize = 8;
+const V: usize = 9;
+const N_PARAMS: usize = 10;
+
+fn soft_iron_of(full: &[f64; N_PARAMS]) -> Matrix3<f64> {
+    Matrix3::new(
+        full[A_XX], full[A_XY], full[A_XZ], //
+        full[A_XY], full[A_YY], full[A_YZ], //
+        full[A_XZ], full[A_YZ], full[A_ZZ],
+    )
+}
+
+/// The residuals of the module header, two per sample; `free` lists the parameters the
+/// minimiser may move, the others stay at their values in `full`.
+struct TiltAwareProblem<'a> {
+    mag_ut: &'a [Vector3<f64>],
+    levelling: &'a [Matrix3<f64>],
+    horizontal_field_ut: f64,
+    full: [f64; N_PARAMS],
+    free: Vec<usize>,
+}
+
+impl TiltAwareProblem<'_> {
+    /// For one sample: the corrected hard-iron-free field `d = m − h`, and the levelled
+    /// corrected field `l = T·A·d`.
+    fn corrected(
+        &self,
+        mag_ut: &Vector3<f64>,
+        levelling: &Matrix3<f64>,
+    ) -> (Vector3<f64>, Vector3<f64>) {
+        let hard_iron_ut = Vector3::new(self.full[H_X], self.full[H_Y], self.full[H_Z]);
+        let free_ut = mag_ut - hard_iron_ut;
+        (free_ut, levelling * (soft_iron_of(&self.full) * free_ut))
+    }
+}
+
+impl LeastSquaresProblem<f64, Dyn, Dyn> for TiltAwareProblem<'_> {
+    type ResidualStorage = Owned<f64, Dyn>;
+    type JacobianStorage = Owned<f64, Dyn, Dyn>;
+    type ParameterStorage = Owned<f64, Dyn>;
+
+    fn set_params(&mut self, params: &DVector<f64>) {
+        for (&param_idx, &value) in self.free.iter().zip(params.iter()) {
+            self.full[param_idx] = value;
+        }
+    }
+
+    fn params(&self) -> DVector<f64> {
+        DVector::from_iterator(
+            self.free.len(),
+            self.free.iter().map(|&param_idx| self.full[param_idx]),
+        )
+    }
+
+    fn residuals(&self) -> Option<DVector<f64>> {
+        let mut residuals = DVector::zeros(2 * self.mag_ut.len());
+        for (sample_idx, (mag, levelling)) in self.mag_ut.iter().zip(self.levelling).enumerate() {
+            let (_, level) = self.corrected(mag, levelling);
+            residuals[2 * sample_idx] = level.xy().norm() - self.horizontal_field_ut;
+            residuals[2 * sample_idx + 1] = level.z - self.full[V];
+        }
+        Some(residuals)
+    }
+
+    fn jacobian(&self) -> Option<DMatrix<f64>> {
+        let soft_iron = soft_iron_of(&self.full);
+        let mut jacobian = DMatrix::zeros(2 * self.mag_ut.len(), self.free.len());
+        for (sample_idx, (mag, levelling)) in self.mag_ut.iter().zip(self.levelling).enumerate() {
+            let (free_ut, level) = self.corrected(mag, levelling);
+            // ∂l/∂A_jk = T·E_jk·d with E_jk the symmetric basis matrix; ∂l/∂h = −T·A.
+            let d = free_ut;
+            let mut level_derivatives = [Vector3::zeros(); N_PARAMS];
+            level_derivatives[A_XX] = levelling * Vector3::new(d.x, 0.0, 0.0);
+            level_derivatives[A_YY] = levelling * Vector3::new(0.0, d.y, 0.0);
+            level_derivatives[A_ZZ] = levelling * Vector3::new(0.0, 0.0, d.z);
+            level_derivatives[A_XY] = levelling * Vector3::new(d.y, d.x, 0.0);
+            level_derivatives[A_XZ] = levelling * Vector3::new(d.z, 0.0, d.x);
+            level_derivatives[A_YZ] = levelling * Vector3::new(0.0, d.z, d.y);
+            let minus_levelled_soft_iron = -(levelling * soft_iron);
+            level_derivatives[H_X] = minus_levelled_soft_iron.column(0).into_owned();
+            level_derivatives[H_Y] = minus_levelled_soft_iron.column(1).into_owned();
+            level_derivatives[H_Z] = minus_levelled_soft_iron.column(2).into_owned();
+            // The horizontal residual moves along the unit horizontal direction; at the
+            // origin it has no direction and no derivative.
+            let horizontal_norm = level.xy().norm();
+            let direction = if horizontal_norm > 0.0 {
+                level.xy() / horizontal_norm
+            } else {
+                Vector2::zeros()
+            };
+            for (column, &param_idx) in self.free.iter().enumerate() {
+                let derivative = level_derivatives[param_idx];
+                jacobian[(2 * sample_idx, column)] = direction.dot(&derivative.xy());
+                jacobian[(2 * sample_idx + 1, column)] =
+                    if param_idx == V { -1.0 } else { derivative.z };
+            }
+        }
+        Some(jacobian)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::angle::heading_difference_rad;
+    use crate::calib::minmax::MinMaxCalibration;
+    use crate::sim::field::{circle_only, FieldSample, FieldTruth};
+    use crate::sim::rng::SplitMix64;
+    use levenberg_marquardt::differentiate_numerically;
+
+    fn tilt_of(sample: &FieldSample) -> Tilt {
+        Tilt {
+            roll_rad: sample.roll_rad,
+            pitch_rad: sample.pitch_rad,
+        }
+    }
+
+    fn split(samples: &[FieldSample]) -> (Vec<Vector3<f64>>, Vec<Tilt>) {
+        (
+            samples.iter().map(|sample| sample.mag_ut).collect(),
+            samples.iter().map(tilt_of).collect(),
+        )
+    }
+
+    /// The RMS heading error (degrees) of `heading_of` over `samples`.
+    fn heading_rms_deg(samples: &[FieldSample], heading_of: impl Fn(&FieldSample) -> f64) -> f64 {
+        let sum_squares: f64 = samples
+            .iter()
+            .map(|sample| heading_difference_rad(heading_of(sample), sample.heading_rad).powi(2))
+            .sum();
+        (sum_squares / samples.len() as f64).sqrt().to_degrees()
+    }
+
+    /// A level turn of every heading, noise-free: the check set.
+    fn level_check_set(truth: &FieldTruth, rng: &mut SplitMix64) -> Vec<FieldSample> {
+        let check_truth = FieldTruth {
+            noise_ut: 0.0,
+            ..*truth
+        };
+        circle_only(&check_truth, 360, 0.0, rng)
+    }
+
+    #[test]
+    fn level_heading_is_accurate_on_circle_only_data_over_many_seeds() {
+        const N_SEEDS: u64 = 100;
+        // (mean, worst) of the heading RMS over the seeds, in degrees.
+        let (mut plane, mut tilted) = ((0.0, 0.0f64), (0.0, 0.0f64));
+        let (mut minmax_figure, mut naive_conic_figure) = ((0.0, 0.0f64), (0.0, 0.0f64));
+        for seed in 0..N_SEEDS {
+            let mut rng = SplitMix64::new(seed);
+            let truth = FieldTruth {
+                inclination_deg: 65.0,
+                noise_ut: 0.3,
+                ..FieldTruth::random(&mut rng, 60.0, 0.1, 0.1)
+            };
+            let train = circle_only(&truth, 720, 10.0, &mut rng);
+            let check = level_check_set(&truth, &mut rng);
+            let (mag_ut, tilt) = split(&train);
+
+            let fit = fit_plane(&mag_ut, &tilt, &PlaneOptions::default())
+                .unwrap_or_else(|error| panic!("seed {seed}: {error}"));
+            let plane_rms_deg = heading_rms_deg(&check, |sample| {
+                fit.heading_rad(sample.mag_ut, Tilt::LEVEL, 0.0)
+            });
+            // The level-plane form agrees with the full model at level; the two differ
+            // only by how far the data's vertical field is from the fitted one.
+            let plane_form_rms_deg = heading_rms_deg(&check, |sample| {
+                heading::heading_rad(
+                    fit.plane.apply((sample.mag_ut - fit.hard_iron_ut).xy()),
+                    0.0,
+                )
+            });
+            assert!(
+                (plane_rms_deg - plane_form_rms_deg).abs() < 0.05,
+                "seed {seed}: {plane_rms_deg} vs {plane_form_rms_deg}"
+            );
+
+            // The same data through the tilt-aware model at the tilts of a fresh
+            // circle-only set (noise-free): the full model is meant for tilted use too.
+            let tilted_check = circle_only(
+                &FieldTruth {
+                    noise_ut: 0.0,
+                    ..truth
+                },
+                360,
+                10.0,
+                &mut rng,
+            );
+            let tilted_rms_deg = heading_rms_deg(&tilted_check, |sample| {
+                fit.heading_rad(sample.mag_ut, tilt_of(sample), 0.0)
+            });
+
+            // For comparison: min/max and the general conic on the levelled raw field.
+            let level_raw: Vec<Vector2<f64>> = train
+                .iter()
+                .map(|sample| tilt_of(sample).level(sample.mag_ut))
+                .collect();
+            let minmax = MinMaxCalibration::fit(&level_raw).expect("min/max fits a full turn");
+            let minmax_rms_deg = heading_rms_deg(&check, |sample| {
+                heading::heading_rad(minmax.apply(sample.mag_ut.xy()), 0.0)
+            });
+            let naive_conic = fit_ellipse(&level_raw).expect("the conic fits a full turn");
+            let naive_conic_rms_deg = heading_rms_deg(&check, |sample| {
+                heading::heading_rad(naive_conic.apply(sample.mag_ut.xy()), 0.0)
+            });
+
+            assert!(
+                plane_rms_deg < 0.5,
+                "seed {seed}: level heading RMS {plane_rms_deg:.3}° (min/max {minmax_rms_deg:.2}°), fit {fit:?}"
+            );
+            assert!(
+                tilted_rms_deg < 0.5,
+                "seed {seed}: tilted heading RMS {tilted_rms_deg:.3}°"
+            );
+            for (figure, value) in [
+                (&mut plane, plane_rms_deg),
+                (&mut tilted, tilted_rms_deg),
+                (&mut minmax_figure, minmax_rms_deg),
+                (&mut naive_conic_figure, naive_conic_rms_deg),
+            ] {
+                figure.0 += value / N_SEEDS as f64;
+                figure.1 = figure.1.max(value);
+            }
+        }
+        eprintln!(
+            "circle-only training (±10° tilt, 65° inclination, 0.3 µT noise, {N_SEEDS} seeds), \
+             heading RMS on a noise-free check set, mean / worst over the seeds:\n  \
+             tilt-aware plane fit, level check:   {:.3}° / {:.3}°\n  \
+             tilt-aware plane fit, ±10° check:    {:.3}° / {:.3}°\n  \
+             min/max on the levelled raw field:   {:.2}° / {:.2}°\n  \
+             conic on the levelled raw field:     {:.2}° / {:.2}°",
+            plane.0,
+            plane.1,
+            tilted.0,
+            tilted.1,
+            minmax_figure.0,
+            minmax_figure.1,
+            naive_conic_figure.0,
+            naive_conic_figure.1,
+        );
+    }
+
+    /// A truth with a known distortion and the given noise.
+    fn truth_with(
+        hard_iron_ut: Vector3<f64>,
+        soft_iron: Matrix3<f64>,
+        noise_ut: f64,
+    ) -> FieldTruth {
+        FieldTruth {
+            hard_iron_ut,
+            soft_iron,
+            field_total_ut: 50.0,
+            inclination_deg: 65.0,
+            noise_ut,
+        }
+    }
+
+    fn cross_axis_soft_iron() -> Matrix3<f64> {
+        Matrix3::new(1.08, 0.07, -0.05, 0.07, 0.93, 0.06, -0.05, 0.06, 1.04)
+    }
+
+    #[test]
+    fn the_ellipse_fit_recovers_a_tilted_ellipse_exactly() {
+        // A level turn through cross-axis soft iron traces an ellipse whose axes are
+        // not along x and y; the symmetric transform undoes it up to the scale.
+        let center_ut = Vector2::new(12.0, -31.0);
+        let distortion = Matrix2::new(1.15, 0.12, 0.12, 0.88);
+        let radius_ut = 21.0;
+        let points: Vec<Vector2<f64>> = (0..200)
+            .map(|idx| {
+                let heading_rad = std::f64::consts::TAU * idx as f64 / 200.0;
+                center_ut
+                    + distortion
+                        * Vector2::new(
+                            radius_ut * heading_rad.cos(),
+                            -radius_ut * heading_rad.sin(),
+                        )
+            })
+            .collect();
+        let calibration = fit_ellipse(&points).expect("a full ellipse fits");
+        let area_scale = distortion.determinant().sqrt();
+        assert!((calibration.center_ut - center_ut).norm() < 1e-9);
+        assert!((calibration.radius_ut - radius_ut * area_scale).abs() < 1e-9);
+        assert!((calibration.transform.determinant() - 1.0).abs() < 1e-12);
+        let expect = distortion.try_inverse().expect("invertible") * area_scale;
+        assert!(
+            (calibration.transform - expect).norm() < 1e-9,
+            "{} vs {expect}",
+            calibration.transform
+        );
+    }
+
+    #[test]
+    fn noise_free_circle_only_data_recovers_the_truth() {
+        let truth = truth_with(Vector3::new(25.0, -40.0, 55.0), cross_axis_soft_iron(), 0.0);
+        let train = circle_only(&truth, 400, 10.0, &mut SplitMix64::new(7));
+        let (mag_ut, tilt) = split(&train);
+        let fit = fit_plane(&mag_ut, &tilt, &PlaneOptions::default()).expect("fits");
+        assert!(fit.vertical_estimated);
+        assert!(
+            (fit.hard_iron_ut - truth.hard_iron_ut).norm() < 1e-6,
+            "hard iron {}",
+            fit.hard_iron_ut
+        );
+        // The correction is S⁻¹ up to the scale gauge.
+        let product = fit.soft_iron * truth.soft_iron;
+        let scale = product[(0, 0)];
+        assert!(
+            (product - Matrix3::identity() * scale).norm() < 1e-8,
+            "{product}"
+        );
+        assert!((fit.inclination_deg - 65.0).abs() < 1e-6);
+        assert!(fit.residual_rms_ut < 1e-6 && fit.horizontal_magnitude_std_ut < 1e-6);
+        let worst_deg = train
+            .iter()
+            .map(|sample| {
+                heading_difference_rad(
+                    fit.heading_rad(sample.mag_ut, tilt_of(sample), 0.0),
+                    sample.heading_rad,
+                )
+                .abs()
+                .to_degrees()
+            })
+            .fold(0.0, f64::max);
+        assert!(worst_deg < 1e-6, "worst tilted heading error {worst_deg}°");
+        assert_eq!(fit.coverage.largest_gap_deg, 0.0);
+    }
+
+    #[test]
+    fn levelling_the_raw_field_leaks_the_vertical_hard_iron() {
+        // No soft iron and no noise: only the vertical hard iron, rotated by the tilt.
+        let truth = truth_with(Vector3::new(0.0, 0.0, 50.0), Matrix3::identity(), 0.0);
+        let mut rng = SplitMix64::new(11);
+        let train = circle_only(&truth, 720, 10.0, &mut rng);
+        let check = level_check_set(&truth, &mut rng);
+        let level_raw: Vec<Vector2<f64>> = train
+            .iter()
+            .map(|sample| tilt_of(sample).level(sample.mag_ut))
+            .collect();
+        let naive = fit_ellipse(&level_raw).expect("the naive conic fits");
+        let naive_rms_deg = heading_rms_deg(&check, |sample| {
+            heading::heading_rad(naive.apply(sample.mag_ut.xy()), 0.0)
+        });
+        let (mag_ut, tilt) = split(&train);
+        let fit = fit_plane(&mag_ut, &tilt, &PlaneOptions::default()).expect("fits");
+        let fit_rms_deg = heading_rms_deg(&check, |sample| {
+            fit.heading_rad(sample.mag_ut, Tilt::LEVEL, 0.0)
+        });
+        // On the tilted training samples themselves the leak is plain to see.
+        let naive_worst_tilted_deg = train
+            .iter()
+            .map(|sample| {
+                let level_ut = naive.apply(tilt_of(sample).level(sample.mag_ut));
+                heading_difference_rad(heading::heading_rad(level_ut, 0.0), sample.heading_rad)
+                    .abs()
+                    .to_degrees()
+            })
+            .fold(0.0, f64::max);
+        assert!(
+            naive_worst_tilted_deg > 10.0,
+            "naive conic, tilted: {naive_worst_tilted_deg}°"
+        );
+        assert!(naive_rms_deg > 0.5, "naive conic, level: {naive_rms_deg}°");
+        assert!(fit_rms_deg < 1e-6, "tilt-aware {fit_rms_deg}°");
+        assert!((fit.hard_iron_ut.z - 50.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn a_known_inclination_is_used() {
+        let mut rng = SplitMix64::new(21);
+        let truth = FieldTruth {
+            inclination_deg: 65.0,
+            ..FieldTruth::random(&mut rng, 60.0, 0.1, 0.1)
+        };
+        let train = circle_only(&truth, 720, 10.0, &mut rng);
+        let check = level_check_set(&truth, &mut rng);
+        let (mag_ut, tilt) = split(&train);
+        let options = PlaneOptions {
+            inclination_deg: Some(65.0),
+            ..PlaneOptions::default()
+        };
+        let fit = fit_plane(&mag_ut, &tilt, &options).expect("fits");
+        assert!((fit.inclination_deg - 65.0).abs() < 1e-9);
+        let rms_deg = heading_rms_deg(&check, |sample| {
+            fit.heading_rad(sample.mag_ut, Tilt::LEVEL, 0.0)
+        });
+        assert!(rms_deg < 0.5, "{rms_deg}°");
+    }
+
+    #[test]
+    fn level_only_data_holds_the_vertical_fixed_and_still_calibrates() {
+        // A vehicle without an accelerometer: tilt is zero throughout, so the vertical
+        // hard iron cannot be told from the vertical field, and need not be.
+        let truth = truth_with(Vector3::new(-20.0, 35.0, 45.0), cross_axis_soft_iron(), 0.3);
+        let mut rng = SplitMix64::new(5);
+        let train = circle_only(&truth, 720, 0.0, &mut rng);
+        let check = level_check_set(&truth, &mut rng);
+        let (mag_ut, tilt) = split(&train);
+        let fit = fit_plane(&mag_ut, &tilt, &PlaneOptions::default()).expect("fits");
+        assert!(!fit.vertical_estimated);
+        assert_eq!(fit.hard_iron_ut.z, 0.0);
+        let rms_deg = heading_rms_deg(&check, |sample| {
+            fit.heading_rad(sample.mag_ut, Tilt::LEVEL, 0.0)
+        });
+        assert!(rms_deg < 0.5, "{rms_deg}°");
+    }
+
+    #[test]
+    fn a_partial_turn_names_the_missing_headings() {
+        let truth = truth_with(Vector3::new(10.0, -15.0, 30.0), cross_axis_soft_iron(), 0.3);
+        let full_turn = circle_only(&truth, 720, 10.0, &mut SplitMix64::new(3));
+        // Headings 0° to 200° only.
+        let partial: Vec<FieldSample> = full_turn
+            .into_iter()
+            .filter(|sample| sample.heading_rad.to_degrees() < 200.0)
+            .collect();
+        let (mag_ut, tilt) = split(&partial);
+        match fit_plane(&mag_ut, &tilt, &PlaneOptions::default()) {
+            Err(PlaneError::NoTurn {
+                gap_from_deg,
+                gap_to_deg,
+            }) => {
+                assert!((190.0..=220.0).contains(&gap_from_deg), "{gap_from_deg}");
+                assert!(!(20.0..=340.0).contains(&gap_to_deg), "{gap_to_deg}");
+                let message = PlaneError::NoTurn {
+                    gap_from_deg,
+                    gap_to_deg,
+                }
+                .to_string();
+                assert!(message.contains("turn that way"), "{message}");
+            }
+            other => panic!("expected NoTurn, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn degenerate_inputs_are_errors_not_panics() {
+        let truth = truth_with(Vector3::new(10.0, -15.0, 30.0), cross_axis_soft_iron(), 0.3);
+        let train = circle_only(&truth, 100, 10.0, &mut SplitMix64::new(3));
+        let (mag_ut, tilt) = split(&train);
+        let options = PlaneOptions::default();
+        assert!(matches!(
+            fit_plane(&mag_ut[..10], &tilt[..10], &options),
+            Err(PlaneError::TooFewSamples { n_samples: 10, .. })
+        ));
+        assert!(matches!(
+            fit_plane(&[], &[], &options),
+            Err(PlaneError::TooFewSamples { n_samples: 0, .. })
+        ));
+        assert!(matches!(
+            fit_plane(&mag_ut, &tilt[..50], &options),
+            Err(PlaneError::LengthMismatch {
+                n_mag: 100,
+                n_tilt: 50
+            })
+        ));
+        let mut with_nan = mag_ut.clone();
+        with_nan[17].y = f64::NAN;
+        assert!(matches!(
+            fit_plane(&with_nan, &tilt, &options),
+            Err(PlaneError::NonFinite { sample_idx: 17 })
+        ));
+        let mut tilt_with_infinity = tilt.clone();
+        tilt_with_infinity[4].pitch_rad = f64::INFINITY;
+        assert!(matches!(
+            fit_plane(&mag_ut, &tilt_with_infinity, &options),
+            Err(PlaneError::NonFinite { sample_idx: 4 })
+        ));
+        for inclination_deg in [f64::NAN, 90.0, -120.0] {
+            let options = PlaneOptions {
+                inclination_deg: Some(inclination_deg),
+                ..PlaneOptions::default()
+            };
+            assert!(matches!(
+                fit_plane(&mag_ut, &tilt, &options),
+                Err(PlaneError::InvalidInclination { .. })
+            ));
+        }
+        // A device that never turns: the same reading at every tilt (level), or a
+        // reading that follows no field through the tilts.
+        let point = vec![Vector3::new(3.0, 4.0, 40.0); 100];
+        assert!(matches!(
+            fit_plane(&point, &[Tilt::LEVEL; 100], &options),
+            Err(PlaneError::DegenerateConic { .. })
+        ));
+        assert!(matches!(
+            fit_plane(&point, &tilt, &options),
+            Err(PlaneError::PoorFit { .. } | PlaneError::DegenerateConic { .. })
+        ));
+        let line: Vec<Vector2<f64>> = (0..100).map(|idx| Vector2::new(idx as f64, 5.0)).collect();
+        assert!(matches!(
+            fit_ellipse(&line),
+            Err(PlaneError::DegenerateConic { .. })
+        ));
+        let level_nan = vec![Vector2::new(f64::NAN, 1.0); 40];
+        assert!(matches!(
+            fit_ellipse(&level_nan),
+            Err(PlaneError::NonFinite { sample_idx: 0 })
+        ));
+    }
+
+    #[test]
+    fn arbitrary_input_never_panics() {
+        let mut rng = SplitMix64::new(99);
+        for trial in 0..60 {
+            let n_samples = 30 + trial % 50;
+            let magnitude = [1e-9, 1.0, 50.0, 1e6, 1e150][trial % 5];
+            let mag_ut: Vec<Vector3<f64>> = (0..n_samples)
+                .map(|_| Vector3::new(rng.gaussian(), rng.gaussian(), rng.gaussian()) * magnitude)
+                .collect();
+            let tilt: Vec<Tilt> = (0..n_samples)
+                .map(|_| Tilt {
+                    roll_rad: rng.uniform_in(-3.0, 3.0),
+                    pitch_rad: rng.uniform_in(-1.5, 1.5),
+                })
+                .collect();
+            if let Ok(fit) = fit_plane(&mag_ut, &tilt, &PlaneOptions::default()) {
+                assert!(fit.residual_rms_ut.is_finite());
+            }
+        }
+    }
+
+    #[test]
+    fn the_jacobian_matches_numerical_differentiation() {
+        let truth = truth_with(Vector3::new(10.0, -15.0, 30.0), cross_axis_soft_iron(), 0.3);
+        let train = circle_only(&truth, 40, 10.0, &mut SplitMix64::new(8));
+        let (mag_ut, tilt) = split(&train);
+        let levelling: Vec<Matrix3<f64>> = tilt.iter().map(levelling_rotation).collect();
+        let mut problem = TiltAwareProblem {
+            mag_ut: &mag_ut,
+            levelling: &levelling,
+            horizontal_field_ut: 21.0,
+            full: [1.05, 0.97, 1.02, 0.03, -0.04, 0.05, 9.0, -14.0, 28.0, 44.0],
+            free: (0..N_PARAMS).collect(),
+        };
+        let numerical = differentiate_numerically(&mut problem).expect("finite");
+        let analytic = problem.jacobian().expect("finite");
+        let worst = (numerical - &analytic).abs().max();
+        assert!(
+            worst < 1e-6 * analytic.abs().max(),
+            "worst difference {worst}"
+        );
+    }
+}

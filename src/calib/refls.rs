@@ -1,0 +1,907 @@
+//! Reference-heading least squares: Eq. 8 fitted to headings known from elsewhere.
+//!
+//! Source: Moafipoor et al. (2007), Eq. 6 and 8. With a reference heading for every
+//! levelled sample (GPS course over ground while moving straight, a calibrated gyro, a
+//! map's street direction), the axis scale factors and biases of Eq. 6 can be fitted to
+//! the compass deviation directly instead of to the shape of the circle. The paper
+//! notes that this least squares "requires good initial values; otherwise, the
+//! computation could easily lead to divergence" and points to the two-step estimators
+//! of Haupt et al. (1996) and Gebre-Egziabher et al. (2001): first a linear least
+//! squares on a reparametrised problem, then the physical parameters from its solution.
+//! This file does that, then refines by Levenberg-Marquardt.
+//!
+//! ## Eq. 8 in this crate's convention
+//!
+//! The paper writes `α = tan⁻¹((Sy·Hy + By) / (Sx·Hx + Bx))`, with its sensor's y axis
+//! the other way round. With the body y axis to the right and headings clockwise
+//! (see [`super::heading`]) it reads
+//!
+//! ```text
+//! ψ = atan2(−(Sy·Yh + By), Sx·Xh + Bx) + D
+//! ```
+//!
+//! where `(Xh, Yh)` is the levelled field (Eq. 4), `(Sx·Xh + Bx, Sy·Yh + By)` the
+//! corrected one (Eq. 6), and `D` the declination, given or estimated (below). `By`
+//! therefore has the opposite sign of the paper's for the same installation.
+//!
+//! Headings do not depend on the overall scale: multiplying `Sx, Sy, Bx, By` by the
+//! same factor changes no heading. The fit fixes that freedom with `Sx·Sy = 1`, so the
+//! corrected circle has the area of the raw ellipse and `Bx, By` are in µT of that
+//! circle. (Min/max, Eq. 7, fixes it differently: the smaller of `Sx, Sy` is 1.)
+//!
+//! ## The offset
+//!
+//! With [`RefLsOptions::declination_rad`] given, `D` is that declination and three
+//! parameters are fitted. Without it, `D` is a fourth parameter: a constant heading
+//! offset that absorbs the declination, a yaw misalignment between sensor and body,
+//! and any constant bias of the reference. Reported headings then follow the
+//! reference's north.
+//!
+//! ## Step 1: a linear problem
+//!
+//! A heading `ψ` means the corrected vector is parallel to `(cos(ψ − D), −sin(ψ − D))`:
+//! its cross product with that direction vanishes,
+//!
+//! ```text
+//! (Sx·Xh + Bx)·sin(ψ − D) + (Sy·Yh + By)·cos(ψ − D) = 0.
+//! ```
+//!
+//! With `D` known this is linear and homogeneous in `(Sx, Sy, Bx, By)`, with rows
+//! `(Xh·sin ψm, Yh·cos ψm, sin ψm, cos ψm)`, `ψm = ψ − D`. With `D` unknown, expanding
+//! the sines makes it linear in the six products
+//! `(Sx·cos D, Sx·sin D, Sy·cos D, Sy·sin D, γ1, γ2)`, with rows
+//! `(Xh·sin ψ, −Xh·cos ψ, Yh·cos ψ, Yh·sin ψ, sin ψ, cos ψ)`, where
+//! `γ = R(−D)·(Bx, By)` is the bias rotated by the offset (only that combination
+//! appears; eight products would leave a three-dimensional null space). Either way
+//! the solution is the eigenvector of the normal matrix with the smallest eigenvalue
+//! (total least squares, on columns scaled to unit RMS).
+//!
+//! ## Step 2: the parameters, algebraically
+//!
+//! `(Sx, Sy)·(cos D, sin D)` is a rank-one 2×2 matrix: its dominant singular vectors
+//! give `D` and `Sx, Sy`, and `(Bx, By) = R(D)·γ`. The cross product cannot tell a
+//! vector from its opposite, so the sign (or, with `D` estimated, `D` against `D + π`)
+//! is chosen so that the headings point along the references. `Sx` and `Sy` of
+//! opposite signs mean a mirrored axis, which is refused.
+//!
+//! ## Step 3: the heading residual
+//!
+//! Levenberg-Marquardt then minimises the wrapped heading errors themselves (step 1
+//! weights each sample by its field magnitude and is biased by noise), over
+//! `(ln Sx, Bx, By[, D])` with `Sy = 1/Sx`.
+//!
+//! How much the start matters (the tests measure it): with the declination known, the
+//! damped, trust-region refinement alone converges from the identity even with a 40 µT
+//! hard iron, and the two-step start only saves iterations (5 evaluations instead of
+//! 12). With the offset estimated and a sensor mounted a quarter turn off, the identity
+//! start ends in a wrong minimum in about half of the noise draws; the two-step start,
+//! which needs no guess, never does.
+//!
+//! ## Limits
+//!
+//! The model is Eq. 6: axis scale factors and biases in the level plane, no cross-axis
+//! soft iron and no tilt leakage of the hard iron (see [`super::plane`] for both); it
+//! absorbs what it can of them into the four parameters. The references must spread
+//! over headings (a gap larger than [`RefLsOptions::max_heading_gap_deg`] is refused)
+//! and belong to the same instants as the field samples; reference noise averages out
+//! over many samples, a reference lag while turning does not.
+
+use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
+use nalgebra::{DMatrix, DVector, Dyn, Matrix2, Owned, SymmetricEigen, Vector2};
+use serde::Serialize;
+use thiserror::Error;
+
+use super::heading;
+use super::minmax::Coverage;
+use super::model::PlaneCalibration;
+use crate::angle::wrap_to_pi;
+
+/// Fewer samples than this leave the four parameters with little redundancy.
+pub const MIN_SAMPLES: usize = 10;
+
+/// A second-smallest eigenvalue of the (scaled) normal matrix below this share of the
+/// largest means the linear problem has more than one solution.
+const MIN_EIGENVALUE_GAP: f64 = 1e-10;
+
+/// Why a reference-heading fit could not be made. Messages say what the user can do.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum RefLsError {
+    #[error("too few samples with a reference heading ({n_samples}; at least {min} are needed). Record longer, with reference headings over a full circle.")]
+    TooFewSamples { n_samples: usize, min: usize },
+
+    #[error("{n_level} field samples but {n_ref} reference headings: give one reference heading per levelled field sample.")]
+    LengthMismatch { n_level: usize, n_ref: usize },
+
+    #[error("sample {sample_idx} is not a finite number (field or reference heading). Remove NaN or infinite values from the input.")]
+    NonFinite { sample_idx: usize },
+
+    #[error("the declination {declination_rad} rad is not a finite number: give the local declination, or none to estimate a heading offset.")]
+    InvalidDeclination { declination_rad: f64 },
+
+    #[error("no reference heading between {gap_from_deg:.0}° and {gap_to_deg:.0}°: turn that way too (a full circle) and record again.")]
+    NoTurn { gap_from_deg: f64, gap_to_deg: f64 },
+
+    #[error("the field samples and reference headings do not determine a calibration ({reason}). Check that the field changes as the reference heading changes, and that both come from the same times.")]
+    Degenerate { reason: &'static str },
+
+    #[error("the field turns the opposite way to the reference headings (a mirrored axis). Check that the body y axis points right and that reference headings are clockwise from north.")]
+    Mirrored,
+
+    #[error("the least squares did not settle ({reason}). Check that the reference headings belong to the field samples at the same times.")]
+    NotConverged { reason: String },
+}
+
+/// What [`fit_reference_ls`] may assume.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct RefLsOptions {
+    /// The declination (true north from magnetic north, east positive) when the
+    /// reference headings are from true north and it is known; `None` estimates a
+    /// constant heading offset instead (see the module header).
+    pub declination_rad: Option<f64>,
+    /// The widest arc of reference heading without samples that the fit accepts.
+    pub max_heading_gap_deg: f64,
+}
+
+impl Default for RefLsOptions {
+    fn default() -> Self {
+        RefLsOptions {
+            declination_rad: None,
+            max_heading_gap_deg: 90.0,
+        }
+    }
+}
+
+/// The Eq. 6 parameters fitted to reference headings, in the gauge `Sx·Sy = 1`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct RefLsFit {
+    pub scale_x: f64,
+    pub scale_y: f64,
+    pub bias_x_ut: f64,
+    pub bias_y_ut: f64,
+    /// Added to the magnetic heading: the declination given, or the estimated offset.
+    pub heading_offset_rad: f64,
+    pub heading_offset_estimated: bool,
+    /// Mean magnitude of the corrected horizontal field.
+    pub horizontal_field_ut: f64,
+    /// RMS of the heading errors against the references.
+    pub residual_rms_deg: f64,
+    /// Coverage of the reference headings.
+    pub coverage: Coverage,
+    pub n_samples: usize,
+}
+
+impl RefLsFit {
+    /// Eq. 6: the corrected levelled field of a levelled sample.
+    pub fn apply(&self, level_ut: Vector2<f64>) -> Vector2<f64> {
+        Vector2::new(
+            self.scale_x * level_ut.x + self.bias_x_ut,
+            self.scale_y * level_ut.y + self.bias_y_ut,
+        )
+    }
+
+    /// Eq. 8: the heading of a levelled sample, clockwise from the references' north
+    /// (true north when the declination was given), in `[0, 2π)`.
+    pub fn heading_rad(&self, level_ut: Vector2<f64>) -> f64 {
+        heading::heading_rad(self.apply(level_ut), self.heading_offset_rad)
+    }
+
+    /// The same correction as a [`PlaneCalibration`] (`corrected = diag(S)·(level −
+    /// center)` with `center = −B/S`); the heading offset is not part of it.
+    pub fn plane_calibration(&self) -> PlaneCalibration {
+        PlaneCalibration {
+            center_ut: Vector2::new(
+                -self.bias_x_ut / self.scale_x,
+                -self.bias_y_ut / self.scale_y,
+            ),
+            transform: Matrix2::new(self.scale_x, 0.0, 0.0, self.scale_y),
+            radius_ut: self.horizontal_field_ut,
+        }
+    }
+}
+
+/// Fits Eq. 8 to levelled field samples (µT) and the reference heading of each (rad,
+/// clockwise from true north, or from whatever north the references use when the
+/// offset is estimated).
+pub fn fit_reference_ls(
+    level_ut: &[Vector2<f64>],
+    ref_heading_rad: &[f64],
+    options: &RefLsOptions,
+) -> Result<RefLsFit, RefLsError> {
+    if level_ut.len() != ref_heading_rad.len() {
+        return Err(RefLsError::LengthMismatch {
+            n_level: level_ut.len(),
+            n_ref: ref_heading_rad.len(),
+        });
+    }
+    if level_ut.len() < MIN_SAMPLES {
+        return Err(RefLsError::TooFewSamples {
+            n_samples: level_ut.len(),
+            min: MIN_SAMPLES,
+        });
+    }
+    if let Some(sample_idx) = level_ut
+        .iter()
+        .zip(ref_heading_rad)
+        .position(|(level, heading)| {
+            !(level.x.is_finite() && level.y.is_finite() && heading.is_finite())
+        })
+    {
+        return Err(RefLsError::NonFinite { sample_idx });
+    }
+    if let Some(declination_rad) = options.declination_rad {
+        if !declination_rad.is_finite() {
+            return Err(RefLsError::InvalidDeclination { declination_rad });
+        }
+    }
+    let coverage =
+        Coverage::of_headings(ref_heading_rad.iter().map(|heading| heading.to_degrees()));
+    if coverage.largest_gap_deg > options.max_heading_gap_deg {
+        return Err(RefLsError::NoTurn {
+            gap_from_deg: coverage.largest_gap_start_deg,
+            gap_to_deg: (coverage.largest_gap_start_deg + coverage.largest_gap_deg)
+                .rem_euclid(360.0),
+        });
+    }
+
+    let start = two_step_start(level_ut, ref_heading_rad, options.declination_rad)?;
+    let (params, report) = refine(level_ut, ref_heading_rad, options.declination_rad, start);
+    if !(report.termination.was_successful()
+        || report.termination == levenberg_marquardt::TerminationReason::LostPatience)
+    {
+        return Err(RefLsError::NotConverged {
+            reason: format!("{:?}", report.termination),
+        });
+    }
+    if !params.is_finite() {
+        return Err(RefLsError::NotConverged {
+            reason: "the parameters became infinite".to_string(),
+        });
+    }
+
+    let mut fit = RefLsFit {
+        scale_x: params.scale_x(),
+        scale_y: params.scale_y(),
+        bias_x_ut: params.bias_ut.x,
+        bias_y_ut: params.bias_ut.y,
+        heading_offset_rad: params.offset_rad,
+        heading_offset_estimated: options.declination_rad.is_none(),
+        horizontal_field_ut: 0.0,
+        residual_rms_deg: 0.0,
+        coverage,
+        n_samples: level_ut.len(),
+    };
+    let n_samples = level_ut.len() as f64;
+    fit.horizontal_field_ut = level_ut
+        .iter()
+        .map(|&level| fit.apply(level).norm())
+        .sum::<f64>()
+        / n_samples;
+    fit.residual_rms_deg = (level_ut
+        .iter()
+        .zip(ref_heading_rad)
+        .map(|(&level, &reference)| wrap_to_pi(fit.heading_rad(level) - reference).powi(2))
+        .sum::<f64>()
+        / n_samples)
+        .sqrt()
+        .to_degrees();
+    Ok(fit)
+}
+
+/// The parameters of the refinement: `Sx = exp(log_scale_x)`, `Sy = 1/Sx`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Params {
+    log_scale_x: f64,
+    bias_ut: Vector2<f64>,
+    offset_rad: f64,
+}
+
+impl Params {
+    fn scale_x(&self) -> f64 {
+        self.log_scale_x.exp()
+    }
+
+    fn scale_y(&self) -> f64 {
+        (-self.log_scale_x).exp()
+    }
+
+    fn is_finite(&self) -> bool {
+        self.log_scale_x.is_finite()
+            && self.bias_ut.x.is_finite()
+            && self.bias_ut.y.is_finite()
+            && self.offset_rad.is_finite()
+    }
+
+    /// The corrected levelled field (Eq. 6).
+    fn corrected(&self, level_ut: &Vector2<f64>) -> Vector2<f64> {
+        Vector2::new(
+            self.scale_x() * level_ut.x + self.bias_ut.x,
+            self.scale_y() * level_ut.y + self.bias_ut.y,
+        )
+    }
+
+    /// Eq. 8 in this crate's convention, unwrapped.
+    fn heading_rad(&self, level_ut: &Vector2<f64>) -> f64 {
+        let corrected = self.corrected(level_ut);
+        (-corrected.y).atan2(corrected.x) + self.offset_rad
+    }
+
+    /// From `(Sx, Sy, Bx, By)` in any scale, into the gauge `Sx·Sy = 1`; `None` when the
+    /// scales are not both positive.
+    fn from_scales(scale: Vector2<f64>, bias_ut: Vector2<f64>, offset_rad: f64) -> Option<Params> {
+        if !(scale.x > 0.0 && scale.y > 0.0) {
+            return None;
+        }
+        let gauge = (scale.x * scale.y).sqrt();
+        let params = Params {
+            log_scale_x: (scale.x / gauge).ln(),
+            bias_ut: bias_ut / gauge,
+            offset_rad,
+        };
+        params.is_finite().then_some(params)
+    }
+}
+
+/// Steps 1 and 2 of the module header: the start of the refinement, from the data alone.
+fn two_step_start(
+    level_ut: &[Vector2<f64>],
+    ref_heading_rad: &[f64],
+    declination_rad: Option<f64>,
+) -> Result<Params, RefLsError> {
+    let candidate = match declination_rad {
+        Some(declination_rad) => {
+            let design = DMatrix::from_row_iterator(
+                level_ut.len(),
+                4,
+                level_ut
+                    .iter()
+                    .zip(ref_heading_rad)
+                    .flat_map(|(level, &reference)| {
+                        let (sin_heading, cos_heading) = (reference - declination_rad).sin_cos();
+                        [
+                            level.x * sin_heading,
+                            level.y * cos_heading,
+                            sin_heading,
+                            cos_heading,
+                        ]
+                    }),
+            );
+            let solution = null_vector(design)?;
+            let value = |idx: usize| solution.get(idx).copied().unwrap_or(0.0);
+            let (mut scale, mut bias_ut) = (
+                Vector2::new(value(0), value(1)),
+                Vector2::new(value(2), value(3)),
+            );
+            // The cross product cannot tell the corrected vector from its opposite.
+            if mean_alignment(level_ut, ref_heading_rad, |level| {
+                let corrected = scale.component_mul(level) + bias_ut;
+                (-corrected.y).atan2(corrected.x) + declination_rad
+            }) < 0.0
+            {
+                scale = -scale;
+                bias_ut = -bias_ut;
+            }
+            Params::from_scales(scale, bias_ut, declination_rad)
+        }
+        None => {
+            let design = DMatrix::from_row_iterator(
+                level_ut.len(),
+                6,
+                level_ut
+                    .iter()
+                    .zip(ref_heading_rad)
+                    .flat_map(|(level, &reference)| {
+                        let (sin_heading, cos_heading) = reference.sin_cos();
+                        [
+                            level.x * sin_heading,
+                            -level.x * cos_heading,
+                            level.y * cos_heading,
+                            level.y * sin_heading,
+                            sin_heading,
+                            cos_heading,
+                        ]
+                    }),
+            );
+            let solution = null_vector(design)?;
+            let value = |idx: usize| solution.get(idx).copied().unwrap_or(0.0);
+            // (Sx, Sy)ᵀ·(cos D, sin D) is rank one: its dominant right singular vector
+            // is the offset's direction, up to sign.
+            let products = Matrix2::new(value(0), value(1), value(2), value(3));
+            let eigen = SymmetricEigen::new(products.transpose() * products);
+            let dominant_idx = eigen.eigenvalues.imax();
+            let mut direction: Vector2<f64> = eigen.eigenvectors.column(dominant_idx).into_owned();
+            let mut scale = products * direction;
+            if scale.x + scale.y < 0.0 {
+                direction = -direction;
+                scale = -scale;
+            }
+            let mut offset_rad = direction.y.atan2(direction.x);
+            let (sin_offset, cos_offset) = offset_rad.sin_cos();
+            let rotated_bias = Vector2::new(value(4), value(5));
+            let bias_ut =
+                Matrix2::new(cos_offset, -sin_offset, sin_offset, cos_offset) * rotated_bias;
+            // The solution's sign is free; flipping it turns every heading by π.
+            if mean_alignment(level_ut, ref_heading_rad, |level| {
+                let corrected = scale.component_mul(level) + bias_ut;
+                (-corrected.y).atan2(corrected.x) + offset_rad
+            }) < 0.0
+            {
+                offset_rad += std::f64::consts::PI;
+            }
+            Params::from_scales(scale, bias_ut, wrap_to_pi(offset_rad))
+        }
+    };
+    candidate.ok_or(RefLsError::Mirrored)
+}
+
+/// The mean cosine of the heading errors: positive when the headings point along the
+/// references rather than against them.
+fn mean_alignment(
+    level_ut: &[Vector2<f64>],
+    ref_heading_rad: &[f64],
+    heading_of: impl Fn(&Vector2<f64>) -> f64,
+) -> f64 {
+    level_ut
+        .iter()
+        .zip(ref_heading_rad)
+        .map(|(level, reference)| (heading_of(level) - reference).cos())
+        .sum::<f64>()
+        / level_ut.len().max(1) as f64
+}
+
+/// The unit vector `v` minimising `|design·v|²`, on columns scaled to unit RMS so that
+/// µT-sized and unit-sized columns weigh alike; `Degenerate` when it is not unique.
+fn null_vector(design: DMatrix<f64>) -> Result<DVector<f64>, RefLsError> {
+    let n_rows = design.nrows().max(1) as f64;
+    let column_scale = DVector::from_iterator(
+        design.ncols(),
+        design
+            .column_iter()
+            .map(|column| (column.norm_squared() / n_rows).sqrt()),
+    );
+    if column_scale
+        .iter()
+        .any(|&scale| !(scale > 0.0 && scale.is_finite()))
+    {
+        return Err(RefLsError::Degenerate {
+            reason: "a column of the linear problem is zero or not finite",
+        });
+    }
+    let mut scaled = design;
+    for (mut column, &scale) in scaled.column_iter_mut().zip(column_scale.iter()) {
+        column /= scale;
+    }
+    let normal = scaled.transpose() * &scaled;
+    if !normal.iter().all(|value| value.is_finite()) {
+        return Err(RefLsError::Degenerate {
+            reason: "the linear problem is not finite",
+        });
+    }
+    let eigen = SymmetricEigen::new(normal);
+    let mut order: Vec<usize> = (0..eigen.eigenvalues.len()).collect();
+    order.sort_by(|&a, &b| eigen.eigenvalues[a].total_cmp(&eigen.eigenvalues[b]));
+    let (smallest_idx, second_idx, largest_idx) = match order.as_slice() {
+        [smallest, second, .., largest] => (*smallest, *second, *largest),
+        _ => {
+            return Err(RefLsError::Degenerate {
+                reason: "too few unknowns",
+            })
+        }
+    };
+    let second_eigenvalue = eigen.eigenvalues[second_idx];
+    if second_eigenvalue.is_nan()
+        || second_eigenvalue <= MIN_EIGENVALUE_GAP * eigen.eigenvalues[largest_idx]
+    {
+        return Err(RefLsError::Degenerate {
+            reason: "the linear problem has more than one solution",
+        });
+    }
+    let solution = eigen
+        .eigenvectors
+        .column(smallest_idx)
+        .component_div(&column_scale);
+    let norm = solution.norm();
+    if !(norm > 0.0 && norm.is_finite()) {
+        return Err(RefLsError::Degenerate {
+            reason: "the linear problem has no finite solution",
+        });
+    }
+    Ok(solution / norm)
+}
+
+/// Step 3: Levenberg-Marquardt on the wrapped heading errors, from `start`. The offset
+/// is a parameter only when no declination is given.
+fn refine(
+    level_ut: &[Vector2<f64>],
+    ref_heading_rad: &[f64],
+    declination_rad: Option<f64>,
+    start: Params,
+) -> (Params, levenberg_marquardt::MinimizationReport<f64>) {
+    let problem = HeadingProblem {
+        level_ut,
+        ref_heading_rad,
+        params: Params {
+            offset_rad: declination_rad.unwrap_or(start.offset_rad),
+            ..start
+        },
+        estimate_offset: declination_rad.is_none(),
+    };
+    let (problem, report) = LevenbergMarquardt::new().minimize(problem);
+    let mut params = problem.params;
+    params.offset_rad = wrap_to_pi(params.offset_rad);
+    (params, report)
+}
+
+struct HeadingProblem<'a> {
+    level_ut: &'a [Vector2<f64>],
+    ref_heading_rad: &'a [f64],
+    params: Params,
+    estimate_offset: bool,
+}
+
+impl LeastSquaresProblem<f64, Dyn, Dyn> for HeadingProblem<'_> {
+    type ResidualStorage = Owned<f64, Dyn>;
+    type JacobianStorage = Owned<f64, Dyn, Dyn>;
+    type ParameterStorage = Owned<f64, Dyn>;
+
+    fn set_params(&mut self, params: &DVector<f64>) {
+        let value = |idx: usize| params.get(idx).copied().unwrap_or(0.0);
+        self.params.log_scale_x = value(0);
+        self.params.bias_ut = Vector2::new(value(1), value(2));
+        if self.estimate_offset {
+            self.params.offset_rad = value(3);
+        }
+    }
+
+    fn params(&self) -> DVector<f64> {
+        let mut params = vec![
+            self.params.log_scale_x,
+            self.params.bias_ut.x,
+            self.params.bias_ut.y,
+        ];
+        if self.estimate_offset {
+            params.push(self.params.offset_rad);
+        }
+        DVector::from_vec(params)
+    }
+
+    fn residuals(&self) -> Option<DVector<f64>> {
+        Some(DVector::from_iterator(
+            self.level_ut.len(),
+            self.level_ut
+                .iter()
+                .zip(self.ref_heading_rad)
+                .map(|(level, &reference)| wrap_to_pi(self.params.heading_rad(level) - reference)),
+        ))
+    }
+
+    fn jacobian(&self) -> Option<DMatrix<f64>> {
+        let n_params = if self.estimate_offset { 4 } else { 3 };
+        let (scale_x, scale_y) = (self.params.scale_x(), self.params.scale_y());
+        let mut jacobian = DMatrix::zeros(self.level_ut.len(), n_params);
+        for (sample_idx, level) in self.level_ut.iter().enumerate() {
+            // ψ = atan2(−Y', X'): ∂ψ/∂X' = Y'/r², ∂ψ/∂Y' = −X'/r²; at the origin the
+            // heading has no derivative.
+            let corrected = self.params.corrected(level);
+            let radius_squared = corrected.norm_squared();
+            let (by_x, by_y) = if radius_squared > 0.0 {
+                (corrected.y / radius_squared, -corrected.x / radius_squared)
+            } else {
+                (0.0, 0.0)
+            };
+            // ∂X'/∂ln Sx = Sx·Xh and ∂Y'/∂ln Sx = −Sy·Yh, because Sy = 1/Sx.
+            jacobian[(sample_idx, 0)] = by_x * scale_x * level.x - by_y * scale_y * level.y;
+            jacobian[(sample_idx, 1)] = by_x;
+            jacobian[(sample_idx, 2)] = by_y;
+            if self.estimate_offset {
+                jacobian[(sample_idx, 3)] = 1.0;
+            }
+        }
+        Some(jacobian)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::angle::heading_difference_rad;
+    use crate::sim::rng::SplitMix64;
+    use levenberg_marquardt::differentiate_numerically;
+    use std::f64::consts::TAU;
+
+    /// The Eq. 6 truth in the gauge `Sx·Sy = 1`.
+    struct Truth {
+        scale: Vector2<f64>,
+        bias_ut: Vector2<f64>,
+        declination_rad: f64,
+    }
+
+    const HORIZONTAL_FIELD_UT: f64 = 21.0;
+
+    /// Levelled samples whose corrected field points at magnetic heading `ψ − D`, and
+    /// their reference headings `ψ` (true north) with Gaussian noise.
+    fn simulate(
+        truth: &Truth,
+        n_samples: usize,
+        ref_noise_deg: f64,
+        rng: &mut SplitMix64,
+    ) -> (Vec<Vector2<f64>>, Vec<f64>) {
+        (0..n_samples)
+            .map(|idx| {
+                let true_heading_rad = TAU * idx as f64 / n_samples as f64;
+                let magnetic_rad = true_heading_rad - truth.declination_rad;
+                let corrected =
+                    Vector2::new(magnetic_rad.cos(), -magnetic_rad.sin()) * HORIZONTAL_FIELD_UT;
+                let level = (corrected - truth.bias_ut).component_div(&truth.scale);
+                let reference = true_heading_rad + rng.gaussian() * ref_noise_deg.to_radians();
+                (level, reference)
+            })
+            .unzip()
+    }
+
+    fn hard_iron_truth() -> Truth {
+        // A 40 µT hard iron: the raw circle does not even contain the origin.
+        let scale = Vector2::new(1.12, 1.0 / 1.12);
+        Truth {
+            scale,
+            bias_ut: -scale.component_mul(&Vector2::new(40.0, -30.0)),
+            declination_rad: (-8.0f64).to_radians(),
+        }
+    }
+
+    fn check_recovery(
+        fit: &RefLsFit,
+        truth: &Truth,
+        scale_tol: f64,
+        bias_tol_ut: f64,
+        offset_tol_deg: f64,
+    ) {
+        assert!((fit.scale_x - truth.scale.x).abs() < scale_tol, "{fit:?}");
+        assert!((fit.scale_y - truth.scale.y).abs() < scale_tol, "{fit:?}");
+        assert!(
+            (fit.bias_x_ut - truth.bias_ut.x).abs() < bias_tol_ut,
+            "{fit:?}"
+        );
+        assert!(
+            (fit.bias_y_ut - truth.bias_ut.y).abs() < bias_tol_ut,
+            "{fit:?}"
+        );
+        let offset_error_deg =
+            heading_difference_rad(fit.heading_offset_rad, truth.declination_rad).to_degrees();
+        assert!(offset_error_deg.abs() < offset_tol_deg, "{fit:?}");
+    }
+
+    #[test]
+    fn recovers_the_parameters_exactly_without_noise() {
+        let truth = hard_iron_truth();
+        let (level_ut, reference) = simulate(&truth, 72, 0.0, &mut SplitMix64::new(1));
+        for declination_rad in [Some(truth.declination_rad), None] {
+            let options = RefLsOptions {
+                declination_rad,
+                ..RefLsOptions::default()
+            };
+            let fit = fit_reference_ls(&level_ut, &reference, &options).expect("fits");
+            check_recovery(&fit, &truth, 1e-9, 1e-7, 1e-7);
+            assert!(fit.residual_rms_deg < 1e-7);
+            assert_eq!(fit.heading_offset_estimated, declination_rad.is_none());
+            assert!((fit.horizontal_field_ut - HORIZONTAL_FIELD_UT).abs() < 1e-7);
+        }
+    }
+
+    #[test]
+    fn the_linear_start_alone_is_exact_without_noise() {
+        let truth = hard_iron_truth();
+        let (level_ut, reference) = simulate(&truth, 36, 0.0, &mut SplitMix64::new(1));
+        for declination_rad in [Some(truth.declination_rad), None] {
+            let start = two_step_start(&level_ut, &reference, declination_rad).expect("solves");
+            assert!((start.scale_x() - truth.scale.x).abs() < 1e-9, "{start:?}");
+            assert!((start.bias_ut - truth.bias_ut).norm() < 1e-8, "{start:?}");
+            assert!(heading_difference_rad(start.offset_rad, truth.declination_rad).abs() < 1e-10);
+        }
+    }
+
+    #[test]
+    fn recovers_the_parameters_closely_with_noisy_references() {
+        let truth = hard_iron_truth();
+        for seed in 0..20 {
+            let (level_ut, reference) = simulate(&truth, 720, 2.0, &mut SplitMix64::new(seed));
+            for declination_rad in [Some(truth.declination_rad), None] {
+                let options = RefLsOptions {
+                    declination_rad,
+                    ..RefLsOptions::default()
+                };
+                let fit = fit_reference_ls(&level_ut, &reference, &options).expect("fits");
+                check_recovery(&fit, &truth, 0.01, 0.5, 0.3);
+                assert!((fit.residual_rms_deg - 2.0).abs() < 0.2, "{fit:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn converges_from_a_poor_start() {
+        let identity = Params {
+            log_scale_x: 0.0,
+            bias_ut: Vector2::zeros(),
+            offset_rad: 0.0,
+        };
+        // A 40 µT hard iron with the declination known: the damped refinement alone
+        // gets there from the identity too, the two-step start only saves iterations.
+        let truth = hard_iron_truth();
+        let (level_ut, reference) = simulate(&truth, 360, 2.0, &mut SplitMix64::new(4));
+        let options = RefLsOptions {
+            declination_rad: Some(truth.declination_rad),
+            ..RefLsOptions::default()
+        };
+        let (from_identity, identity_report) =
+            refine(&level_ut, &reference, options.declination_rad, identity);
+        let start = two_step_start(&level_ut, &reference, options.declination_rad).expect("solves");
+        let (_, start_report) = refine(&level_ut, &reference, options.declination_rad, start);
+        eprintln!(
+            "40 µT hard iron, declination known: from the identity {} evaluations, ending \
+             {:.2} µT from the true bias; from the two-step start {} evaluations",
+            identity_report.number_of_evaluations,
+            (from_identity.bias_ut - truth.bias_ut).norm(),
+            start_report.number_of_evaluations,
+        );
+        let fit = fit_reference_ls(&level_ut, &reference, &options).expect("fits");
+        check_recovery(&fit, &truth, 0.01, 0.5, 0.3);
+
+        // The same hard iron and a sensor mounted a quarter turn off, with the offset
+        // estimated: started at the identity, Levenberg-Marquardt settles in a wrong
+        // minimum for some noise draws; the two-step fit needs no start and never does.
+        let scale = Vector2::new(1.12, 1.0 / 1.12);
+        let truth = Truth {
+            scale,
+            bias_ut: -scale.component_mul(&Vector2::new(40.0, 0.0)),
+            declination_rad: 90f64.to_radians(),
+        };
+        const N_SEEDS: u64 = 20;
+        let mut n_identity_failures = 0;
+        for seed in 0..N_SEEDS {
+            let (level_ut, reference) = simulate(&truth, 360, 2.0, &mut SplitMix64::new(seed));
+            let (from_identity, _) = refine(&level_ut, &reference, None, identity);
+            if (from_identity.bias_ut - truth.bias_ut).norm() > 5.0 {
+                n_identity_failures += 1;
+            }
+            let fit =
+                fit_reference_ls(&level_ut, &reference, &RefLsOptions::default()).expect("fits");
+            check_recovery(&fit, &truth, 0.01, 0.5, 0.3);
+        }
+        eprintln!(
+            "40 µT hard iron, sensor mounted 90° off, offset estimated, {N_SEEDS} noise draws: \
+             Levenberg-Marquardt from the identity ends in a wrong minimum {n_identity_failures} \
+             times, the two-step fit never"
+        );
+        assert!(n_identity_failures > 0);
+    }
+
+    #[test]
+    fn degenerate_inputs_are_errors_not_panics() {
+        let truth = hard_iron_truth();
+        let (level_ut, reference) = simulate(&truth, 72, 0.0, &mut SplitMix64::new(1));
+        let options = RefLsOptions::default();
+        assert!(matches!(
+            fit_reference_ls(&level_ut[..5], &reference[..5], &options),
+            Err(RefLsError::TooFewSamples { n_samples: 5, .. })
+        ));
+        assert!(matches!(
+            fit_reference_ls(&level_ut, &reference[..40], &options),
+            Err(RefLsError::LengthMismatch {
+                n_level: 72,
+                n_ref: 40
+            })
+        ));
+        let mut nan_level = level_ut.clone();
+        nan_level[9].x = f64::NAN;
+        assert!(matches!(
+            fit_reference_ls(&nan_level, &reference, &options),
+            Err(RefLsError::NonFinite { sample_idx: 9 })
+        ));
+        let mut nan_reference = reference.clone();
+        nan_reference[30] = f64::NAN;
+        assert!(matches!(
+            fit_reference_ls(&level_ut, &nan_reference, &options),
+            Err(RefLsError::NonFinite { sample_idx: 30 })
+        ));
+        let nan_declination = RefLsOptions {
+            declination_rad: Some(f64::NAN),
+            ..options
+        };
+        assert!(matches!(
+            fit_reference_ls(&level_ut, &reference, &nan_declination),
+            Err(RefLsError::InvalidDeclination { .. })
+        ));
+        // References over half a circle only.
+        let half: Vec<f64> = reference.iter().map(|heading| heading / 2.0).collect();
+        match fit_reference_ls(&level_ut, &half, &options) {
+            Err(error @ RefLsError::NoTurn { gap_from_deg, .. }) => {
+                assert!((170.0..=190.0).contains(&gap_from_deg), "{error}");
+                assert!(error.to_string().contains("turn that way"));
+            }
+            other => panic!("expected NoTurn, got {other:?}"),
+        }
+        // A field that does not change while the reference turns.
+        let still = vec![Vector2::new(12.0, -5.0); 72];
+        for declination_rad in [Some(0.0), None] {
+            let options = RefLsOptions {
+                declination_rad,
+                ..options
+            };
+            assert!(matches!(
+                fit_reference_ls(&still, &reference, &options),
+                Err(RefLsError::Degenerate { .. })
+            ));
+        }
+        // A mirrored y axis: the field turns the other way.
+        let mirrored: Vec<Vector2<f64>> = level_ut
+            .iter()
+            .map(|level| Vector2::new(level.x, -level.y))
+            .collect();
+        assert!(matches!(
+            fit_reference_ls(
+                &mirrored,
+                &reference,
+                &RefLsOptions {
+                    declination_rad: Some(0.0),
+                    ..options
+                }
+            ),
+            Err(RefLsError::Mirrored)
+        ));
+    }
+
+    #[test]
+    fn arbitrary_input_never_panics() {
+        let mut rng = SplitMix64::new(77);
+        for trial in 0..100 {
+            let n_samples = 10 + trial % 40;
+            let magnitude = [1e-12, 1.0, 40.0, 1e8, 1e200][trial % 5];
+            let level_ut: Vec<Vector2<f64>> = (0..n_samples)
+                .map(|_| Vector2::new(rng.gaussian(), rng.gaussian()) * magnitude)
+                .collect();
+            let reference: Vec<f64> = (0..n_samples)
+                .map(|_| rng.uniform_in(-10.0, 10.0))
+                .collect();
+            for declination_rad in [Some(0.2), None] {
+                let options = RefLsOptions {
+                    declination_rad,
+                    max_heading_gap_deg: 360.0,
+                };
+                if let Ok(fit) = fit_reference_ls(&level_ut, &reference, &options) {
+                    assert!(fit.residual_rms_deg.is_finite());
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_plane_form_gives_the_same_headings() {
+        let truth = hard_iron_truth();
+        let (level_ut, reference) = simulate(&truth, 72, 1.0, &mut SplitMix64::new(2));
+        let fit = fit_reference_ls(&level_ut, &reference, &RefLsOptions::default()).expect("fits");
+        let plane = fit.plane_calibration();
+        for level in &level_ut {
+            let via_plane = heading::heading_rad(plane.apply(*level), fit.heading_offset_rad);
+            assert!(heading_difference_rad(via_plane, fit.heading_rad(*level)).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn the_jacobian_matches_numerical_differentiation() {
+        let truth = hard_iron_truth();
+        let (level_ut, reference) = simulate(&truth, 36, 2.0, &mut SplitMix64::new(3));
+        let mut problem = HeadingProblem {
+            level_ut: &level_ut,
+            ref_heading_rad: &reference,
+            params: Params {
+                log_scale_x: 0.1,
+                bias_ut: Vector2::new(-40.0, 30.0),
+                offset_rad: -0.1,
+            },
+            estimate_offset: true,
+        };
+        let numerical = differentiate_numerically(&mut problem).expect("finite");
+        let analytic = problem.jacobian().expect("finite");
+        let worst = (numerical - &analytic).abs().max();
+        assert!(worst < 1e-6, "worst difference {worst}");
+    }
+}

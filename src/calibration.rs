@@ -1,0 +1,669 @@
+//! Every calibration method on one log, side by side, on a train/check split by time.
+//!
+//! The 2007 paper calibrates on one run and checks on another; so does this: samples up
+//! to `train_until_s` train each method, the rest check it against the reference
+//! heading. The methods:
+//!
+//! - **min/max** (Eq. 6-7, [`crate::calib::minmax`]): centre and axis scales of the
+//!   levelled raw field;
+//! - **ellipse** ([`crate::calib::plane`]): the tilt-aware level-plane fit, a general
+//!   conic with cross-axis soft iron, the method for flat, circle-only data;
+//! - **ellipsoid** ([`crate::calib::ellipsoid`]): the full 3D model of Eq. 5, which
+//!   needs the device turned through many orientations;
+//! - **reference LS** (Eq. 8, [`crate::calib::refls`]): min/max's parameters fitted to
+//!   the reference heading itself.
+//!
+//! Every heading gets the declination: the user's, or the World Magnetic Model's at the
+//! log's first position and date ([`crate::calib::wmm`]), which also gives the expected
+//! field that a wrong unit or a nearby magnet stands out against.
+
+use nalgebra::{Vector2, Vector3};
+use serde::Serialize;
+
+use crate::analysis::AnalysisError;
+use crate::angle::heading_difference_rad;
+use crate::calib::ellipsoid::{fit_ellipsoid, EllipsoidFit, EllipsoidOptions};
+use crate::calib::heading::heading_rad;
+use crate::calib::minmax::MinMaxCalibration;
+use crate::calib::model::FieldCalibration;
+use crate::calib::plane::{fit_plane, PlaneFit, PlaneOptions};
+use crate::calib::refls::{fit_reference_ls, RefLsFit, RefLsOptions};
+use crate::calib::tilt::Tilt;
+use crate::calib::wmm::{date_of_unix_s, expected_field, ExpectedField};
+use crate::io::{Diagnostics, ImportReport};
+use crate::recording::Recording;
+use crate::reference::{choose_reference, ReferenceSource, DEFAULT_MIN_COURSE_SPEED_MPS};
+use crate::stats::HeadingErrorStats;
+
+/// A calibration method.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Method {
+    MinMax,
+    Ellipse,
+    Ellipsoid,
+    RefLs,
+}
+
+impl Method {
+    pub const ALL: [Method; 4] = [
+        Method::MinMax,
+        Method::Ellipse,
+        Method::Ellipsoid,
+        Method::RefLs,
+    ];
+
+    pub fn label(self) -> &'static str {
+        match self {
+            Method::MinMax => "min/max",
+            Method::Ellipse => "ellipse (tilt-aware 2D)",
+            Method::Ellipsoid => "ellipsoid (3D)",
+            Method::RefLs => "reference LS (Eq. 8)",
+        }
+    }
+}
+
+/// Where the declination comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DeclinationChoice {
+    /// The World Magnetic Model at the log's first position and date, else zero.
+    Auto,
+    Degrees(f64),
+}
+
+/// Choices that change the result.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CalibrationOptions {
+    pub methods: Vec<Method>,
+    /// Samples up to this time train the methods; later ones check them. `None` splits
+    /// the span that has a reference heading in half (or trains on everything when
+    /// there is no reference).
+    pub train_until_s: Option<f64>,
+    pub declination: DeclinationChoice,
+    /// Window over which specific force is averaged to give roll and pitch (s).
+    pub gravity_window_s: f64,
+    /// GPS course is a reference heading only at or above this speed.
+    pub min_course_speed_mps: f64,
+    /// Where the log was recorded (latitude, longitude in degrees), for logs without a
+    /// GNSS fix (indoors): the magnetic model needs a place.
+    pub position_deg: Option<(f64, f64)>,
+}
+
+impl Default for CalibrationOptions {
+    fn default() -> Self {
+        CalibrationOptions {
+            methods: Method::ALL.to_vec(),
+            train_until_s: None,
+            declination: DeclinationChoice::Auto,
+            gravity_window_s: 1.0,
+            min_course_speed_mps: DEFAULT_MIN_COURSE_SPEED_MPS,
+            position_deg: None,
+        }
+    }
+}
+
+/// The most train samples a fit sees (evenly thinned beyond).
+const MAX_FIT_SAMPLES: usize = 20_000;
+/// The longest gap (s) across which a reference heading is interpolated: a 1 Hz GPS
+/// course still counts.
+const MAX_REFERENCE_GAP_S: f64 = 1.5;
+/// A measured field this many times off the expected one is a unit or a magnet problem.
+const FIELD_RATIO_WARNING: f64 = 2.0;
+
+/// The declination used, and where it came from.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct DeclinationUsed {
+    pub declination_deg: f64,
+    pub source: String,
+}
+
+/// One method's result.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct MethodReport {
+    pub method: Method,
+    pub label: &'static str,
+    /// The fitted parameters, as the method reports them; absent when it failed.
+    pub parameters: Option<MethodParameters>,
+    /// Why the method could not be fitted, and what to do.
+    pub error: Option<String>,
+    /// Heading error against the reference on the train and check parts.
+    pub heading_error_train: Option<HeadingErrorStats>,
+    pub heading_error_check: Option<HeadingErrorStats>,
+}
+
+/// The parameters of each method, serialised as that method's own result.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(untagged)]
+pub enum MethodParameters {
+    MinMax(MinMaxCalibration),
+    Ellipse(Box<PlaneFit>),
+    Ellipsoid(Box<EllipsoidFit>),
+    RefLs(RefLsFit),
+}
+
+/// What `compass-pdr calibrate --json` prints and the page shows.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CalibrationReport {
+    pub file_name: String,
+    pub format: &'static str,
+    pub n_mag_samples: usize,
+    /// Magnetometer samples with a tilt (an accelerometer sample near them, or none
+    /// needed).
+    pub n_samples_used: usize,
+    pub n_train: usize,
+    pub n_check: usize,
+    pub train_until_s: Option<f64>,
+    pub reference: Option<ReferenceSource>,
+    pub declination: DeclinationUsed,
+    pub expected_field: Option<ExpectedField>,
+    /// Mean raw field magnitude, to set beside the expected one.
+    pub mean_raw_field_ut: f64,
+    /// The uncalibrated heading (levelled raw field plus declination) as a baseline.
+    pub raw_heading_error_train: Option<HeadingErrorStats>,
+    pub raw_heading_error_check: Option<HeadingErrorStats>,
+    pub methods: Vec<MethodReport>,
+    /// The method with the lowest check RMS (train RMS without a check part).
+    pub best: Option<Method>,
+    pub notes: Vec<String>,
+    pub diagnostics: Diagnostics,
+}
+
+/// An ellipse as (centre, the matrix mapping a circle of the radius onto it, radius).
+pub type FittedEllipse = (Vector2<f64>, nalgebra::Matrix2<f64>, f64);
+
+/// The report with the per-sample series the plots draw.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CalibrationAnalysis {
+    pub report: CalibrationReport,
+    pub t_s: Vec<f64>,
+    /// Levelled raw field, and the same after the best level-plane correction (the
+    /// ellipse method, else min/max).
+    pub level_raw_ut: Vec<Vector2<f64>>,
+    pub level_corrected_ut: Vec<Vector2<f64>>,
+    /// The ellipse that correction undoes, as centre, the matrix mapping the circle of
+    /// radius `radius_ut` onto it, and the radius.
+    pub fitted_ellipse: Option<FittedEllipse>,
+    pub ref_heading_deg: Vec<Option<f64>>,
+    pub raw_heading_deg: Vec<f64>,
+    /// Each fitted method's heading per sample.
+    pub headings_deg: Vec<(Method, Vec<f64>)>,
+    /// |B| raw and after the best 3D correction available.
+    pub field_raw_ut: Vec<f64>,
+    pub field_corrected_ut: Vec<f64>,
+}
+
+impl CalibrationAnalysis {
+    /// The 3D calibration to store in a device (C snippet, MotionCal packet): of the
+    /// ellipse and ellipsoid methods, the one with the lower check (else train) heading
+    /// RMS; without a reference, the ellipsoid unless it had to fall back.
+    pub fn device_calibration(&self) -> Option<(Method, FieldCalibration)> {
+        let rms_of = |report: &MethodReport| {
+            report
+                .heading_error_check
+                .or(report.heading_error_train)
+                .map(|stats| stats.rms_deg)
+        };
+        let candidates: Vec<(Method, FieldCalibration, Option<f64>, bool)> = self
+            .report
+            .methods
+            .iter()
+            .filter_map(|report| match &report.parameters {
+                Some(MethodParameters::Ellipsoid(fit)) => Some((
+                    report.method,
+                    fit.calibration,
+                    rms_of(report),
+                    fit.fallback.is_some(),
+                )),
+                Some(MethodParameters::Ellipse(fit)) => Some((
+                    report.method,
+                    FieldCalibration {
+                        hard_iron_ut: fit.hard_iron_ut,
+                        soft_iron: fit.soft_iron,
+                        field_ut: fit.horizontal_field_ut.hypot(fit.vertical_field_ut),
+                    },
+                    rms_of(report),
+                    false,
+                )),
+                _ => None,
+            })
+            .collect();
+        let by_rms = candidates
+            .iter()
+            .filter_map(|(method, calibration, rms_deg, _)| {
+                Some((*method, *calibration, (*rms_deg)?))
+            })
+            .min_by(|a, b| a.2.total_cmp(&b.2))
+            .map(|(method, calibration, _)| (method, calibration));
+        by_rms.or_else(|| {
+            let ellipsoid = candidates
+                .iter()
+                .find(|candidate| candidate.0 == Method::Ellipsoid && !candidate.3);
+            let ellipse = candidates
+                .iter()
+                .find(|candidate| candidate.0 == Method::Ellipse);
+            ellipsoid
+                .or(ellipse)
+                .map(|candidate| (candidate.0, candidate.1))
+        })
+    }
+}
+
+/// Runs the chosen methods on an imported log.
+pub fn calibrate(
+    report: ImportReport,
+    options: &CalibrationOptions,
+) -> Result<CalibrationAnalysis, AnalysisError> {
+    let ImportReport {
+        file_name,
+        format,
+        recording,
+        diagnostics,
+        header,
+        n_data_lines,
+        notes: import_notes,
+    } = report;
+    let mut notes: Vec<String> = import_notes;
+    let samples = crate::analysis::tilted_samples(
+        &file_name,
+        &recording,
+        header.as_ref(),
+        &diagnostics,
+        n_data_lines,
+        options.gravity_window_s,
+    )?;
+    notes.extend(samples.notes.iter().cloned());
+
+    // Reference and declination.
+    let reference = choose_reference(&recording, options.min_course_speed_mps);
+    let ref_heading_rad: Vec<Option<f64>> = samples
+        .t_s
+        .iter()
+        .map(|&t_s| {
+            reference.as_ref().and_then(|reference| {
+                reference
+                    .heading_rad
+                    .interpolate_angle_at(t_s, MAX_REFERENCE_GAP_S)
+            })
+        })
+        .collect();
+    let expected = expected_field_of(&recording, options.position_deg, &mut notes);
+    let declination = match (options.declination, &expected) {
+        (DeclinationChoice::Degrees(declination_deg), _) => DeclinationUsed {
+            declination_deg,
+            source: "given by the user".to_string(),
+        },
+        (DeclinationChoice::Auto, Some(expected)) => DeclinationUsed {
+            declination_deg: expected.declination_deg,
+            source: format!(
+                "{} on {} at the log's first position",
+                expected.model, expected.model_date
+            ),
+        },
+        (DeclinationChoice::Auto, None) => {
+            if reference
+                .as_ref()
+                .is_some_and(|reference| reference.source != ReferenceSource::Column)
+            {
+                notes.push(
+                    "no position and date for the magnetic model, so the declination is taken as 0°; give \
+                     --declination DEG for true headings"
+                        .to_string(),
+                );
+            }
+            DeclinationUsed {
+                declination_deg: 0.0,
+                source: "none known (0°)".to_string(),
+            }
+        }
+    };
+    let declination_rad = declination.declination_deg.to_radians();
+
+    // The train/check split.
+    let train_until_s = options.train_until_s.or_else(|| {
+        let referenced: Vec<f64> = samples
+            .t_s
+            .iter()
+            .zip(&ref_heading_rad)
+            .filter(|(_, reference)| reference.is_some())
+            .map(|(&t_s, _)| t_s)
+            .collect();
+        match (referenced.first(), referenced.last()) {
+            (Some(first_s), Some(last_s)) if last_s > first_s => Some((first_s + last_s) / 2.0),
+            _ => None,
+        }
+    });
+    let is_train: Vec<bool> = samples
+        .t_s
+        .iter()
+        .map(|&t_s| train_until_s.is_none_or(|until_s| t_s <= until_s))
+        .collect();
+    let n_train = is_train.iter().filter(|&&train| train).count();
+    let n_check = is_train.len() - n_train;
+    // The fits see at most MAX_FIT_SAMPLES of the train samples, evenly spread: more add
+    // little to parameters fitted from thousands of samples, and cost the page seconds.
+    let fit_stride = n_train.div_ceil(MAX_FIT_SAMPLES).max(1);
+    let mut n_train_seen = 0usize;
+    let is_fit: Vec<bool> = is_train
+        .iter()
+        .map(|&train| {
+            let fit = train && n_train_seen.is_multiple_of(fit_stride);
+            n_train_seen += usize::from(train);
+            fit
+        })
+        .collect();
+    if fit_stride > 1 {
+        notes.push(format!(
+            "the methods were fitted to every {fit_stride}th train sample ({} of {n_train})",
+            n_train.div_ceil(fit_stride)
+        ));
+    }
+    let train = |values: &[Vector3<f64>]| -> Vec<Vector3<f64>> {
+        values
+            .iter()
+            .zip(&is_fit)
+            .filter(|(_, &train)| train)
+            .map(|(value, _)| *value)
+            .collect()
+    };
+    let mag_train = train(&samples.mag_ut);
+    let tilt_train: Vec<Tilt> = samples
+        .tilt
+        .iter()
+        .zip(&is_fit)
+        .filter(|(_, &train)| train)
+        .map(|(tilt, _)| *tilt)
+        .collect();
+    let level_raw_ut: Vec<Vector2<f64>> = samples
+        .mag_ut
+        .iter()
+        .zip(&samples.tilt)
+        .map(|(&mag, tilt)| tilt.level(mag))
+        .collect();
+    let level_train: Vec<Vector2<f64>> = level_raw_ut
+        .iter()
+        .zip(&is_fit)
+        .filter(|(_, &train)| train)
+        .map(|(level, _)| *level)
+        .collect();
+
+    // Heading-error statistics on each part.
+    let stats_of = |headings_rad: &[f64], want_train: bool| {
+        HeadingErrorStats::from_errors_rad(
+            headings_rad
+                .iter()
+                .zip(&ref_heading_rad)
+                .zip(&is_train)
+                .filter_map(|((&heading_rad, &reference_rad), &train)| {
+                    (train == want_train)
+                        .then_some(heading_difference_rad(heading_rad, reference_rad?))
+                }),
+        )
+    };
+
+    let raw_heading_rad: Vec<f64> = level_raw_ut
+        .iter()
+        .map(|&level| heading_rad(level, declination_rad))
+        .collect();
+    let mut method_reports = Vec::new();
+    let mut headings_deg = Vec::new();
+    let mut plane_correction: Option<(Vec<Vector2<f64>>, Option<FittedEllipse>)> = None;
+    let mut field_corrected_ut: Option<Vec<f64>> = None;
+    for &method in &options.methods {
+        let fitted: Result<(MethodParameters, Vec<f64>), String> = match method {
+            Method::MinMax => MinMaxCalibration::fit(&level_train)
+                .map_err(|error| error.to_string())
+                .map(|calibration| {
+                    let headings: Vec<f64> = level_raw_ut
+                        .iter()
+                        .map(|&level| heading_rad(calibration.apply(level), declination_rad))
+                        .collect();
+                    if plane_correction.is_none() {
+                        let corrected = level_raw_ut
+                            .iter()
+                            .map(|&level| calibration.apply(level))
+                            .collect();
+                        let ellipse = (
+                            Vector2::new(calibration.center_x_ut, calibration.center_y_ut),
+                            nalgebra::Matrix2::new(
+                                calibration.semi_axis_x_ut,
+                                0.0,
+                                0.0,
+                                calibration.semi_axis_y_ut,
+                            ) / calibration.corrected_radius_ut(),
+                            calibration.corrected_radius_ut(),
+                        );
+                        plane_correction = Some((corrected, Some(ellipse)));
+                    }
+                    (MethodParameters::MinMax(calibration), headings)
+                }),
+            Method::Ellipse => {
+                let plane_options = PlaneOptions {
+                    inclination_deg: expected.as_ref().map(|expected| expected.inclination_deg),
+                    ..PlaneOptions::default()
+                };
+                fit_plane(&mag_train, &tilt_train, &plane_options)
+                    .map_err(|error| error.to_string())
+                    .map(|fit| {
+                        let headings: Vec<f64> = samples
+                            .mag_ut
+                            .iter()
+                            .zip(&samples.tilt)
+                            .map(|(&mag, &tilt)| fit.heading_rad(mag, tilt, declination_rad))
+                            .collect();
+                        let corrected: Vec<Vector2<f64>> = samples
+                            .mag_ut
+                            .iter()
+                            .zip(&samples.tilt)
+                            .map(|(&mag, &tilt)| fit.level_corrected_ut(mag, tilt))
+                            .collect();
+                        // `fit.plane` applies to level(mag − hard iron); over levelled raw
+                        // points the same ellipse sits at its centre plus the level hard iron
+                        // (exact for a level device, close for small tilts).
+                        let center_ut = fit.plane.center_ut
+                            + Vector2::new(fit.hard_iron_ut.x, fit.hard_iron_ut.y);
+                        let ellipse = fit
+                            .plane
+                            .transform
+                            .try_inverse()
+                            .map(|inverse| (center_ut, inverse, fit.plane.radius_ut));
+                        // The ellipse method's correction is the one the circle plot shows.
+                        plane_correction = Some((corrected, ellipse));
+                        (MethodParameters::Ellipse(Box::new(fit)), headings)
+                    })
+            }
+            Method::Ellipsoid => {
+                let ellipsoid_options = EllipsoidOptions {
+                    expected_field_ut: expected.as_ref().map(|expected| expected.total_ut),
+                    ..EllipsoidOptions::default()
+                };
+                fit_ellipsoid(&mag_train, &ellipsoid_options)
+                    .map_err(|error| error.to_string())
+                    .map(|fit| {
+                        let calibration = fit.calibration;
+                        let headings: Vec<f64> = samples
+                            .mag_ut
+                            .iter()
+                            .zip(&samples.tilt)
+                            .map(|(&mag, tilt)| {
+                                heading_rad(tilt.level(calibration.apply(mag)), declination_rad)
+                            })
+                            .collect();
+                        field_corrected_ut = Some(
+                            samples
+                                .mag_ut
+                                .iter()
+                                .map(|&mag| calibration.apply(mag).norm())
+                                .collect(),
+                        );
+                        (MethodParameters::Ellipsoid(Box::new(fit)), headings)
+                    })
+            }
+            Method::RefLs => {
+                let pairs: (Vec<Vector2<f64>>, Vec<f64>) = level_raw_ut
+                    .iter()
+                    .zip(&ref_heading_rad)
+                    .zip(&is_fit)
+                    .filter_map(|((&level, &reference), &train)| {
+                        Some((level, reference?)).filter(|_| train)
+                    })
+                    .unzip();
+                if pairs.0.is_empty() {
+                    Err("needs a reference heading (a ref_heading_deg column, or GPS course while moving)".to_string())
+                } else {
+                    let refls_options = RefLsOptions {
+                        declination_rad: Some(declination_rad),
+                        ..RefLsOptions::default()
+                    };
+                    fit_reference_ls(&pairs.0, &pairs.1, &refls_options)
+                        .map_err(|error| error.to_string())
+                        .map(|fit| {
+                            let headings: Vec<f64> = level_raw_ut
+                                .iter()
+                                .map(|&level| fit.heading_rad(level))
+                                .collect();
+                            (MethodParameters::RefLs(fit), headings)
+                        })
+                }
+            }
+        };
+        match fitted {
+            Ok((parameters, headings_rad)) => {
+                method_reports.push(MethodReport {
+                    method,
+                    label: method.label(),
+                    parameters: Some(parameters),
+                    error: None,
+                    heading_error_train: stats_of(&headings_rad, true),
+                    heading_error_check: stats_of(&headings_rad, false),
+                });
+                headings_deg.push((
+                    method,
+                    headings_rad
+                        .iter()
+                        .map(|heading| heading.to_degrees())
+                        .collect(),
+                ));
+            }
+            Err(reason) => method_reports.push(MethodReport {
+                method,
+                label: method.label(),
+                parameters: None,
+                error: Some(reason),
+                heading_error_train: None,
+                heading_error_check: None,
+            }),
+        }
+    }
+
+    if method_reports.iter().all(|report| report.error.is_some()) {
+        let reasons: Vec<String> = method_reports
+            .iter()
+            .filter_map(|report| Some(format!("{}: {}", report.label, report.error.as_deref()?)))
+            .collect();
+        return Err(AnalysisError::NoMethodFitted {
+            file_name,
+            reasons: reasons.join(" "),
+        });
+    }
+    let best = method_reports
+        .iter()
+        .filter_map(|report| {
+            let rms_deg = report
+                .heading_error_check
+                .or(report.heading_error_train)?
+                .rms_deg;
+            Some((report.method, rms_deg))
+        })
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .map(|(method, _)| method);
+
+    let field_raw_ut: Vec<f64> = samples.mag_ut.iter().map(|mag| mag.norm()).collect();
+    let mean_raw_field_ut = field_raw_ut.iter().sum::<f64>() / field_raw_ut.len().max(1) as f64;
+    if let Some(expected) = &expected {
+        let ratio = mean_raw_field_ut / expected.total_ut;
+        if !(1.0 / FIELD_RATIO_WARNING..=FIELD_RATIO_WARNING).contains(&ratio) {
+            notes.push(format!(
+                "the raw field averages {mean_raw_field_ut:.1} µT where {:.1} µT is expected: wrong units, or a magnet \
+                 or iron close to the sensor",
+                expected.total_ut
+            ));
+        }
+    }
+    if reference.is_none() {
+        notes.push(
+            "the log has no reference heading (a ref_heading_deg column, or GPS course while moving), so heading \
+             errors cannot be computed"
+                .to_string(),
+        );
+    }
+    let (level_corrected_ut, fitted_ellipse) =
+        plane_correction.unwrap_or_else(|| (level_raw_ut.clone(), None));
+    Ok(CalibrationAnalysis {
+        report: CalibrationReport {
+            file_name,
+            format,
+            n_mag_samples: recording.mag_in_body_ut.len(),
+            n_samples_used: samples.t_s.len(),
+            n_train,
+            n_check,
+            train_until_s,
+            reference: reference.map(|reference| reference.source),
+            declination,
+            expected_field: expected,
+            mean_raw_field_ut,
+            raw_heading_error_train: stats_of(&raw_heading_rad, true),
+            raw_heading_error_check: stats_of(&raw_heading_rad, false),
+            methods: method_reports,
+            best,
+            notes,
+            diagnostics,
+        },
+        t_s: samples.t_s,
+        level_raw_ut,
+        level_corrected_ut,
+        fitted_ellipse,
+        ref_heading_deg: ref_heading_rad
+            .iter()
+            .map(|reference| reference.map(f64::to_degrees))
+            .collect(),
+        raw_heading_deg: raw_heading_rad
+            .iter()
+            .map(|heading| heading.to_degrees())
+            .collect(),
+        headings_deg,
+        field_corrected_ut: field_corrected_ut.unwrap_or_default(),
+        field_raw_ut,
+    })
+}
+
+/// The expected field at the log's first position and date, with a note when there is
+/// none or the model warns.
+fn expected_field_of(
+    recording: &Recording,
+    position_deg: Option<(f64, f64)>,
+    notes: &mut Vec<String>,
+) -> Option<ExpectedField> {
+    let given = position_deg.map(|(lat_deg, lon_deg)| (lat_deg, lon_deg, 0.0));
+    let position = given.or_else(|| {
+        recording
+            .gnss
+            .values
+            .iter()
+            .find_map(|fix| Some((fix.lat_deg?, fix.lon_deg?, fix.alt_m.unwrap_or(0.0))))
+    });
+    let date = recording.start_unix_s.and_then(date_of_unix_s);
+    let (Some((lat_deg, lon_deg, alt_m)), Some(date)) = (position, date) else {
+        return None;
+    };
+    match expected_field(lat_deg, lon_deg, alt_m, date) {
+        Ok(expected) => {
+            notes.extend(expected.warnings.iter().map(ToString::to_string));
+            Some(expected)
+        }
+        Err(error) => {
+            notes.push(format!("no magnetic model value: {error}"));
+            None
+        }
+    }
+}

@@ -1,0 +1,194 @@
+//! Field magnitude |B| over time, raw and corrected, against the field the World
+//! Magnetic Model expects there ([`crate::calib::wmm`]).
+//!
+//! A good calibration turns the raw magnitude, which swings with orientation when hard
+//! and soft iron are present, into a flat line; the WMM value says where that line
+//! should lie. Indoors, steel in the building moves it by several µT, so a corrected
+//! line that is flat but off the WMM value points at the environment, not the fit.
+//! Without a position and date there is no WMM value, and the caption says so.
+
+use plotters::coord::Shift;
+use plotters::prelude::*;
+
+use super::circle_fit::{CORRECTED_COLOR, RAW_COLOR};
+use super::{thinned_indices, PlotError, MAX_POINTS_PER_SERIES};
+
+const EXPECTED_COLOR: RGBColor = RGBColor(40, 150, 70);
+
+/// Draws |B| over time: `raw_ut` and `corrected_ut` are magnitudes at times `t_s`
+/// (lengths may differ; the shorter one sets how many samples are drawn, and samples
+/// that are not finite are left out). `expected_ut` is the WMM total intensity, drawn
+/// as a horizontal line, or `None` when it is not known.
+pub fn draw_field_magnitude<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    t_s: &[f64],
+    raw_ut: &[f64],
+    corrected_ut: &[f64],
+    expected_ut: Option<f64>,
+) -> Result<(), PlotError> {
+    let error = PlotError::from_backend::<DrawingAreaErrorKind<DB::ErrorType>>("field-magnitude");
+    let expected_ut = expected_ut.filter(|value| value.is_finite());
+
+    // Each series as (t, |B|), thinned for drawing, without non-finite samples.
+    let series = |magnitudes_ut: &[f64]| -> Vec<(f64, f64)> {
+        let n_samples = t_s.len().min(magnitudes_ut.len());
+        thinned_indices(n_samples, MAX_POINTS_PER_SERIES)
+            .filter_map(|idx| {
+                let point = (*t_s.get(idx)?, *magnitudes_ut.get(idx)?);
+                (point.0.is_finite() && point.1.is_finite()).then_some(point)
+            })
+            .collect()
+    };
+    let raw = series(raw_ut);
+    let corrected = series(corrected_ut);
+
+    let all_points = || raw.iter().chain(&corrected);
+    let (mut t_first_s, mut t_last_s) = (f64::INFINITY, f64::NEG_INFINITY);
+    let (mut low_ut, mut high_ut) = (f64::INFINITY, f64::NEG_INFINITY);
+    for &(time_s, magnitude_ut) in all_points() {
+        t_first_s = t_first_s.min(time_s);
+        t_last_s = t_last_s.max(time_s);
+        low_ut = low_ut.min(magnitude_ut);
+        high_ut = high_ut.max(magnitude_ut);
+    }
+    if let Some(value) = expected_ut {
+        low_ut = low_ut.min(value);
+        high_ut = high_ut.max(value);
+    }
+    if !(t_first_s.is_finite() && t_last_s.is_finite()) {
+        (t_first_s, t_last_s) = (0.0, 1.0);
+    }
+    if !(low_ut.is_finite() && high_ut.is_finite()) {
+        (low_ut, high_ut) = (0.0, 100.0);
+    }
+    let time_range = t_first_s..t_last_s.max(t_first_s + 1e-3);
+    // A margin of a tenth of the span, and at least 1 µT, so a flat line is visible.
+    let margin_ut = ((high_ut - low_ut) * 0.1).max(1.0);
+    let magnitude_range = (low_ut - margin_ut).max(0.0)..high_ut + margin_ut;
+
+    let caption = match expected_ut {
+        Some(value) => format!("Field magnitude |B| against WMM {value:.1} µT"),
+        None => "Field magnitude |B| (no WMM value: needs a position and a date)".to_owned(),
+    };
+    let mut chart = ChartBuilder::on(area)
+        .caption(caption, ("sans-serif", 16))
+        .margin(12)
+        .x_label_area_size(36)
+        .y_label_area_size(48)
+        .build_cartesian_2d(time_range.clone(), magnitude_range)
+        .map_err(&error)?;
+    chart
+        .configure_mesh()
+        .x_desc("time (s)")
+        .y_desc("|B| (µT)")
+        .light_line_style(WHITE.mix(0.0))
+        .draw()
+        .map_err(&error)?;
+
+    chart
+        .draw_series(LineSeries::new(raw, RAW_COLOR.stroke_width(1)))
+        .map_err(&error)?
+        .label("raw |B|")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], RAW_COLOR.stroke_width(2)));
+    chart
+        .draw_series(LineSeries::new(corrected, CORRECTED_COLOR.stroke_width(1)))
+        .map_err(&error)?
+        .label("corrected |B|")
+        .legend(|(x, y)| {
+            PathElement::new(vec![(x, y), (x + 16, y)], CORRECTED_COLOR.stroke_width(2))
+        });
+    if let Some(value) = expected_ut {
+        chart
+            .draw_series(DashedLineSeries::new(
+                [(time_range.start, value), (time_range.end, value)],
+                8,
+                5,
+                EXPECTED_COLOR.stroke_width(2),
+            ))
+            .map_err(&error)?
+            .label(format!("WMM {value:.1} µT"))
+            .legend(|(x, y)| {
+                PathElement::new(vec![(x, y), (x + 16, y)], EXPECTED_COLOR.stroke_width(2))
+            });
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK.mix(0.3))
+        .draw()
+        .map_err(&error)?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A turn in a 48 µT field with 20 µT of hard iron: raw |B| swings, corrected is flat.
+    fn turn() -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+        let t_s: Vec<f64> = (0..500).map(|idx| idx as f64 * 0.02).collect();
+        let raw_ut = t_s
+            .iter()
+            .map(|&time_s| {
+                let angle_rad = time_s * 0.6;
+                let (x_ut, y_ut) = (34.0 * angle_rad.cos() + 20.0, 34.0 * angle_rad.sin());
+                (x_ut * x_ut + y_ut * y_ut + 34.0 * 34.0).sqrt()
+            })
+            .collect();
+        let corrected_ut = t_s
+            .iter()
+            .map(|&time_s| 48.1 + 0.2 * time_s.sin())
+            .collect();
+        (t_s, raw_ut, corrected_ut)
+    }
+
+    fn draw(t_s: &[f64], raw_ut: &[f64], corrected_ut: &[f64], expected_ut: Option<f64>) -> String {
+        let mut svg = String::new();
+        {
+            let root = SVGBackend::with_string(&mut svg, (800, 400)).into_drawing_area();
+            root.fill(&WHITE).expect("fillable");
+            draw_field_magnitude(&root, t_s, raw_ut, corrected_ut, expected_ut).expect("drawable");
+            root.present().expect("presentable");
+        }
+        svg
+    }
+
+    #[test]
+    fn the_plot_draws_both_series_and_the_wmm_line() {
+        let (t_s, raw_ut, corrected_ut) = turn();
+        let svg = draw(&t_s, &raw_ut, &corrected_ut, Some(48.76));
+        assert!(svg.starts_with("<svg"));
+        assert!(svg.contains("Field magnitude |B| against WMM 48.8 µT"));
+        assert!(svg.contains("raw |B|") && svg.contains("corrected |B|"));
+        assert!(svg.contains("WMM 48.8 µT"), "the line's label");
+        // Raw and corrected are one polyline each (plus the legend's); the dashed WMM
+        // line is drawn as short segments.
+        assert!(svg.matches("<polyline").count() >= 4, "{svg}");
+        assert!(svg.contains("stroke=\"#289646\""), "the WMM line's colour");
+    }
+
+    #[test]
+    fn without_a_wmm_value_the_caption_says_why() {
+        let (t_s, raw_ut, corrected_ut) = turn();
+        let svg = draw(&t_s, &raw_ut, &corrected_ut, None);
+        assert!(svg.contains("no WMM value: needs a position and a date"));
+        assert!(!svg.contains("#289646"), "no WMM line");
+        assert!(svg.contains("corrected |B|"));
+    }
+
+    #[test]
+    fn empty_uneven_and_non_finite_input_still_draws() {
+        let svg = draw(&[], &[], &[], Some(f64::NAN));
+        assert!(svg.contains("no WMM value"));
+        let svg = draw(
+            &[0.0, 1.0, 2.0],
+            &[50.0, f64::NAN],
+            &[48.0, 48.0, 48.0, 48.0],
+            None,
+        );
+        assert!(svg.contains("Field magnitude"));
+        let svg = draw(&[5.0], &[50.0], &[48.0], Some(49.0));
+        assert!(svg.contains("WMM 49.0 µT"));
+    }
+}
