@@ -43,9 +43,10 @@
 //!
 //! ## Limits (today)
 //!
-//! The importer reads the canonical CSV only, and calibration is the min/max method of
-//! the 2007 paper, which needs a full level turn and cannot correct cross-axis soft
-//! iron.
+//! Calibration is field-domain only (min/max, a tilt-aware ellipse, a 3D ellipsoid,
+//! reference-heading least squares); the heading-dependent deviation that remains (a
+//! car's own field, a mount's misalignment) waits for the heading models. Tilt comes from
+//! the accelerometer averaged over a second, so fast sway is not compensated.
 
 pub mod align;
 pub mod analysis;

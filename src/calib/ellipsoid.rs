@@ -159,8 +159,9 @@ pub enum EllipsoidModel {
     Diagonal,
     /// Hard iron and a symmetric `A` (`magcal`'s `sym`).
     Full,
-    /// For a band of data (every heading, little tilt): hard iron, a symmetric 2×2
-    /// soft iron in the band's plane, and across it the mean of the in-plane scales.
+    /// For a band of data (every heading, little tilt): hard iron and a symmetric `A`
+    /// whose scale along the band's axis (the data's direction of least spread) is
+    /// tied to the mean of its two in-plane scales, five free entries instead of six.
     /// Not in `magcal`; the fallback of the others when the band is narrow.
     Band,
     /// The simplest of sphere, diagonal and full whose residual is close to the full
@@ -175,7 +176,9 @@ impl EllipsoidModel {
             EllipsoidModel::Sphere => "sphere (hard iron and one scale)",
             EllipsoidModel::Diagonal => "diagonal (hard iron and axis scales)",
             EllipsoidModel::Full => "full (hard iron and symmetric soft iron)",
-            EllipsoidModel::Band => "band (hard iron and soft iron in the band's plane)",
+            EllipsoidModel::Band => {
+                "band (hard iron and soft iron, the scale across the band tied to the others)"
+            }
             EllipsoidModel::Auto => "auto",
         }
     }
@@ -1149,8 +1152,9 @@ fn generators(model: EllipsoidModel, geometry: &Geometry) -> Vec<Matrix3<f64>> {
         EllipsoidModel::Diagonal => vec![unit(0, 0), unit(1, 1), unit(2, 2)],
         EllipsoidModel::Band => {
             // In the frame of the data's principal axes (the band's plane, then its
-            // axis): a free 2×2 block in the plane, and across it the mean of the
-            // in-plane scales, which the band cannot tell apart from the hard iron.
+            // axis): a free 2×2 block in the plane and free couplings between plane
+            // and axis, but along the axis the mean of the in-plane scales, because
+            // the band cannot tell that scale from the hard iron along the axis.
             let basis = geometry.principal_axes;
             let in_frame = |matrix: Matrix3<f64>| basis * matrix * basis.transpose();
             let mut first = unit(0, 0);

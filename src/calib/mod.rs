@@ -1,8 +1,11 @@
 //! Magnetometer calibration and the heading it gives.
 //!
 //! One algorithm per file: [`tilt`] levels the field (Eq. 4 of Moafipoor et al. 2007),
-//! [`heading`] turns levelled components into a heading (Eq. 1), and [`minmax`] is the
-//! min/max autocalibration (Eq. 6-7, after Caruso 1997).
+//! [`heading`] turns levelled components into a heading (Eq. 1), [`minmax`] is the
+//! min/max autocalibration (Eq. 6-7, after Caruso 1997), [`plane`] the tilt-aware
+//! level-plane fit for circle-only data, [`ellipsoid`] the 3D fit of Eq. 5, [`refls`]
+//! the reference-heading least squares of Eq. 8; [`model`] holds what they produce,
+//! [`wmm`] the expected field, [`export`] the formats a device takes.
 
 pub mod ellipsoid;
 pub mod export;

@@ -53,6 +53,7 @@ function drawnPixels(page, id) {
 }
 
 const text = (page, id) => page.textContent(`#${id}`);
+const statusBackground = (page) => page.$eval('#status', (status) => getComputedStyle(status).backgroundColor);
 
 /** The page shows the same statistics as `compass-pdr calibrate --json`, method by method. */
 async function assertStatsMatch(page, expected) {
@@ -111,6 +112,7 @@ test('the demo is analysed and drawn on load, with the CLI\'s figures', async ()
   assert.ok(checkRms(expected, 'min_max') < 3, 'small error after min/max');
   await assertPlotsDrawn(page);
   assert.match(await text(page, 'status'), /Analysed demo-walk\.csv: 9000 magnetometer samples\./);
+  assert.equal(await statusBackground(page), 'rgb(244, 246, 249)', 'a good result is not styled as an error');
   assert.match(await text(page, 'context'), /Reference heading: the log's reference-heading column/);
   assert.match(await text(page, 'calibration'), /Hard iron \(/);
   await page.screenshot({ path: join(out, 'demo.png'), fullPage: true });
@@ -237,6 +239,7 @@ for (const bad of badFiles) {
     await page.setInputFiles('#file-input', { name: bad.name, mimeType: 'application/octet-stream', buffer: bad.buffer });
     await waitForState(page, 'error');
     assert.match(await text(page, 'status'), bad.message);
+    assert.equal(await statusBackground(page), 'rgb(251, 233, 230)', 'an error is styled as one');
     assert.equal(await page.$$eval('#methods-body tr', (rows) => rows.length), 0, 'the demo\'s figures are cleared');
     assert.equal(await text(page, 'result-file'), '—');
     // The canvases carry the message instead of a stale or blank plot.
