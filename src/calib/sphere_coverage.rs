@@ -72,7 +72,8 @@ pub struct SphereGap {
     /// Unit direction of the group's centre in the body frame (the mean of its
     /// regions' centres).
     pub centre_direction: Vector3<f64>,
-    /// From the body x axis towards the body y axis, in `[0, 360)`.
+    /// From the body x axis towards the body y axis, in `[0, 360)` (meaningless at
+    /// ±90° of elevation).
     pub centre_azimuth_deg: f64,
     /// Above the body x-y plane, positive towards body −z.
     pub centre_elevation_deg: f64,
