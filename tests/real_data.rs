@@ -21,22 +21,30 @@ fn shared_data() -> Option<PathBuf> {
     }
 }
 
-fn inspect(paths: &[PathBuf]) -> Inspection {
-    let contents: Vec<(String, Vec<u8>)> = paths
+/// Each file's name and bytes, read whole.
+fn read_named(paths: &[PathBuf]) -> Vec<(String, Vec<u8>)> {
+    paths
         .iter()
         .map(|path| {
-            (
-                path.file_name()
-                    .map(|name| name.to_string_lossy().into_owned())
-                    .unwrap_or_default(),
-                std::fs::read(path).expect("readable file"),
-            )
+            let name = path
+                .file_name()
+                .map(|name| name.to_string_lossy().into_owned())
+                .unwrap_or_default();
+            (name, std::fs::read(path).expect("readable file"))
         })
-        .collect();
-    let slices: Vec<(&str, &[u8])> = contents
+        .collect()
+}
+
+fn as_slices(contents: &[(String, Vec<u8>)]) -> Vec<(&str, &[u8])> {
+    contents
         .iter()
         .map(|(name, bytes)| (name.as_str(), bytes.as_slice()))
-        .collect();
+        .collect()
+}
+
+fn inspect(paths: &[PathBuf]) -> Inspection {
+    let contents = read_named(paths);
+    let slices = as_slices(&contents);
     let report = import_files(&slices).expect("imports");
     Inspection::of(&report)
 }
@@ -241,21 +249,8 @@ fn calibrate_paths(
     paths: &[PathBuf],
     options: &compass_pdr::calibration::CalibrationOptions,
 ) -> compass_pdr::calibration::CalibrationAnalysis {
-    let contents: Vec<(String, Vec<u8>)> = paths
-        .iter()
-        .map(|path| {
-            (
-                path.file_name()
-                    .map(|name| name.to_string_lossy().into_owned())
-                    .unwrap_or_default(),
-                std::fs::read(path).expect("readable file"),
-            )
-        })
-        .collect();
-    let slices: Vec<(&str, &[u8])> = contents
-        .iter()
-        .map(|(name, bytes)| (name.as_str(), bytes.as_slice()))
-        .collect();
+    let contents = read_named(paths);
+    let slices = as_slices(&contents);
     compass_pdr::analysis::analyse_files(&slices, options).expect("calibrates")
 }
 
