@@ -188,7 +188,8 @@ pub struct CalibrationAnalysis {
     pub raw_heading_deg: Vec<f64>,
     /// Each fitted method's heading per sample.
     pub headings_deg: Vec<(Method, Vec<f64>)>,
-    /// |B| raw and after the best 3D correction available.
+    /// |B| raw and after the best 3D correction available (the ellipsoid's, else the
+    /// ellipse method's).
     pub field_raw_ut: Vec<f64>,
     pub field_corrected_ut: Vec<f64>,
 }
@@ -469,6 +470,15 @@ pub fn calibrate(
                             .map(|inverse| (center_ut, inverse, fit.plane.radius_ut));
                         // The ellipse method's correction is the one the circle plot shows.
                         plane_correction = Some((corrected, ellipse));
+                        // The plane fit's 3D correction gives |B| too, until an ellipsoid
+                        // fit (which sees the field in 3D) replaces it.
+                        field_corrected_ut = Some(
+                            samples
+                                .mag_ut
+                                .iter()
+                                .map(|&mag| (fit.soft_iron * (mag - fit.hard_iron_ut)).norm())
+                                .collect(),
+                        );
                         (MethodParameters::Ellipse(Box::new(fit)), headings)
                     })
             }
