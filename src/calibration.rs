@@ -677,3 +677,90 @@ fn expected_field_of(
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::io::canonical_csv;
+    use crate::io::import::import;
+    use crate::sim::walk::{simulate, WalkConfig};
+
+    fn demo_like(seed: u64) -> ImportReport {
+        let text = canonical_csv::write(&simulate(&WalkConfig::from_seed(seed, 120.0)));
+        import("walk.csv", text.as_bytes()).expect("readable")
+    }
+
+    fn check_rms(analysis: &CalibrationAnalysis, method: Method) -> f64 {
+        analysis
+            .report
+            .methods
+            .iter()
+            .find(|report| report.method == method)
+            .and_then(|report| report.heading_error_check)
+            .map_or(f64::INFINITY, |stats| stats.rms_deg)
+    }
+
+    #[test]
+    fn a_walk_is_split_in_half_and_every_level_method_beats_no_calibration() {
+        let analysis =
+            calibrate(demo_like(21), &CalibrationOptions::default()).expect("calibrates");
+        let report = &analysis.report;
+        assert_eq!(report.reference, Some(ReferenceSource::Column));
+        assert_eq!(report.n_train + report.n_check, report.n_samples_used);
+        assert!(
+            report
+                .train_until_s
+                .is_some_and(|until_s| (until_s - 60.0).abs() < 1.0),
+            "{:?}",
+            report.train_until_s
+        );
+        let raw_rms = report
+            .raw_heading_error_check
+            .map_or(0.0, |stats| stats.rms_deg);
+        for method in [Method::MinMax, Method::Ellipse, Method::RefLs] {
+            let rms = check_rms(&analysis, method);
+            assert!(
+                rms < 3.0 && rms < raw_rms / 5.0,
+                "{method:?}: {rms}° against {raw_rms}° uncalibrated"
+            );
+        }
+        // A walk held nearly level is no data for a 3D fit, and the report says why.
+        let ellipsoid = report
+            .methods
+            .iter()
+            .find(|report| report.method == Method::Ellipsoid)
+            .expect("ran");
+        assert!(
+            ellipsoid
+                .error
+                .as_deref()
+                .is_some_and(|error| error.contains("plane")),
+            "{:?}",
+            ellipsoid.error
+        );
+        assert!(analysis
+            .device_calibration()
+            .is_some_and(|(method, _)| method == Method::Ellipse));
+        assert_eq!(analysis.field_corrected_ut.len(), analysis.t_s.len());
+    }
+
+    #[test]
+    fn a_given_declination_turns_every_heading_by_it() {
+        let options = |declination| CalibrationOptions {
+            methods: vec![Method::MinMax],
+            declination,
+            ..CalibrationOptions::default()
+        };
+        let plain = calibrate(demo_like(22), &options(DeclinationChoice::Degrees(0.0)))
+            .expect("calibrates");
+        let turned = calibrate(demo_like(22), &options(DeclinationChoice::Degrees(10.0)))
+            .expect("calibrates");
+        let (plain_deg, turned_deg) = (&plain.headings_deg[0].1, &turned.headings_deg[0].1);
+        for (a_deg, b_deg) in plain_deg.iter().zip(turned_deg) {
+            let difference_deg =
+                heading_difference_rad(b_deg.to_radians(), a_deg.to_radians()).to_degrees();
+            assert!((difference_deg - 10.0).abs() < 1e-9);
+        }
+        assert_eq!(turned.report.declination.source, "given by the user");
+    }
+}
