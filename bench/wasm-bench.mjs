@@ -1,10 +1,12 @@
-// Runs the import benchmark in headless Chromium: serves bench/wasm/ (the page),
+// Runs a benchmark page in headless Chromium: serves bench/wasm/ (the pages),
 // target/bench-wasm/pkg/ (the release module, built by bench/run) as pkg/ and
 // target/bench-data/ (the inputs) as data/ on 127.0.0.1, opens the page with
 // playwright-core driving /usr/bin/chromium, waits for its results and prints them as
 // JSON on stdout.
 //
-// Usage: node bench/wasm-bench.mjs [--runs N]     (bench/run builds the module first)
+// Usage: node bench/wasm-bench.mjs [--runs N] [--page PAGE]   (bench/run builds the
+// module and the inputs first). PAGE is index.html (import, the default) or
+// ellipsoid.html (ellipsoid fit).
 import { createServer } from 'node:http';
 import { createReadStream, existsSync, statSync } from 'node:fs';
 import { dirname, extname, join, normalize, resolve, sep } from 'node:path';
@@ -16,6 +18,16 @@ const { chromium } = await import(join(root, 'tests/e2e/node_modules/playwright-
 
 const runsIdx = process.argv.indexOf('--runs');
 const runs = runsIdx > 0 ? Number(process.argv[runsIdx + 1]) : 5;
+const pageIdx = process.argv.indexOf('--page');
+const pageName = pageIdx > 0 ? process.argv[pageIdx + 1] : 'index.html';
+const INPUTS_OF_PAGE = {
+  'index.html': ['target/bench-data/walk.csv', 'target/bench-data/track.nmea'],
+  'ellipsoid.html': [1000, 10000, 100000, 1000000].map((n) => `target/bench-data/sphere_${n}.f64`),
+};
+if (!(pageName in INPUTS_OF_PAGE)) {
+  console.error(`--page must be one of ${Object.keys(INPUTS_OF_PAGE).join(', ')}`);
+  process.exit(1);
+}
 
 const MOUNTS = [
   ['/pkg/', join(root, 'target/bench-wasm/pkg')],
@@ -28,8 +40,7 @@ const TYPES = {
   '.wasm': 'application/wasm',
 };
 
-for (const needed of ['target/bench-wasm/pkg/compass_pdr_bg.wasm', 'target/bench-data/walk.csv',
-  'target/bench-data/track.nmea']) {
+for (const needed of ['target/bench-wasm/pkg/compass_pdr_bg.wasm', ...INPUTS_OF_PAGE[pageName]]) {
   if (!existsSync(join(root, needed))) {
     console.error(`${needed} is missing: run bench/run (it builds the module and the inputs)`);
     process.exit(1);
@@ -62,7 +73,7 @@ const server = createServer((request, response) => {
   createReadStream(file).pipe(response);
 });
 await new Promise((ready) => server.listen(0, '127.0.0.1', ready));
-const url = `http://127.0.0.1:${server.address().port}/index.html?runs=${runs}`;
+const url = `http://127.0.0.1:${server.address().port}/${pageName}?runs=${runs}`;
 
 const browser = await chromium.launch({
   executablePath: '/usr/bin/chromium',

@@ -54,6 +54,33 @@ pub fn inspect_file(file_name: &str, bytes: &[u8]) -> Result<JsValue, JsError> {
         .map_err(|error| JsError::new(&error.to_string()))
 }
 
+/// An ellipsoid fit of magnetometer samples given as `x, y, z` triples (µT) in one flat
+/// array (a `Float64Array`), with the default model; `refine` adds the
+/// Levenberg-Marquardt refinement to the algebraic fit. Returns the fit as a plain object
+/// (the fields of `EllipsoidFit`). Throws an `Error` whose message says what is wrong.
+/// Used by the ellipsoid benchmark (`bench/wasm/ellipsoid.html`).
+#[wasm_bindgen]
+pub fn fit_ellipsoid_xyz(xyz: &[f64], refine: bool) -> Result<JsValue, JsError> {
+    if !xyz.len().is_multiple_of(3) {
+        return Err(JsError::new(&format!(
+            "{} numbers are not x, y, z triples: give 3 numbers per sample.",
+            xyz.len()
+        )));
+    }
+    let samples: Vec<nalgebra::Vector3<f64>> = xyz
+        .chunks_exact(3)
+        .map(|triple| nalgebra::Vector3::new(triple[0], triple[1], triple[2]))
+        .collect();
+    let options = crate::calib::ellipsoid::EllipsoidOptions {
+        refine,
+        ..Default::default()
+    };
+    let fit = crate::calib::ellipsoid::fit_ellipsoid(&samples, &options)
+        .map_err(|error| JsError::new(&error.to_string()))?;
+    let serializer = serde_wasm_bindgen::Serializer::json_compatible();
+    serde::Serialize::serialize(&fit, &serializer).map_err(|error| JsError::new(&error.to_string()))
+}
+
 /// A panic is a bug: report it in the console and in the page's status area, so the
 /// user sees that something broke instead of a page that silently stops.
 fn install_panic_hook() {
