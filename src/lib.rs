@@ -53,6 +53,7 @@ pub mod analysis;
 pub mod angle;
 pub mod calib;
 pub mod calibration;
+pub mod civil;
 pub mod io;
 pub mod plot;
 pub mod recording;

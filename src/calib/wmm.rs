@@ -88,7 +88,11 @@ impl CalendarDate {
 
     /// Days since 1970-01-01 (negative before), for a valid date.
     fn days_since_unix_epoch(self) -> i64 {
-        days_from_civil(i64::from(self.year), self.month, self.day)
+        crate::civil::days_from_civil(
+            i64::from(self.year),
+            u32::from(self.month),
+            u32::from(self.day),
+        )
     }
 
     fn to_time_date(self) -> Result<Date, WmmError> {
@@ -383,39 +387,10 @@ fn days_in_month(year: i32, month: u8) -> u8 {
     }
 }
 
-// Howard Hinnant, "chrono-Compatible Low-Level Date Algorithms" (2013):
-// `days_from_civil` and `civil_from_days` count days from 1970-01-01 in the proleptic
-// Gregorian calendar. Shifting the year to start on 1 March puts the leap day last, so
-// the day of the year is `(153·m + 2)/5 + d − 1` with m = 0 for March; an era is the
-// 400-year cycle of 146 097 days.
-
-fn days_from_civil(year: i64, month: u8, day: u8) -> i64 {
-    let (month, day) = (i64::from(month), i64::from(day));
-    let year = if month <= 2 { year - 1 } else { year };
-    let era = year.div_euclid(400);
-    let year_of_era = year - era * 400; // [0, 399]
-    let month_from_march = (month + 9) % 12; // March = 0, ..., February = 11
-    let day_of_year = (153 * month_from_march + 2) / 5 + day - 1; // [0, 365]
-    let day_of_era = year_of_era * 365 + year_of_era / 4 - year_of_era / 100 + day_of_year;
-    era * 146_097 + day_of_era - 719_468
-}
-
+/// [`crate::civil::civil_from_days`] with this module's `u8` month and day.
 fn civil_from_days(days: i64) -> (i64, u8, u8) {
-    let days = days + 719_468; // days since 0000-03-01
-    let era = days.div_euclid(146_097);
-    let day_of_era = days - era * 146_097; // [0, 146096]
-    let year_of_era =
-        (day_of_era - day_of_era / 1460 + day_of_era / 36_524 - day_of_era / 146_096) / 365;
-    let day_of_year = day_of_era - (365 * year_of_era + year_of_era / 4 - year_of_era / 100);
-    let month_from_march = (5 * day_of_year + 2) / 153; // [0, 11]
-    let day = day_of_year - (153 * month_from_march + 2) / 5 + 1; // [1, 31]
-    let month = if month_from_march < 10 {
-        month_from_march + 3
-    } else {
-        month_from_march - 9
-    };
-    let year = year_of_era + era * 400 + i64::from(month <= 2);
-    // Both are in range by construction: month in [1, 12], day in [1, 31].
+    let (year, month, day) = crate::civil::civil_from_days(days);
+    // In range by construction: month in [1, 12], day in [1, 31].
     (year, month as u8, day as u8)
 }
 

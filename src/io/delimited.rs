@@ -1414,17 +1414,8 @@ pub fn parse_datetime_s(text: &str) -> Option<f64> {
     let hours: f64 = clock_parts.next()?.parse().ok()?;
     let minutes: f64 = clock_parts.next()?.parse().ok()?;
     let seconds: f64 = clock_parts.next().map_or(Some(0.0), |s| s.parse().ok())?;
-    // Days from the civil date (Howard Hinnant's algorithm, public domain).
-    let (y, m) = if month <= 2 {
-        (year - 1, month + 9)
-    } else {
-        (year, month - 3)
-    };
-    let era = y.div_euclid(400);
-    let year_of_era = y - era * 400;
-    let day_of_year = (153 * m + 2) / 5 + day - 1;
-    let day_of_era = year_of_era * 365 + year_of_era / 4 - year_of_era / 100 + day_of_year;
-    let days = era * 146_097 + day_of_era - 719_468;
+    // The range checks above make the casts exact.
+    let days = crate::civil::days_from_civil(year, month as u32, day as u32);
     Some(days as f64 * 86_400.0 + hours * 3600.0 + minutes * 60.0 + seconds - offset_s)
 }
 

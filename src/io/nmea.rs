@@ -141,14 +141,11 @@ impl NmeaDate {
     /// Days since 1970-01-01 (proleptic Gregorian calendar), after Howard Hinnant's
     /// `days_from_civil`.
     pub fn days_since_1970(&self) -> i64 {
-        let month = i64::from(self.month);
-        let year = i64::from(self.year) - i64::from(month <= 2);
-        let era = year.div_euclid(400);
-        let year_of_era = year - era * 400;
-        let month_from_march = (month + 9) % 12;
-        let day_of_year = (153 * month_from_march + 2) / 5 + i64::from(self.day) - 1;
-        let day_of_era = year_of_era * 365 + year_of_era / 4 - year_of_era / 100 + day_of_year;
-        era * 146_097 + day_of_era - 719_468
+        crate::civil::days_from_civil(
+            i64::from(self.year),
+            u32::from(self.month),
+            u32::from(self.day),
+        )
     }
 }
 
@@ -1643,7 +1640,7 @@ impl NmeaReader {
                 first.line
             );
             if let Some((first_days, first_day)) = self.clock.first_date {
-                let (year, month, day) = civil_from_days(first_days - first_day);
+                let (year, month, day) = crate::civil::civil_from_days(first_days - first_day);
                 time_note.push_str(&format!(" on {year:04}-{month:02}-{day:02}"));
             }
             notes.push(time_note);
@@ -1738,25 +1735,6 @@ fn hms(time_of_day_s: f64) -> (u32, u32, f64) {
     let seconds = time_of_day_s - whole_minutes * 60.0;
     let whole_minutes = whole_minutes as u32;
     (whole_minutes / 60, whole_minutes % 60, seconds)
-}
-
-/// The date of a day count since 1970-01-01, after Howard Hinnant's `civil_from_days`.
-fn civil_from_days(days: i64) -> (i64, i64, i64) {
-    let shifted = days + 719_468;
-    let era = shifted.div_euclid(146_097);
-    let day_of_era = shifted - era * 146_097;
-    let year_of_era =
-        (day_of_era - day_of_era / 1460 + day_of_era / 36_524 - day_of_era / 146_096) / 365;
-    let day_of_year = day_of_era - (365 * year_of_era + year_of_era / 4 - year_of_era / 100);
-    let month_from_march = (5 * day_of_year + 2) / 153;
-    let day = day_of_year - (153 * month_from_march + 2) / 5 + 1;
-    let month = if month_from_march < 10 {
-        month_from_march + 3
-    } else {
-        month_from_march - 9
-    };
-    let year = year_of_era + era * 400 + i64::from(month <= 2);
-    (year, month, day)
 }
 
 /// A count with thousands separators, as the notes print it.
@@ -2121,7 +2099,7 @@ mod tests {
             .days_since_1970(),
             11_017
         );
-        assert_eq!(civil_from_days(11_017), (2000, 3, 1));
+        assert_eq!(crate::civil::civil_from_days(11_017), (2000, 3, 1));
         assert_eq!(
             parse_date("T", "010180"),
             Ok(Some(NmeaDate {

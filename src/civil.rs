@@ -1,0 +1,62 @@
+//! Calendar dates as day counts: the one place the proleptic Gregorian calendar is
+//! computed (NMEA dates, ISO date-times, the magnetic model's dates, the benchmark's
+//! generated logs).
+//!
+//! Howard Hinnant, "chrono-Compatible Low-Level Date Algorithms" (2013): days are
+//! counted from 1970-01-01. Shifting the year to start on 1 March puts the leap day
+//! last, so the day of the year is `(153·m + 2)/5 + d − 1` with m = 0 for March; an era
+//! is the 400-year cycle of 146 097 days.
+
+/// Days from 1970-01-01 to a date (month 1-12, day 1-31; not checked: callers validate).
+pub fn days_from_civil(year: i64, month: u32, day: u32) -> i64 {
+    let (month, day) = (i64::from(month), i64::from(day));
+    let year = if month <= 2 { year - 1 } else { year };
+    let era = year.div_euclid(400);
+    let year_of_era = year - era * 400; // [0, 399]
+    let month_from_march = (month + 9) % 12; // March = 0, ..., February = 11
+    let day_of_year = (153 * month_from_march + 2) / 5 + day - 1; // [0, 365]
+    let day_of_era = year_of_era * 365 + year_of_era / 4 - year_of_era / 100 + day_of_year;
+    era * 146_097 + day_of_era - 719_468
+}
+
+/// The date `days` after 1970-01-01, as (year, month 1-12, day 1-31).
+pub fn civil_from_days(days: i64) -> (i64, u32, u32) {
+    let days = days + 719_468; // days since 0000-03-01
+    let era = days.div_euclid(146_097);
+    let day_of_era = days - era * 146_097; // [0, 146096]
+    let year_of_era =
+        (day_of_era - day_of_era / 1460 + day_of_era / 36_524 - day_of_era / 146_096) / 365;
+    let day_of_year = day_of_era - (365 * year_of_era + year_of_era / 4 - year_of_era / 100);
+    let month_from_march = (5 * day_of_year + 2) / 153; // [0, 11]
+    let day = day_of_year - (153 * month_from_march + 2) / 5 + 1; // [1, 31]
+    let month = if month_from_march < 10 {
+        month_from_march + 3
+    } else {
+        month_from_march - 9
+    };
+    let year = year_of_era + era * 400 + i64::from(month <= 2);
+    // In range by construction: month in [1, 12], day in [1, 31].
+    (year, month as u32, day as u32)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn known_dates() {
+        assert_eq!(days_from_civil(1970, 1, 1), 0);
+        assert_eq!(days_from_civil(2000, 3, 1), 11_017);
+        assert_eq!(civil_from_days(11_017), (2000, 3, 1));
+        assert_eq!(days_from_civil(2023, 8, 9), 19_578);
+        assert_eq!(civil_from_days(-1), (1969, 12, 31));
+    }
+
+    #[test]
+    fn days_round_trip_over_four_centuries() {
+        for days in -146_097..146_097 + 400 {
+            let (year, month, day) = civil_from_days(days);
+            assert_eq!(days_from_civil(year, month, day), days);
+        }
+    }
+}
