@@ -3,6 +3,7 @@
 // on each benchmark input. One warm-up call, then `runs` timed calls; the median is
 // reported. The result is left in `window.benchResults` (or `window.benchError`) for
 // bench/wasm-bench.mjs, and shown in the page.
+import { report } from './report.js';
 import init, { inspect_file } from './pkg/compass_pdr.js';
 
 const INPUTS = [
@@ -48,14 +49,4 @@ async function run() {
   return results;
 }
 
-run().then(
-  (results) => {
-    window.benchResults = results;
-    document.body.dataset.state = 'done';
-  },
-  (error) => {
-    window.benchError = String((error && error.stack) || error);
-    document.getElementById('status').textContent = window.benchError;
-    document.body.dataset.state = 'error';
-  },
-);
+report(run());

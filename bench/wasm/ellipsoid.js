@@ -6,6 +6,7 @@
 // 0.1 ms in a page that is not cross-origin isolated, so a sample of the smaller sets
 // times several calls (`calls`, 10⁵ / n of them) and reports the time per call. The result is left in
 // `window.benchResults` (or `window.benchError`) for bench/wasm-bench.mjs.
+import { report } from './report.js';
 import init, { fit_ellipsoid_xyz } from './pkg/compass_pdr.js';
 
 const SIZES = [1000, 10000, 100000, 1000000];
@@ -51,14 +52,4 @@ async function run() {
   return results;
 }
 
-run().then(
-  (results) => {
-    window.benchResults = results;
-    document.body.dataset.state = 'done';
-  },
-  (error) => {
-    window.benchError = String((error && error.stack) || error);
-    document.getElementById('status').textContent = window.benchError;
-    document.body.dataset.state = 'error';
-  },
-);
+report(run());
