@@ -114,13 +114,7 @@ pub fn draw_circle_fit<DB: DrawingBackend>(
             PathElement::new(vec![(x, y), (x + 16, y)], CORRECTED_COLOR.stroke_width(2))
         });
 
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK.mix(0.3))
-        .draw()
-        .map_err(&error)?;
+    super::draw_legend(&mut chart, SeriesLabelPosition::UpperRight).map_err(&error)?;
     Ok(())
 }
 

@@ -112,12 +112,6 @@ pub fn draw_heading_error<DB: DrawingBackend>(
         .map_err(&error)?
         .label(best_label.as_str())
         .legend(|(x, y)| Circle::new((x + 8, y), 3, CORRECTED_COLOR.filled()));
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::LowerRight)
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK.mix(0.3))
-        .draw()
-        .map_err(&error)?;
+    super::draw_legend(&mut chart, SeriesLabelPosition::LowerRight).map_err(&error)?;
     Ok(())
 }

@@ -78,6 +78,19 @@ pub fn draw_field_magnitude_of<DB: DrawingBackend>(
     )
 }
 
+/// The legend every plot draws, in one style, at `position`.
+pub(crate) fn draw_legend<'a, DB: DrawingBackend + 'a, CT: plotters::coord::CoordTranslate>(
+    chart: &mut ChartContext<'a, DB, CT>,
+    position: SeriesLabelPosition,
+) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    chart
+        .configure_series_labels()
+        .position(position)
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK.mix(0.3))
+        .draw()
+}
+
 /// The indices of at most `max_points` evenly spaced elements of `0..len`.
 pub(crate) fn thinned_indices(len: usize, max_points: usize) -> impl Iterator<Item = usize> {
     let stride = len.div_ceil(max_points.max(1)).max(1);
