@@ -28,6 +28,7 @@ use crate::calib::minmax::MinMaxCalibration;
 use crate::calib::model::FieldCalibration;
 use crate::calib::plane::{fit_plane, PlaneFit, PlaneOptions};
 use crate::calib::refls::{fit_reference_ls, RefLsFit, RefLsOptions};
+use crate::calib::sphere_coverage::sphere_coverage;
 use crate::calib::tilt::Tilt;
 use crate::calib::wmm::{date_of_unix_s, expected_field, ExpectedField};
 use crate::io::{Diagnostics, ImportReport};
@@ -103,6 +104,9 @@ impl Default for CalibrationOptions {
     }
 }
 
+/// MotionCal's "gaps" above which the 3D coverage is reported with advice (it asks for
+/// under 15 % before it calls a calibration good).
+const MAX_SPHERE_GAP_PCT: f64 = 15.0;
 /// The most train samples a fit sees (evenly thinned beyond).
 const MAX_FIT_SAMPLES: usize = 20_000;
 /// The longest gap (s) across which a reference heading is interpolated: a 1 Hz GPS
@@ -506,6 +510,16 @@ pub fn calibrate(
                                 .map(|&mag| calibration.apply(mag).norm())
                                 .collect(),
                         );
+                        // Where the sphere of corrected directions is still empty, as
+                        // MotionCal counts it, and which way to turn to fill it.
+                        let coverage = sphere_coverage(mag_train.iter().map(|&mag| calibration.apply(mag)));
+                        if let Some(gap) = coverage.largest_gap.filter(|_| coverage.gap_pct > MAX_SPHERE_GAP_PCT) {
+                            notes.push(format!(
+                                "ellipsoid: {:.0} % of the sphere is uncovered (MotionCal's gaps); {}",
+                                coverage.gap_pct,
+                                gap.advice()
+                            ));
+                        }
                         (MethodParameters::Ellipsoid(Box::new(fit)), headings)
                     })
             }
@@ -742,6 +756,57 @@ mod tests {
             .device_calibration()
             .is_some_and(|(method, _)| method == Method::Ellipse));
         assert_eq!(analysis.field_corrected_ut.len(), analysis.t_s.len());
+    }
+
+    #[test]
+    fn a_sphere_with_a_hole_says_which_way_to_turn() {
+        use crate::sim::field::{full_sphere, FieldTruth};
+        use crate::sim::rng::SplitMix64;
+        let mut rng = SplitMix64::new(5);
+        let truth = FieldTruth::random(&mut rng, 30.0, 0.05, 0.05);
+        let mut recording = Recording::default();
+        let field_in_ned = truth.field_in_ned_ut();
+        // Leave out every attitude whose body x axis points along the field.
+        let samples = full_sphere(&truth, 4000, &mut rng)
+            .into_iter()
+            .filter(|sample| {
+                let ned_from_body = nalgebra::Rotation3::from_euler_angles(
+                    sample.roll_rad,
+                    sample.pitch_rad,
+                    sample.heading_rad,
+                );
+                (ned_from_body.inverse() * field_in_ned).normalize().x < 0.5
+            });
+        for (idx, sample) in samples.enumerate() {
+            recording
+                .mag_in_body_ut
+                .push(idx as f64 * 0.01, sample.mag_ut);
+        }
+        let report = ImportReport {
+            file_name: "cap.csv".to_string(),
+            format: "test",
+            recording,
+            diagnostics: Diagnostics::default(),
+            header: None,
+            n_data_lines: 0,
+            notes: Vec::new(),
+        };
+        let options = CalibrationOptions {
+            methods: vec![Method::Ellipsoid],
+            ..CalibrationOptions::default()
+        };
+        let analysis =
+            calibrate(report, &options).expect("the ellipsoid fits a sphere with a hole");
+        let note = analysis
+            .report
+            .notes
+            .iter()
+            .find(|note| note.contains("of the sphere is uncovered"));
+        assert!(
+            note.is_some_and(|note| note.contains("+x axis")),
+            "{:?}",
+            analysis.report.notes
+        );
     }
 
     #[test]
