@@ -33,7 +33,7 @@ use crate::calib::tilt::Tilt;
 use crate::calib::wmm::{date_of_unix_s, expected_field, ExpectedField};
 use crate::io::{Diagnostics, ImportReport};
 use crate::recording::Recording;
-use crate::reference::{choose_reference, ReferenceSource, DEFAULT_MIN_COURSE_SPEED_MPS};
+use crate::reference::{choose_reference, ReferenceOptions, ReferenceSource};
 use crate::stats::HeadingErrorStats;
 
 /// A calibration method.
@@ -53,6 +53,16 @@ impl Method {
         Method::Ellipsoid,
         Method::RefLs,
     ];
+
+    /// The method's name in JSON and in the page's element ids.
+    pub fn key(self) -> &'static str {
+        match self {
+            Method::MinMax => "min_max",
+            Method::Ellipse => "ellipse",
+            Method::Ellipsoid => "ellipsoid",
+            Method::RefLs => "ref_ls",
+        }
+    }
 
     pub fn label(self) -> &'static str {
         match self {
@@ -84,8 +94,8 @@ pub struct CalibrationOptions {
     pub declination: DeclinationChoice,
     /// Window over which specific force is averaged to give roll and pitch (s).
     pub gravity_window_s: f64,
-    /// GPS course is a reference heading only at or above this speed.
-    pub min_course_speed_mps: f64,
+    /// Which reference heading to fit to and check against, and its gates.
+    pub reference: ReferenceOptions,
     /// Where the log was recorded (latitude, longitude in degrees), for logs without a
     /// GNSS fix (indoors): the magnetic model needs a place.
     pub position_deg: Option<(f64, f64)>,
@@ -98,7 +108,7 @@ impl Default for CalibrationOptions {
             train_until_s: None,
             declination: DeclinationChoice::Auto,
             gravity_window_s: 1.0,
-            min_course_speed_mps: DEFAULT_MIN_COURSE_SPEED_MPS,
+            reference: ReferenceOptions::default(),
             position_deg: None,
         }
     }
@@ -109,9 +119,6 @@ impl Default for CalibrationOptions {
 const MAX_SPHERE_GAP_PCT: f64 = 15.0;
 /// The most train samples a fit sees (evenly thinned beyond).
 const MAX_FIT_SAMPLES: usize = 20_000;
-/// The longest gap (s) across which a reference heading is interpolated: a 1 Hz GPS
-/// course still counts.
-const MAX_REFERENCE_GAP_S: f64 = 1.5;
 /// A measured field this many times off the expected one is a unit or a magnet problem.
 const FIELD_RATIO_WARNING: f64 = 2.0;
 
@@ -280,7 +287,11 @@ pub fn calibrate(
     notes.extend(samples.notes.iter().cloned());
 
     // Reference and declination.
-    let reference = choose_reference(&recording, options.min_course_speed_mps);
+    let reference_options = ReferenceOptions {
+        gravity_window_s: options.gravity_window_s,
+        ..options.reference
+    };
+    let reference = choose_reference(&recording, &reference_options);
     let ref_heading_rad: Vec<Option<f64>> = samples
         .t_s
         .iter()
@@ -288,7 +299,7 @@ pub fn calibrate(
             reference.as_ref().and_then(|reference| {
                 reference
                     .heading_rad
-                    .interpolate_angle_at(t_s, MAX_REFERENCE_GAP_S)
+                    .interpolate_angle_at(t_s, reference.max_gap_s)
             })
         })
         .collect();
@@ -392,6 +403,37 @@ pub fn calibrate(
         .map(|(level, _)| *level)
         .collect();
 
+    let raw_heading_rad: Vec<f64> = level_raw_ut
+        .iter()
+        .map(|&level| heading_rad(level, declination_rad))
+        .collect();
+    // A relative reference (a gyro heading that does not know north) is turned onto the
+    // raw compass heading's circular mean: the methods are then compared on the shape of
+    // their heading, not on a constant offset that nothing here can observe.
+    let mut ref_heading_rad = ref_heading_rad;
+    if let Some(reference) = reference
+        .as_ref()
+        .filter(|reference| !reference.source.is_absolute())
+    {
+        let (sum_sin, sum_cos) = raw_heading_rad
+            .iter()
+            .zip(&ref_heading_rad)
+            .filter_map(|(&raw_rad, &reference_rad)| Some(raw_rad - reference_rad?))
+            .fold((0.0, 0.0), |(sum_sin, sum_cos), offset_rad| {
+                (sum_sin + offset_rad.sin(), sum_cos + offset_rad.cos())
+            });
+        let offset_rad = sum_sin.atan2(sum_cos);
+        for reference_rad in ref_heading_rad.iter_mut().flatten() {
+            *reference_rad = crate::angle::wrap_to_2pi(*reference_rad + offset_rad);
+        }
+        notes.push(format!(
+            "the reference ({}) does not know north, so it was turned by {:.1}° onto the raw compass heading's \
+             mean: constant offsets (declination, misalignment) cannot be judged against it",
+            reference.source.label(),
+            offset_rad.to_degrees()
+        ));
+    }
+
     // Heading-error statistics on each part.
     let stats_of = |headings_rad: &[f64], want_train: bool| {
         HeadingErrorStats::from_errors_rad(
@@ -406,10 +448,6 @@ pub fn calibrate(
         )
     };
 
-    let raw_heading_rad: Vec<f64> = level_raw_ut
-        .iter()
-        .map(|&level| heading_rad(level, declination_rad))
-        .collect();
     let mut method_reports = Vec::new();
     let mut headings_deg = Vec::new();
     let mut plane_correction: Option<(Vec<Vector2<f64>>, Option<FittedEllipse>)> = None;

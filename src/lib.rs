@@ -54,6 +54,8 @@ pub mod angle;
 pub mod calib;
 pub mod calibration;
 pub mod civil;
+pub mod deviation;
+pub mod geo;
 pub mod io;
 pub mod plot;
 pub mod recording;

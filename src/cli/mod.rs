@@ -14,7 +14,6 @@ use compass_pdr::io::delimited::ColumnMapping;
 use compass_pdr::io::import::{header_signature, merge, ChunkedImport, Inspection};
 use compass_pdr::io::{Diagnostics, ImportReport};
 use compass_pdr::plot::draw_calibration_figure;
-use compass_pdr::reference::ReferenceSource;
 use compass_pdr::sim::walk::{simulate, WalkConfig};
 use compass_pdr::stats::HeadingErrorStats;
 use plotters::prelude::{IntoDrawingArea, SVGBackend};
@@ -451,13 +450,9 @@ fn calibration_text(report: &CalibrationReport) -> String {
                 ", split at {until_s:.1} s"
             ))
     );
-    let reference = match report.reference {
-        Some(ReferenceSource::Column) => "the log's reference-heading column".to_string(),
-        Some(ReferenceSource::GpsCourse { min_speed_mps }) => {
-            format!("GPS course above {min_speed_mps} m/s")
-        }
-        None => "none".to_string(),
-    };
+    let reference = report
+        .reference
+        .map_or_else(|| "none".to_string(), |source| source.describe());
     let _ = writeln!(text, "  reference heading: {reference}");
     let _ = writeln!(
         text,

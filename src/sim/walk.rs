@@ -18,6 +18,7 @@ use serde::Serialize;
 
 use super::rng::SplitMix64;
 use crate::angle::wrap_to_2pi;
+use crate::geo::{Geodetic, LocalFrame};
 use crate::io::canonical_csv::CanonicalRow;
 
 const G_MPS2: f64 = 9.81;
@@ -48,6 +49,47 @@ pub struct WalkConfig {
     pub sway_pitch_deg: f64,
     pub sway_roll_deg: f64,
     pub start_heading_deg: f64,
+    /// Misalignment β: the device's forward axis is this far clockwise of the walking
+    /// direction (the PDR paper, Eq. 9).
+    pub misalignment_deg: f64,
+    /// A compass whose raw heading deviates by exactly the unified model (the PDR
+    /// paper's Eq. 12, A to E in degrees) instead of by hard and soft iron: the field it
+    /// senses is turned about the vertical so that true = raw + δ(raw).
+    pub deviation_deg: Option<[f64; 5]>,
+    /// Temperature: the walk's temperature swings by this much (°C) about 22 °C with
+    /// this period (s); zero swing keeps a slow warming from 22 to 25 °C.
+    pub temp_swing_c: f64,
+    pub temp_period_s: f64,
+    /// Hard-iron drift with temperature (µT/°C per axis, about 22 °C).
+    pub hard_iron_temp_coeff_ut_per_c: [f64; 3],
+    /// A GNSS receiver, if the walk has one.
+    pub gnss: Option<GnssSim>,
+}
+
+/// A simulated GNSS receiver: fixes at `rate_hz` with position noise, and a course over
+/// ground with noise while moving.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct GnssSim {
+    pub rate_hz: f64,
+    pub origin_lat_deg: f64,
+    pub origin_lon_deg: f64,
+    pub position_noise_m: f64,
+    pub course_noise_deg: f64,
+    /// The accuracy the receiver reports (m).
+    pub hacc_m: f64,
+}
+
+impl Default for GnssSim {
+    fn default() -> Self {
+        GnssSim {
+            rate_hz: 1.0,
+            origin_lat_deg: 60.1699,
+            origin_lon_deg: 24.9384,
+            position_noise_m: 2.0,
+            course_noise_deg: 2.0,
+            hacc_m: 3.0,
+        }
+    }
 }
 
 impl WalkConfig {
@@ -85,6 +127,12 @@ impl WalkConfig {
             sway_pitch_deg: 2.0,
             sway_roll_deg: 1.5,
             start_heading_deg,
+            misalignment_deg: 0.0,
+            deviation_deg: None,
+            temp_swing_c: 0.0,
+            temp_period_s: 600.0,
+            hard_iron_temp_coeff_ut_per_c: [0.0; 3],
+            gnss: None,
         }
     }
 }
@@ -169,6 +217,13 @@ pub fn simulate(config: &WalkConfig) -> Vec<CanonicalRow> {
     // The sway fades in and out over a second when walking starts and stops.
     let mut gait_weight = 0.0f64;
     let mut rows = Vec::with_capacity(n_samples);
+    let gnss_frame = config.gnss.map(|gnss| {
+        LocalFrame::at(Geodetic {
+            lat_deg: gnss.origin_lat_deg,
+            lon_deg: gnss.origin_lon_deg,
+            alt_m: 0.0,
+        })
+    });
     for sample_idx in 0..n_samples {
         let t_s = sample_idx as f64 * dt_s;
         while phase_idx + 1 < phases.len() && t_s >= phase_start_s + phases[phase_idx].duration_s {
@@ -193,7 +248,9 @@ pub fn simulate(config: &WalkConfig) -> Vec<CanonicalRow> {
         let pitch_rate_radps = sway_pitch_rad * step_omega_radps * gait_phase_rad.cos();
         let roll_rate_radps = sway_roll_rad * step_omega_radps / 2.0 * (gait_phase_rad / 2.0).cos();
         let yaw_rate_radps = phase.turn_rate_radps;
-        let ned_from_body = Rotation3::from_euler_angles(roll_rad, pitch_rad, heading_rad);
+        // The device faces the walking direction plus the misalignment.
+        let device_heading_rad = heading_rad + config.misalignment_deg.to_radians();
+        let ned_from_body = Rotation3::from_euler_angles(roll_rad, pitch_rad, device_heading_rad);
         let body_from_ned = ned_from_body.inverse();
 
         // Specific force: body acceleration minus gravity (NED, down positive).
@@ -219,20 +276,61 @@ pub fn simulate(config: &WalkConfig) -> Vec<CanonicalRow> {
         let gyro_radps =
             rate_in_body_radps + gyro_bias_radps + noise3(&mut rng, config.gyro_noise_radps);
 
-        let mag_ut = (body_from_ned * field_in_ned_ut).component_mul(&scale)
-            + hard_iron_ut
-            + noise3(&mut rng, config.mag_noise_ut);
+        let temp_c = if config.temp_swing_c > 0.0 {
+            22.0 + config.temp_swing_c
+                * (std::f64::consts::TAU * t_s / config.temp_period_s.max(1.0)).sin()
+        } else {
+            22.0 + 3.0 * t_s / config.duration_s.max(1.0)
+        };
+        let mag_ut = match config.deviation_deg {
+            Some(coefficients_deg) => {
+                // Turn the sensed field so that the level heading reads ψ' with
+                // ψ = ψ' + δ(ψ'): the sensed field's azimuth is δ(ψ').
+                let deviation_rad = deviation_of(device_heading_rad, &coefficients_deg);
+                let turned =
+                    Rotation3::from_axis_angle(&Vector3::z_axis(), deviation_rad) * field_in_ned_ut;
+                body_from_ned * turned + noise3(&mut rng, config.mag_noise_ut)
+            }
+            None => {
+                let drift_ut =
+                    Vector3::from(config.hard_iron_temp_coeff_ut_per_c) * (temp_c - 22.0);
+                (body_from_ned * field_in_ned_ut).component_mul(&scale)
+                    + hard_iron_ut
+                    + drift_ut
+                    + noise3(&mut rng, config.mag_noise_ut)
+            }
+        };
 
         rows.push(CanonicalRow {
             t_s,
             acc_mps2: Some(f_in_body_mps2),
             gyro_radps: Some(gyro_radps),
             mag_ut: Some(mag_ut),
-            temp_c: Some(22.0 + 3.0 * t_s / config.duration_s.max(1.0)),
-            ref_heading_deg: Some(wrap_to_2pi(heading_rad).to_degrees()),
+            temp_c: Some(temp_c),
+            ref_heading_deg: Some(wrap_to_2pi(device_heading_rad).to_degrees()),
             ref_en_m: Some(position_en_m),
             ..CanonicalRow::default()
         });
+        if let (Some(gnss), Some(frame), Some(row)) =
+            (config.gnss, gnss_frame.as_ref(), rows.last_mut())
+        {
+            let every = (config.sample_rate_hz / gnss.rate_hz).round().max(1.0) as usize;
+            if sample_idx % every == 0 {
+                let noisy_en_m = position_en_m
+                    + Vector2::new(rng.gaussian(), rng.gaussian()) * gnss.position_noise_m;
+                let position = frame.geodetic_of(Vector3::new(noisy_en_m.x, noisy_en_m.y, 0.0));
+                let speed_mps = gait_weight * walking_speed_mps;
+                row.lat_deg = Some(position.lat_deg);
+                row.lon_deg = Some(position.lon_deg);
+                row.gps_hacc_m = Some(gnss.hacc_m);
+                row.gps_speed_mps = Some(speed_mps + 0.05 * rng.gaussian());
+                // A receiver's course follows the velocity: the walking direction.
+                row.gps_course_deg = Some(
+                    wrap_to_2pi(heading_rad + gnss.course_noise_deg.to_radians() * rng.gaussian())
+                        .to_degrees(),
+                );
+            }
+        }
 
         // Advance the truth to the next sample.
         heading_rad += yaw_rate_radps * dt_s;
@@ -240,6 +338,31 @@ pub fn simulate(config: &WalkConfig) -> Vec<CanonicalRow> {
         position_en_m += Vector2::new(heading_rad.sin(), heading_rad.cos()) * speed_mps * dt_s;
     }
     rows
+}
+
+/// δ(ψ') for a true heading ψ: solves ψ = ψ' + δ(ψ') by Newton's method (δ' > −1 for
+/// any deviation a compass can have, so the root is unique).
+fn deviation_of(true_heading_rad: f64, coefficients_deg: &[f64; 5]) -> f64 {
+    let [a, b, c, d, e] = coefficients_deg.map(f64::to_radians);
+    let delta = |raw: f64| {
+        a + b * raw.sin() + c * raw.cos() + d * (2.0 * raw).sin() + e * (2.0 * raw).cos()
+    };
+    let slope = |raw: f64| {
+        b * raw.cos() - c * raw.sin() + 2.0 * d * (2.0 * raw).cos() - 2.0 * e * (2.0 * raw).sin()
+    };
+    let mut raw_rad = true_heading_rad - a;
+    for _ in 0..30 {
+        let residual = raw_rad + delta(raw_rad) - true_heading_rad;
+        let derivative = 1.0 + slope(raw_rad);
+        if derivative.abs() < 1e-6 {
+            break;
+        }
+        raw_rad -= residual / derivative;
+        if residual.abs() < 1e-13 {
+            break;
+        }
+    }
+    delta(raw_rad)
 }
 
 fn noise3(rng: &mut SplitMix64, sigma: f64) -> Vector3<f64> {

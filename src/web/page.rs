@@ -21,7 +21,6 @@ use crate::calibration::{
 use crate::io::delimited::{preview, ColumnMapping, Preview};
 use crate::io::import::{header_signature, merge, ChunkedImport, FileImport};
 use crate::io::ImportError;
-use crate::reference::ReferenceSource;
 use crate::stats::HeadingErrorStats;
 
 /// The ids of the elements the page must have (see `www/index.html`).
@@ -422,13 +421,9 @@ impl Page {
 
     /// Where the reference, declination and expected field came from, and the split.
     fn show_context(&self, report: &CalibrationReport) {
-        let reference = match report.reference {
-            Some(ReferenceSource::Column) => "the log's reference-heading column".to_string(),
-            Some(ReferenceSource::GpsCourse { min_speed_mps }) => {
-                format!("GPS course above {min_speed_mps} m/s")
-            }
-            None => "none in the log".to_string(),
-        };
+        let reference = report
+            .reference
+            .map_or_else(|| "none in the log".to_string(), |source| source.describe());
         let field = match &report.expected_field {
             Some(expected) => format!(
                 "Field: {:.1} µT measured (raw), {:.1} µT expected, inclination {:.1}° ({})",
@@ -631,13 +626,7 @@ fn or_none(items: impl Iterator<Item = String>) -> impl Iterator<Item = String> 
 
 /// The key of a method in element ids, as in the JSON report (`min_max`, `ref_ls`, …).
 fn method_key(method: Method) -> String {
-    match method {
-        Method::MinMax => "min_max",
-        Method::Ellipse => "ellipse",
-        Method::Ellipsoid => "ellipsoid",
-        Method::RefLs => "ref_ls",
-    }
-    .to_string()
+    method.key().to_string()
 }
 
 /// Puts a bug report into the status area, whatever state the page is in.

@@ -1,0 +1,543 @@
+//! Heading error models learned from a reference, and every heading method side by
+//! side on one train/check split.
+//!
+//! Field-domain calibration ([`crate::calibration`]) cannot remove everything: the
+//! misalignment between device and walking direction, tilt the accelerometer missed,
+//! declination, soft iron that moves with the body and temperature all leave a heading
+//! error that depends on the heading and on conditions. This module learns it from the
+//! reference heading ([`crate::reference`]):
+//!
+//! - [`fourier`]: the PDR paper's unified model `δ = A + B sin ξ' + C cos ξ' + D sin 2ξ'
+//!   + E cos 2ξ'` (Eq. 12), fitted by least squares on the train part;
+//! - [`rls`]: the same model adapted online while the reference is good;
+//!
+//! each on the raw heading and on top of each field-domain calibration ("ellipse +
+//! Fourier"). The comparison reports mean, std, RMS, 95th percentile and the share
+//! within ±5° on train and on check, as the papers' tables do.
+
+pub mod fourier;
+pub mod rls;
+
+use serde::Serialize;
+
+use crate::analysis::AnalysisError;
+use crate::angle::heading_difference_rad;
+use crate::calibration::{calibrate, CalibrationAnalysis, CalibrationOptions, CalibrationReport};
+use crate::io::ImportReport;
+use crate::reference::ReferenceSource;
+use crate::stats::HeadingErrorStats;
+use fourier::{fit_fourier, FourierDeviation, FourierFit};
+use rls::{adapt_online, RlsSnapshot};
+
+/// The bins (s) over which headings are averaged into the pairs a model is fitted to.
+const PAIR_WINDOW_S: f64 = 1.0;
+/// A bin whose headings spread further than this (rad, either side of their mean) is in
+/// a turn and is left out.
+const MAX_BIN_SPREAD_RAD: f64 = 0.17;
+/// Online updates are spaced by at least this (s): a 50 Hz compass against a 1 Hz GPS
+/// course adds nothing faster.
+const ONLINE_UPDATE_SPACING_S: f64 = 0.2;
+/// Coefficient snapshots for the convergence plot, every this many seconds.
+const ONLINE_SNAPSHOT_SPACING_S: f64 = 5.0;
+
+/// Choices that change the result.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct HeadingOptions {
+    /// The field-domain methods, the reference, the split and the declination.
+    pub calibration: CalibrationOptions,
+    /// Memory of the online adaptation (s): the forgetting factor per update is
+    /// exp(−spacing / memory).
+    pub online_memory_s: f64,
+}
+
+impl Default for HeadingOptions {
+    fn default() -> Self {
+        HeadingOptions {
+            calibration: CalibrationOptions::default(),
+            online_memory_s: 300.0,
+        }
+    }
+}
+
+/// One heading method's errors on train and check.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct HeadingRow {
+    /// A stable identifier (`raw`, `ellipse`, `ellipse+fourier`, ...).
+    pub key: String,
+    pub label: String,
+    pub train: Option<HeadingErrorStats>,
+    pub check: Option<HeadingErrorStats>,
+    /// Why it could not be fitted, and what to do.
+    pub error: Option<String>,
+}
+
+/// A Fourier deviation model fitted on top of one base heading.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FourierReport {
+    pub base_key: String,
+    pub base_label: String,
+    /// The fit on the train part, with its own residual statistics and histogram.
+    pub fit: FourierFit,
+}
+
+/// The online adaptation on the raw heading.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct OnlineReport {
+    pub memory_s: f64,
+    pub forgetting_per_update: f64,
+    pub n_updates: usize,
+    pub model: FourierDeviation,
+    pub snapshots: Vec<RlsSnapshot>,
+}
+
+/// What `compass-pdr heading --json` prints and the page shows.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct HeadingReport {
+    pub file_name: String,
+    pub reference: Option<ReferenceSource>,
+    pub reference_description: Option<String>,
+    pub train_until_s: Option<f64>,
+    /// Samples with a reference heading on each part.
+    pub n_train_referenced: usize,
+    pub n_check_referenced: usize,
+    pub rows: Vec<HeadingRow>,
+    pub fourier: Vec<FourierReport>,
+    pub online: Option<OnlineReport>,
+    /// The row with the lowest check RMS (train RMS without a check part).
+    pub best: Option<String>,
+    pub notes: Vec<String>,
+    /// The field-domain comparison it stands on.
+    pub calibration: CalibrationReport,
+}
+
+/// The report with the per-sample series the plots draw.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HeadingAnalysis {
+    pub report: HeadingReport,
+    pub t_s: Vec<f64>,
+    pub is_train: Vec<bool>,
+    pub reference_deg: Vec<Option<f64>>,
+    /// Each row's heading per sample, by key.
+    pub headings_deg: Vec<(String, Vec<f64>)>,
+}
+
+/// A base heading: raw or one field-domain method, in radians per sample.
+struct Base {
+    key: String,
+    label: String,
+    heading_rad: Vec<f64>,
+}
+
+/// Calibrates `report` with every field-domain method, then learns the deviation models
+/// on each and compares everything.
+pub fn analyse_headings(
+    report: ImportReport,
+    options: &HeadingOptions,
+) -> Result<HeadingAnalysis, AnalysisError> {
+    let calibration = calibrate(report, &options.calibration)?;
+    Ok(compare(calibration, options))
+}
+
+/// The comparison on an existing calibration analysis.
+pub fn compare(calibration: CalibrationAnalysis, options: &HeadingOptions) -> HeadingAnalysis {
+    let CalibrationAnalysis {
+        report: calibration_report,
+        t_s,
+        ref_heading_deg,
+        raw_heading_deg,
+        headings_deg: method_headings_deg,
+        ..
+    } = calibration;
+    let mut notes = Vec::new();
+    let reference_rad: Vec<Option<f64>> = ref_heading_deg
+        .iter()
+        .map(|reference| reference.map(f64::to_radians))
+        .collect();
+    let is_train: Vec<bool> = t_s
+        .iter()
+        .map(|&t_s| {
+            calibration_report
+                .train_until_s
+                .is_none_or(|until_s| t_s <= until_s)
+        })
+        .collect();
+    let count_referenced = |want_train: bool| {
+        reference_rad
+            .iter()
+            .zip(&is_train)
+            .filter(|(reference, &train)| reference.is_some() && train == want_train)
+            .count()
+    };
+    let (n_train_referenced, n_check_referenced) =
+        (count_referenced(true), count_referenced(false));
+    let stats_of = |headings_rad: &[f64], want_train: bool| {
+        HeadingErrorStats::from_errors_rad(
+            headings_rad
+                .iter()
+                .zip(&reference_rad)
+                .zip(&is_train)
+                .filter_map(|((&heading_rad, &reference_rad), &train)| {
+                    (train == want_train)
+                        .then_some(heading_difference_rad(heading_rad, reference_rad?))
+                }),
+        )
+    };
+
+    let mut bases = vec![Base {
+        key: "raw".to_string(),
+        label: "uncalibrated".to_string(),
+        heading_rad: raw_heading_deg.iter().map(|deg| deg.to_radians()).collect(),
+    }];
+    for (method, headings) in &method_headings_deg {
+        bases.push(Base {
+            key: method.key().to_string(),
+            label: method.label().to_string(),
+            heading_rad: headings.iter().map(|deg| deg.to_radians()).collect(),
+        });
+    }
+
+    let mut rows = Vec::new();
+    let mut series: Vec<(String, Vec<f64>)> = Vec::new();
+    for base in &bases {
+        rows.push(HeadingRow {
+            key: base.key.clone(),
+            label: base.label.clone(),
+            train: stats_of(&base.heading_rad, true),
+            check: stats_of(&base.heading_rad, false),
+            error: None,
+        });
+        series.push((base.key.clone(), to_degrees(&base.heading_rad)));
+    }
+    // Field-domain methods that could not be fitted are listed with their reason.
+    for method_report in calibration_report
+        .methods
+        .iter()
+        .filter(|report| report.error.is_some())
+    {
+        rows.push(HeadingRow {
+            key: method_report.method.key().to_string(),
+            label: method_report.label.to_string(),
+            train: None,
+            check: None,
+            error: method_report.error.clone(),
+        });
+    }
+
+    // The models see the train part in bins of PAIR_WINDOW_S: the circular mean of the
+    // base heading and of the reference over each bin. Averaging takes out most of the
+    // body's sway, whose noise in the raw heading would otherwise flatten the fitted
+    // curve (noise in a regressor biases least squares); a bin in a turn is left out.
+    let mut bins: Vec<Vec<usize>> = Vec::new();
+    let mut bin_start_s = f64::NEG_INFINITY;
+    for (idx, (&sample_t_s, (&train, reference))) in t_s
+        .iter()
+        .zip(is_train.iter().zip(&reference_rad))
+        .enumerate()
+    {
+        if !train || reference.is_none() {
+            continue;
+        }
+        match bins.last_mut() {
+            Some(bin) if sample_t_s < bin_start_s + PAIR_WINDOW_S => bin.push(idx),
+            _ => {
+                bins.push(vec![idx]);
+                bin_start_s = sample_t_s;
+            }
+        }
+    }
+    let reference_values: Vec<f64> = reference_rad
+        .iter()
+        .map(|reference| reference.unwrap_or(f64::NAN))
+        .collect();
+    let bin_pairs = |heading_rad: &[f64]| -> (Vec<f64>, Vec<f64>) {
+        bins.iter()
+            .filter_map(|bin| {
+                let base = steady_mean(heading_rad, bin)?;
+                let reference = steady_mean(&reference_values, bin)?;
+                Some((base, reference))
+            })
+            .unzip()
+    };
+
+    let mut fourier_reports = Vec::new();
+    for base in &bases {
+        let key = if base.key == "raw" {
+            "fourier".to_string()
+        } else {
+            format!("{}+fourier", base.key)
+        };
+        let label = if base.key == "raw" {
+            "Fourier deviation model (Eq. 12)".to_string()
+        } else {
+            format!("{} + Fourier", base.label)
+        };
+        let (raw, reference) = bin_pairs(&base.heading_rad);
+        match fit_fourier(&raw, &reference) {
+            Ok(fit) => {
+                let corrected: Vec<f64> = base
+                    .heading_rad
+                    .iter()
+                    .map(|&heading| fit.model.correct_rad(heading))
+                    .collect();
+                rows.push(HeadingRow {
+                    key: key.clone(),
+                    label,
+                    train: stats_of(&corrected, true),
+                    check: stats_of(&corrected, false),
+                    error: None,
+                });
+                series.push((key, to_degrees(&corrected)));
+                if fit.terms != fourier::FourierTerms::Full {
+                    notes.push(format!(
+                        "{}: the train headings cover too little of the circle for all five terms, so only {} were \
+                         fitted; turn through every heading while the reference is good",
+                        base.label,
+                        match fit.terms {
+                            fourier::FourierTerms::FirstHarmonic => "A, B and C",
+                            _ => "the constant A",
+                        }
+                    ));
+                }
+                fourier_reports.push(FourierReport {
+                    base_key: base.key.clone(),
+                    base_label: base.label.clone(),
+                    fit,
+                });
+            }
+            Err(error) => rows.push(HeadingRow {
+                key,
+                label,
+                train: None,
+                check: None,
+                error: Some(error.to_string()),
+            }),
+        }
+    }
+    if !fourier_reports.is_empty() {
+        notes.push(
+            "the Fourier model's constant A absorbs the misalignment between the device and the direction of travel \
+             (β), the declination (λ) and any constant offset of the reference, so A is not a calibration of the \
+             sensor alone"
+                .to_string(),
+        );
+    }
+
+    // Online adaptation on the raw heading, over every referenced sample in time order.
+    let online = bases.first().and_then(|raw| {
+        let forgetting = (-ONLINE_UPDATE_SPACING_S / options.online_memory_s.max(1.0)).exp();
+        let mut last_t_s = f64::NEG_INFINITY;
+        let samples: Vec<(f64, f64, f64)> = t_s
+            .iter()
+            .zip(&raw.heading_rad)
+            .zip(&reference_rad)
+            .filter_map(|((&t_s, &raw_rad), &reference_rad)| {
+                let reference_rad = reference_rad?;
+                (t_s - last_t_s >= ONLINE_UPDATE_SPACING_S).then(|| {
+                    last_t_s = t_s;
+                    (t_s, raw_rad, reference_rad)
+                })
+            })
+            .collect();
+        if samples.len() < 10 {
+            return None;
+        }
+        let n_updates = samples.len();
+        let (model, snapshots) = adapt_online(samples, forgetting, ONLINE_SNAPSHOT_SPACING_S);
+        Some(OnlineReport {
+            memory_s: options.online_memory_s,
+            forgetting_per_update: forgetting,
+            n_updates,
+            model,
+            snapshots,
+        })
+    });
+
+    let best = rows
+        .iter()
+        .filter_map(|row| Some((row.key.clone(), row.check.or(row.train)?.rms_deg)))
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .map(|(key, _)| key);
+    if calibration_report.reference.is_none() {
+        notes.push(
+            "the log has no reference heading (a reference column, GPS course, reference positions, or a closed \
+             loop for the gyro), so no deviation model could be learned"
+                .to_string(),
+        );
+    }
+    HeadingAnalysis {
+        report: HeadingReport {
+            file_name: calibration_report.file_name.clone(),
+            reference: calibration_report.reference,
+            reference_description: calibration_report.reference.map(|source| source.describe()),
+            train_until_s: calibration_report.train_until_s,
+            n_train_referenced,
+            n_check_referenced,
+            rows,
+            fourier: fourier_reports,
+            online,
+            best,
+            notes,
+            calibration: calibration_report,
+        },
+        t_s,
+        is_train,
+        reference_deg: ref_heading_deg,
+        headings_deg: series,
+    }
+}
+
+/// The circular mean of `values_rad` at `indices`, or `None` when they spread beyond
+/// [`MAX_BIN_SPREAD_RAD`] or any is not finite.
+fn steady_mean(values_rad: &[f64], indices: &[usize]) -> Option<f64> {
+    let (mut sum_sin, mut sum_cos) = (0.0, 0.0);
+    for &idx in indices {
+        let value = *values_rad.get(idx)?;
+        if !value.is_finite() {
+            return None;
+        }
+        sum_sin += value.sin();
+        sum_cos += value.cos();
+    }
+    let mean_rad = sum_sin.atan2(sum_cos);
+    let spread_rad = indices
+        .iter()
+        .filter_map(|&idx| Some(crate::angle::wrap_to_pi(values_rad.get(idx)? - mean_rad).abs()))
+        .fold(0.0, f64::max);
+    (spread_rad <= MAX_BIN_SPREAD_RAD && !indices.is_empty())
+        .then_some(crate::angle::wrap_to_2pi(mean_rad))
+}
+
+fn to_degrees(headings_rad: &[f64]) -> Vec<f64> {
+    headings_rad
+        .iter()
+        .map(|heading| heading.to_degrees())
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::io::canonical_csv;
+    use crate::io::import::import;
+    use crate::sim::walk::{simulate, WalkConfig};
+
+    use crate::calibration::Method;
+    use crate::reference::{ReferenceChoice, ReferenceOptions};
+    use crate::sim::walk::GnssSim;
+
+    /// The paper's Table II, data set 1.
+    const TABLE_II_1: [f64; 5] = [9.0, 31.4, 0.9, 0.6, 1.8];
+
+    fn simulated(config: &WalkConfig) -> ImportReport {
+        let text = canonical_csv::write(&simulate(config));
+        import("walk.csv", text.as_bytes()).expect("imports")
+    }
+
+    #[test]
+    fn a_to_e_come_back_within_0_3_degrees_from_a_walk_with_2_degree_gps_course_noise() {
+        let config = WalkConfig {
+            deviation_deg: Some(TABLE_II_1),
+            gnss: Some(GnssSim::default()),
+            ..WalkConfig::from_seed(5, 1200.0)
+        };
+        let options = HeadingOptions {
+            calibration: CalibrationOptions {
+                methods: vec![Method::MinMax],
+                train_until_s: Some(1e9),
+                reference: ReferenceOptions {
+                    choice: ReferenceChoice::Gps,
+                    ..ReferenceOptions::default()
+                },
+                ..CalibrationOptions::default()
+            },
+            ..HeadingOptions::default()
+        };
+        let analysis = analyse_headings(simulated(&config), &options).expect("analyses");
+        assert_eq!(
+            analysis.report.reference.map(|source| source.label()),
+            Some("GPS course")
+        );
+        let fit = &analysis
+            .report
+            .fourier
+            .iter()
+            .find(|report| report.base_key == "raw")
+            .expect("fitted")
+            .fit;
+        let model = fit.model;
+        let got = [
+            model.a_deg,
+            model.b_deg,
+            model.c_deg,
+            model.d_deg,
+            model.e_deg,
+        ];
+        for (got, want) in got.iter().zip(TABLE_II_1) {
+            assert!(
+                (got - want).abs() < 0.3,
+                "{:?} vs {TABLE_II_1:?} {fit:?}",
+                [
+                    model.a_deg,
+                    model.b_deg,
+                    model.c_deg,
+                    model.d_deg,
+                    model.e_deg
+                ]
+            );
+        }
+    }
+
+    #[test]
+    fn a_gap_in_the_reference_is_neither_bridged_nor_extrapolated() {
+        let config = WalkConfig {
+            gnss: Some(GnssSim::default()),
+            ..WalkConfig::from_seed(6, 400.0)
+        };
+        let mut rows = simulate(&config);
+        for row in &mut rows {
+            row.ref_heading_deg = None;
+            if (150.0..250.0).contains(&row.t_s) || row.t_s > 380.0 {
+                row.gps_course_deg = None;
+                row.gps_speed_mps = None;
+            }
+        }
+        let text = canonical_csv::write(&rows);
+        let report = import("walk.csv", text.as_bytes()).expect("imports");
+        let analysis = analyse_headings(report, &HeadingOptions::default()).expect("analyses");
+        for (&t_s, reference) in analysis.t_s.iter().zip(&analysis.reference_deg) {
+            if (151.5..248.5).contains(&t_s) || t_s > 381.5 {
+                assert!(reference.is_none(), "a reference at {t_s} s");
+            }
+        }
+        assert!(
+            analysis
+                .reference_deg
+                .iter()
+                .filter(|reference| reference.is_some())
+                .count()
+                > 5000
+        );
+    }
+
+    #[test]
+    fn every_base_gets_a_fourier_stack_and_a_row() {
+        let text = canonical_csv::write(&simulate(&WalkConfig::from_seed(3, 180.0)));
+        let report = import("walk.csv", text.as_bytes()).expect("imports");
+        let analysis = analyse_headings(report, &HeadingOptions::default()).expect("analyses");
+        let keys: Vec<&str> = analysis
+            .report
+            .rows
+            .iter()
+            .map(|row| row.key.as_str())
+            .collect();
+        assert!(
+            keys.contains(&"raw") && keys.contains(&"fourier"),
+            "{keys:?}"
+        );
+        assert!(analysis.report.online.is_some());
+        assert!(analysis
+            .headings_deg
+            .iter()
+            .all(|(_, headings)| headings.len() == analysis.t_s.len()));
+    }
+}

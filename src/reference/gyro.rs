@@ -1,0 +1,284 @@
+//! Integrated gyro heading: a reference that follows every turn, anchored where an
+//! absolute reference exists.
+//!
+//! Source: the 2007 paper (`compass-calibration-ann-2007.txt`, Section 3) feeds a gyro
+//! heading to its network; the PDR paper's Fig. 2 bridges GPS gaps with relative
+//! sensors. The heading rate of a body with roll φ and pitch θ (x forward, y right,
+//! z down; yaw-pitch-roll Euler angles) is
+//!
+//! ```text
+//! ψ̇ = (q·sin φ + r·cos φ) / cos θ
+//! ```
+//!
+//! where (p, q, r) are the body rates. Roll and pitch come from the accelerometer
+//! averaged over a window, as for tilt compensation. The integral is relative; it is
+//! made absolute in one of three ways, and the result says which:
+//!
+//! - **anchored**: an absolute reference (GPS course, a reference column, map legs)
+//!   gives the offset at its first samples, and, where it spans at least a minute, a
+//!   linear drift (a constant gyro bias) fitted by least squares to all its samples;
+//! - **closed loop**: the user says the walk ends where and as it started, so the turn
+//!   from start to end is a whole number of revolutions; the remainder is drift. The
+//!   offset is unknown (the start is 0°);
+//! - **relative**: neither; the start is 0° and drift is not corrected.
+
+use serde::Serialize;
+
+use crate::angle::wrap_to_pi;
+use crate::calib::tilt::{smooth_specific_force, Tilt};
+use crate::recording::{Recording, Stream};
+
+/// Gyro samples further apart than this (s) are a gap: the turn across it is unknown.
+const MAX_GYRO_GAP_S: f64 = 0.5;
+/// How far apart (s) anchor samples must spread before a drift is fitted.
+const MIN_DRIFT_SPAN_S: f64 = 60.0;
+/// The stretch (s) at each end of a closed loop whose mean heading is compared.
+const LOOP_END_S: f64 = 3.0;
+
+/// How the integrated heading was made absolute.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[serde(rename_all = "snake_case", tag = "kind")]
+pub enum GyroAlignment {
+    Anchored {
+        n_anchor_samples: usize,
+        /// The drift fitted (deg/min), `None` when the anchors spanned too short a time.
+        drift_deg_per_min: Option<f64>,
+        /// RMS of the anchors about the aligned gyro heading (deg).
+        residual_rms_deg: f64,
+    },
+    ClosedLoop {
+        drift_deg_per_min: f64,
+        whole_turns: i64,
+    },
+    Relative,
+}
+
+/// The integrated heading (clockwise from north where anchored) at the gyro's times.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GyroHeading {
+    pub heading_rad: Stream<f64>,
+    pub alignment: GyroAlignment,
+    /// Gaps in the gyro stream longer than 0.5 s (the heading after each is less sure).
+    pub n_gaps: usize,
+}
+
+/// Integrates the gyro of `recording`; `None` without gyro samples.
+pub fn gyro_heading(
+    recording: &Recording,
+    gravity_window_s: f64,
+    anchor: Option<&Stream<f64>>,
+    closed_loop: bool,
+) -> Option<GyroHeading> {
+    let gyro = &recording.gyro_in_body_radps;
+    let gravity = smooth_specific_force(&recording.acc_in_body_mps2, gravity_window_s);
+    let mut relative = Stream::default();
+    let mut heading_rad = 0.0;
+    let mut previous: Option<(f64, f64)> = None;
+    let mut n_gaps = 0usize;
+    for (&t_s, rate) in gyro.t_s.iter().zip(&gyro.values) {
+        let tilt = if gravity.is_empty() {
+            Some(Tilt::LEVEL)
+        } else {
+            gravity
+                .interpolate_at(t_s, MAX_GYRO_GAP_S)
+                .and_then(Tilt::from_specific_force)
+        };
+        let Some(tilt) = tilt else { continue };
+        let cos_pitch = tilt.pitch_rad.cos();
+        if cos_pitch.abs() < 0.1 || !rate.iter().all(|value| value.is_finite()) {
+            // Near ±90° pitch the heading rate is undefined.
+            continue;
+        }
+        let (sin_roll, cos_roll) = tilt.roll_rad.sin_cos();
+        let heading_rate_radps = (rate.y * sin_roll + rate.z * cos_roll) / cos_pitch;
+        if let Some((previous_t_s, previous_rate_radps)) = previous {
+            let dt_s = t_s - previous_t_s;
+            if dt_s > MAX_GYRO_GAP_S {
+                n_gaps += 1;
+            } else if dt_s > 0.0 {
+                heading_rad += 0.5 * (heading_rate_radps + previous_rate_radps) * dt_s;
+            }
+        }
+        previous = Some((t_s, heading_rate_radps));
+        relative.push(t_s, heading_rad);
+    }
+    let (&first_t_s, &last_t_s) = (relative.t_s.first()?, relative.t_s.last()?);
+
+    let anchored = anchor.and_then(|anchor| {
+        // Offsets anchor − gyro, unwrapped along time.
+        let mut offsets: Vec<(f64, f64)> = Vec::new();
+        for (&t_s, &reference_rad) in anchor.t_s.iter().zip(&anchor.values) {
+            let Some(gyro_rad) = relative.interpolate_at(t_s, MAX_GYRO_GAP_S) else {
+                continue;
+            };
+            let offset_rad = wrap_to_pi(reference_rad - gyro_rad);
+            let unwrapped = offsets.last().map_or(offset_rad, |&(_, previous_rad)| {
+                previous_rad + wrap_to_pi(offset_rad - previous_rad)
+            });
+            offsets.push((t_s, unwrapped));
+        }
+        let n = offsets.len();
+        let (&(t0_s, _), &(t1_s, _)) = (offsets.first()?, offsets.last()?);
+        let mean_t_s = offsets.iter().map(|(t_s, _)| t_s).sum::<f64>() / n as f64;
+        let mean_offset_rad = offsets.iter().map(|(_, offset)| offset).sum::<f64>() / n as f64;
+        let drift_radps = if t1_s - t0_s >= MIN_DRIFT_SPAN_S {
+            let (mut sxy, mut sxx) = (0.0, 0.0);
+            for &(t_s, offset_rad) in &offsets {
+                sxy += (t_s - mean_t_s) * (offset_rad - mean_offset_rad);
+                sxx += (t_s - mean_t_s).powi(2);
+            }
+            (sxx > 0.0).then(|| sxy / sxx)
+        } else {
+            None
+        };
+        let correction = |t_s: f64| mean_offset_rad + drift_radps.unwrap_or(0.0) * (t_s - mean_t_s);
+        let residual_rms_deg = (offsets
+            .iter()
+            .map(|&(t_s, offset_rad)| (offset_rad - correction(t_s)).powi(2))
+            .sum::<f64>()
+            / n as f64)
+            .sqrt()
+            .to_degrees();
+        let mut heading = Stream::default();
+        for (&t_s, &gyro_rad) in relative.t_s.iter().zip(&relative.values) {
+            heading.push(t_s, crate::angle::wrap_to_2pi(gyro_rad + correction(t_s)));
+        }
+        Some(GyroHeading {
+            heading_rad: heading,
+            alignment: GyroAlignment::Anchored {
+                n_anchor_samples: n,
+                drift_deg_per_min: drift_radps.map(|drift| drift.to_degrees() * 60.0),
+                residual_rms_deg,
+            },
+            n_gaps,
+        })
+    });
+    if let Some(anchored) = anchored {
+        return Some(anchored);
+    }
+
+    let span_s = last_t_s - first_t_s;
+    let (drift_radps, alignment) = if closed_loop && span_s > 4.0 * LOOP_END_S {
+        let mean_over = |from_s: f64, to_s: f64| {
+            let values: Vec<f64> = relative
+                .t_s
+                .iter()
+                .zip(&relative.values)
+                .filter(|(&t_s, _)| t_s >= from_s && t_s <= to_s)
+                .map(|(_, &value)| value)
+                .collect();
+            values.iter().sum::<f64>() / values.len().max(1) as f64
+        };
+        let turned_rad = mean_over(last_t_s - LOOP_END_S, last_t_s)
+            - mean_over(first_t_s, first_t_s + LOOP_END_S);
+        let whole_turns = (turned_rad / std::f64::consts::TAU).round();
+        let drift_radps =
+            (turned_rad - whole_turns * std::f64::consts::TAU) / (span_s - LOOP_END_S);
+        (
+            drift_radps,
+            GyroAlignment::ClosedLoop {
+                drift_deg_per_min: drift_radps.to_degrees() * 60.0,
+                whole_turns: whole_turns as i64,
+            },
+        )
+    } else {
+        (0.0, GyroAlignment::Relative)
+    };
+    let mut heading = Stream::default();
+    for (&t_s, &gyro_rad) in relative.t_s.iter().zip(&relative.values) {
+        heading.push(
+            t_s,
+            crate::angle::wrap_to_2pi(gyro_rad - drift_radps * (t_s - first_t_s)),
+        );
+    }
+    Some(GyroHeading {
+        heading_rad: heading,
+        alignment,
+        n_gaps,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::Vector3;
+
+    /// A level device turning at `rate_radps` about the vertical, with a gyro bias.
+    fn turning(duration_s: f64, rate_radps: f64, bias_radps: f64) -> Recording {
+        let mut recording = Recording::default();
+        let n = (duration_s * 50.0) as usize;
+        for idx in 0..=n {
+            let t_s = idx as f64 / 50.0;
+            recording
+                .gyro_in_body_radps
+                .push(t_s, Vector3::new(0.0, 0.0, rate_radps + bias_radps));
+            recording
+                .acc_in_body_mps2
+                .push(t_s, Vector3::new(0.0, 0.0, -9.81));
+        }
+        recording
+    }
+
+    #[test]
+    fn anchors_give_the_offset_and_the_drift() {
+        let recording = turning(300.0, 0.05, 0.002);
+        // The true heading is 1.0 + 0.05 t; anchors every 10 s.
+        let mut anchor = Stream::default();
+        for idx in 0..30 {
+            let t_s = idx as f64 * 10.0;
+            anchor.push(t_s, crate::angle::wrap_to_2pi(1.0 + 0.05 * t_s));
+        }
+        let gyro = gyro_heading(&recording, 1.0, Some(&anchor), false).expect("gyro");
+        let GyroAlignment::Anchored {
+            drift_deg_per_min: Some(drift_deg_per_min),
+            ..
+        } = gyro.alignment
+        else {
+            panic!("{:?}", gyro.alignment)
+        };
+        assert!((drift_deg_per_min + 0.002f64.to_degrees() * 60.0).abs() < 1e-6);
+        for (&t_s, &heading_rad) in gyro.heading_rad.t_s.iter().zip(&gyro.heading_rad.values) {
+            let truth = 1.0 + 0.05 * t_s;
+            assert!(wrap_to_pi(heading_rad - truth).abs() < 1e-6, "{t_s}");
+        }
+    }
+
+    #[test]
+    fn a_closed_loop_takes_the_remainder_as_drift() {
+        // Two full turns in 251.3 s, with a bias adding 0.1 rad over the walk.
+        let duration_s = 2.0 * std::f64::consts::TAU / 0.05;
+        let recording = turning(duration_s + 10.0, 0.0, 0.0);
+        let mut recording = recording;
+        for (t_s, rate) in recording
+            .gyro_in_body_radps
+            .t_s
+            .iter()
+            .zip(recording.gyro_in_body_radps.values.iter_mut())
+        {
+            let turning_rate = if *t_s >= 5.0 && *t_s < 5.0 + duration_s {
+                0.05
+            } else {
+                0.0
+            };
+            rate.z = turning_rate + 0.1 / (duration_s + 10.0);
+        }
+        let gyro = gyro_heading(&recording, 1.0, None, true).expect("gyro");
+        let GyroAlignment::ClosedLoop {
+            whole_turns,
+            drift_deg_per_min,
+        } = gyro.alignment
+        else {
+            panic!("{:?}", gyro.alignment)
+        };
+        assert_eq!(whole_turns, 2);
+        let expected = (0.1 / (duration_s + 10.0)).to_degrees() * 60.0;
+        assert!(
+            (drift_deg_per_min - expected).abs() < 0.02 * expected,
+            "{drift_deg_per_min} vs {expected}"
+        );
+        // Without the loop, nothing is corrected.
+        let relative = gyro_heading(&recording, 1.0, None, false).expect("gyro");
+        assert_eq!(relative.alignment, GyroAlignment::Relative);
+        assert!(gyro_heading(&Recording::default(), 1.0, None, false).is_none());
+    }
+}
