@@ -88,8 +88,8 @@ pub enum DeclinationChoice {
 pub struct CalibrationOptions {
     pub methods: Vec<Method>,
     /// Samples up to this time train the methods; later ones check them. `None` splits
-    /// the span that has a reference heading in half (or trains on everything when
-    /// there is no reference).
+    /// the samples that have a reference heading in half by count (or trains on
+    /// everything when there is no reference).
     pub train_until_s: Option<f64>,
     pub declination: DeclinationChoice,
     /// Window over which specific force is averaged to give roll and pitch (s).
@@ -344,8 +344,15 @@ pub fn calibrate(
             .filter(|(_, reference)| reference.is_some())
             .map(|(&t_s, _)| t_s)
             .collect();
-        match (referenced.first(), referenced.last()) {
-            (Some(first_s), Some(last_s)) if last_s > first_s => Some((first_s + last_s) / 2.0),
+        // Half of the referenced samples on each side: a sparse tail of reference (a
+        // few fixes at the end of a drive) does not move the split.
+        let middle = referenced.len() / 2;
+        match (
+            referenced.first(),
+            referenced.get(middle),
+            referenced.last(),
+        ) {
+            (Some(first_s), Some(&middle_s), Some(last_s)) if last_s > first_s => Some(middle_s),
             _ => None,
         }
     });

@@ -9,11 +9,13 @@ use compass_pdr::calib::export::{c_snippet, motioncal_packet};
 use compass_pdr::calibration::{
     calibrate, CalibrationOptions, CalibrationReport, DeclinationChoice, Method,
 };
+use compass_pdr::deviation::{analyse_headings, HeadingOptions, HeadingReport};
 use compass_pdr::io::canonical_csv;
 use compass_pdr::io::delimited::ColumnMapping;
 use compass_pdr::io::import::{header_signature, merge, ChunkedImport, Inspection};
 use compass_pdr::io::{Diagnostics, ImportReport};
-use compass_pdr::plot::draw_calibration_figure;
+use compass_pdr::plot::{draw_calibration_figure, draw_deviation_figure};
+use compass_pdr::reference::{ReferenceChoice, ReferenceOptions};
 use compass_pdr::sim::walk::{simulate, WalkConfig};
 use compass_pdr::stats::HeadingErrorStats;
 use plotters::prelude::{IntoDrawingArea, SVGBackend};
@@ -50,18 +52,8 @@ enum Command {
         /// Which method to run, or all of them side by side.
         #[arg(long, value_enum, default_value_t = MethodChoice::All)]
         method: MethodChoice,
-        /// Samples up to this time (s) train the methods, later ones check them
-        /// (default: half-way through the part that has a reference heading).
-        #[arg(long)]
-        train_until: Option<f64>,
-        /// Declination: `auto` (the World Magnetic Model at the log's first position and
-        /// date), or degrees, east positive (true north from magnetic north).
-        #[arg(long, default_value = "auto", allow_hyphen_values = true)]
-        declination: String,
-        /// Where the log was recorded, `LAT,LON` in degrees, for logs without GNSS
-        /// (indoors): the magnetic model needs a place for the expected field.
-        #[arg(long, allow_hyphen_values = true)]
-        position: Option<String>,
+        #[command(flatten)]
+        analysis: AnalysisArgs,
         /// Print the result as JSON.
         #[arg(long)]
         json: bool,
@@ -74,6 +66,22 @@ enum Command {
         /// Write the device calibration as a MotionCal 68-byte packet to this file.
         #[arg(long)]
         export_packet: Option<PathBuf>,
+    },
+    /// Learn the heading error from a reference (the unified Fourier model of the PDR
+    /// paper, adapted online too) on top of every calibration method, and compare every
+    /// heading method on one train/check split.
+    Heading {
+        #[command(flatten)]
+        input: ImportArgs,
+        #[command(flatten)]
+        analysis: AnalysisArgs,
+        /// Print the result as JSON.
+        #[arg(long)]
+        json: bool,
+        /// Also draw the deviation curve, the residual histogram and the heading error
+        /// over time to this SVG file.
+        #[arg(long)]
+        plot: Option<PathBuf>,
     },
     /// Show what a log holds: its format, streams (count, rate, duration, gaps), what
     /// was assumed, and every line that was skipped.
@@ -99,6 +107,81 @@ struct ImportArgs {
     /// files with the same header, in $XDG_CONFIG_HOME/compass-pdr/mappings.json.
     #[arg(long)]
     map: Option<String>,
+}
+
+/// The choices every analysis shares: the split, the reference, the declination.
+#[derive(Debug, clap::Args)]
+struct AnalysisArgs {
+    /// Samples up to this time (s) train the methods, later ones check them
+    /// (default: half-way through the part that has a reference heading).
+    #[arg(long)]
+    train_until: Option<f64>,
+    /// The reference heading: `auto` (the log's reference column, else GPS course, else
+    /// map legs between reference positions, else the gyro over a --closed-loop),
+    /// `column`, `gps`, `legs`, or `gyro` (the integrated gyro, anchored to the best
+    /// of the others).
+    #[arg(long, value_enum, default_value_t = ReferenceArg::Auto)]
+    reference: ReferenceArg,
+    /// The walk ends where and as it started: the gyro's turn over it is whole turns,
+    /// and the remainder is drift.
+    #[arg(long)]
+    closed_loop: bool,
+    /// GPS course counts as a reference only at this speed (m/s) or faster (default:
+    /// 5 for a vehicle's log, 0.8 for a pedestrian's).
+    #[arg(long)]
+    min_course_speed: Option<f64>,
+    /// Declination: `auto` (the World Magnetic Model at the log's first position and
+    /// date), or degrees, east positive (true north from magnetic north).
+    #[arg(long, default_value = "auto", allow_hyphen_values = true)]
+    declination: String,
+    /// Where the log was recorded, `LAT,LON` in degrees, for logs without GNSS
+    /// (indoors): the magnetic model needs a place for the expected field.
+    #[arg(long, allow_hyphen_values = true)]
+    position: Option<String>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum ReferenceArg {
+    Auto,
+    Column,
+    Gps,
+    Legs,
+    Gyro,
+}
+
+impl AnalysisArgs {
+    /// The calibration options these arguments give, for `methods`.
+    fn options(&self, methods: Vec<Method>) -> Result<CalibrationOptions, String> {
+        let position_deg = self.position.as_deref().map(parse_position).transpose()?;
+        let declination = parse_declination(&self.declination)?;
+        if let Some(speed) = self
+            .min_course_speed
+            .filter(|speed| !(speed.is_finite() && *speed >= 0.0))
+        {
+            return Err(format!(
+                "--min-course-speed {speed}: give a speed in m/s, 0 or more"
+            ));
+        }
+        Ok(CalibrationOptions {
+            methods,
+            train_until_s: self.train_until,
+            declination,
+            position_deg,
+            reference: ReferenceOptions {
+                choice: match self.reference {
+                    ReferenceArg::Auto => ReferenceChoice::Auto,
+                    ReferenceArg::Column => ReferenceChoice::Column,
+                    ReferenceArg::Gps => ReferenceChoice::Gps,
+                    ReferenceArg::Legs => ReferenceChoice::Legs,
+                    ReferenceArg::Gyro => ReferenceChoice::Gyro,
+                },
+                min_course_speed_mps: self.min_course_speed,
+                closed_loop: self.closed_loop,
+                ..ReferenceOptions::default()
+            },
+            ..CalibrationOptions::default()
+        })
+    }
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -142,36 +225,34 @@ pub fn main() -> ExitCode {
         Command::Calibrate {
             input,
             method,
-            train_until,
-            declination,
-            position,
+            analysis,
             json,
             plot,
             export_c,
             export_packet,
-        } => {
-            let position = position.as_deref().map(parse_position).transpose();
-            position
-                .and_then(|position_deg| {
-                    parse_declination(&declination).map(|declination| (position_deg, declination))
-                })
-                .and_then(|(position_deg, declination)| {
-                    let options = CalibrationOptions {
-                        methods: method.methods(),
-                        train_until_s: train_until,
-                        declination,
-                        position_deg,
-                        ..CalibrationOptions::default()
-                    };
-                    let outputs = Outputs {
-                        json,
-                        plot: plot.as_deref(),
-                        export_c: export_c.as_deref(),
-                        export_packet: export_packet.as_deref(),
-                    };
-                    run_calibrate(&input, &options, &outputs)
-                })
-        }
+        } => analysis.options(method.methods()).and_then(|options| {
+            let outputs = Outputs {
+                json,
+                plot: plot.as_deref(),
+                export_c: export_c.as_deref(),
+                export_packet: export_packet.as_deref(),
+            };
+            run_calibrate(&input, &options, &outputs)
+        }),
+        Command::Heading {
+            input,
+            analysis,
+            json,
+            plot,
+        } => analysis
+            .options(Method::ALL.to_vec())
+            .and_then(|calibration| {
+                let options = HeadingOptions {
+                    calibration,
+                    ..HeadingOptions::default()
+                };
+                run_heading(&input, &options, json, plot.as_deref())
+            }),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -400,6 +481,131 @@ fn run_calibrate(
     } else {
         print_out(&calibration_text(report))
     }
+}
+
+fn run_heading(
+    input: &ImportArgs,
+    options: &HeadingOptions,
+    json: bool,
+    plot: Option<&Path>,
+) -> Result<(), String> {
+    let report = import_paths(input)?;
+    let analysis = analyse_headings(report, options).map_err(|error| error.to_string())?;
+    let report = &analysis.report;
+    print_import_diagnostics(&report.file_name, &report.calibration.diagnostics);
+    if let Some(plot) = plot {
+        let root = SVGBackend::new(plot, (1800, 540)).into_drawing_area();
+        draw_deviation_figure(&root, &analysis)
+            .map_err(|error| format!("{error} ({})", plot.display()))?;
+    }
+    if json {
+        let text = serde_json::to_string_pretty(report)
+            .map_err(|error| format!("cannot encode the result: {error}"))?;
+        print_out(&(text + "\n"))
+    } else {
+        print_out(&heading_text(report))
+    }
+}
+
+/// The heading comparison as a table, then each Fourier model as the paper's Table II.
+fn heading_text(report: &HeadingReport) -> String {
+    use std::fmt::Write as _;
+    let mut text = String::new();
+    let _ = writeln!(
+        text,
+        "{}: {} samples with a reference on train, {} on check{}",
+        report.file_name,
+        report.n_train_referenced,
+        report.n_check_referenced,
+        report
+            .train_until_s
+            .map_or(String::new(), |until_s| format!(
+                ", split at {until_s:.1} s"
+            ))
+    );
+    let _ = writeln!(
+        text,
+        "  reference heading: {}",
+        report.reference_description.as_deref().unwrap_or("none")
+    );
+    let _ = writeln!(
+        text,
+        "  declination: {:.2}° ({})",
+        report.calibration.declination.declination_deg, report.calibration.declination.source
+    );
+    let _ = writeln!(
+        text,
+        "  {:<36} {:>9} {:>16} {:>9} {:>9} {:>8}",
+        "heading method", "train RMS", "check mean±std", "check RMS", "check p95", "±5°"
+    );
+    let cell = |stats: Option<HeadingErrorStats>, pick: fn(&HeadingErrorStats) -> String| {
+        stats.as_ref().map_or("—".to_string(), pick)
+    };
+    for row in &report.rows {
+        if let Some(error) = &row.error {
+            let _ = writeln!(text, "  {:<36} not fitted: {error}", row.label);
+            continue;
+        }
+        let best = if report.best.as_deref() == Some(row.key.as_str()) {
+            " ← best"
+        } else {
+            ""
+        };
+        let _ = writeln!(
+            text,
+            "  {:<36} {:>9} {:>16} {:>9} {:>9} {:>8}{best}",
+            row.label,
+            cell(row.train, |stats| format!("{:.2}°", stats.rms_deg)),
+            cell(row.check, |stats| format!(
+                "{:.2}±{:.2}°",
+                stats.mean_deg, stats.std_deg
+            )),
+            cell(row.check, |stats| format!("{:.2}°", stats.rms_deg)),
+            cell(row.check, |stats| format!("{:.2}°", stats.p95_abs_deg)),
+            cell(row.check, |stats| format!(
+                "{:.0} %",
+                stats.within_5_deg_pct
+            )),
+        );
+    }
+    if !report.fourier.is_empty() {
+        let _ = writeln!(
+            text,
+            "  Fourier model on each base (train), as the PDR paper's Table II:\n  {:<36} {:>7} {:>7} {:>7} {:>7} {:>7} {:>14} {:>6}",
+            "base", "A °", "B °", "C °", "D °", "E °", "resid mean±std", "±5°"
+        );
+        for fourier in &report.fourier {
+            let model = fourier.fit.model;
+            let _ = writeln!(
+                text,
+                "  {:<36} {:>7.2} {:>7.2} {:>7.2} {:>7.2} {:>7.2} {:>14} {:>5.0}%",
+                fourier.base_label,
+                model.a_deg,
+                model.b_deg,
+                model.c_deg,
+                model.d_deg,
+                model.e_deg,
+                format!(
+                    "{:.2}±{:.2}°",
+                    fourier.fit.residual_mean_deg, fourier.fit.residual_std_deg
+                ),
+                fourier.fit.within_5_deg_pct
+            );
+        }
+    }
+    if let Some(online) = &report.online {
+        let model = online.model;
+        let _ = writeln!(
+            text,
+            "  online on {} (RLS, memory {:.0} s, {} updates): A {:.2}° B {:.2}° C {:.2}° D {:.2}° E {:.2}°",
+            online.base_label,
+            online.memory_s, online.n_updates, model.a_deg, model.b_deg, model.c_deg, model.d_deg, model.e_deg
+        );
+    }
+    for note in report.notes.iter().chain(&report.calibration.notes) {
+        let _ = writeln!(text, "  note: {note}");
+    }
+    text
 }
 
 /// Writes to stdout; a closed pipe (`| head`) ends the output quietly instead of

@@ -80,9 +80,11 @@ pub struct FourierReport {
     pub fit: FourierFit,
 }
 
-/// The online adaptation on the raw heading.
+/// The online adaptation on one base heading.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct OnlineReport {
+    pub base_key: String,
+    pub base_label: String,
     pub memory_s: f64,
     pub forgetting_per_update: f64,
     pub n_updates: usize,
@@ -322,8 +324,15 @@ pub fn compare(calibration: CalibrationAnalysis, options: &HeadingOptions) -> He
         );
     }
 
-    // Online adaptation on the raw heading, over every referenced sample in time order.
-    let online = bases.first().and_then(|raw| {
+    // Online adaptation over every referenced sample in time order, on the base whose
+    // batch model fits best (the raw heading when nothing else was fitted).
+    let online_base = fourier_reports
+        .iter()
+        .filter(|report| report.fit.terms == fourier::FourierTerms::Full)
+        .min_by(|a, b| a.fit.residual_std_deg.total_cmp(&b.fit.residual_std_deg))
+        .and_then(|report| bases.iter().find(|base| base.key == report.base_key))
+        .or(bases.first());
+    let online = online_base.and_then(|raw| {
         let forgetting = (-ONLINE_UPDATE_SPACING_S / options.online_memory_s.max(1.0)).exp();
         let mut last_t_s = f64::NEG_INFINITY;
         let samples: Vec<(f64, f64, f64)> = t_s
@@ -344,6 +353,8 @@ pub fn compare(calibration: CalibrationAnalysis, options: &HeadingOptions) -> He
         let n_updates = samples.len();
         let (model, snapshots) = adapt_online(samples, forgetting, ONLINE_SNAPSHOT_SPACING_S);
         Some(OnlineReport {
+            base_key: raw.key.clone(),
+            base_label: raw.label.clone(),
             memory_s: options.online_memory_s,
             forgetting_per_update: forgetting,
             n_updates,

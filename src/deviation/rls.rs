@@ -24,10 +24,13 @@ use serde::Serialize;
 use super::fourier::FourierDeviation;
 use crate::angle::wrap_to_pi;
 
-/// P starts at this multiple of the identity (rad²): a vague prior.
-const INITIAL_COVARIANCE: f64 = 10.0;
-/// The trace of P is kept below this, against wind-up without excitation.
-const MAX_COVARIANCE_TRACE: f64 = 50.0;
+/// P starts at this multiple of the identity (rad²): a prior of about ±30° on each
+/// coefficient, which keeps the early estimates sane while the headings seen so far
+/// cannot tell the terms apart.
+const INITIAL_COVARIANCE: f64 = 0.25;
+/// The trace of P is kept below the prior's, against wind-up while the headings stay on
+/// one course (forgetting would otherwise inflate the unexcited directions).
+const MAX_COVARIANCE_TRACE: f64 = 5.0 * INITIAL_COVARIANCE;
 
 /// The recursive estimator.
 #[derive(Debug, Clone, PartialEq)]
@@ -166,7 +169,8 @@ mod tests {
             (model.d_deg, batch.d_deg),
             (model.e_deg, batch.e_deg),
         ] {
-            assert!((online - batch).abs() < 0.05, "{model:?} vs {batch:?}");
+            // Equal up to the prior, a ridge of 4 against sums of about 2000 (0.2 %).
+            assert!((online - batch).abs() < 0.1, "{model:?} vs {batch:?}");
         }
         assert_eq!(snapshots.len(), 40);
     }

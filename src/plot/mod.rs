@@ -5,6 +5,7 @@
 //! sizes, backends and files belong to the caller.
 
 pub mod circle_fit;
+pub mod deviation;
 pub mod field_magnitude;
 pub mod heading_error;
 
@@ -15,6 +16,7 @@ use thiserror::Error;
 use crate::calibration::CalibrationAnalysis;
 
 pub use circle_fit::draw_circle_fit;
+pub use deviation::draw_deviation_figure;
 pub use field_magnitude::draw_field_magnitude;
 pub use heading_error::draw_heading_error;
 

@@ -4,12 +4,12 @@
 //! Sources, and the order in which [`ReferenceChoice::Auto`] tries them:
 //!
 //! 1. a reference-heading column in the log (`ref_heading_deg`: a simulator's truth, a
-//!    survey);
+//! survey);
 //! 2. the GPS course over ground, gated by speed and accuracy ([`gps`]);
 //! 3. the map-direction constraint: straight legs between reference positions
-//!    ([`legs`]);
+//! ([`legs`]);
 //! 4. the integrated gyro heading ([`gyro`]), anchored to whichever of the above exists,
-//!    else relative (and drift-corrected when the user says the walk is a closed loop).
+//! else relative (and drift-corrected when the user says the walk is a closed loop).
 //!
 //! A relative reference has no absolute offset: a heading model fitted against it
 //! learns the shape of the deviation, not its constant term, and the result says so.
@@ -102,7 +102,7 @@ impl ReferenceSource {
                     format!("{} course-over-ground samples", used.n_from_course_field)
                 };
                 format!(
-                    "GPS course at {min_speed_mps} m/s or faster with accuracy within {max_hacc_m} m ({from};                      {} too slow, {} inaccurate left out)",
+                    "GPS course at {min_speed_mps} m/s or faster with accuracy within {max_hacc_m} m ({from}; {} too slow, {} inaccurate left out)",
                     used.n_too_slow, used.n_inaccurate
                 )
             }
@@ -110,7 +110,7 @@ impl ReferenceSource {
                 n_legs,
                 total_length_m,
             } => format!(
-                "the bearings of {n_legs} straight legs ({total_length_m:.0} m) between reference positions,                  15 % of each leg's time left out at either end"
+                "the bearings of {n_legs} straight legs ({total_length_m:.0} m) between reference positions, 15 % of each leg's time left out at either end"
             ),
             ReferenceSource::Gyro { alignment, anchor } => match alignment {
                 GyroAlignment::Anchored {
@@ -118,7 +118,7 @@ impl ReferenceSource {
                     drift_deg_per_min,
                     residual_rms_deg,
                 } => format!(
-                    "the integrated gyro heading, anchored to the {} ({n_anchor_samples} samples, {residual_rms_deg:.1}°                      RMS about it){}",
+                    "the integrated gyro heading, anchored to the {} ({n_anchor_samples} samples, {residual_rms_deg:.1}° RMS about it){}",
                     anchor.unwrap_or("reference"),
                     drift_deg_per_min.map_or_else(
                         || ", too short a span to fit a drift".to_string(),
@@ -129,9 +129,9 @@ impl ReferenceSource {
                     drift_deg_per_min,
                     whole_turns,
                 } => format!(
-                    "the integrated gyro heading over a closed loop ({whole_turns} whole turns; drift                      {drift_deg_per_min:.2}°/min removed); it does not know north, so it fixes the shape of the                      deviation, not its constant term"
+                    "the integrated gyro heading over a closed loop ({whole_turns} whole turns; drift {drift_deg_per_min:.2}°/min removed); it does not know north, so it fixes the shape of the deviation, not its constant term"
                 ),
-                GyroAlignment::Relative => "the integrated gyro heading, relative to the start (no drift                                              correction; it does not know north)"
+                GyroAlignment::Relative => "the integrated gyro heading, relative to the start (no drift correction; it does not know north)"
                     .to_string(),
             },
         }

@@ -1,0 +1,301 @@
+//! The heading-model figure: the deviation curve (raw deviation against raw heading,
+//! with the fitted Eq. 12 curve and the residuals), the residual histogram (the PDR
+//! paper's Fig. 7), and the heading error over time of the raw heading and the best
+//! method.
+
+use plotters::coord::Shift;
+use plotters::prelude::*;
+
+use super::circle_fit::{CORRECTED_COLOR, RAW_COLOR};
+use super::{thinned_indices, PlotError, MAX_POINTS_PER_SERIES};
+use crate::angle::heading_difference_rad;
+use crate::deviation::HeadingAnalysis;
+
+const RESIDUAL_COLOR: RGBColor = RGBColor(120, 120, 120);
+
+/// The three panels side by side. This is what `compass-pdr heading --plot` writes.
+pub fn draw_deviation_figure<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    analysis: &HeadingAnalysis,
+) -> Result<(), PlotError> {
+    area.fill(&WHITE)
+        .map_err(PlotError::from_backend("figure"))?;
+    let panels = area.split_evenly((1, 3));
+    let [curve, histogram, over_time] = panels.as_slice() else {
+        return Err(PlotError {
+            plot: "figure",
+            reason: "the drawing area did not split in three".to_string(),
+        });
+    };
+    draw_deviation_curve(curve, analysis)?;
+    draw_residual_histogram(histogram, analysis)?;
+    draw_heading_errors(over_time, analysis)?;
+    area.present().map_err(PlotError::from_backend("figure"))
+}
+
+/// The raw heading's series and its Fourier model, if fitted.
+fn raw_series(analysis: &HeadingAnalysis) -> &[f64] {
+    analysis
+        .headings_deg
+        .iter()
+        .find(|(key, _)| key == "raw")
+        .map_or(&[], |(_, headings)| headings.as_slice())
+}
+
+/// Deviation (reference − raw) against raw heading, the fitted curve, the residuals.
+pub fn draw_deviation_curve<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    analysis: &HeadingAnalysis,
+) -> Result<(), PlotError> {
+    let error = PlotError::from_backend::<DrawingAreaErrorKind<DB::ErrorType>>("deviation curve");
+    let raw_deg = raw_series(analysis);
+    let model = analysis
+        .report
+        .fourier
+        .iter()
+        .find(|report| report.base_key == "raw")
+        .map(|report| report.fit.model);
+    let points: Vec<(f64, f64)> = thinned_indices(raw_deg.len(), MAX_POINTS_PER_SERIES)
+        .filter_map(|idx| {
+            let raw = *raw_deg.get(idx)?;
+            let reference = (*analysis.reference_deg.get(idx)?)?;
+            Some((
+                raw.rem_euclid(360.0),
+                heading_difference_rad(reference.to_radians(), raw.to_radians()).to_degrees(),
+            ))
+        })
+        .collect();
+    let curve: Vec<(f64, f64)> = model.map_or_else(Vec::new, |model| {
+        (0..=360)
+            .map(|deg| {
+                let raw_deg = f64::from(deg);
+                (
+                    raw_deg,
+                    crate::angle::wrap_to_pi(model.deviation_rad(raw_deg.to_radians()))
+                        .to_degrees(),
+                )
+            })
+            .collect()
+    });
+    let residuals: Vec<(f64, f64)> = model.map_or_else(Vec::new, |model| {
+        points
+            .iter()
+            .map(|&(raw_deg, deviation_deg)| {
+                (
+                    raw_deg,
+                    crate::angle::wrap_to_pi(
+                        (deviation_deg.to_radians()) - model.deviation_rad(raw_deg.to_radians()),
+                    )
+                    .to_degrees(),
+                )
+            })
+            .collect()
+    });
+    let limit_deg = points
+        .iter()
+        .chain(&curve)
+        .map(|&(_, deviation_deg)| deviation_deg.abs())
+        .fold(10.0, f64::max)
+        .min(180.0)
+        * 1.1;
+    let mut chart = ChartBuilder::on(area)
+        .caption("Deviation curve (Eq. 12)", ("sans-serif", 16))
+        .margin(12)
+        .x_label_area_size(36)
+        .y_label_area_size(48)
+        .build_cartesian_2d(0.0..360.0, -limit_deg..limit_deg)
+        .map_err(&error)?;
+    chart
+        .configure_mesh()
+        .x_desc("raw heading (°)")
+        .y_desc("reference − raw (°)")
+        .light_line_style(WHITE.mix(0.0))
+        .draw()
+        .map_err(&error)?;
+    chart
+        .draw_series(
+            points
+                .iter()
+                .map(|&point| Circle::new(point, 1, RAW_COLOR.filled())),
+        )
+        .map_err(&error)?
+        .label("deviation")
+        .legend(|(x, y)| Circle::new((x + 8, y), 3, RAW_COLOR.filled()));
+    if !residuals.is_empty() {
+        chart
+            .draw_series(
+                residuals
+                    .iter()
+                    .map(|&point| Circle::new(point, 1, RESIDUAL_COLOR.filled())),
+            )
+            .map_err(&error)?
+            .label("residual")
+            .legend(|(x, y)| Circle::new((x + 8, y), 3, RESIDUAL_COLOR.filled()));
+        chart
+            .draw_series(LineSeries::new(curve, CORRECTED_COLOR.stroke_width(2)))
+            .map_err(&error)?
+            .label("fitted A…E")
+            .legend(|(x, y)| {
+                PathElement::new(vec![(x, y), (x + 16, y)], CORRECTED_COLOR.stroke_width(2))
+            });
+    }
+    super::draw_legend(&mut chart, SeriesLabelPosition::LowerRight).map_err(&error)?;
+    Ok(())
+}
+
+/// The residual histogram of the Fourier model on the raw heading (train part).
+pub fn draw_residual_histogram<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    analysis: &HeadingAnalysis,
+) -> Result<(), PlotError> {
+    let error =
+        PlotError::from_backend::<DrawingAreaErrorKind<DB::ErrorType>>("residual histogram");
+    let fit = analysis
+        .report
+        .fourier
+        .iter()
+        .find(|report| report.base_key == "raw")
+        .map(|report| &report.fit);
+    let (bars, max_count, caption) = match fit {
+        Some(fit) => {
+            let histogram = &fit.histogram;
+            let bars: Vec<(f64, f64, usize)> = histogram
+                .counts
+                .iter()
+                .enumerate()
+                .map(|(idx, &count)| {
+                    let from_deg = histogram.min_deg + idx as f64 * histogram.bin_width_deg;
+                    (from_deg, from_deg + histogram.bin_width_deg, count)
+                })
+                .collect();
+            let max_count = bars.iter().map(|bar| bar.2).max().unwrap_or(1).max(1);
+            (
+                bars,
+                max_count,
+                format!("Residuals: {:.0} % within ±5°", fit.within_5_deg_pct),
+            )
+        }
+        None => (Vec::new(), 1, "Residuals (no model fitted)".to_string()),
+    };
+    let mut chart = ChartBuilder::on(area)
+        .caption(caption, ("sans-serif", 16))
+        .margin(12)
+        .x_label_area_size(36)
+        .y_label_area_size(48)
+        .build_cartesian_2d(-20.0..20.0, 0.0..(max_count as f64 * 1.1))
+        .map_err(&error)?;
+    chart
+        .configure_mesh()
+        .x_desc("residual (°)")
+        .y_desc("pairs (1 s means)")
+        .light_line_style(WHITE.mix(0.0))
+        .draw()
+        .map_err(&error)?;
+    chart
+        .draw_series(bars.iter().map(|&(from_deg, to_deg, count)| {
+            Rectangle::new(
+                [(from_deg, 0.0), (to_deg, count as f64)],
+                CORRECTED_COLOR.mix(0.7).filled(),
+            )
+        }))
+        .map_err(&error)?;
+    Ok(())
+}
+
+/// Heading error over time of the raw heading and of the best row.
+pub fn draw_heading_errors<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    analysis: &HeadingAnalysis,
+) -> Result<(), PlotError> {
+    let error = PlotError::from_backend::<DrawingAreaErrorKind<DB::ErrorType>>("heading error");
+    let t_s = &analysis.t_s;
+    let series = |key: &str| -> Vec<(f64, f64)> {
+        let Some((_, headings_deg)) = analysis
+            .headings_deg
+            .iter()
+            .find(|(series_key, _)| series_key == key)
+        else {
+            return Vec::new();
+        };
+        thinned_indices(t_s.len(), MAX_POINTS_PER_SERIES)
+            .filter_map(|idx| {
+                let heading = *headings_deg.get(idx)?;
+                let reference = (*analysis.reference_deg.get(idx)?)?;
+                Some((
+                    *t_s.get(idx)?,
+                    heading_difference_rad(heading.to_radians(), reference.to_radians())
+                        .to_degrees(),
+                ))
+            })
+            .collect()
+    };
+    let best_key = analysis
+        .report
+        .best
+        .clone()
+        .unwrap_or_else(|| "raw".to_string());
+    let best_label = analysis
+        .report
+        .rows
+        .iter()
+        .find(|row| row.key == best_key)
+        .map_or(best_key.clone(), |row| row.label.clone());
+    let (raw, best) = (series("raw"), series(&best_key));
+    let limit_deg = raw
+        .iter()
+        .chain(&best)
+        .map(|&(_, e)| e.abs())
+        .fold(5.0, f64::max)
+        .min(180.0)
+        * 1.1;
+    let (first_s, last_s) = (
+        t_s.first().copied().unwrap_or(0.0),
+        t_s.last().copied().unwrap_or(1.0),
+    );
+    let mut chart = ChartBuilder::on(area)
+        .caption("Heading error over time", ("sans-serif", 16))
+        .margin(12)
+        .x_label_area_size(36)
+        .y_label_area_size(48)
+        .build_cartesian_2d(first_s..last_s.max(first_s + 1e-3), -limit_deg..limit_deg)
+        .map_err(&error)?;
+    chart
+        .configure_mesh()
+        .x_desc("time (s)")
+        .y_desc("error (°)")
+        .light_line_style(WHITE.mix(0.0))
+        .draw()
+        .map_err(&error)?;
+    if let Some(until_s) = analysis
+        .report
+        .train_until_s
+        .filter(|until_s| *until_s < last_s)
+    {
+        chart
+            .draw_series(std::iter::once(PathElement::new(
+                vec![(until_s, -limit_deg), (until_s, limit_deg)],
+                BLACK.mix(0.4).stroke_width(1),
+            )))
+            .map_err(&error)?
+            .label("train | check")
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], BLACK.mix(0.4)));
+    }
+    chart
+        .draw_series(
+            raw.iter()
+                .map(|&point| Circle::new(point, 1, RAW_COLOR.filled())),
+        )
+        .map_err(&error)?
+        .label("uncalibrated")
+        .legend(|(x, y)| Circle::new((x + 8, y), 3, RAW_COLOR.filled()));
+    chart
+        .draw_series(
+            best.iter()
+                .map(|&point| Circle::new(point, 1, CORRECTED_COLOR.filled())),
+        )
+        .map_err(&error)?
+        .label(best_label.as_str())
+        .legend(|(x, y)| Circle::new((x + 8, y), 3, CORRECTED_COLOR.filled()));
+    super::draw_legend(&mut chart, SeriesLabelPosition::LowerRight).map_err(&error)?;
+    Ok(())
+}
