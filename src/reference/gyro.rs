@@ -17,8 +17,11 @@
 //! - **anchored**: an absolute reference (GPS course, a reference column, map legs)
 //!   gives the offset at its first samples, and, where it spans at least a minute, a
 //!   linear drift (a constant gyro bias) fitted by least squares to all its samples;
-//! - **closed loop**: the user says the walk ends where and as it started, so the turn
-//!   from start to end is a whole number of revolutions; the remainder is drift. The
+//! - **closed loop**: the user says the walk ends where it started. Dead-reckoning the
+//!   walk at a constant pace while walking (the accelerometer varies) with the gyro
+//!   heading, the drift is the constant rate that makes the path close on its start
+//!   (searched over ±2.9°/s, then refined). A loop need not end facing as it began (one
+//!   that starts at a corner ends 90° off), so the heading alone cannot say this. The
 //!   offset is unknown (the start is 0°);
 //! - **relative**: neither; the start is 0° and drift is not corrected.
 
@@ -32,8 +35,12 @@ use crate::recording::{Recording, Stream};
 const MAX_GYRO_GAP_S: f64 = 0.5;
 /// How far apart (s) anchor samples must spread before a drift is fitted.
 const MIN_DRIFT_SPAN_S: f64 = 60.0;
-/// The stretch (s) at each end of a closed loop whose mean heading is compared.
-const LOOP_END_S: f64 = 3.0;
+/// The largest drift searched for a closed loop (rad/s, about 2.9°/s: far beyond any
+/// phone gyro's bias).
+const MAX_LOOP_DRIFT_RADPS: f64 = 0.05;
+/// Specific force varying more than this (m/s², standard deviation over a second)
+/// means walking.
+const WALKING_ACC_STD_MPS2: f64 = 0.6;
 
 /// How the integrated heading was made absolute.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -48,7 +55,10 @@ pub enum GyroAlignment {
     },
     ClosedLoop {
         drift_deg_per_min: f64,
-        whole_turns: i64,
+        /// The turn from start to end after the drift is removed (deg).
+        turned_deg: f64,
+        /// How far the dead-reckoned loop misses its start, in % of its length.
+        closure_pct: f64,
     },
     Relative,
 }
@@ -158,31 +168,24 @@ pub fn gyro_heading(
     }
 
     let span_s = last_t_s - first_t_s;
-    let (drift_radps, alignment) = if closed_loop && span_s > 4.0 * LOOP_END_S {
-        let mean_over = |from_s: f64, to_s: f64| {
-            let values: Vec<f64> = relative
-                .t_s
-                .iter()
-                .zip(&relative.values)
-                .filter(|(&t_s, _)| t_s >= from_s && t_s <= to_s)
-                .map(|(_, &value)| value)
-                .collect();
-            values.iter().sum::<f64>() / values.len().max(1) as f64
-        };
-        let turned_rad = mean_over(last_t_s - LOOP_END_S, last_t_s)
-            - mean_over(first_t_s, first_t_s + LOOP_END_S);
-        let whole_turns = (turned_rad / std::f64::consts::TAU).round();
-        let drift_radps =
-            (turned_rad - whole_turns * std::f64::consts::TAU) / (span_s - LOOP_END_S);
-        (
-            drift_radps,
-            GyroAlignment::ClosedLoop {
-                drift_deg_per_min: drift_radps.to_degrees() * 60.0,
-                whole_turns: whole_turns as i64,
-            },
-        )
-    } else {
-        (0.0, GyroAlignment::Relative)
+    let (drift_radps, alignment) = match closed_loop
+        .then(|| loop_closing_drift(recording, &relative))
+        .flatten()
+    {
+        Some((drift_radps, closure_pct)) => {
+            let turned_rad = relative.values.last().copied().unwrap_or(0.0)
+                - relative.values.first().copied().unwrap_or(0.0)
+                - drift_radps * span_s;
+            (
+                drift_radps,
+                GyroAlignment::ClosedLoop {
+                    drift_deg_per_min: drift_radps.to_degrees() * 60.0,
+                    turned_deg: turned_rad.to_degrees(),
+                    closure_pct,
+                },
+            )
+        }
+        None => (0.0, GyroAlignment::Relative),
     };
     let mut heading = Stream::default();
     for (&t_s, &gyro_rad) in relative.t_s.iter().zip(&relative.values) {
@@ -196,6 +199,99 @@ pub fn gyro_heading(
         alignment,
         n_gaps,
     })
+}
+
+/// The drift (rad/s) that closes the dead-reckoned loop, and how far it then misses
+/// (% of the path length); `None` without walking.
+fn loop_closing_drift(recording: &Recording, relative: &Stream<f64>) -> Option<(f64, f64)> {
+    // Walking where the specific force varies over a one-second window.
+    let acc = &recording.acc_in_body_mps2;
+    let magnitudes: Vec<f64> = acc.values.iter().map(|value| value.norm()).collect();
+    let mut walking = Stream::default();
+    let (mut start, mut end) = (0usize, 0usize);
+    let (mut sum, mut sum_sq) = (0.0, 0.0);
+    for &t_s in &acc.t_s {
+        while let (Some(&end_t_s), Some(&value)) = (acc.t_s.get(end), magnitudes.get(end)) {
+            if end_t_s > t_s + 0.5 {
+                break;
+            }
+            sum += value;
+            sum_sq += value * value;
+            end += 1;
+        }
+        while let (Some(&start_t_s), Some(&value)) = (acc.t_s.get(start), magnitudes.get(start)) {
+            if start >= end || start_t_s >= t_s - 0.5 {
+                break;
+            }
+            sum -= value;
+            sum_sq -= value * value;
+            start += 1;
+        }
+        let n = (end - start).max(1) as f64;
+        let variance = (sum_sq / n - (sum / n).powi(2)).max(0.0);
+        walking.push(
+            t_s,
+            if variance.sqrt() > WALKING_ACC_STD_MPS2 {
+                1.0
+            } else {
+                0.0
+            },
+        );
+    }
+    // Each gyro step: (dt, heading, walking).
+    let first_t_s = *relative.t_s.first()?;
+    let steps: Vec<(f64, f64, f64)> = relative
+        .t_s
+        .windows(2)
+        .zip(relative.values.iter().skip(1))
+        .filter_map(|(pair, &heading_rad)| {
+            let [t0_s, t1_s] = pair else { return None };
+            let dt_s = t1_s - t0_s;
+            let is_walking = walking.interpolate_at(*t1_s, 0.5).unwrap_or(0.0);
+            (dt_s > 0.0 && dt_s <= MAX_GYRO_GAP_S && is_walking > 0.5).then_some((
+                dt_s,
+                heading_rad,
+                t1_s - first_t_s,
+            ))
+        })
+        .collect();
+    let path_length: f64 = steps.iter().map(|step| step.0).sum();
+    if path_length <= 0.0 {
+        return None;
+    }
+    let miss = |drift_radps: f64| {
+        let (mut east, mut north) = (0.0, 0.0);
+        for &(dt_s, heading_rad, elapsed_s) in &steps {
+            let (sin, cos) = (heading_rad - drift_radps * elapsed_s).sin_cos();
+            east += sin * dt_s;
+            north += cos * dt_s;
+        }
+        east.hypot(north)
+    };
+    // A grid, then golden-section refinement around the best point.
+    let n_grid = 400;
+    let step_radps = 2.0 * MAX_LOOP_DRIFT_RADPS / n_grid as f64;
+    let mut best = (0.0, miss(0.0));
+    for idx in 0..=n_grid {
+        let drift_radps = -MAX_LOOP_DRIFT_RADPS + idx as f64 * step_radps;
+        let value = miss(drift_radps);
+        if value < best.1 {
+            best = (drift_radps, value);
+        }
+    }
+    let (mut low, mut high) = (best.0 - step_radps, best.0 + step_radps);
+    let ratio = (5f64.sqrt() - 1.0) / 2.0;
+    for _ in 0..40 {
+        let a = high - ratio * (high - low);
+        let b = low + ratio * (high - low);
+        if miss(a) < miss(b) {
+            high = b;
+        } else {
+            low = a;
+        }
+    }
+    let drift_radps = (low + high) / 2.0;
+    Some((drift_radps, 100.0 * miss(drift_radps) / path_length))
 }
 
 #[cfg(test)]
@@ -244,38 +340,48 @@ mod tests {
     }
 
     #[test]
-    fn a_closed_loop_takes_the_remainder_as_drift() {
-        // Two full turns in 251.3 s, with a bias adding 0.1 rad over the walk.
-        let duration_s = 2.0 * std::f64::consts::TAU / 0.05;
-        let recording = turning(duration_s + 10.0, 0.0, 0.0);
-        let mut recording = recording;
-        for (t_s, rate) in recording
-            .gyro_in_body_radps
-            .t_s
-            .iter()
-            .zip(recording.gyro_in_body_radps.values.iter_mut())
-        {
-            let turning_rate = if *t_s >= 5.0 && *t_s < 5.0 + duration_s {
-                0.05
+    fn a_closed_loop_gives_the_drift_that_closes_it() {
+        // A square with rounded corners walked from the middle of a side: 10 s, then
+        // three 20 s sides and 10 s, with four 90° right turns walked in 2 s between
+        // them, a 0.003 rad/s gyro bias, and the step bounce that says "walking".
+        let bias_radps = 0.003;
+        let mut recording = Recording::default();
+        let (leg_s, turn_s) = (20.0, 2.0);
+        let total_s = 4.0 * leg_s + 4.0 * turn_s;
+        let n = (total_s * 50.0) as usize;
+        for idx in 0..=n {
+            let t_s = idx as f64 / 50.0;
+            let in_cycle_s = (t_s + leg_s / 2.0) % (leg_s + turn_s);
+            let turning = in_cycle_s >= leg_s;
+            let rate_radps = if turning {
+                std::f64::consts::FRAC_PI_2 / turn_s
             } else {
                 0.0
             };
-            rate.z = turning_rate + 0.1 / (duration_s + 10.0);
+            recording
+                .gyro_in_body_radps
+                .push(t_s, Vector3::new(0.0, 0.0, rate_radps + bias_radps));
+            let bounce = 2.0 * (std::f64::consts::TAU * 2.0 * t_s).sin();
+            recording
+                .acc_in_body_mps2
+                .push(t_s, Vector3::new(0.0, 0.0, -9.81 + bounce));
         }
         let gyro = gyro_heading(&recording, 1.0, None, true).expect("gyro");
         let GyroAlignment::ClosedLoop {
-            whole_turns,
             drift_deg_per_min,
+            turned_deg,
+            closure_pct,
         } = gyro.alignment
         else {
             panic!("{:?}", gyro.alignment)
         };
-        assert_eq!(whole_turns, 2);
-        let expected = (0.1 / (duration_s + 10.0)).to_degrees() * 60.0;
+        let expected = bias_radps.to_degrees() * 60.0;
         assert!(
-            (drift_deg_per_min - expected).abs() < 0.02 * expected,
+            (drift_deg_per_min - expected).abs() < 0.05 * expected,
             "{drift_deg_per_min} vs {expected}"
         );
+        assert!((turned_deg - 360.0).abs() < 3.0, "{turned_deg}");
+        assert!(closure_pct < 1.0, "{closure_pct}");
         // Without the loop, nothing is corrected.
         let relative = gyro_heading(&recording, 1.0, None, false).expect("gyro");
         assert_eq!(relative.alignment, GyroAlignment::Relative);

@@ -127,9 +127,12 @@ impl ReferenceSource {
                 ),
                 GyroAlignment::ClosedLoop {
                     drift_deg_per_min,
-                    whole_turns,
+                    turned_deg,
+                    closure_pct,
                 } => format!(
-                    "the integrated gyro heading over a closed loop ({whole_turns} whole turns; drift {drift_deg_per_min:.2}°/min removed); it does not know north, so it fixes the shape of the deviation, not its constant term"
+                    "the integrated gyro heading over a closed loop (drift {drift_deg_per_min:.2}°/min removed, the rate \
+                     that closes the walk to {closure_pct:.1} % of its length; {turned_deg:.0}° turned from start to end); \
+                     it does not know north, so it fixes the shape of the deviation, not its constant term"
                 ),
                 GyroAlignment::Relative => "the integrated gyro heading, relative to the start (no drift correction; it does not know north)"
                     .to_string(),
