@@ -137,11 +137,12 @@ pub fn analyse_headings(
     options: &HeadingOptions,
 ) -> Result<HeadingAnalysis, AnalysisError> {
     let calibration = calibrate(report, &options.calibration)?;
-    Ok(compare(calibration, options))
+    Ok(compare(&calibration, options))
 }
 
-/// The comparison on an existing calibration analysis.
-pub fn compare(calibration: CalibrationAnalysis, options: &HeadingOptions) -> HeadingAnalysis {
+/// The comparison on an existing calibration analysis (the page keeps that one for its
+/// own plots).
+pub fn compare(calibration: &CalibrationAnalysis, options: &HeadingOptions) -> HeadingAnalysis {
     let CalibrationAnalysis {
         report: calibration_report,
         t_s,
@@ -150,6 +151,11 @@ pub fn compare(calibration: CalibrationAnalysis, options: &HeadingOptions) -> He
         headings_deg: method_headings_deg,
         ..
     } = calibration;
+    let (calibration_report, t_s, ref_heading_deg) = (
+        calibration_report.clone(),
+        t_s.clone(),
+        ref_heading_deg.clone(),
+    );
     let mut notes = Vec::new();
     let reference_rad: Vec<Option<f64>> = ref_heading_deg
         .iter()
@@ -190,7 +196,7 @@ pub fn compare(calibration: CalibrationAnalysis, options: &HeadingOptions) -> He
         label: "uncalibrated".to_string(),
         heading_rad: raw_heading_deg.iter().map(|deg| deg.to_radians()).collect(),
     }];
-    for (method, headings) in &method_headings_deg {
+    for (method, headings) in method_headings_deg {
         bases.push(Base {
             key: method.key().to_string(),
             label: method.label().to_string(),

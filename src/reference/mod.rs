@@ -4,12 +4,12 @@
 //! Sources, and the order in which [`ReferenceChoice::Auto`] tries them:
 //!
 //! 1. a reference-heading column in the log (`ref_heading_deg`: a simulator's truth, a
-//! survey);
+//!    survey);
 //! 2. the GPS course over ground, gated by speed and accuracy ([`gps`]);
 //! 3. the map-direction constraint: straight legs between reference positions
-//! ([`legs`]);
+//!    ([`legs`]);
 //! 4. the integrated gyro heading ([`gyro`]), anchored to whichever of the above exists,
-//! else relative (and drift-corrected when the user says the walk is a closed loop).
+//!    else relative (and drift-corrected when the user says the walk is a closed loop).
 //!
 //! A relative reference has no absolute offset: a heading model fitted against it
 //! learns the shape of the deviation, not its constant term, and the result says so.

@@ -5,6 +5,8 @@ use plotters_canvas::CanvasBackend;
 use web_sys::HtmlCanvasElement;
 
 use crate::calibration::CalibrationAnalysis;
+use crate::deviation::HeadingAnalysis;
+use crate::plot::deviation::{draw_deviation_curve, draw_residual_histogram};
 use crate::plot::{draw_circle_fit, draw_field_magnitude_of, draw_heading_error, PlotError};
 
 /// Which plot goes on a canvas.
@@ -28,6 +30,30 @@ pub fn draw(
         Plot::CircleFit => draw_circle_fit(&area, analysis),
         Plot::HeadingError => draw_heading_error(&area, analysis),
         Plot::FieldMagnitude => draw_field_magnitude_of(&area, analysis),
+    };
+    drawn.map_err(|error| error.to_string())?;
+    area.present().map_err(|error| format!("{error:?}"))
+}
+
+/// Which heading-model plot goes on a canvas.
+#[derive(Debug, Clone, Copy)]
+pub enum HeadingPlot {
+    DeviationCurve,
+    ResidualHistogram,
+}
+
+pub fn draw_heading(
+    canvas: &HtmlCanvasElement,
+    plot: HeadingPlot,
+    analysis: &HeadingAnalysis,
+) -> Result<(), String> {
+    let backend =
+        CanvasBackend::with_canvas_object(canvas.clone()).ok_or("the canvas has no 2D context")?;
+    let area = backend.into_drawing_area();
+    area.fill(&WHITE).map_err(|error| format!("{error:?}"))?;
+    let drawn: Result<(), PlotError> = match plot {
+        HeadingPlot::DeviationCurve => draw_deviation_curve(&area, analysis),
+        HeadingPlot::ResidualHistogram => draw_residual_histogram(&area, analysis),
     };
     drawn.map_err(|error| error.to_string())?;
     area.present().map_err(|error| format!("{error:?}"))

@@ -12,16 +12,14 @@ use wasm_bindgen::JsCast;
 use wasm_bindgen_futures::{spawn_local, JsFuture};
 use web_sys::{Document, DragEvent, Element, HtmlCanvasElement, HtmlElement, HtmlInputElement};
 
-use super::canvas::{self, Plot};
+use super::canvas::{self, HeadingPlot, Plot};
 use super::mapping;
 use crate::analysis::{analyse_files, AnalysisError};
-use crate::calibration::{
-    calibrate, CalibrationAnalysis, CalibrationOptions, CalibrationReport, Method,
-};
+use crate::calibration::{calibrate, CalibrationAnalysis, CalibrationOptions, CalibrationReport};
+use crate::deviation::{compare, HeadingOptions, HeadingReport};
 use crate::io::delimited::{preview, ColumnMapping, Preview};
 use crate::io::import::{header_signature, merge, ChunkedImport, FileImport};
 use crate::io::ImportError;
-use crate::stats::HeadingErrorStats;
 
 /// The ids of the elements the page must have (see `www/index.html`).
 const STATUS_ID: &str = "status";
@@ -30,6 +28,8 @@ const DROP_ZONE_ID: &str = "drop-zone";
 const CIRCLE_CANVAS_ID: &str = "plot-circle";
 const HEADING_CANVAS_ID: &str = "plot-heading";
 const FIELD_CANVAS_ID: &str = "plot-field";
+const DEVIATION_CANVAS_ID: &str = "plot-deviation";
+const RESIDUALS_CANVAS_ID: &str = "plot-residuals";
 const PROGRESS_ID: &str = "progress";
 
 /// Bytes read from a file at a time: small enough that the page answers between
@@ -70,6 +70,8 @@ pub struct Page {
     circle_canvas: HtmlCanvasElement,
     heading_canvas: HtmlCanvasElement,
     field_canvas: HtmlCanvasElement,
+    deviation_canvas: HtmlCanvasElement,
+    residuals_canvas: HtmlCanvasElement,
 }
 
 impl Page {
@@ -98,6 +100,8 @@ impl Page {
             circle_canvas: canvas(CIRCLE_CANVAS_ID)?,
             heading_canvas: canvas(HEADING_CANVAS_ID)?,
             field_canvas: canvas(FIELD_CANVAS_ID)?,
+            deviation_canvas: canvas(DEVIATION_CANVAS_ID)?,
+            residuals_canvas: canvas(RESIDUALS_CANVAS_ID)?,
             body,
             document,
         }))
@@ -359,10 +363,25 @@ impl Page {
 
     pub fn show_analysis(&self, analysis: &CalibrationAnalysis) {
         let report = &analysis.report;
+        // The heading models stand on the calibration: every method and every stack on
+        // the same split.
+        let headings = compare(analysis, &HeadingOptions::default());
         self.body.set_attribute("data-file", &report.file_name).ok();
         self.set_text("result-file", &report.file_name);
         self.show_context(report);
-        self.show_methods(report);
+        self.show_methods(&headings.report);
+        self.show_deviation_model(&headings.report);
+        for (canvas, plot) in [
+            (&self.deviation_canvas, HeadingPlot::DeviationCurve),
+            (&self.residuals_canvas, HeadingPlot::ResidualHistogram),
+        ] {
+            if let Err(message) = canvas::draw_heading(canvas, plot, &headings) {
+                let _ = canvas::draw_message(
+                    canvas,
+                    &format!("This plot could not be drawn: {message}"),
+                );
+            }
+        }
         self.show_device_calibration(analysis);
         self.fill_list("notes", or_none(report.notes.iter().cloned()));
         self.show_diagnostics(report);
@@ -383,9 +402,12 @@ impl Page {
             1 => " 1 line had a problem; see below.".to_string(),
             n => format!(" {n} lines had problems; see below."),
         };
-        let best = report
+        let best = headings
+            .report
             .best
-            .map_or(String::new(), |best| format!(" Best: {}.", best.label()));
+            .as_ref()
+            .and_then(|best| headings.report.rows.iter().find(|row| &row.key == best))
+            .map_or(String::new(), |row| format!(" Best: {}.", row.label));
         self.set_state(
             "ready",
             &format!(
@@ -403,6 +425,7 @@ impl Page {
         for id in [
             "context",
             "methods-body",
+            "deviation-model",
             "calibration",
             "notes",
             "diagnostics",
@@ -413,6 +436,8 @@ impl Page {
             &self.circle_canvas,
             &self.heading_canvas,
             &self.field_canvas,
+            &self.deviation_canvas,
+            &self.residuals_canvas,
         ] {
             let _ = canvas::draw_message(canvas, &format!("No plot: {message}"));
         }
@@ -463,41 +488,30 @@ impl Page {
     }
 
     /// The comparison table: one row per method, train and check heading errors.
-    fn show_methods(&self, report: &CalibrationReport) {
+    fn show_methods(&self, report: &HeadingReport) {
         let Some(body) = self.document.get_element_by_id("methods-body") else {
             return;
         };
         body.set_text_content(None);
-        /// key, label, train, check, why it failed
-        type Row = (
-            String,
-            String,
-            Option<HeadingErrorStats>,
-            Option<HeadingErrorStats>,
-            Option<String>,
-        );
-        let mut rows: Vec<Row> = vec![(
-            "raw".to_string(),
-            "uncalibrated".to_string(),
-            report.raw_heading_error_train,
-            report.raw_heading_error_check,
-            None,
-        )];
-        for method in &report.methods {
-            rows.push((
-                method_key(method.method),
-                method.label.to_string(),
-                method.heading_error_train,
-                method.heading_error_check,
-                method.error.clone(),
-            ));
-        }
+        let rows = report.rows.iter().map(|row| {
+            (
+                row.key.replace('+', "-"),
+                row.label.clone(),
+                row.train,
+                row.check,
+                row.error.clone(),
+            )
+        });
         for (key, label, train, check, error) in rows {
             let Ok(row) = self.document.create_element("tr") else {
                 continue;
             };
             row.set_id(&format!("row-{key}"));
-            if report.best.is_some_and(|best| method_key(best) == key) {
+            if report
+                .best
+                .as_deref()
+                .is_some_and(|best| best.replace('+', "-") == key)
+            {
                 let _ = row.class_list().add_1("best");
             }
             let Ok(header) = self.document.create_element("th") else {
@@ -545,6 +559,37 @@ impl Page {
             }
             let _ = body.append_child(&row);
         }
+    }
+
+    /// The Fourier deviation models as the PDR paper's Table II, and the online one.
+    fn show_deviation_model(&self, report: &HeadingReport) {
+        let models = report.fourier.iter().map(|fourier| {
+            let model = fourier.fit.model;
+            format!(
+                "{}: A {:.2}°, B {:.2}°, C {:.2}°, D {:.2}°, E {:.2}°; residuals {:.2} ± {:.2}°, {:.0} % within ±5° (train)",
+                fourier.base_label,
+                model.a_deg,
+                model.b_deg,
+                model.c_deg,
+                model.d_deg,
+                model.e_deg,
+                fourier.fit.residual_mean_deg,
+                fourier.fit.residual_std_deg,
+                fourier.fit.within_5_deg_pct
+            )
+        });
+        let online = report.online.iter().map(|online| {
+            let model = online.model;
+            format!(
+                "Online on {} (recursive least squares, memory {:.0} s, {} updates): A {:.2}°, B {:.2}°, C {:.2}°, D {:.2}°, E {:.2}°",
+                online.base_label, online.memory_s, online.n_updates, model.a_deg, model.b_deg, model.c_deg, model.d_deg, model.e_deg
+            )
+        });
+        let notes = report.notes.iter().cloned();
+        self.fill_list(
+            "deviation-model",
+            or_none(models.chain(online).chain(notes)),
+        );
     }
 
     /// The calibration to store in the device, as numbers a person can copy.
@@ -622,11 +667,6 @@ fn or_none(items: impl Iterator<Item = String>) -> impl Iterator<Item = String> 
     let mut items = items.peekable();
     let none = items.peek().is_none().then(|| "None.".to_string());
     items.chain(none)
-}
-
-/// The key of a method in element ids, as in the JSON report (`min_max`, `ref_ls`, …).
-fn method_key(method: Method) -> String {
-    method.key().to_string()
 }
 
 /// Puts a bug report into the status area, whatever state the page is in.

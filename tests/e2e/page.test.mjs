@@ -55,18 +55,18 @@ function drawnPixels(page, id) {
 const text = (page, id) => page.textContent(`#${id}`);
 const statusBackground = (page) => page.$eval('#status', (status) => getComputedStyle(status).backgroundColor);
 
-/** The page shows the same statistics as `compass-pdr calibrate --json`, method by method. */
+/** The page shows the same statistics as `compass-pdr heading --json`, row by row: every
+ * calibration method and every Fourier stack. */
 async function assertStatsMatch(page, expected) {
-  const rows = [['raw', expected.raw_heading_error_train, expected.raw_heading_error_check, null]];
-  for (const method of expected.methods) {
-    rows.push([method.method, method.heading_error_train, method.heading_error_check, method.error]);
-  }
   const fixed = (value, unit = '°') => (value === undefined || value === null ? '—' : `${value.toFixed(2)}${unit}`);
-  for (const [key, train, check, error] of rows) {
-    if (error) {
-      assert.equal(await text(page, `error-${key}`), error, `${key} failed for the same reason`);
+  assert.ok(expected.rows.some((row) => row.key.endsWith('fourier')), 'the CLI fitted a Fourier model');
+  for (const row of expected.rows) {
+    const key = row.key.replaceAll('+', '-');
+    if (row.error) {
+      assert.equal(await text(page, `error-${key}`), row.error, `${key} failed for the same reason`);
       continue;
     }
+    const { train, check } = row;
     assert.equal(await text(page, `stat-${key}-train-rms`), fixed(train?.rms_deg), `${key} train RMS`);
     assert.equal(await text(page, `stat-${key}-check-rms`), fixed(check?.rms_deg), `${key} check RMS`);
     assert.equal(await text(page, `stat-${key}-check-mean`), fixed(check?.mean_deg));
@@ -76,11 +76,11 @@ async function assertStatsMatch(page, expected) {
   }
 }
 
-/** The check RMS of one method in the CLI's report. */
-const checkRms = (report, method) => report.methods.find((entry) => entry.method === method)?.heading_error_check?.rms_deg;
+/** The check RMS of one row in the CLI's report. */
+const checkRms = (report, key) => report.rows.find((row) => row.key === key)?.check?.rms_deg;
 
 async function assertPlotsDrawn(page) {
-  for (const id of ['plot-circle', 'plot-heading', 'plot-field']) {
+  for (const id of ['plot-circle', 'plot-heading', 'plot-field', 'plot-deviation', 'plot-residuals']) {
     const n = await drawnPixels(page, id);
     assert.ok(n > 10_000, `#${id} has ${n} drawn pixels`);
   }
@@ -107,7 +107,7 @@ test('the demo is analysed and drawn on load, with the CLI\'s figures', async ()
   const expected = JSON.parse(readFileSync(join(out, 'demo-walk.json'), 'utf8'));
   await assertStatsMatch(page, expected);
   // The demo shows what calibration is for: tens of degrees before, a few after.
-  assert.ok(expected.raw_heading_error_check.rms_deg > 10, 'large error before');
+  assert.ok(checkRms(expected, 'raw') > 10, 'large error before');
   assert.ok(checkRms(expected, 'ellipse') < 3, 'small error after the ellipse fit');
   assert.ok(checkRms(expected, 'min_max') < 3, 'small error after min/max');
   await assertPlotsDrawn(page);
@@ -115,6 +115,8 @@ test('the demo is analysed and drawn on load, with the CLI\'s figures', async ()
   assert.equal(await statusBackground(page), 'rgb(244, 246, 249)', 'a good result is not styled as an error');
   assert.match(await text(page, 'context'), /Reference heading: the log's reference-heading column/);
   assert.match(await text(page, 'calibration'), /Hard iron \(/);
+  const ellipseModel = expected.fourier.find((fourier) => fourier.base_key === 'ellipse').fit.model;
+  assert.match(await text(page, 'deviation-model'), new RegExp(`ellipse \\(tilt-aware 2D\\): A ${ellipseModel.a_deg.toFixed(2)}°`));
   await page.screenshot({ path: join(out, 'demo.png'), fullPage: true });
   assert.deepEqual(problems, []);
   await close();
