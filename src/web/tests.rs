@@ -124,7 +124,8 @@ fn add_page_skeleton() {
            <span id="result-file"></span><ul id="context"></ul><table><tbody id="methods-body"></tbody></table>
            <ul id="calibration"></ul><ul id="notes"></ul><ul id="diagnostics"></ul>
            <canvas id="plot-circle" width="320" height="240"></canvas><canvas id="plot-heading" width="320" height="240"></canvas>
-           <canvas id="plot-field" width="320" height="240"></canvas>"#,
+           <canvas id="plot-field" width="320" height="240"></canvas><ul id="deviation-model"></ul>
+           <canvas id="plot-deviation" width="320" height="240"></canvas><canvas id="plot-residuals" width="320" height="240"></canvas>"#,
     );
     document
         .body()
@@ -163,6 +164,9 @@ fn the_page_shows_an_analysis_then_an_error() {
     );
     assert_eq!(text("result-file"), "walk.csv");
     assert_eq!(text("diagnostics"), "None.");
+    // The heading models stand on the calibration: a Fourier stack per method.
+    assert!(text("stat-min_max-fourier-check-rms").ends_with('°'));
+    assert!(text("deviation-model").contains("min/max: A "));
     assert!(text("status").starts_with("Analysed walk.csv"));
 
     page.show_error("bad.csv is empty. Choose a log with a header line and samples.");
