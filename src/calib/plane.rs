@@ -377,9 +377,8 @@ pub fn fit_plane(
     // Real soft iron changes the axes by tens of per cent; a correction that scales one
     // axis several times more than another has traded the vertical residual for field
     // disturbances. The isotropic model (see `plane_isotropic`) is then the honest one.
-    let full_axis_ratio = positive_definite.then(|| {
-        eigen.eigenvalues.max() / eigen.eigenvalues.min()
-    });
+    let full_axis_ratio =
+        positive_definite.then(|| eigen.eigenvalues.max() / eigen.eigenvalues.min());
     if full_axis_ratio.is_none_or(|axis_ratio| axis_ratio > MAX_AXIS_RATIO) {
         let vertical = match (tan_inclination, vertical_estimated) {
             (Some(tan_inclination), _) => Vertical::ModelDip { tan_inclination },

@@ -371,7 +371,10 @@ mod tests {
                 problem.set_params(&params);
                 let numeric = (residuals_plus - residuals_minus) / (2.0 * step);
                 let difference = (numeric - analytic.column(column)).abs().max();
-                assert!(difference < 1e-5, "{vertical:?} column {column}: {difference}");
+                assert!(
+                    difference < 1e-5,
+                    "{vertical:?} column {column}: {difference}"
+                );
             }
         }
     }

@@ -8,8 +8,7 @@ use clap::{Parser, Subcommand, ValueEnum};
 use compass_pdr::calib::export::{c_snippet, motioncal_packet};
 use compass_pdr::calib::plane::SoftIronModel;
 use compass_pdr::calibration::{
-    calibrate, CalibrationOptions, CalibrationReport, DeclinationChoice, Method,
-    MethodParameters,
+    calibrate, CalibrationOptions, CalibrationReport, DeclinationChoice, Method, MethodParameters,
 };
 use compass_pdr::io::canonical_csv;
 use compass_pdr::io::delimited::ColumnMapping;
