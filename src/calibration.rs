@@ -153,6 +153,33 @@ pub enum MethodParameters {
     RefLs(RefLsFit),
 }
 
+/// The hard iron a device estimated itself (Android's `TYPE_MAGNETIC_FIELD_UNCALIBRATED`
+/// bias), body frame.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct DeviceHardIron {
+    /// Its mean over the log.
+    pub mean_ut: Vector3<f64>,
+    /// How far it moved from its first value during the log (0 when the device kept
+    /// one estimate throughout).
+    pub max_change_ut: f64,
+}
+
+impl DeviceHardIron {
+    fn of(recording: &Recording) -> Option<DeviceHardIron> {
+        let values = &recording.mag_bias_in_body_ut.values;
+        let first_ut = *values.first()?;
+        let mean_ut = values.iter().sum::<Vector3<f64>>() / values.len() as f64;
+        let max_change_ut = values
+            .iter()
+            .map(|value| (value - first_ut).norm())
+            .fold(0.0, f64::max);
+        Some(DeviceHardIron {
+            mean_ut,
+            max_change_ut,
+        })
+    }
+}
+
 /// What `compass-pdr calibrate --json` prints and the page shows.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct CalibrationReport {
@@ -170,6 +197,10 @@ pub struct CalibrationReport {
     pub expected_field: Option<ExpectedField>,
     /// Mean raw field magnitude, to set beside the expected one.
     pub mean_raw_field_ut: f64,
+    /// The device's own hard-iron estimate, where the log has one, to set beside the
+    /// fitted ones. No method uses it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub device_hard_iron: Option<DeviceHardIron>,
     /// The uncalibrated heading (levelled raw field plus declination) as a baseline.
     pub raw_heading_error_train: Option<HeadingErrorStats>,
     pub raw_heading_error_check: Option<HeadingErrorStats>,
@@ -681,6 +712,7 @@ pub fn calibrate(
             declination,
             expected_field: expected,
             mean_raw_field_ut,
+            device_hard_iron: DeviceHardIron::of(&recording),
             raw_heading_error_train: stats_of(&raw_heading_rad, true),
             raw_heading_error_check: stats_of(&raw_heading_rad, false),
             methods: method_reports,

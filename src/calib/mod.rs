@@ -13,6 +13,7 @@ pub mod heading;
 pub mod minmax;
 pub mod model;
 pub mod plane;
+pub mod plane_isotropic;
 pub mod refls;
 pub mod sphere_coverage;
 pub mod tilt;

@@ -81,6 +81,17 @@
 //! `(S_zz − S_xx)·θ·V` (about 1 µT at 10° for 10 % soft iron) that only the full model
 //! removes.
 //!
+//! ## When the full matrix is not supported
+//!
+//! A few degrees of tilt, a vertical hard iron of hundreds of µT (a phone's speaker
+//! magnet) and a field that changes along an indoor walk let the full model trade the
+//! vertical residual for the disturbances: `A_zz` shrinks towards zero, `A_xz`, `A_yz`
+//! absorb the rest, and the hard iron moves by tens of µT. When the fitted `A` scales
+//! one axis more than [`MAX_AXIS_RATIO`] times another (or is not positive definite),
+//! the fit is replaced by the isotropic model of [`super::plane_isotropic`] (`A` = the
+//! identity, hard iron removed in the body frame before levelling, the vertical field
+//! from the given inclination), and [`PlaneFit::soft_iron_model`] says so.
+//!
 //! ## Limits
 //!
 //! The heading is only as good as the tilt: a 1° error in roll or pitch moves the
@@ -100,6 +111,7 @@ use thiserror::Error;
 use super::heading;
 use super::minmax::Coverage;
 use super::model::PlaneCalibration;
+use super::plane_isotropic::{fit_isotropic, Vertical};
 use super::tilt::Tilt;
 
 /// Fewer samples than this cannot determine the ten parameters of the model with any
@@ -113,12 +125,19 @@ pub const MIN_TILT_SPREAD_DEG: f64 = 1.0;
 /// A level ellipse whose axes differ by more than this factor is not soft iron (real
 /// soft iron changes the axes by tens of per cent) but a partial turn or a changing
 /// disturbance.
-const MAX_AXIS_RATIO: f64 = 3.0;
+pub const MAX_AXIS_RATIO: f64 = 3.0;
 
 /// A residual RMS above this share of the horizontal field means the data does not
 /// follow the model: sensor noise (0.1-0.5 µT) and tilt errors of a degree or two
 /// (`V·sin 2°`, about 1.5 µT) stay well below a tenth of a 20 µT horizontal field.
 const MAX_RELATIVE_RESIDUAL: f64 = 0.15;
+
+/// The residual limit of the isotropic fallback, which is meant for disturbed data: a
+/// field that changes by 10-20 % along an indoor walk (steel, wiring, escalators) still
+/// lets a full turn fix the hard iron's horizontal part, because the centre averages
+/// the disturbance over thousands of samples and every heading. A quarter of the
+/// horizontal field is beyond what a disturbance leaves of one field turned around.
+const MAX_RELATIVE_RESIDUAL_ISOTROPIC: f64 = 0.25;
 
 /// Inclinations steeper than this leave almost no horizontal field to steer by.
 const MAX_INCLINATION_DEG: f64 = 85.0;
@@ -177,6 +196,19 @@ impl Default for PlaneOptions {
     }
 }
 
+/// The soft-iron model behind a [`PlaneFit`].
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[serde(rename_all = "snake_case", tag = "kind")]
+pub enum SoftIronModel {
+    /// The full symmetric matrix `A`.
+    Full,
+    /// `A` = identity ([`super::plane_isotropic`]), because the full fit scaled one
+    /// axis more than [`MAX_AXIS_RATIO`] times another (`full_axis_ratio`, the ratio of
+    /// its largest to smallest eigenvalue) or was not positive definite (`None`). The
+    /// vertical hard iron then rests on the given inclination when there is one.
+    Isotropic { full_axis_ratio: Option<f64> },
+}
+
 /// The tilt-aware calibration and how well it fits.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct PlaneFit {
@@ -193,6 +225,9 @@ pub struct PlaneFit {
     pub vertical_field_ut: f64,
     /// `atan(V / H)`: estimated, or the one given.
     pub inclination_deg: f64,
+    /// Which soft-iron model the fit kept: the full symmetric matrix, or the isotropic
+    /// one when the full fit was implausible (see [`SoftIronModel`]).
+    pub soft_iron_model: SoftIronModel,
     /// Whether the tilt varied enough to estimate `A_zz` (and, without an inclination,
     /// `h_z`); when not, they are held at 1 and 0, which is exact for level use only.
     pub vertical_estimated: bool,
@@ -335,14 +370,51 @@ pub fn fit_plane(
     // area.
     let soft_iron = soft_iron_of(&full);
     let eigen = SymmetricEigen::new(soft_iron);
-    if eigen
+    let positive_definite = eigen
         .eigenvalues
         .iter()
-        .any(|&value| value.is_nan() || value <= 0.0)
-    {
-        return Err(PlaneError::DegenerateConic {
-            reason: "the fitted soft iron is not positive definite",
-        });
+        .all(|&value| value.is_finite() && value > 0.0);
+    // Real soft iron changes the axes by tens of per cent; a correction that scales one
+    // axis several times more than another has traded the vertical residual for field
+    // disturbances. The isotropic model (see `plane_isotropic`) is then the honest one.
+    let full_axis_ratio =
+        positive_definite.then(|| eigen.eigenvalues.max() / eigen.eigenvalues.min());
+    if full_axis_ratio.is_none_or(|axis_ratio| axis_ratio > MAX_AXIS_RATIO) {
+        let vertical = match (tan_inclination, vertical_estimated) {
+            (Some(tan_inclination), _) => Vertical::ModelDip { tan_inclination },
+            (None, true) => Vertical::Free,
+            (None, false) => Vertical::Held,
+        };
+        let isotropic = fit_isotropic(
+            mag_ut,
+            &levelling,
+            Vector3::new(start.center_ut.x, start.center_ut.y, 0.0),
+            start.radius_ut,
+            vertical,
+        )?;
+        let fit = PlaneFit {
+            hard_iron_ut: isotropic.hard_iron_ut,
+            soft_iron: Matrix3::identity(),
+            plane: PlaneCalibration {
+                center_ut: Vector2::zeros(),
+                transform: Matrix2::identity(),
+                radius_ut: isotropic.horizontal_field_ut,
+            },
+            horizontal_field_ut: isotropic.horizontal_field_ut,
+            vertical_field_ut: isotropic.vertical_field_ut,
+            inclination_deg: isotropic
+                .vertical_field_ut
+                .atan2(isotropic.horizontal_field_ut)
+                .to_degrees(),
+            soft_iron_model: SoftIronModel::Isotropic { full_axis_ratio },
+            vertical_estimated,
+            tilt_spread_deg,
+            residual_rms_ut: 0.0,
+            horizontal_magnitude_std_ut: 0.0,
+            coverage: Coverage::of_headings(std::iter::empty()),
+            n_samples: mag_ut.len(),
+        };
+        return checked(fit, mag_ut, &levelling, options);
     }
     let distortion = soft_iron.try_inverse().ok_or(PlaneError::DegenerateConic {
         reason: "the fitted soft iron is singular",
@@ -366,7 +438,7 @@ pub fn fit_plane(
     let distortion_hz = Vector2::new(distortion[(0, 2)], distortion[(1, 2)]) / scale;
     let hard_iron_ut = Vector3::new(full[H_X], full[H_Y], full[H_Z]);
 
-    let mut fit = PlaneFit {
+    let fit = PlaneFit {
         hard_iron_ut,
         soft_iron,
         plane: PlaneCalibration {
@@ -377,6 +449,7 @@ pub fn fit_plane(
         horizontal_field_ut,
         vertical_field_ut,
         inclination_deg: vertical_field_ut.atan2(horizontal_field_ut).to_degrees(),
+        soft_iron_model: SoftIronModel::Full,
         vertical_estimated,
         tilt_spread_deg,
         residual_rms_ut: 0.0,
@@ -384,9 +457,22 @@ pub fn fit_plane(
         coverage: Coverage::of_headings(std::iter::empty()),
         n_samples: mag_ut.len(),
     };
+    checked(fit, mag_ut, &levelling, options)
+}
+
+/// Fills in how well `fit` follows the samples, and refuses it when it does not (the
+/// residual, the heading coverage).
+fn checked(
+    mut fit: PlaneFit,
+    mag_ut: &[Vector3<f64>],
+    levelling: &[Matrix3<f64>],
+    options: &PlaneOptions,
+) -> Result<PlaneFit, PlaneError> {
+    let horizontal_field_ut = fit.horizontal_field_ut;
+    let vertical_field_ut = fit.vertical_field_ut;
     let level_corrected_ut: Vec<Vector3<f64>> = mag_ut
         .iter()
-        .zip(&levelling)
+        .zip(levelling)
         .map(|(&mag, levelling)| levelling * (fit.soft_iron * (mag - fit.hard_iron_ut)))
         .collect();
     let n_samples = mag_ut.len() as f64;
@@ -415,7 +501,11 @@ pub fn fit_plane(
             .iter()
             .map(|level| heading::heading_rad(level.xy(), 0.0).to_degrees()),
     );
-    let residual_limit_ut = MAX_RELATIVE_RESIDUAL * horizontal_field_ut;
+    let relative_limit = match fit.soft_iron_model {
+        SoftIronModel::Full => MAX_RELATIVE_RESIDUAL,
+        SoftIronModel::Isotropic { .. } => MAX_RELATIVE_RESIDUAL_ISOTROPIC,
+    };
+    let residual_limit_ut = relative_limit * horizontal_field_ut;
     if fit.residual_rms_ut.is_nan() || fit.residual_rms_ut > residual_limit_ut {
         return Err(PlaneError::PoorFit {
             residual_rms_ut: fit.residual_rms_ut,

@@ -6,8 +6,9 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand, ValueEnum};
 use compass_pdr::calib::export::{c_snippet, motioncal_packet};
+use compass_pdr::calib::plane::SoftIronModel;
 use compass_pdr::calibration::{
-    calibrate, CalibrationOptions, CalibrationReport, DeclinationChoice, Method,
+    calibrate, CalibrationOptions, CalibrationReport, DeclinationChoice, Method, MethodParameters,
 };
 use compass_pdr::deviation::{analyse_headings, HeadingOptions, HeadingReport};
 use compass_pdr::io::canonical_csv;
@@ -679,6 +680,42 @@ fn calibration_text(report: &CalibrationReport) -> String {
                 "  field: measured {:.1} µT raw (no model value: no position or date)",
                 report.mean_raw_field_ut
             );
+        }
+    }
+    // Where the device estimated its own hard iron, the fitted ones go beside it.
+    if let Some(device) = &report.device_hard_iron {
+        let vector = |v_ut: &nalgebra::Vector3<f64>| {
+            format!("({:.1}, {:.1}, {:.1})", v_ut.x, v_ut.y, v_ut.z)
+        };
+        let _ = writeln!(
+            text,
+            "  hard iron (µT, body x forward, y right, z down): device's own {} (moved {:.1} µT during the log)",
+            vector(&device.mean_ut),
+            device.max_change_ut
+        );
+        for method in &report.methods {
+            let fitted = match &method.parameters {
+                Some(MethodParameters::Ellipse(fit)) => Some((
+                    fit.hard_iron_ut,
+                    match fit.soft_iron_model {
+                        SoftIronModel::Full => "full soft iron",
+                        SoftIronModel::Isotropic { .. } => "isotropic soft iron",
+                    },
+                )),
+                Some(MethodParameters::Ellipsoid(fit)) => {
+                    Some((fit.calibration.hard_iron_ut, "ellipsoid"))
+                }
+                _ => None,
+            };
+            if let Some((hard_iron_ut, model)) = fitted {
+                let _ = writeln!(
+                    text,
+                    "    {}: {} ({model}), minus the device's {}",
+                    method.label,
+                    vector(&hard_iron_ut),
+                    vector(&(hard_iron_ut - device.mean_ut))
+                );
+            }
         }
     }
     let _ = writeln!(
