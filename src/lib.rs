@@ -55,6 +55,7 @@ pub mod calib;
 pub mod calibration;
 pub mod civil;
 pub mod io;
+pub mod nn;
 pub mod plot;
 pub mod recording;
 pub mod reference;
