@@ -66,33 +66,51 @@ impl Activation {
 /// 64-bit lanes) is needed.
 #[inline(always)]
 pub(crate) fn exp(x: f64) -> f64 {
-    const LOG2_E: f64 = std::f64::consts::LOG2_E;
-    const LN2_HI: f64 = 0.693_147_180_369_123_8; // 0x3FE62E42FEE00000
-    const LN2_LO: f64 = 1.908_214_929_270_587_7e-10; // ln 2 − LN2_HI
-    const ROUND: f64 = 6_755_399_441_055_744.0; // 1.5 · 2⁵²
-    let x = x.clamp(-708.0, 708.0);
-    let shifted = x * LOG2_E + ROUND;
+    let x = x.clamp(-EXP_LIMIT, EXP_LIMIT);
+    let shifted = x * std::f64::consts::LOG2_E + ROUND;
     let n = shifted - ROUND;
     let r = (x - n * LN2_HI) - n * LN2_LO;
-    // Horner's scheme for Σ r^k / k!, k = 0..=13.
-    let mut p = 1.0 / 6_227_020_800.0;
-    p = p * r + 1.0 / 479_001_600.0;
-    p = p * r + 1.0 / 39_916_800.0;
-    p = p * r + 1.0 / 3_628_800.0;
-    p = p * r + 1.0 / 362_880.0;
-    p = p * r + 1.0 / 40_320.0;
-    p = p * r + 1.0 / 5_040.0;
-    p = p * r + 1.0 / 720.0;
-    p = p * r + 1.0 / 120.0;
-    p = p * r + 1.0 / 24.0;
-    p = p * r + 1.0 / 6.0;
-    p = p * r + 0.5;
-    p = p * r + 1.0;
-    p = p * r + 1.0;
+    // Σ r^k / k! for k = 0..=13 by Estrin's scheme (pairs, then pairs of pairs), which
+    // needs 5 dependent steps instead of Horner's 13.
+    let c = &EXP_COEFFICIENTS;
+    let r2 = r * r;
+    let r4 = r2 * r2;
+    let r8 = r4 * r4;
+    let s0 = (c[0] + c[1] * r) + (c[2] + c[3] * r) * r2;
+    let s1 = (c[4] + c[5] * r) + (c[6] + c[7] * r) * r2;
+    let s2 = (c[8] + c[9] * r) + (c[10] + c[11] * r) * r2;
+    let s3 = c[12] + c[13] * r;
+    let p = (s0 + s1 * r4) + (s2 + s3 * r4) * r8;
     // The low bits of `shifted` hold n (two's complement) and n + 1023 lies in [1, 2046].
     let two_to_n = f64::from_bits(shifted.to_bits().wrapping_add(1023) << 52);
     p * two_to_n
 }
+
+/// |x| beyond which [`exp`] clamps (e^±708 is still a normal number).
+pub(crate) const EXP_LIMIT: f64 = 708.0;
+/// ln 2 in two parts: the high part has 32 significant bits (0x3FE62E42FEE00000), so
+/// `n·LN2_HI` is exact for |n| < 2²¹; the low part is ln 2 − LN2_HI (fdlibm's values).
+pub(crate) const LN2_HI: f64 = 0.693_147_180_369_123_8;
+pub(crate) const LN2_LO: f64 = 1.908_214_929_270_587_7e-10;
+/// 1.5·2⁵²: adding it rounds to an integer and leaves that integer in the low bits.
+pub(crate) const ROUND: f64 = 6_755_399_441_055_744.0;
+/// 1/k! for k = 0..=13.
+pub(crate) const EXP_COEFFICIENTS: [f64; 14] = [
+    1.0,
+    1.0,
+    0.5,
+    1.0 / 6.0,
+    1.0 / 24.0,
+    1.0 / 120.0,
+    1.0 / 720.0,
+    1.0 / 5_040.0,
+    1.0 / 40_320.0,
+    1.0 / 362_880.0,
+    1.0 / 3_628_800.0,
+    1.0 / 39_916_800.0,
+    1.0 / 479_001_600.0,
+    1.0 / 6_227_020_800.0,
+];
 
 #[cfg(test)]
 mod tests {

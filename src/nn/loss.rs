@@ -25,6 +25,7 @@
 use std::ops::Range;
 
 use super::activation::Activation;
+use super::kernels;
 
 /// Samples per chunk: the chunk's hidden activations (16 × 128 × 8 bytes = 16 KiB)
 /// stay in the L1 cache while its gradient is accumulated.
@@ -97,6 +98,8 @@ pub(crate) struct Batch {
     residuals: Vec<f64>,
     /// Sum of squared residuals per output over the last evaluation.
     sum_squared_residuals: Vec<f64>,
+    /// `W₂ᵀ` (hidden × outputs) of the current evaluation.
+    output_weights_by_neuron: Vec<f64>,
 }
 
 impl Batch {
@@ -134,6 +137,7 @@ impl Batch {
             hidden: vec![0.0; shape.n_hidden * CHUNK],
             residuals: vec![0.0; shape.n_outputs * CHUNK],
             sum_squared_residuals: vec![0.0; shape.n_outputs],
+            output_weights_by_neuron: vec![0.0; shape.n_hidden * shape.n_outputs],
         }
     }
 
@@ -175,75 +179,85 @@ impl Batch {
         if let Some(gradient) = gradient.as_deref_mut() {
             gradient.fill(0.0);
         }
+        // W₂ᵀ, so that the weights from one hidden neuron to every output are contiguous.
+        for (output_idx, row) in params
+            .output_weights
+            .chunks_exact(shape.n_hidden)
+            .enumerate()
+        {
+            for (neuron_idx, weight) in row.iter().enumerate() {
+                self.output_weights_by_neuron[neuron_idx * shape.n_outputs + output_idx] = *weight;
+            }
+        }
         let mut chunk_start = range.start;
         while chunk_start < range.end {
             let chunk_end = (chunk_start + CHUNK).min(range.end);
             let m = chunk_end - chunk_start;
+            let inputs = &self.inputs[chunk_start..];
 
-            // Hidden layer: z = b₁ + W₁·x, one hidden neuron (a row of samples) at a time.
-            for (neuron_idx, hidden) in self.hidden.chunks_exact_mut(CHUNK).enumerate() {
+            // Hidden layer: h = f(b₁ + W₁·x), one hidden neuron (a row of samples) at a time.
+            for ((hidden, weights), bias) in self
+                .hidden
+                .chunks_exact_mut(CHUNK)
+                .zip(params.hidden_weights.chunks_exact(shape.n_inputs))
+                .zip(params.hidden_biases)
+            {
                 let hidden = &mut hidden[..m];
-                hidden.fill(params.hidden_biases[neuron_idx]);
-                let weights =
-                    &params.hidden_weights[neuron_idx * shape.n_inputs..][..shape.n_inputs];
-                for (input_idx, weight) in weights.iter().enumerate() {
-                    let input =
-                        &self.inputs[input_idx * n + chunk_start..input_idx * n + chunk_end];
-                    axpy(*weight, input, hidden);
-                }
-                self.activation.apply(hidden);
+                kernels::affine_rows(*bias, weights, inputs, n, hidden);
+                kernels::activate(self.activation, hidden);
             }
 
             // Output layer and residuals: r = b₂ + W₂·h − t.
-            for (output_idx, residual) in self.residuals.chunks_exact_mut(CHUNK).enumerate() {
+            for (output_idx, ((residual, weights), bias)) in self
+                .residuals
+                .chunks_exact_mut(CHUNK)
+                .zip(params.output_weights.chunks_exact(shape.n_hidden))
+                .zip(params.output_biases)
+                .enumerate()
+            {
                 let residual = &mut residual[..m];
-                residual.fill(params.output_biases[output_idx]);
-                let weights =
-                    &params.output_weights[output_idx * shape.n_hidden..][..shape.n_hidden];
-                for (hidden, weight) in self.hidden.chunks_exact(CHUNK).zip(weights) {
-                    axpy(*weight, &hidden[..m], residual);
-                }
-                let target =
-                    &self.targets[output_idx * n + chunk_start..output_idx * n + chunk_end];
+                kernels::affine_rows(*bias, weights, &self.hidden, CHUNK, residual);
+                let target = &self.targets[output_idx * n + chunk_start..][..m];
                 for (r, t) in residual.iter_mut().zip(target) {
                     *r -= t;
                 }
-                self.sum_squared_residuals[output_idx] += dot(residual, residual);
+                self.sum_squared_residuals[output_idx] += kernels::dot(residual, residual);
             }
 
             if let Some(gradient) = gradient.as_deref_mut() {
                 let gradient = shape.split_mut(gradient);
                 // Output layer: Σ r·hᵀ and Σ r.
-                for (output_idx, residual) in self.residuals.chunks_exact(CHUNK).enumerate() {
+                for ((residual, row), bias_gradient) in self
+                    .residuals
+                    .chunks_exact(CHUNK)
+                    .zip(gradient.output_weights.chunks_exact_mut(shape.n_hidden))
+                    .zip(gradient.output_biases.iter_mut())
+                {
                     let residual = &residual[..m];
-                    gradient.output_biases[output_idx] += sum(residual);
-                    let row = &mut gradient.output_weights[output_idx * shape.n_hidden..]
-                        [..shape.n_hidden];
+                    *bias_gradient += sum(residual);
                     for (weight_gradient, hidden) in
                         row.iter_mut().zip(self.hidden.chunks_exact(CHUNK))
                     {
-                        *weight_gradient += dot(residual, &hidden[..m]);
+                        *weight_gradient += kernels::dot(residual, &hidden[..m]);
                     }
                 }
                 // Hidden layer: δ = (W₂ᵀ·r) ⊙ f'(h), written over h, then Σ δ·xᵀ and Σ δ.
-                for (neuron_idx, hidden) in self.hidden.chunks_exact_mut(CHUNK).enumerate() {
+                let mut back = [0.0; CHUNK];
+                let back = &mut back[..m];
+                for (((hidden, weights_to_outputs), row), bias_gradient) in self
+                    .hidden
+                    .chunks_exact_mut(CHUNK)
+                    .zip(self.output_weights_by_neuron.chunks_exact(shape.n_outputs))
+                    .zip(gradient.hidden_weights.chunks_exact_mut(shape.n_inputs))
+                    .zip(gradient.hidden_biases.iter_mut())
+                {
                     let hidden = &mut hidden[..m];
-                    let mut back = [0.0; CHUNK];
-                    let back = &mut back[..m];
-                    for (output_idx, residual) in self.residuals.chunks_exact(CHUNK).enumerate() {
-                        let weight =
-                            params.output_weights[output_idx * shape.n_hidden + neuron_idx];
-                        axpy(weight, &residual[..m], back);
-                    }
+                    kernels::affine_rows(0.0, weights_to_outputs, &self.residuals, CHUNK, back);
                     self.activation.multiply_by_derivative(hidden, back);
                     hidden.copy_from_slice(back);
-                    gradient.hidden_biases[neuron_idx] += sum(hidden);
-                    let row = &mut gradient.hidden_weights[neuron_idx * shape.n_inputs..]
-                        [..shape.n_inputs];
+                    *bias_gradient += sum(hidden);
                     for (input_idx, weight_gradient) in row.iter_mut().enumerate() {
-                        let input =
-                            &self.inputs[input_idx * n + chunk_start..input_idx * n + chunk_end];
-                        *weight_gradient += dot(hidden, input);
+                        *weight_gradient += kernels::dot(hidden, &inputs[input_idx * n..][..m]);
                     }
                 }
             }
@@ -251,8 +265,8 @@ impl Batch {
         }
 
         let m = range.len().max(1) as f64;
-        let penalty = dot(params.hidden_weights, params.hidden_weights)
-            + dot(params.output_weights, params.output_weights);
+        let penalty = kernels::dot(params.hidden_weights, params.hidden_weights)
+            + kernels::dot(params.output_weights, params.output_weights);
         if let Some(gradient) = gradient {
             for value in gradient.iter_mut() {
                 *value /= m;
@@ -270,36 +284,6 @@ impl Batch {
         self.sum_squared_residuals.iter().sum::<f64>() / (2.0 * m)
             + l2_penalty * penalty / (2.0 * m)
     }
-}
-
-/// `y += a·x`.
-#[inline]
-fn axpy(a: f64, x: &[f64], y: &mut [f64]) {
-    for (y, x) in y.iter_mut().zip(x) {
-        *y += a * x;
-    }
-}
-
-/// `Σ xᵢ·yᵢ` with four partial sums, so that the additions need not wait for each other
-/// (and the compiler may use SIMD: the order is fixed by the code, not by it).
-#[inline]
-fn dot(x: &[f64], y: &[f64]) -> f64 {
-    let mut partial = [0.0; 4];
-    let x_chunks = x.chunks_exact(4);
-    let y_chunks = y.chunks_exact(4);
-    let tail: f64 = x_chunks
-        .remainder()
-        .iter()
-        .zip(y_chunks.remainder())
-        .map(|(x, y)| x * y)
-        .sum();
-    for (x, y) in x_chunks.zip(y_chunks) {
-        partial[0] += x[0] * y[0];
-        partial[1] += x[1] * y[1];
-        partial[2] += x[2] * y[2];
-        partial[3] += x[3] * y[3];
-    }
-    (partial[0] + partial[1]) + (partial[2] + partial[3]) + tail
 }
 
 /// `Σ xᵢ` with four partial sums.

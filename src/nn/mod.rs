@@ -30,6 +30,7 @@ mod activation;
 mod correlation;
 mod dataset;
 mod error;
+mod kernels;
 mod lbfgs;
 mod loss;
 mod mlp;
