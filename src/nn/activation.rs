@@ -38,20 +38,12 @@ impl Activation {
         }
     }
 
-    /// Multiplies each back-propagated error in `deltas` by the derivative of the
-    /// activation, written in terms of the activation `outputs` already computed.
-    pub(crate) fn multiply_by_derivative(self, outputs: &[f64], deltas: &mut [f64]) {
+    /// The derivative `f'(z)` written in terms of the activation `output = f(z)`.
+    #[inline]
+    pub(crate) fn derivative(self, output: f64) -> f64 {
         match self {
-            Activation::Logistic => {
-                for (delta, output) in deltas.iter_mut().zip(outputs) {
-                    *delta *= output * (1.0 - output);
-                }
-            }
-            Activation::Tanh => {
-                for (delta, output) in deltas.iter_mut().zip(outputs) {
-                    *delta *= 1.0 - output * output;
-                }
-            }
+            Activation::Logistic => output * (1.0 - output),
+            Activation::Tanh => 1.0 - output * output,
         }
     }
 }
@@ -141,10 +133,16 @@ mod tests {
             assert!((s - 1.0 / (1.0 + (-z).exp())).abs() < 1e-15, "{z}");
             assert!((t - z.tanh()).abs() < 1e-15, "{z}");
         }
-        let mut deltas = vec![1.0; inputs.len()];
-        Activation::Tanh.multiply_by_derivative(&tanh, &mut deltas);
-        for (z, d) in inputs.iter().zip(&deltas) {
-            assert!((d - 1.0 / z.cosh().powi(2)).abs() < 1e-14, "{z}");
+        for ((z, s), t) in inputs.iter().zip(&logistic).zip(&tanh) {
+            assert!(
+                (Activation::Tanh.derivative(*t) - 1.0 / z.cosh().powi(2)).abs() < 1e-14,
+                "{z}"
+            );
+            let logistic_derivative = (-z).exp() / (1.0 + (-z).exp()).powi(2);
+            assert!(
+                (Activation::Logistic.derivative(*s) - logistic_derivative).abs() < 1e-14,
+                "{z}"
+            );
         }
     }
 }

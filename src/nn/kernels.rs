@@ -39,6 +39,18 @@ pub(crate) fn activate(activation: Activation, values: &mut [f64]) {
     activation.apply(values)
 }
 
+/// `hidden[s] = back[s] · f'(hidden[s])`, the derivative written in terms of the
+/// activation ([`Activation::derivative`]).
+pub(crate) fn back_propagate(activation: Activation, back: &[f64], hidden: &mut [f64]) {
+    #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+    // SAFETY: as in `affine_rows`.
+    unsafe {
+        sse2::back_propagate(activation, back, hidden)
+    }
+    #[cfg(not(all(target_arch = "x86_64", target_feature = "sse2")))]
+    scalar::back_propagate(activation, back, hidden)
+}
+
 /// `Σ xᵢ·yᵢ` with four partial sums (elements `4k + p` go to sum `p`), then
 /// `(s₀ + s₁) + (s₂ + s₃)` plus the tail in order.
 pub(crate) fn dot(x: &[f64], y: &[f64]) -> f64 {
@@ -54,6 +66,15 @@ pub(crate) fn dot(x: &[f64], y: &[f64]) -> f64 {
 /// The scalar reference of every kernel (and the code wasm runs).
 #[cfg_attr(all(target_arch = "x86_64", target_feature = "sse2"), allow(dead_code))]
 mod scalar {
+    use super::Activation;
+
+    /// [`Activation::derivative`], in place.
+    pub(super) fn back_propagate(activation: Activation, back: &[f64], hidden: &mut [f64]) {
+        for (h, delta) in hidden.iter_mut().zip(back) {
+            *h = delta * activation.derivative(*h);
+        }
+    }
+
     pub(super) fn affine_rows(
         bias: f64,
         weights: &[f64],
@@ -210,6 +231,22 @@ mod sse2 {
     }
 
     #[target_feature(enable = "sse2")]
+    pub(super) fn back_propagate(activation: Activation, back: &[f64], hidden: &mut [f64]) {
+        let one = _mm_set1_pd(1.0);
+        let mut pairs = hidden.chunks_exact_mut(2);
+        let mut back_pairs = back.chunks_exact(2);
+        for (pair, back_pair) in pairs.by_ref().zip(back_pairs.by_ref()) {
+            let h = load(pair);
+            let derivative = match activation {
+                Activation::Logistic => _mm_mul_pd(h, _mm_sub_pd(one, h)),
+                Activation::Tanh => _mm_sub_pd(one, _mm_mul_pd(h, h)),
+            };
+            store(_mm_mul_pd(load(back_pair), derivative), pair);
+        }
+        super::scalar::back_propagate(activation, back_pairs.remainder(), pairs.into_remainder());
+    }
+
+    #[target_feature(enable = "sse2")]
     pub(super) fn dot(x: &[f64], y: &[f64]) -> f64 {
         let mut low = _mm_set1_pd(0.0);
         let mut high = _mm_set1_pd(0.0);
@@ -251,6 +288,14 @@ mod tests {
                 let mut reference_activated = reference.clone();
                 activation.apply(&mut reference_activated);
                 assert_eq!(fast_activated, reference_activated);
+            }
+            for activation in [Activation::Logistic, Activation::Tanh] {
+                let mut hidden = fast.clone();
+                activate(activation, &mut hidden);
+                let mut reference_hidden = hidden.clone();
+                back_propagate(activation, &base[260..260 + m], &mut hidden);
+                scalar::back_propagate(activation, &base[260..260 + m], &mut reference_hidden);
+                assert_eq!(hidden, reference_hidden);
             }
             assert_eq!(
                 dot(&base[..m], &base[130..130 + m]).to_bits(),

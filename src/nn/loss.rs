@@ -253,8 +253,7 @@ impl Batch {
                 {
                     let hidden = &mut hidden[..m];
                     kernels::affine_rows(0.0, weights_to_outputs, &self.residuals, CHUNK, back);
-                    self.activation.multiply_by_derivative(hidden, back);
-                    hidden.copy_from_slice(back);
+                    kernels::back_propagate(self.activation, back, hidden);
                     *bias_gradient += sum(hidden);
                     for (input_idx, weight_gradient) in row.iter_mut().enumerate() {
                         *weight_gradient += kernels::dot(hidden, &inputs[input_idx * n..][..m]);
