@@ -5,8 +5,8 @@
 // JSON on stdout.
 //
 // Usage: node bench/wasm-bench.mjs [--runs N] [--page PAGE]   (bench/run builds the
-// module and the inputs first). PAGE is index.html (import, the default) or
-// ellipsoid.html (ellipsoid fit).
+// module and the inputs first). PAGE is index.html (import, the default),
+// ellipsoid.html (ellipsoid fit) or mlp.html (MLP training; bench/mlp.sh).
 import { createServer } from 'node:http';
 import { createReadStream, existsSync, statSync } from 'node:fs';
 import { dirname, extname, join, normalize, resolve, sep } from 'node:path';
@@ -23,6 +23,7 @@ const pageName = pageIdx > 0 ? process.argv[pageIdx + 1] : 'index.html';
 const INPUTS_OF_PAGE = {
   'index.html': ['target/bench-data/walk.csv', 'target/bench-data/track.nmea'],
   'ellipsoid.html': [1000, 10000, 100000, 1000000].map((n) => `target/bench-data/sphere_${n}.f64`),
+  'mlp.html': ['target/bench-data/mlp_samples.f64', 'target/bench-data/mlp_settings.json'],
 };
 if (!(pageName in INPUTS_OF_PAGE)) {
   console.error(`--page must be one of ${Object.keys(INPUTS_OF_PAGE).join(', ')}`);

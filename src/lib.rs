@@ -57,6 +57,7 @@ pub mod civil;
 pub mod deviation;
 pub mod geo;
 pub mod io;
+pub mod nn;
 pub mod plot;
 pub mod recording;
 pub mod reference;

@@ -7,6 +7,7 @@
 
 mod canvas;
 mod mapping;
+mod nn_bench;
 mod page;
 
 #[cfg(test)]

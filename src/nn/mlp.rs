@@ -1,0 +1,317 @@
+//! The trained network: one hidden layer, a linear output, and the normalisation of
+//! inputs and targets, so that [`Mlp::predict`] takes and returns raw values (degrees,
+//! µT, °C; metres for a step length).
+//!
+//! ```text
+//! x̂ = (x − μₓ) / σₓ,   h = f(W₁·x̂ + b₁),   ŷ = W₂·h + b₂,   y = ŷ·σᵧ + μᵧ
+//! ```
+//!
+//! A model is serialisable (serde) with its normalisation; a loaded model is checked
+//! (sizes consistent, every number finite) before it can be used.
+
+use super::activation::Activation;
+use super::dataset::{DataPart, Dataset};
+use super::error::NnError;
+use super::loss::{Batch, Shape, INPUT_CLAMP};
+use super::normalise::Standardiser;
+
+/// A multilayer perceptron with one hidden layer and its input and output
+/// normalisation. Made by [`super::train`] or loaded with serde.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(try_from = "MlpParts", into = "MlpParts")]
+pub struct Mlp {
+    shape: Shape,
+    activation: Activation,
+    input_scaling: Standardiser,
+    output_scaling: Standardiser,
+    /// `[W₁ (hidden × inputs, row-major) | b₁ | W₂ (outputs × hidden) | b₂]`.
+    params: Vec<f64>,
+}
+
+/// The serialised form of [`Mlp`].
+#[derive(Clone, serde::Serialize, serde::Deserialize)]
+struct MlpParts {
+    n_inputs: usize,
+    n_hidden: usize,
+    n_outputs: usize,
+    activation: Activation,
+    input_scaling: Standardiser,
+    output_scaling: Standardiser,
+    params: Vec<f64>,
+}
+
+impl From<Mlp> for MlpParts {
+    fn from(mlp: Mlp) -> Self {
+        MlpParts {
+            n_inputs: mlp.shape.n_inputs,
+            n_hidden: mlp.shape.n_hidden,
+            n_outputs: mlp.shape.n_outputs,
+            activation: mlp.activation,
+            input_scaling: mlp.input_scaling,
+            output_scaling: mlp.output_scaling,
+            params: mlp.params,
+        }
+    }
+}
+
+impl TryFrom<MlpParts> for Mlp {
+    type Error = NnError;
+
+    fn try_from(parts: MlpParts) -> Result<Self, NnError> {
+        let shape = Shape {
+            n_inputs: parts.n_inputs,
+            n_hidden: parts.n_hidden,
+            n_outputs: parts.n_outputs,
+        };
+        let inconsistent = |reason: String| Err(NnError::InconsistentModel { reason });
+        if shape.n_inputs == 0 || shape.n_hidden == 0 || shape.n_outputs == 0 {
+            return inconsistent(format!(
+                "{} inputs, {} hidden neurons, {} outputs",
+                shape.n_inputs, shape.n_hidden, shape.n_outputs
+            ));
+        }
+        if parts.params.len() != shape.n_params() {
+            return inconsistent(format!(
+                "{} parameters where the sizes need {}",
+                parts.params.len(),
+                shape.n_params()
+            ));
+        }
+        if parts.params.iter().any(|value| !value.is_finite()) {
+            return inconsistent("a parameter is not finite".to_owned());
+        }
+        for (scaling, width, part) in [
+            (&parts.input_scaling, shape.n_inputs, "input"),
+            (&parts.output_scaling, shape.n_outputs, "output"),
+        ] {
+            let checked =
+                Standardiser::from_parts(scaling.mean().to_vec(), scaling.scale().to_vec());
+            if scaling.width() != width || checked.is_none() {
+                return inconsistent(format!(
+                    "the {part} normalisation does not have {width} finite columns with positive scales"
+                ));
+            }
+        }
+        Ok(Mlp::new(
+            shape,
+            parts.activation,
+            parts.input_scaling,
+            parts.output_scaling,
+            parts.params,
+        ))
+    }
+}
+
+impl Mlp {
+    /// Assembles a model from parts whose sizes the caller has made consistent.
+    pub(crate) fn new(
+        shape: Shape,
+        activation: Activation,
+        input_scaling: Standardiser,
+        output_scaling: Standardiser,
+        params: Vec<f64>,
+    ) -> Self {
+        debug_assert_eq!(params.len(), shape.n_params());
+        Mlp {
+            shape,
+            activation,
+            input_scaling,
+            output_scaling,
+            params,
+        }
+    }
+
+    pub fn n_inputs(&self) -> usize {
+        self.shape.n_inputs
+    }
+
+    pub fn n_hidden(&self) -> usize {
+        self.shape.n_hidden
+    }
+
+    pub fn n_outputs(&self) -> usize {
+        self.shape.n_outputs
+    }
+
+    pub fn activation(&self) -> Activation {
+        self.activation
+    }
+
+    /// Weights and biases, `[W₁ (hidden × inputs, row-major) | b₁ | W₂ (outputs ×
+    /// hidden) | b₂]`, acting on normalised values.
+    pub fn params(&self) -> &[f64] {
+        &self.params
+    }
+
+    pub fn input_scaling(&self) -> &Standardiser {
+        &self.input_scaling
+    }
+
+    pub fn output_scaling(&self) -> &Standardiser {
+        &self.output_scaling
+    }
+
+    /// The outputs (raw units) for one sample's raw inputs.
+    pub fn predict(&self, inputs: &[f64]) -> Result<Vec<f64>, NnError> {
+        let mut outputs = vec![0.0; self.shape.n_outputs];
+        self.predict_into(inputs, &mut outputs)?;
+        Ok(outputs)
+    }
+
+    /// [`Mlp::predict`] into the caller's `outputs` (`n_outputs` long).
+    pub fn predict_into(&self, inputs: &[f64], outputs: &mut [f64]) -> Result<(), NnError> {
+        let shape = self.shape;
+        if inputs.len() != shape.n_inputs {
+            return Err(NnError::WrongWidth {
+                part: DataPart::Input,
+                expected: shape.n_inputs,
+                found: inputs.len(),
+            });
+        }
+        if outputs.len() != shape.n_outputs {
+            return Err(NnError::WrongWidth {
+                part: DataPart::Target,
+                expected: shape.n_outputs,
+                found: outputs.len(),
+            });
+        }
+        if let Some(column) = inputs.iter().position(|value| !value.is_finite()) {
+            return Err(NnError::NonFinite {
+                part: DataPart::Input,
+                row: 0,
+                column,
+                value: inputs[column],
+            });
+        }
+        let params = shape.split(&self.params);
+        // The same sums in the same order as the training's batch evaluation.
+        let mut hidden = params.hidden_biases.to_vec();
+        for (neuron, weights) in hidden
+            .iter_mut()
+            .zip(params.hidden_weights.chunks_exact(shape.n_inputs))
+        {
+            for (input_idx, (weight, raw)) in weights.iter().zip(inputs).enumerate() {
+                let normalised = self
+                    .input_scaling
+                    .normalise(input_idx, *raw)
+                    .clamp(-INPUT_CLAMP, INPUT_CLAMP);
+                *neuron += weight * normalised;
+            }
+        }
+        self.activation.apply(&mut hidden);
+        for (output_idx, ((output, weights), bias)) in outputs
+            .iter_mut()
+            .zip(params.output_weights.chunks_exact(shape.n_hidden))
+            .zip(params.output_biases)
+            .enumerate()
+        {
+            let mut normalised = *bias;
+            for (weight, neuron) in weights.iter().zip(&hidden) {
+                normalised += weight * neuron;
+            }
+            *output = self.output_scaling.denormalise(output_idx, normalised);
+        }
+        Ok(())
+    }
+
+    /// The outputs of many samples: `rows` holds `n_inputs` raw inputs per sample, the
+    /// result `n_outputs` per sample, both row-major.
+    pub fn predict_rows(&self, rows: &[f64]) -> Result<Vec<f64>, NnError> {
+        if !rows.len().is_multiple_of(self.shape.n_inputs) {
+            return Err(NnError::RaggedRows {
+                part: DataPart::Input,
+                n_values: rows.len(),
+                width: self.shape.n_inputs,
+            });
+        }
+        let n_rows = rows.len() / self.shape.n_inputs;
+        let mut outputs = vec![0.0; n_rows * self.shape.n_outputs];
+        for (row_idx, (row, output)) in rows
+            .chunks_exact(self.shape.n_inputs)
+            .zip(outputs.chunks_exact_mut(self.shape.n_outputs))
+            .enumerate()
+        {
+            self.predict_into(row, output)
+                .map_err(|error| match error {
+                    NnError::NonFinite {
+                        part,
+                        column,
+                        value,
+                        ..
+                    } => NnError::NonFinite {
+                        part,
+                        row: row_idx,
+                        column,
+                        value,
+                    },
+                    other => other,
+                })?;
+        }
+        Ok(outputs)
+    }
+
+    /// The mean squared error (raw units², over every sample and output) on `data`.
+    pub fn mean_squared_error(&self, data: &Dataset) -> Result<f64, NnError> {
+        for (part, expected, found) in [
+            (DataPart::Input, self.shape.n_inputs, data.n_inputs()),
+            (DataPart::Target, self.shape.n_outputs, data.n_outputs()),
+        ] {
+            if expected != found {
+                return Err(NnError::WrongWidth {
+                    part,
+                    expected,
+                    found,
+                });
+            }
+        }
+        let mut batch = self.batch(data);
+        Ok(self.raw_mse(&mut batch))
+    }
+
+    /// `data` normalised as this model normalises, for evaluations.
+    pub(crate) fn batch(&self, data: &Dataset) -> Batch {
+        Batch::new(
+            self.shape,
+            self.activation,
+            data.inputs(),
+            data.targets(),
+            |column, value| self.input_scaling.normalise(column, value),
+            |column, value| self.output_scaling.normalise(column, value),
+        )
+    }
+
+    /// The mean squared error in raw units of the current parameters on `batch`.
+    pub(crate) fn raw_mse(&self, batch: &mut Batch) -> f64 {
+        raw_mse_of(&self.params, &self.output_scaling, batch)
+    }
+
+    pub(crate) fn params_mut(&mut self) -> &mut [f64] {
+        &mut self.params
+    }
+}
+
+/// The mean squared error in raw units of `params` on the whole of `batch` (a forward
+/// pass, no gradient).
+pub(crate) fn raw_mse_of(params: &[f64], output_scaling: &Standardiser, batch: &mut Batch) -> f64 {
+    batch.evaluate(params, 0..batch.n_samples(), 0.0, None);
+    raw_mse_from_sums(
+        batch.sum_squared_residuals(),
+        output_scaling,
+        batch.n_samples(),
+    )
+}
+
+/// The mean squared error in raw units from the sums of squared normalised residuals of
+/// `n_samples` samples.
+pub(crate) fn raw_mse_from_sums(
+    sum_squared_residuals: &[f64],
+    output_scaling: &Standardiser,
+    n_samples: usize,
+) -> f64 {
+    let total: f64 = sum_squared_residuals
+        .iter()
+        .zip(output_scaling.scale())
+        .map(|(sum, scale)| sum * scale * scale)
+        .sum();
+    total / (n_samples.max(1) * sum_squared_residuals.len().max(1)) as f64
+}
