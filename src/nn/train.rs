@@ -813,6 +813,8 @@ mod tests {
         ));
     }
 
+    // serde_json and proptest are native dev-dependencies.
+    #[cfg(not(target_arch = "wasm32"))]
     #[test]
     fn a_saved_model_reloads_with_the_same_predictions() {
         let data = samples(200, 2, (-1.0, 1.0), 0.05, 6, |x| {
@@ -868,6 +870,7 @@ mod tests {
         assert!((report.train_mse - mse).abs() < 1e-12 * (1.0 + mse));
     }
 
+    #[cfg(not(target_arch = "wasm32"))]
     mod properties {
         use super::*;
         use proptest::prelude::*;
