@@ -112,6 +112,18 @@ pub struct HeadingReport {
     pub calibration: CalibrationReport,
 }
 
+impl HeadingReport {
+    /// The Fourier model the plots feature: of those with all five terms, the one that
+    /// fits its train part best; else the one on the raw heading.
+    pub fn featured_fourier(&self) -> Option<&FourierReport> {
+        self.fourier
+            .iter()
+            .filter(|report| report.fit.terms == fourier::FourierTerms::Full)
+            .min_by(|a, b| a.fit.residual_std_deg.total_cmp(&b.fit.residual_std_deg))
+            .or_else(|| self.fourier.iter().find(|report| report.base_key == "raw"))
+    }
+}
+
 /// The report with the per-sample series the plots draw.
 #[derive(Debug, Clone, PartialEq)]
 pub struct HeadingAnalysis {

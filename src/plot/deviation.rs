@@ -1,5 +1,5 @@
-//! The heading-model figure: the deviation curve (raw deviation against raw heading,
-//! with the fitted Eq. 12 curve and the residuals), the residual histogram (the PDR
+//! The heading-model figure: the deviation curve (deviation against heading, with the
+//! fitted Eq. 12 curve and the residuals, for the base whose model fits best), the residual histogram (the PDR
 //! paper's Fig. 7), and the heading error over time of the raw heading and the best
 //! method.
 
@@ -33,13 +33,19 @@ pub fn draw_deviation_figure<DB: DrawingBackend>(
     area.present().map_err(PlotError::from_backend("figure"))
 }
 
-/// The raw heading's series and its Fourier model, if fitted.
-fn raw_series(analysis: &HeadingAnalysis) -> &[f64] {
-    analysis
+/// The featured base heading's series (raw when no model was fitted), its key and label.
+fn base_series(analysis: &HeadingAnalysis) -> (&[f64], String) {
+    let featured = analysis.report.featured_fourier();
+    let key = featured.map_or("raw", |report| report.base_key.as_str());
+    let label = featured.map_or("uncalibrated".to_string(), |report| {
+        report.base_label.clone()
+    });
+    let series = analysis
         .headings_deg
         .iter()
-        .find(|(key, _)| key == "raw")
-        .map_or(&[], |(_, headings)| headings.as_slice())
+        .find(|(series_key, _)| series_key == key)
+        .map_or(&[][..], |(_, headings)| headings.as_slice());
+    (series, label)
 }
 
 /// Deviation (reference − raw) against raw heading, the fitted curve, the residuals.
@@ -48,12 +54,10 @@ pub fn draw_deviation_curve<DB: DrawingBackend>(
     analysis: &HeadingAnalysis,
 ) -> Result<(), PlotError> {
     let error = PlotError::from_backend::<DrawingAreaErrorKind<DB::ErrorType>>("deviation curve");
-    let raw_deg = raw_series(analysis);
+    let (raw_deg, base_label) = base_series(analysis);
     let model = analysis
         .report
-        .fourier
-        .iter()
-        .find(|report| report.base_key == "raw")
+        .featured_fourier()
         .map(|report| report.fit.model);
     let points: Vec<(f64, f64)> = thinned_indices(raw_deg.len(), MAX_POINTS_PER_SERIES)
         .filter_map(|idx| {
@@ -99,7 +103,10 @@ pub fn draw_deviation_curve<DB: DrawingBackend>(
         .min(180.0)
         * 1.1;
     let mut chart = ChartBuilder::on(area)
-        .caption("Deviation curve (Eq. 12)", ("sans-serif", 16))
+        .caption(
+            format!("Deviation curve (Eq. 12) of {base_label}"),
+            ("sans-serif", 16),
+        )
         .margin(12)
         .x_label_area_size(36)
         .y_label_area_size(48)
@@ -107,8 +114,8 @@ pub fn draw_deviation_curve<DB: DrawingBackend>(
         .map_err(&error)?;
     chart
         .configure_mesh()
-        .x_desc("raw heading (°)")
-        .y_desc("reference − raw (°)")
+        .x_desc("heading before the model (°)")
+        .y_desc("reference − heading (°)")
         .light_line_style(WHITE.mix(0.0))
         .draw()
         .map_err(&error)?;
@@ -143,7 +150,7 @@ pub fn draw_deviation_curve<DB: DrawingBackend>(
     Ok(())
 }
 
-/// The residual histogram of the Fourier model on the raw heading (train part).
+/// The residual histogram of the featured Fourier model (train part).
 pub fn draw_residual_histogram<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
     analysis: &HeadingAnalysis,
