@@ -31,8 +31,8 @@
 use nalgebra::{Vector2, Vector3};
 
 use super::axes::PhoneMount;
-use super::lines::{decode_all, Line};
-use super::number::{parse_f64, parse_prefix};
+use super::lines::{decode_all, Line, LineDecoder};
+use super::number::{parse_f64, parse_prefix, parse_prefix_at};
 use super::{ensure_text, shorten, Diagnostics, HeaderInfo, ImportError, ImportReport};
 use crate::recording::{Attitude, GnssFix, Recording, Stream};
 
@@ -261,9 +261,34 @@ pub fn read_raw_mapped(
     if let Some(raw) = parallel::read_raw(file_name, bytes, mapping) {
         return raw;
     }
+    if let Some((mut reader, data_offset, n_header_lines)) =
+        read_up_to_header(bytes, mapping, Some(bytes.len()))
+    {
+        reader.read_data_bytes(bytes.get(data_offset..).unwrap_or_default(), n_header_lines);
+        return reader.finish(file_name);
+    }
     let mut reader = DelimitedReader::new(Some(bytes.len())).with_mapping(mapping.cloned());
     decode_all(bytes, MAX_LINE_BYTES, |line| reader.read_line(&line));
     reader.finish(file_name)
+}
+
+/// Reads lines up to and including the header: the reader, the offset of the first byte
+/// after the header's line ending, and the number of lines read. `None` when no line
+/// ending follows the header (the caller then reads line by line).
+fn read_up_to_header(
+    bytes: &[u8],
+    mapping: Option<&ColumnMapping>,
+    size_hint_bytes: Option<usize>,
+) -> Option<(DelimitedReader, usize, usize)> {
+    let mut reader = DelimitedReader::new(size_hint_bytes).with_mapping(mapping.cloned());
+    let mut decoder = LineDecoder::new(MAX_LINE_BYTES);
+    let mut offset = 0usize;
+    while reader.header.is_none() {
+        let line_end = offset + memchr::memchr(b'\n', bytes.get(offset..)?)? + 1;
+        decoder.feed(bytes.get(offset..line_end)?, |line| reader.read_line(&line));
+        offset = line_end;
+    }
+    Some((reader, offset, decoder.n_lines()))
 }
 
 /// Large files on native builds: the data lines are cut into one part per core at line
@@ -273,14 +298,12 @@ pub fn read_raw_mapped(
 #[cfg(not(target_arch = "wasm32"))]
 mod parallel {
     use super::*;
-    use crate::io::lines::LineDecoder;
 
     /// Below this size one thread is as fast.
     const MIN_PARALLEL_BYTES: usize = 4 << 20;
 
-    /// `None` when the file is better read on one thread: small, on one core, without a
-    /// time column (the sample number is then counted across the whole file), or with
-    /// lone-CR line endings (no LF to cut at).
+    /// `None` when the file is better read on one thread: small, on one core, or without
+    /// a time column (the sample number is then counted across the whole file).
     pub(super) fn read_raw(
         file_name: &str,
         bytes: &[u8],
@@ -291,22 +314,13 @@ mod parallel {
             return None;
         }
         // Read up to the header on this thread.
-        let mut reader = DelimitedReader::new(None).with_mapping(mapping.cloned());
-        let mut decoder = LineDecoder::new(MAX_LINE_BYTES);
-        let mut offset = 0usize;
-        while reader.header.is_none() {
-            let line_end = offset + memchr::memchr(b'\n', bytes.get(offset..)?)? + 1;
-            decoder.feed(bytes.get(offset..line_end)?, |line| reader.read_line(&line));
-            offset = line_end;
-        }
-        if reader.plan.time.is_none()
-            || memchr::memchr(b'\r', bytes.get(offset..)?).is_some_and(|_| has_lone_cr(bytes))
-        {
+        let (mut reader, data_offset, n_header_lines) = read_up_to_header(bytes, mapping, None)?;
+        if reader.plan.time.is_none() {
             return None;
         }
-        let n_header_lines = decoder.n_lines();
-        // Cut the rest into parts that end just after a newline.
-        let rest = bytes.get(offset..)?;
+        // Cut the rest into parts that end just after a newline. A lone CR never ends a
+        // part, so every part starts a line, as when the file is read line by line.
+        let rest = bytes.get(data_offset..)?;
         let part_len = rest.len() / n_threads + 1;
         let mut parts: Vec<&[u8]> = Vec::with_capacity(n_threads);
         let mut start = 0usize;
@@ -344,12 +358,13 @@ mod parallel {
                         n_data_lines: 0,
                         size_hint_bytes: Some(size_hint_bytes),
                         mapping: None,
+                        problems: Vec::new(),
+                        row_times: RowTimes::default(),
                     };
                     scope.spawn(move || {
-                        let mut part_decoder = LineDecoder::new(MAX_LINE_BYTES);
-                        part_decoder.feed(part, |line| part_reader.read_line(&line));
-                        part_decoder.finish(|line| part_reader.read_line(&line));
-                        let n_lines = part_decoder.n_lines();
+                        // Numbered from 2, so that no part's first line is taken for the
+                        // file's first (where a byte-order mark is dropped).
+                        let n_lines = part_reader.read_data_bytes(part, 1);
                         (part_reader, n_lines)
                     })
                 })
@@ -367,21 +382,17 @@ mod parallel {
         for (part_reader, n_lines) in results {
             for diagnostic in part_reader.diagnostics.kept {
                 reader.diagnostics.push(
-                    diagnostic.line.map(|line| line + lines_before),
+                    diagnostic.line.map(|line| line - 1 + lines_before),
                     diagnostic.message,
                 );
             }
             reader.diagnostics.n_not_kept += part_reader.diagnostics.n_not_kept;
             reader.n_data_lines += part_reader.n_data_lines;
+            reader.row_times = reader.row_times.then(part_reader.row_times);
             reader.recording.append(part_reader.recording);
             lines_before += n_lines;
         }
         Some(reader.finish(file_name))
-    }
-
-    /// Whether any CR is not followed by LF.
-    fn has_lone_cr(bytes: &[u8]) -> bool {
-        memchr::memchr_iter(b'\r', bytes).any(|idx| bytes.get(idx + 1) != Some(&b'\n'))
     }
 }
 
@@ -454,6 +465,48 @@ pub struct DelimitedReader {
     n_data_lines: usize,
     size_hint_bytes: Option<usize>,
     mapping: Option<ColumnMapping>,
+    /// The current line's problems (kept between lines for its room).
+    problems: Vec<String>,
+    row_times: RowTimes,
+}
+
+/// Whether the times of the rows read so far ever went back.
+#[derive(Debug, Clone, Copy)]
+struct RowTimes {
+    first: Option<f64>,
+    last: f64,
+    went_back: bool,
+}
+
+impl Default for RowTimes {
+    fn default() -> Self {
+        RowTimes {
+            first: None,
+            last: f64::NEG_INFINITY,
+            went_back: false,
+        }
+    }
+}
+
+impl RowTimes {
+    #[inline(always)]
+    fn record(&mut self, t_raw: f64) {
+        self.went_back |= t_raw < self.last;
+        self.last = t_raw;
+        self.first.get_or_insert(t_raw);
+    }
+
+    /// Joins the rows that follow (another part of the file).
+    fn then(self, next: RowTimes) -> RowTimes {
+        match next.first {
+            None => self,
+            Some(next_first) => RowTimes {
+                first: self.first.or(next.first),
+                last: next.last,
+                went_back: self.went_back || next.went_back || next_first < self.last,
+            },
+        }
+    }
 }
 
 /// Where each quantity sits in a data line, resolved once from the header.
@@ -550,6 +603,8 @@ impl DelimitedReader {
             n_data_lines: 0,
             size_hint_bytes,
             mapping: None,
+            problems: Vec::new(),
+            row_times: RowTimes::default(),
         }
     }
 
@@ -632,6 +687,115 @@ impl DelimitedReader {
         }
     }
 
+    /// Reads data lines (whole lines after the header; the last may lack its ending),
+    /// numbered on from `n_lines_before`, and returns how many lines there were. Lines of
+    /// plain numbers take [`DelimitedReader::read_line_fast`]; any other line (comments,
+    /// blanks, quotes, padding, lone CRs, bad fields, too long) goes through the line
+    /// decoder and [`DelimitedReader::read_line`], with the same line numbers and
+    /// diagnostics as when the whole file is read that way.
+    fn read_data_bytes(&mut self, bytes: &[u8], n_lines_before: usize) -> usize {
+        let Some(delimiter) = self.header.as_ref().map(|header| header.delimiter as u8) else {
+            return 0;
+        };
+        let mut line_start = 0usize;
+        let mut n_lines = n_lines_before;
+        while line_start < bytes.len() {
+            if let Some(next_start) = self.read_line_fast(bytes, line_start, delimiter, n_lines + 1)
+            {
+                n_lines += 1;
+                line_start = next_start;
+                continue;
+            }
+            let line_end = bytes
+                .get(line_start..)
+                .and_then(|rest| memchr::memchr(b'\n', rest))
+                .map_or(bytes.len(), |newline| line_start + newline + 1);
+            let mut decoder = LineDecoder::continuing(MAX_LINE_BYTES, n_lines);
+            decoder.feed(
+                bytes.get(line_start..line_end).unwrap_or_default(),
+                |line| self.read_line(&line),
+            );
+            if line_end == bytes.len() {
+                decoder.finish(|line| self.read_line(&line));
+            }
+            n_lines = decoder.n_lines();
+            line_start = line_end;
+        }
+        n_lines - n_lines_before
+    }
+
+    /// The data line at `bytes[line_start..]` when it is made of plain numbers and empty
+    /// fields (unused fields may hold anything but a line ending), has no more fields
+    /// than the header, no surrounding white space and an LF or CRLF ending: its values
+    /// are recorded and the index after its ending returned. `None`, with nothing
+    /// recorded, for every other line: [`DelimitedReader::read_line`] then reads it.
+    /// For the lines it takes, the result is the same as `read_line`'s.
+    #[inline(always)]
+    fn read_line_fast(
+        &mut self,
+        bytes: &[u8],
+        line_start: usize,
+        delimiter: u8,
+        line_number: usize,
+    ) -> Option<usize> {
+        let first = *bytes.get(line_start)?;
+        if first.is_ascii_whitespace() || first == b'#' {
+            return None;
+        }
+        let mut pos = line_start;
+        let mut n_fields = 0usize;
+        let mut line_end = None;
+        for (slot, &used) in self.row.iter_mut().zip(&self.plan.used) {
+            n_fields += 1;
+            *slot = f64::NAN;
+            if used {
+                if let Some((value, end)) = parse_prefix_at(bytes, pos) {
+                    *slot = value;
+                    pos = end;
+                }
+            } else {
+                while let Some(&byte) = bytes.get(pos) {
+                    if byte == delimiter || byte == b'\n' || byte == b'\r' {
+                        break;
+                    }
+                    pos += 1;
+                }
+            }
+            match bytes.get(pos) {
+                Some(&byte) if byte == delimiter => pos += 1,
+                Some(b'\n' | b'\r') => {
+                    line_end = Some(pos);
+                    break;
+                }
+                // Not a number, or the end of the input without a line ending.
+                _ => return None,
+            }
+        }
+        // `None` here: a delimiter after the last column (more fields than the header).
+        let line_end = line_end?;
+        let next_start = match bytes.get(line_end..)? {
+            [b'\n', ..] => line_end + 1,
+            [b'\r', b'\n', ..] => line_end + 2,
+            _ => return None,
+        };
+        let last = *bytes.get(line_end.checked_sub(1)?)?;
+        if last.is_ascii_whitespace() || line_end - line_start > MAX_LINE_BYTES {
+            return None;
+        }
+        for slot in self.row.iter_mut().skip(n_fields) {
+            *slot = f64::NAN;
+        }
+        if self.n_data_lines == 0 {
+            self.reserve(line_end - line_start + 1);
+        }
+        self.n_data_lines += 1;
+        // An empty list that keeps its room: taking it out and back costs no allocation.
+        let mut problems = std::mem::take(&mut self.problems);
+        self.record_row(line_number, &mut problems);
+        self.problems = problems;
+        Some(next_start)
+    }
+
     fn read_data_line(&mut self, line_number: usize, text: &str) {
         let Some(header) = &self.header else { return };
         let delimiter = header.delimiter as u8;
@@ -693,6 +857,13 @@ impl DelimitedReader {
                 header.columns.len()
             ));
         }
+        self.record_row(line_number, &mut problems);
+    }
+
+    /// Records the values of the line in `self.row` (NaN where a field is empty or
+    /// unreadable) in their streams, with the line's problems as one diagnostic.
+    #[inline(always)]
+    fn record_row(&mut self, line_number: usize, problems: &mut Vec<String>) {
         let row = &self.row;
         let value_at = |field: Option<usize>| {
             field
@@ -706,12 +877,14 @@ impl DelimitedReader {
                     problems.push("no time, so the line was skipped".to_string());
                     self.diagnostics
                         .push(Some(line_number), problems.join("; "));
+                    problems.clear();
                     return;
                 }
             },
             // Without a time column the sample number stands in for time.
             None => self.n_data_lines as f64 - 1.0,
         };
+        self.row_times.record(t_raw);
         let plan = &self.plan;
         let recording = &mut self.recording;
         for (fields, stream, label) in [
@@ -721,7 +894,7 @@ impl DelimitedReader {
         ] {
             let Some([x, y, z]) = fields else { continue };
             match (value_at(Some(x)), value_at(Some(y)), value_at(Some(z))) {
-                (Some(x), Some(y), Some(z)) => stream.push(t_raw, Vector3::new(x, y, z)),
+                (Some(x), Some(y), Some(z)) => push_sample(stream, t_raw, Vector3::new(x, y, z)),
                 (None, None, None) => {}
                 _ => problems.push(format!(
                     "{label} has only some of x, y, z; that sample was skipped"
@@ -730,10 +903,10 @@ impl DelimitedReader {
         }
         let scalar = |quantity: Quantity| value_at(plan.scalar[quantity as usize]);
         if let Some(temp) = scalar(Quantity::Temp) {
-            recording.temp_c.push(t_raw, temp);
+            push_sample(&mut recording.temp_c, t_raw, temp);
         }
         if let Some(pressure) = scalar(Quantity::Pressure) {
-            recording.pressure_hpa.push(t_raw, pressure);
+            push_sample(&mut recording.pressure_hpa, t_raw, pressure);
         }
         // A negative speed, course or accuracy is an "invalid" marker (phyphox: −1).
         let non_negative = |quantity: Quantity| scalar(quantity).filter(|value| *value >= 0.0);
@@ -745,7 +918,18 @@ impl DelimitedReader {
             course_rad: non_negative(Quantity::Course),
             hacc_m: non_negative(Quantity::HorizontalAccuracy),
         };
-        if fix != GnssFix::default() {
+        let GnssFix {
+            lat_deg,
+            lon_deg,
+            alt_m,
+            speed_mps,
+            course_rad,
+            hacc_m,
+        } = fix;
+        if [lat_deg, lon_deg, alt_m, speed_mps, course_rad, hacc_m]
+            .iter()
+            .any(Option::is_some)
+        {
             recording.gnss.push(t_raw, fix);
         }
         if let (Some(roll), Some(pitch)) = (scalar(Quantity::Roll), scalar(Quantity::Pitch)) {
@@ -759,18 +943,21 @@ impl DelimitedReader {
             );
         }
         if let Some(heading) = scalar(Quantity::RefHeading) {
-            recording.ref_heading_rad.push(t_raw, heading);
+            push_sample(&mut recording.ref_heading_rad, t_raw, heading);
         }
         match (scalar(Quantity::RefEast), scalar(Quantity::RefNorth)) {
-            (Some(east_m), Some(north_m)) => recording
-                .ref_position_en_m
-                .push(t_raw, Vector2::new(east_m, north_m)),
+            (Some(east_m), Some(north_m)) => push_sample(
+                &mut recording.ref_position_en_m,
+                t_raw,
+                Vector2::new(east_m, north_m),
+            ),
             (None, None) => {}
             _ => problems.push("reference position has only one of east and north".to_string()),
         }
         if !problems.is_empty() {
             self.diagnostics
                 .push(Some(line_number), problems.join("; "));
+            problems.clear();
         }
     }
 
@@ -847,7 +1034,10 @@ impl DelimitedReader {
                 t0_raw * time_scale
             ));
         }
-        for_each_time(recording, |t| *t = (*t - t0_raw) * time_scale);
+        // (t − 0) · 1 is t: the pass is skipped when it would change nothing.
+        if t0_raw != 0.0 || time_scale != 1.0 {
+            for_each_time(recording, |t| *t = (*t - t0_raw) * time_scale);
+        }
         if t0_raw != 0.0 {
             recording.start_unix_s = Some(t0_raw * time_scale);
         }
@@ -908,7 +1098,13 @@ impl DelimitedReader {
             recording.attitude = Stream::default();
             notes.push("the app's roll/pitch/yaw columns were not used (their axis convention is the app's)".to_string());
         }
-        let n_out_of_order = recording.sort_all_by_time();
+        // Every stream's times are some of the rows' times, in the rows' order: when
+        // those never go back, no stream needs sorting (or the pass that looks).
+        let n_out_of_order = if self.row_times.went_back {
+            recording.sort_all_by_time()
+        } else {
+            0
+        };
         if n_out_of_order > 0 {
             self.diagnostics.push(
                 Some(header.line),
@@ -988,6 +1184,13 @@ fn parse_field_slowly(field: &str, is_time: bool) -> Option<f64> {
             None
         }
     })
+}
+
+/// Appends one sample (the hot loop's [`Stream::push`], always inlined).
+#[inline(always)]
+fn push_sample<T>(stream: &mut Stream<T>, t_s: f64, value: T) {
+    stream.t_s.push(t_s);
+    stream.values.push(value);
 }
 
 /// Calls `f` on every sample time of every stream.
@@ -1557,6 +1760,116 @@ mod tests {
             .kept
             .iter()
             .any(|diagnostic| diagnostic.line == Some(9979)));
+    }
+
+    /// Reads `bytes` line by line through [`DelimitedReader::read_line`] only, the
+    /// reference the fast and parallel paths must equal.
+    fn read_line_by_line(bytes: &[u8]) -> Result<RawImport, ImportError> {
+        let mut reader = DelimitedReader::new(None);
+        decode_all(bytes, MAX_LINE_BYTES, |line| reader.read_line(&line));
+        reader.finish("f.csv")
+    }
+
+    /// Data lines the fast path takes and lines it must hand to the general path, with
+    /// the same result.
+    const TRICKY_LINES: &[&[u8]] = &[
+        b"0.5,1.25,-2.5,40.125,unused,12.5",
+        b"1,2,3,4,,5",
+        b"1.5,-9.6864,0.00058,33.259,x,359.999",
+        b"2,1e1,2E-1,3.5e+2,,1",
+        b"2.5,,,,,",
+        b"3,1,2,,,",
+        b",1,2,3,,4",
+        b" 4,1,2,3,,4",
+        b"4.5,1,2,3,,4 ",
+        b"5,1,2,3,,4,extra",
+        b"5.5,1,2,3,,4,",
+        b"6,\"7\",8,9,,10",
+        b"6.5,abc,8,9,,10",
+        b"7,NaN,8,9,,10",
+        b"7.5,1e400,8,9,,10",
+        b"8,1,2,3,\xff\xfe,4",
+        b"8.5,1\xff,2,3,,4",
+        b"\xef\xbb\xbf9,1,2,3,,4",
+        b"# a comment",
+        b"",
+        b"   ",
+        b"1.0,2,3,4,,5\t",
+        b"0.25,12345678.5,1.123456789,99999999,,7",
+        b"10,123456789012345678901,2,3,,4",
+        b"10.5,-,.,-.,,+",
+        b"11,+1.5,-0,0.000,,.5",
+    ];
+
+    #[test]
+    fn the_fast_path_reads_every_line_as_the_general_path_does() {
+        let header: &[u8] = b"t_s,mag_x_ut,mag_y_ut,mag_z_ut,colour,ref_heading_deg";
+        let endings: [&[u8]; 4] = [b"\n", b"\r\n", b"\r", b"\r\r\n"];
+        let mut state: u64 = 0x853C_49E6_748F_EA9B;
+        let mut next = |bound: usize| {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (state >> 33) as usize % bound
+        };
+        let mut long_line = b"12,1,2,3,".to_vec();
+        long_line.resize(MAX_LINE_BYTES + 10, b'z');
+        for case_idx in 0..400 {
+            let mut text = header.to_vec();
+            text.extend_from_slice(endings[next(2)]);
+            for _ in 0..next(30) {
+                let line: &[u8] = if next(50) == 0 {
+                    &long_line
+                } else {
+                    TRICKY_LINES[next(TRICKY_LINES.len())]
+                };
+                text.extend_from_slice(line);
+                // Mostly LF or CRLF, sometimes a lone CR or CR CR LF.
+                text.extend_from_slice(endings[if next(5) == 0 { 2 + next(2) } else { next(2) }]);
+            }
+            if next(3) == 0 {
+                // No line ending after the last line.
+                text.extend_from_slice(TRICKY_LINES[next(TRICKY_LINES.len())]);
+            }
+            let fast = read_raw("f.csv", &text);
+            let reference = read_line_by_line(&text);
+            assert_eq!(
+                fast,
+                reference,
+                "case {case_idx}: {:?}",
+                String::from_utf8_lossy(&text)
+            );
+        }
+    }
+
+    #[test]
+    fn a_large_file_with_every_kind_of_line_read_in_parts_equals_line_by_line() {
+        let header: &[u8] = b"t_s,mag_x_ut,mag_y_ut,mag_z_ut,colour,ref_heading_deg\n";
+        let mut text = header.to_vec();
+        let mut row_idx = 0usize;
+        while text.len() < 5 << 20 {
+            row_idx += 1;
+            let line = format!(
+                "{}.{:03},{}.5,-{},0.{},red,{}",
+                row_idx / 50,
+                row_idx % 1000,
+                row_idx % 97,
+                row_idx % 13,
+                row_idx % 7,
+                row_idx % 360
+            );
+            text.extend_from_slice(line.as_bytes());
+            if row_idx % 10_007 == 0 {
+                let tricky = TRICKY_LINES[(row_idx / 10_007) % TRICKY_LINES.len()];
+                text.extend_from_slice(b"\r");
+                text.extend_from_slice(tricky);
+            }
+            text.extend_from_slice(if row_idx % 3 == 0 { b"\r\n" } else { b"\n" });
+        }
+        let in_parts = read_raw("f.csv", &text).expect("readable");
+        let line_by_line = read_line_by_line(&text).expect("readable");
+        assert!(!line_by_line.report.diagnostics.is_empty());
+        assert_eq!(in_parts, line_by_line);
     }
 
     #[test]
