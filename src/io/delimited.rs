@@ -295,8 +295,16 @@ fn read_up_to_header(
 /// boundaries, parsed side by side, and joined in order, with line numbers counted on
 /// across the parts. The result is the same as reading line by line (a test checks it);
 /// only the time differs. The browser build reads on one thread.
+///
+/// The dense streams' vectors are made once for the whole file, with room for at most
+/// one sample per line of each part, and each part writes into its own share of that
+/// room (so that each thread touches, and the system maps, its own memory, and no part
+/// is copied after the others); the shares are then closed up. GNSS fixes and attitudes
+/// (few, or absent) are gathered per part and appended.
 #[cfg(not(target_arch = "wasm32"))]
 mod parallel {
+    use std::mem::MaybeUninit;
+
     use super::*;
 
     /// Below this size one thread is as fast.
@@ -315,14 +323,92 @@ mod parallel {
         }
         // Read up to the header on this thread.
         let (mut reader, data_offset, n_header_lines) = read_up_to_header(bytes, mapping, None)?;
-        if reader.plan.time.is_none() {
+        // (Data lines read with the header, after lone CRs, would have to come first.)
+        if reader.plan.time.is_none() || reader.n_data_lines > 0 {
             return None;
         }
-        // Cut the rest into parts that end just after a newline. A lone CR never ends a
-        // part, so every part starts a line, as when the file is read line by line.
-        let rest = bytes.get(data_offset..)?;
-        let part_len = rest.len() / n_threads + 1;
-        let mut parts: Vec<&[u8]> = Vec::with_capacity(n_threads);
+        let header = reader.header.clone()?;
+        let parts = cut_into_parts(bytes.get(data_offset..)?, n_threads);
+        // A line ends at an LF, a CR or a CRLF, or at the end of the part: no part has
+        // more lines, so no stream gets more samples from it, than this.
+        let max_rows: Vec<usize> = std::thread::scope(|scope| {
+            let handles: Vec<_> = parts
+                .iter()
+                .map(|part| {
+                    scope.spawn(move || memchr::memchr2_iter(b'\n', b'\r', part).count() + 1)
+                })
+                .collect();
+            handles
+                .into_iter()
+                .filter_map(|handle| handle.join().ok())
+                .collect()
+        });
+        if max_rows.len() != parts.len() {
+            return None;
+        }
+        let filled = reader.plan.filled_streams();
+        let mut columns = Columns::new(filled, max_rows.iter().sum());
+        let results: Vec<PartResult> = std::thread::scope(|scope| {
+            let handles: Vec<_> = columns
+                .shares(&max_rows)
+                .into_iter()
+                .zip(&parts)
+                .map(|(share, part)| {
+                    let mut part_reader = DelimitedReader {
+                        header: Some(header.clone()),
+                        plan: Plan::of(&header),
+                        row: vec![f64::NAN; header.columns.len()],
+                        recording: share,
+                        diagnostics: Diagnostics::default(),
+                        n_data_lines: 0,
+                        size_hint_bytes: None,
+                        mapping: None,
+                        problems: Vec::new(),
+                        row_times: RowTimes::default(),
+                    };
+                    scope.spawn(move || {
+                        // Numbered from 2, so that no part's first line is taken for the
+                        // file's first (where a byte-order mark is dropped).
+                        let n_lines = part_reader.read_data_bytes(part, 1);
+                        PartResult::of(part_reader, n_lines)
+                    })
+                })
+                .collect();
+            handles
+                .into_iter()
+                .filter_map(|handle| handle.join().ok())
+                .collect()
+        });
+        if results.len() != parts.len() || results.iter().any(|result| result.overflowed) {
+            return None;
+        }
+        let share_lens: Vec<[usize; N_COLUMNS]> =
+            results.iter().map(|result| result.lens).collect();
+        columns.close_up(&max_rows, &share_lens, &mut reader.recording);
+        // Join in order; each part's line numbers count on from the lines before it.
+        let mut lines_before = n_header_lines;
+        for result in results {
+            for diagnostic in result.diagnostics.kept {
+                reader.diagnostics.push(
+                    diagnostic.line.map(|line| line - 1 + lines_before),
+                    diagnostic.message,
+                );
+            }
+            reader.diagnostics.n_not_kept += result.diagnostics.n_not_kept;
+            reader.n_data_lines += result.n_data_lines;
+            reader.row_times = reader.row_times.then(result.row_times);
+            reader.recording.append(result.sparse);
+            lines_before += result.n_lines;
+        }
+        Some(reader.finish(file_name))
+    }
+
+    /// The data bytes cut into about `n_parts` parts that end just after a newline. A
+    /// lone CR never ends a part, so every part starts a line, as when the file is read
+    /// line by line.
+    fn cut_into_parts(rest: &[u8], n_parts: usize) -> Vec<&[u8]> {
+        let part_len = rest.len() / n_parts + 1;
+        let mut parts: Vec<&[u8]> = Vec::with_capacity(n_parts);
         let mut start = 0usize;
         while start < rest.len() {
             let tentative = (start + part_len).min(rest.len());
@@ -333,66 +419,314 @@ mod parallel {
                 Some(newline) if tentative < rest.len() => tentative + newline + 1,
                 _ => rest.len(),
             };
-            parts.push(rest.get(start..end)?);
+            parts.push(rest.get(start..end).unwrap_or_default());
             start = end;
         }
-        let header = reader.header.as_ref()?;
-        let results: Vec<(DelimitedReader, usize)> = std::thread::scope(|scope| {
-            let handles: Vec<_> = parts
-                .iter()
-                .enumerate()
-                .map(|(part_idx, part)| {
-                    // The first part's streams become the file's: they reserve room for
-                    // every row, so that the others are appended without moving them.
-                    let size_hint_bytes = if part_idx == 0 {
-                        rest.len()
-                    } else {
-                        part.len()
-                    };
-                    let mut part_reader = DelimitedReader {
-                        header: Some(header.clone()),
-                        plan: Plan::of(header),
-                        row: vec![f64::NAN; header.columns.len()],
-                        recording: Recording::default(),
-                        diagnostics: Diagnostics::default(),
-                        n_data_lines: 0,
-                        size_hint_bytes: Some(size_hint_bytes),
-                        mapping: None,
-                        problems: Vec::new(),
-                        row_times: RowTimes::default(),
-                    };
-                    scope.spawn(move || {
-                        // Numbered from 2, so that no part's first line is taken for the
-                        // file's first (where a byte-order mark is dropped).
-                        let n_lines = part_reader.read_data_bytes(part, 1);
-                        (part_reader, n_lines)
-                    })
-                })
-                .collect();
-            handles
-                .into_iter()
-                .filter_map(|handle| handle.join().ok())
-                .collect()
-        });
-        if results.len() != parts.len() {
-            return None;
-        }
-        // Join in order; each part's line numbers count on from the lines before it.
-        let mut lines_before = n_header_lines;
-        for (part_reader, n_lines) in results {
-            for diagnostic in part_reader.diagnostics.kept {
-                reader.diagnostics.push(
-                    diagnostic.line.map(|line| line - 1 + lines_before),
-                    diagnostic.message,
-                );
+        parts
+    }
+
+    /// What a part's reader leaves once its share is written.
+    struct PartResult {
+        /// Samples written in each column's share, in [`Columns`] order.
+        lens: [usize; N_COLUMNS],
+        overflowed: bool,
+        /// The part's GNSS fixes and attitudes.
+        sparse: Recording,
+        diagnostics: Diagnostics,
+        n_data_lines: usize,
+        n_lines: usize,
+        row_times: RowTimes,
+    }
+
+    impl PartResult {
+        fn of(reader: DelimitedReader<Share<'_>>, n_lines: usize) -> PartResult {
+            let share = reader.recording;
+            let streams = [
+                (share.acc.len, share.acc.overflowed),
+                (share.gyro.len, share.gyro.overflowed),
+                (share.mag.len, share.mag.overflowed),
+                (share.temp.len, share.temp.overflowed),
+                (share.pressure.len, share.pressure.overflowed),
+                (share.ref_heading.len, share.ref_heading.overflowed),
+                (share.ref_position.len, share.ref_position.overflowed),
+            ];
+            PartResult {
+                lens: streams.map(|(len, _)| len),
+                overflowed: streams.iter().any(|(_, overflowed)| *overflowed),
+                sparse: Recording {
+                    gnss: share.gnss,
+                    attitude: share.attitude,
+                    ..Recording::default()
+                },
+                diagnostics: reader.diagnostics,
+                n_data_lines: reader.n_data_lines,
+                n_lines,
+                row_times: reader.row_times,
             }
-            reader.diagnostics.n_not_kept += part_reader.diagnostics.n_not_kept;
-            reader.n_data_lines += part_reader.n_data_lines;
-            reader.row_times = reader.row_times.then(part_reader.row_times);
-            reader.recording.append(part_reader.recording);
-            lines_before += n_lines;
         }
-        Some(reader.finish(file_name))
+    }
+
+    /// The dense streams, in the order of [`PartResult::lens`].
+    const N_COLUMNS: usize = 7;
+
+    /// The dense streams' vectors for the whole file, empty, with room for every part.
+    struct Columns {
+        acc: Stream<Vector3<f64>>,
+        gyro: Stream<Vector3<f64>>,
+        mag: Stream<Vector3<f64>>,
+        temp: Stream<f64>,
+        pressure: Stream<f64>,
+        ref_heading: Stream<f64>,
+        ref_position: Stream<Vector2<f64>>,
+    }
+
+    impl Columns {
+        fn new(filled: FilledStreams, n_rows: usize) -> Columns {
+            fn stream<T>(filled: bool, n_rows: usize) -> Stream<T> {
+                let n_rows = if filled { n_rows } else { 0 };
+                Stream {
+                    t_s: Vec::with_capacity(n_rows),
+                    values: Vec::with_capacity(n_rows),
+                }
+            }
+            Columns {
+                acc: stream(filled.acc, n_rows),
+                gyro: stream(filled.gyro, n_rows),
+                mag: stream(filled.mag, n_rows),
+                temp: stream(filled.temp, n_rows),
+                pressure: stream(filled.pressure, n_rows),
+                ref_heading: stream(filled.ref_heading, n_rows),
+                ref_position: stream(filled.ref_position, n_rows),
+            }
+        }
+
+        /// One share of every column per part, of `max_rows[part_idx]` samples (fewer
+        /// where a column has less room: a stream the plan does not fill has none).
+        fn shares(&mut self, max_rows: &[usize]) -> Vec<Share<'_>> {
+            let mut acc = ShareRoom::of(&mut self.acc);
+            let mut gyro = ShareRoom::of(&mut self.gyro);
+            let mut mag = ShareRoom::of(&mut self.mag);
+            let mut temp = ShareRoom::of(&mut self.temp);
+            let mut pressure = ShareRoom::of(&mut self.pressure);
+            let mut ref_heading = ShareRoom::of(&mut self.ref_heading);
+            let mut ref_position = ShareRoom::of(&mut self.ref_position);
+            max_rows
+                .iter()
+                .map(|&size| Share {
+                    acc: acc.next_share(size),
+                    gyro: gyro.next_share(size),
+                    mag: mag.next_share(size),
+                    temp: temp.next_share(size),
+                    pressure: pressure.next_share(size),
+                    ref_heading: ref_heading.next_share(size),
+                    ref_position: ref_position.next_share(size),
+                    gnss: Stream::default(),
+                    attitude: Stream::default(),
+                })
+                .collect()
+        }
+
+        /// Closes up the shares (part after part, each with `share_lens[part_idx]`
+        /// samples written at its start) and moves the columns into `recording`.
+        fn close_up(
+            self,
+            max_rows: &[usize],
+            share_lens: &[[usize; N_COLUMNS]],
+            recording: &mut Recording,
+        ) {
+            let lens_of = |column_idx: usize| -> Vec<usize> {
+                share_lens
+                    .iter()
+                    .map(|lens| lens.get(column_idx).copied().unwrap_or(0))
+                    .collect()
+            };
+            let Columns {
+                mut acc,
+                mut gyro,
+                mut mag,
+                mut temp,
+                mut pressure,
+                mut ref_heading,
+                mut ref_position,
+            } = self;
+            close_up_stream(&mut acc, max_rows, &lens_of(0));
+            close_up_stream(&mut gyro, max_rows, &lens_of(1));
+            close_up_stream(&mut mag, max_rows, &lens_of(2));
+            close_up_stream(&mut temp, max_rows, &lens_of(3));
+            close_up_stream(&mut pressure, max_rows, &lens_of(4));
+            close_up_stream(&mut ref_heading, max_rows, &lens_of(5));
+            close_up_stream(&mut ref_position, max_rows, &lens_of(6));
+            recording.acc_in_body_mps2 = acc;
+            recording.gyro_in_body_radps = gyro;
+            recording.mag_in_body_ut = mag;
+            recording.temp_c = temp;
+            recording.pressure_hpa = pressure;
+            recording.ref_heading_rad = ref_heading;
+            recording.ref_position_en_m = ref_position;
+        }
+    }
+
+    fn close_up_stream<T: Copy>(stream: &mut Stream<T>, max_rows: &[usize], lens: &[usize]) {
+        close_up(&mut stream.t_s, max_rows, lens);
+        close_up(&mut stream.values, max_rows, lens);
+    }
+
+    /// The unused room of a vector, handed out in consecutive shares.
+    struct ShareRoom<'a, T> {
+        t_s: &'a mut [MaybeUninit<f64>],
+        values: &'a mut [MaybeUninit<T>],
+    }
+
+    impl<'a, T> ShareRoom<'a, T> {
+        fn of(stream: &'a mut Stream<T>) -> Self {
+            ShareRoom {
+                t_s: stream.t_s.spare_capacity_mut(),
+                values: stream.values.spare_capacity_mut(),
+            }
+        }
+
+        /// The next `size` samples of room (fewer where the room runs out).
+        fn next_share(&mut self, size: usize) -> ShareStream<'a, T> {
+            let t_s = std::mem::take(&mut self.t_s);
+            let (share_t_s, rest_t_s) = t_s.split_at_mut(size.min(t_s.len()));
+            self.t_s = rest_t_s;
+            let values = std::mem::take(&mut self.values);
+            let (share_values, rest_values) = values.split_at_mut(size.min(values.len()));
+            self.values = rest_values;
+            ShareStream {
+                t_s: share_t_s,
+                values: share_values,
+                len: 0,
+                overflowed: false,
+            }
+        }
+    }
+
+    /// One part's share of a dense stream: samples are written from its start.
+    struct ShareStream<'a, T> {
+        t_s: &'a mut [MaybeUninit<f64>],
+        values: &'a mut [MaybeUninit<T>],
+        len: usize,
+        /// A sample found no room (it cannot happen: a share has room for one sample per
+        /// line; the file is then read on one thread rather than lose it).
+        overflowed: bool,
+    }
+
+    impl<T> SampleSink<T> for ShareStream<'_, T> {
+        #[inline(always)]
+        fn push(&mut self, t_s: f64, value: T) {
+            match (self.t_s.get_mut(self.len), self.values.get_mut(self.len)) {
+                (Some(t_slot), Some(value_slot)) => {
+                    t_slot.write(t_s);
+                    value_slot.write(value);
+                    self.len += 1;
+                }
+                _ => self.overflowed = true,
+            }
+        }
+    }
+
+    /// One part's shares of every dense stream, and its own sparse streams.
+    struct Share<'a> {
+        acc: ShareStream<'a, Vector3<f64>>,
+        gyro: ShareStream<'a, Vector3<f64>>,
+        mag: ShareStream<'a, Vector3<f64>>,
+        temp: ShareStream<'a, f64>,
+        pressure: ShareStream<'a, f64>,
+        ref_heading: ShareStream<'a, f64>,
+        ref_position: ShareStream<'a, Vector2<f64>>,
+        gnss: Stream<GnssFix>,
+        attitude: Stream<Attitude>,
+    }
+
+    impl<'a> SampleSinks for Share<'a> {
+        type Vector = ShareStream<'a, Vector3<f64>>;
+        type Scalar = ShareStream<'a, f64>;
+        type Position = ShareStream<'a, Vector2<f64>>;
+
+        #[inline(always)]
+        fn targets(&mut self) -> Targets<'_, Self::Vector, Self::Scalar, Self::Position> {
+            Targets {
+                acc: &mut self.acc,
+                gyro: &mut self.gyro,
+                mag: &mut self.mag,
+                temp: &mut self.temp,
+                pressure: &mut self.pressure,
+                ref_heading: &mut self.ref_heading,
+                ref_position: &mut self.ref_position,
+                gnss: &mut self.gnss,
+                attitude: &mut self.attitude,
+            }
+        }
+
+        /// The room was made for the whole file beforehand.
+        fn reserve_rows(&mut self, _plan: &Plan, _n_rows: usize) {}
+    }
+
+    /// Closes up an empty vector whose unused room was handed out in consecutive shares
+    /// of `max_rows[part_idx]` elements (fewer where the room ran out), each written at
+    /// its start with `lens[part_idx]` elements: moves every share's elements down to
+    /// follow the previous share's and sets the length to their total.
+    fn close_up<T: Copy>(vec: &mut Vec<T>, max_rows: &[usize], lens: &[usize]) {
+        if !vec.is_empty() {
+            return;
+        }
+        let room = vec.spare_capacity_mut();
+        let mut share_start = 0usize;
+        let mut n_closed = 0usize;
+        for (&max_rows, &len) in max_rows.iter().zip(lens) {
+            let share_size = max_rows.min(room.len() - share_start);
+            let len = len.min(share_size);
+            if share_start != n_closed {
+                room.copy_within(share_start..share_start + len, n_closed);
+            }
+            n_closed += len;
+            share_start += share_size;
+        }
+        // SAFETY: `n_closed` ≤ capacity, and elements 0..n_closed are initialised: the
+        // shares were consecutive slices of this room, of the sizes computed the same
+        // way here as in `ShareRoom::next_share`, and each share's writer wrote its
+        // first `len` slots (`ShareStream::push` counts only slots it wrote); each share's
+        // written elements were just moved to follow the previous share's.
+        unsafe { vec.set_len(n_closed) };
+    }
+
+    #[cfg(test)]
+    mod tests {
+        use super::*;
+
+        #[test]
+        fn shares_written_in_part_are_closed_up_in_order() {
+            let max_rows = [4usize, 3, 5];
+            let mut stream: Stream<f64> = Stream {
+                t_s: Vec::with_capacity(12),
+                values: Vec::with_capacity(12),
+            };
+            let mut room = ShareRoom::of(&mut stream);
+            let mut shares: Vec<ShareStream<'_, f64>> =
+                max_rows.iter().map(|&size| room.next_share(size)).collect();
+            for (share_idx, (share, n_written)) in shares.iter_mut().zip([2, 3, 0]).enumerate() {
+                for sample_idx in 0..n_written {
+                    let t_s = (share_idx * 10 + sample_idx) as f64;
+                    share.push(t_s, -t_s);
+                }
+            }
+            // A share that is full refuses (and flags) a sample instead of spilling over.
+            shares[1].push(99.0, -99.0);
+            assert!(shares[1].overflowed && !shares[0].overflowed);
+            let lens: Vec<usize> = shares.iter().map(|share| share.len).collect();
+            close_up_stream(&mut stream, &max_rows, &lens);
+            assert_eq!(stream.t_s, vec![0.0, 1.0, 10.0, 11.0, 12.0]);
+            assert_eq!(stream.values, vec![-0.0, -1.0, -10.0, -11.0, -12.0]);
+            // A column without room (a stream the plan does not fill) closes up empty.
+            let mut empty: Stream<f64> = Stream::default();
+            let mut room = ShareRoom::of(&mut empty);
+            let mut share = room.next_share(4);
+            share.push(1.0, 1.0);
+            assert!(share.overflowed);
+            close_up_stream(&mut empty, &max_rows, &[0, 0, 0]);
+            assert!(empty.is_empty());
+        }
     }
 }
 
@@ -453,14 +787,15 @@ impl RawImport {
 /// The delimited reader, line by line, for files read in chunks (see
 /// [`super::lines::LineDecoder`]). Values go straight into the recording in the file's
 /// units and are converted in place by [`DelimitedReader::finish`], so that memory holds
-/// one copy of the samples.
-pub struct DelimitedReader {
+/// one copy of the samples. (The parallel reader's parts write into their share of
+/// columns prepared for the whole file instead: `S`, see [`SampleSinks`].)
+pub struct DelimitedReader<S = Recording> {
     header: Option<Header>,
     plan: Plan,
     /// One value per field of the current line; NaN where the field is empty, unused or
     /// unreadable.
     row: Vec<f64>,
-    recording: Recording,
+    recording: S,
     diagnostics: Diagnostics,
     n_data_lines: usize,
     size_hint_bytes: Option<usize>,
@@ -517,7 +852,9 @@ struct Plan {
     gyro: Option<[usize; 3]>,
     mag: Option<[usize; 3]>,
     /// Indexed by `Quantity as usize` for the scalar quantities.
-    scalar: [Option<usize>; N_QUANTITIES],
+    /// (Boxed: readers are kept in an enum beside other formats' readers, and this is
+    /// most of their size.)
+    scalar: Box<[Option<usize>; N_QUANTITIES]>,
     /// Whether a field is used at all (unused fields are not parsed).
     used: Vec<bool>,
     /// Vector quantities whose header lacks an axis.
@@ -525,6 +862,19 @@ struct Plan {
 }
 
 impl Plan {
+    fn filled_streams(&self) -> FilledStreams {
+        let scalar = |quantity: Quantity| self.scalar[quantity as usize].is_some();
+        FilledStreams {
+            acc: self.acc.is_some(),
+            gyro: self.gyro.is_some(),
+            mag: self.mag.is_some(),
+            temp: scalar(Quantity::Temp),
+            pressure: scalar(Quantity::Pressure),
+            ref_heading: scalar(Quantity::RefHeading),
+            ref_position: scalar(Quantity::RefEast) && scalar(Quantity::RefNorth),
+        }
+    }
+
     fn of(header: &Header) -> Plan {
         let mut plan = Plan {
             time: header.time_field,
@@ -615,6 +965,14 @@ impl DelimitedReader {
     }
 
     pub fn read_line(&mut self, line: &Line<'_>) {
+        self.read_any_line(line);
+    }
+}
+
+// Every method here is private: the (private) bound is no part of the public interface.
+#[allow(private_bounds)]
+impl<S: SampleSinks> DelimitedReader<S> {
+    fn read_any_line(&mut self, line: &Line<'_>) {
         if line.truncated {
             self.diagnostics.push(
                 Some(line.number),
@@ -658,33 +1016,7 @@ impl DelimitedReader {
         let n_rows = size_hint_bytes / first_line_bytes.max(1)
             + size_hint_bytes / first_line_bytes.max(1) / 50
             + 16;
-        let plan = &self.plan;
-        let recording = &mut self.recording;
-        for (planned, stream) in [
-            (plan.acc.is_some(), &mut recording.acc_in_body_mps2),
-            (plan.gyro.is_some(), &mut recording.gyro_in_body_radps),
-            (plan.mag.is_some(), &mut recording.mag_in_body_ut),
-        ] {
-            if planned {
-                stream.t_s.reserve_exact(n_rows);
-                stream.values.reserve_exact(n_rows);
-            }
-        }
-        let scalar = |quantity: Quantity| plan.scalar[quantity as usize].is_some();
-        for (planned, stream) in [
-            (scalar(Quantity::Temp), &mut recording.temp_c),
-            (scalar(Quantity::Pressure), &mut recording.pressure_hpa),
-            (scalar(Quantity::RefHeading), &mut recording.ref_heading_rad),
-        ] {
-            if planned {
-                stream.t_s.reserve_exact(n_rows);
-                stream.values.reserve_exact(n_rows);
-            }
-        }
-        if scalar(Quantity::RefEast) && scalar(Quantity::RefNorth) {
-            recording.ref_position_en_m.t_s.reserve_exact(n_rows);
-            recording.ref_position_en_m.values.reserve_exact(n_rows);
-        }
+        self.recording.reserve_rows(&self.plan, n_rows);
     }
 
     /// Reads data lines (whole lines after the header; the last may lack its ending),
@@ -713,10 +1045,10 @@ impl DelimitedReader {
             let mut decoder = LineDecoder::continuing(MAX_LINE_BYTES, n_lines);
             decoder.feed(
                 bytes.get(line_start..line_end).unwrap_or_default(),
-                |line| self.read_line(&line),
+                |line| self.read_any_line(&line),
             );
             if line_end == bytes.len() {
-                decoder.finish(|line| self.read_line(&line));
+                decoder.finish(|line| self.read_any_line(&line));
             }
             n_lines = decoder.n_lines();
             line_start = line_end;
@@ -886,15 +1218,15 @@ impl DelimitedReader {
         };
         self.row_times.record(t_raw);
         let plan = &self.plan;
-        let recording = &mut self.recording;
+        let targets = self.recording.targets();
         for (fields, stream, label) in [
-            (plan.acc, &mut recording.acc_in_body_mps2, "accelerometer"),
-            (plan.gyro, &mut recording.gyro_in_body_radps, "gyroscope"),
-            (plan.mag, &mut recording.mag_in_body_ut, "magnetometer"),
+            (plan.acc, targets.acc, "accelerometer"),
+            (plan.gyro, targets.gyro, "gyroscope"),
+            (plan.mag, targets.mag, "magnetometer"),
         ] {
             let Some([x, y, z]) = fields else { continue };
             match (value_at(Some(x)), value_at(Some(y)), value_at(Some(z))) {
-                (Some(x), Some(y), Some(z)) => push_sample(stream, t_raw, Vector3::new(x, y, z)),
+                (Some(x), Some(y), Some(z)) => stream.push(t_raw, Vector3::new(x, y, z)),
                 (None, None, None) => {}
                 _ => problems.push(format!(
                     "{label} has only some of x, y, z; that sample was skipped"
@@ -903,10 +1235,10 @@ impl DelimitedReader {
         }
         let scalar = |quantity: Quantity| value_at(plan.scalar[quantity as usize]);
         if let Some(temp) = scalar(Quantity::Temp) {
-            push_sample(&mut recording.temp_c, t_raw, temp);
+            targets.temp.push(t_raw, temp);
         }
         if let Some(pressure) = scalar(Quantity::Pressure) {
-            push_sample(&mut recording.pressure_hpa, t_raw, pressure);
+            targets.pressure.push(t_raw, pressure);
         }
         // A negative speed, course or accuracy is an "invalid" marker (phyphox: −1).
         let non_negative = |quantity: Quantity| scalar(quantity).filter(|value| *value >= 0.0);
@@ -930,10 +1262,10 @@ impl DelimitedReader {
             .iter()
             .any(Option::is_some)
         {
-            recording.gnss.push(t_raw, fix);
+            targets.gnss.push(t_raw, fix);
         }
         if let (Some(roll), Some(pitch)) = (scalar(Quantity::Roll), scalar(Quantity::Pitch)) {
-            recording.attitude.push(
+            targets.attitude.push(
                 t_raw,
                 Attitude {
                     roll_rad: roll,
@@ -943,14 +1275,12 @@ impl DelimitedReader {
             );
         }
         if let Some(heading) = scalar(Quantity::RefHeading) {
-            push_sample(&mut recording.ref_heading_rad, t_raw, heading);
+            targets.ref_heading.push(t_raw, heading);
         }
         match (scalar(Quantity::RefEast), scalar(Quantity::RefNorth)) {
-            (Some(east_m), Some(north_m)) => push_sample(
-                &mut recording.ref_position_en_m,
-                t_raw,
-                Vector2::new(east_m, north_m),
-            ),
+            (Some(east_m), Some(north_m)) => targets
+                .ref_position
+                .push(t_raw, Vector2::new(east_m, north_m)),
             (None, None) => {}
             _ => problems.push("reference position has only one of east and north".to_string()),
         }
@@ -960,7 +1290,9 @@ impl DelimitedReader {
             problems.clear();
         }
     }
+}
 
+impl DelimitedReader {
     /// Converts times and units in place and hands over the import, still in the file's
     /// axes.
     pub fn finish(mut self, file_name: &str) -> Result<RawImport, ImportError> {
@@ -1186,11 +1518,94 @@ fn parse_field_slowly(field: &str, is_time: bool) -> Option<f64> {
     })
 }
 
-/// Appends one sample (the hot loop's [`Stream::push`], always inlined).
-#[inline(always)]
-fn push_sample<T>(stream: &mut Stream<T>, t_s: f64, value: T) {
-    stream.t_s.push(t_s);
-    stream.values.push(value);
+/// Where one stream's samples go.
+trait SampleSink<T> {
+    fn push(&mut self, t_s: f64, value: T);
+}
+
+impl<T> SampleSink<T> for Stream<T> {
+    /// [`Stream::push`], always inlined into the hot loop.
+    #[inline(always)]
+    fn push(&mut self, t_s: f64, value: T) {
+        self.t_s.push(t_s);
+        self.values.push(value);
+    }
+}
+
+/// The streams one row's samples go to.
+struct Targets<'a, V, S, P> {
+    acc: &'a mut V,
+    gyro: &'a mut V,
+    mag: &'a mut V,
+    temp: &'a mut S,
+    pressure: &'a mut S,
+    ref_heading: &'a mut S,
+    ref_position: &'a mut P,
+    gnss: &'a mut Stream<GnssFix>,
+    attitude: &'a mut Stream<Attitude>,
+}
+
+/// Where a reader's samples go: a recording, or (native, large files) one part's share
+/// of columns prepared for the whole file.
+trait SampleSinks {
+    type Vector: SampleSink<Vector3<f64>>;
+    type Scalar: SampleSink<f64>;
+    type Position: SampleSink<Vector2<f64>>;
+
+    fn targets(&mut self) -> Targets<'_, Self::Vector, Self::Scalar, Self::Position>;
+
+    /// Makes room for `n_rows` samples in each stream the plan fills.
+    fn reserve_rows(&mut self, plan: &Plan, n_rows: usize);
+}
+
+impl SampleSinks for Recording {
+    type Vector = Stream<Vector3<f64>>;
+    type Scalar = Stream<f64>;
+    type Position = Stream<Vector2<f64>>;
+
+    #[inline(always)]
+    fn targets(&mut self) -> Targets<'_, Self::Vector, Self::Scalar, Self::Position> {
+        Targets {
+            acc: &mut self.acc_in_body_mps2,
+            gyro: &mut self.gyro_in_body_radps,
+            mag: &mut self.mag_in_body_ut,
+            temp: &mut self.temp_c,
+            pressure: &mut self.pressure_hpa,
+            ref_heading: &mut self.ref_heading_rad,
+            ref_position: &mut self.ref_position_en_m,
+            gnss: &mut self.gnss,
+            attitude: &mut self.attitude,
+        }
+    }
+
+    fn reserve_rows(&mut self, plan: &Plan, n_rows: usize) {
+        fn reserve<T>(stream: &mut Stream<T>, planned: bool, n_rows: usize) {
+            if planned {
+                stream.t_s.reserve_exact(n_rows);
+                stream.values.reserve_exact(n_rows);
+            }
+        }
+        let filled = plan.filled_streams();
+        reserve(&mut self.acc_in_body_mps2, filled.acc, n_rows);
+        reserve(&mut self.gyro_in_body_radps, filled.gyro, n_rows);
+        reserve(&mut self.mag_in_body_ut, filled.mag, n_rows);
+        reserve(&mut self.temp_c, filled.temp, n_rows);
+        reserve(&mut self.pressure_hpa, filled.pressure, n_rows);
+        reserve(&mut self.ref_heading_rad, filled.ref_heading, n_rows);
+        reserve(&mut self.ref_position_en_m, filled.ref_position, n_rows);
+    }
+}
+
+/// Which of the dense streams a plan fills (the ones room is made for).
+#[derive(Debug, Clone, Copy)]
+struct FilledStreams {
+    acc: bool,
+    gyro: bool,
+    mag: bool,
+    temp: bool,
+    pressure: bool,
+    ref_heading: bool,
+    ref_position: bool,
 }
 
 /// Calls `f` on every sample time of every stream.
@@ -1859,12 +2274,16 @@ mod tests {
                 row_idx % 360
             );
             text.extend_from_slice(line.as_bytes());
-            if row_idx % 10_007 == 0 {
+            if row_idx.is_multiple_of(10_007) {
                 let tricky = TRICKY_LINES[(row_idx / 10_007) % TRICKY_LINES.len()];
                 text.extend_from_slice(b"\r");
                 text.extend_from_slice(tricky);
             }
-            text.extend_from_slice(if row_idx % 3 == 0 { b"\r\n" } else { b"\n" });
+            text.extend_from_slice(if row_idx.is_multiple_of(3) {
+                b"\r\n"
+            } else {
+                b"\n"
+            });
         }
         let in_parts = read_raw("f.csv", &text).expect("readable");
         let line_by_line = read_line_by_line(&text).expect("readable");
