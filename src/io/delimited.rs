@@ -329,57 +329,31 @@ mod parallel {
         }
         let header = reader.header.clone()?;
         let parts = cut_into_parts(bytes.get(data_offset..)?, n_threads);
-        // A line ends at an LF, a CR or a CRLF, or at the end of the part: no part has
-        // more lines, so no stream gets more samples from it, than this.
-        let max_rows: Vec<usize> = std::thread::scope(|scope| {
-            let handles: Vec<_> = parts
-                .iter()
-                .map(|part| {
-                    scope.spawn(move || memchr::memchr2_iter(b'\n', b'\r', part).count() + 1)
-                })
-                .collect();
-            handles
-                .into_iter()
-                .filter_map(|handle| handle.join().ok())
-                .collect()
-        });
-        if max_rows.len() != parts.len() {
-            return None;
-        }
+        let max_rows = on_each_part(parts.iter(), |part| count_lines(part))?;
         let filled = reader.plan.filled_streams();
         let mut columns = Columns::new(filled, max_rows.iter().sum());
-        let results: Vec<PartResult> = std::thread::scope(|scope| {
-            let handles: Vec<_> = columns
-                .shares(&max_rows)
-                .into_iter()
-                .zip(&parts)
-                .map(|(share, part)| {
-                    let mut part_reader = DelimitedReader {
-                        header: Some(header.clone()),
-                        plan: Plan::of(&header),
-                        row: vec![f64::NAN; header.columns.len()],
-                        recording: share,
-                        diagnostics: Diagnostics::default(),
-                        n_data_lines: 0,
-                        size_hint_bytes: None,
-                        mapping: None,
-                        problems: Vec::new(),
-                        row_times: RowTimes::default(),
-                    };
-                    scope.spawn(move || {
-                        // Numbered from 2, so that no part's first line is taken for the
-                        // file's first (where a byte-order mark is dropped).
-                        let n_lines = part_reader.read_data_bytes(part, 1);
-                        PartResult::of(part_reader, n_lines)
-                    })
-                })
-                .collect();
-            handles
-                .into_iter()
-                .filter_map(|handle| handle.join().ok())
-                .collect()
-        });
-        if results.len() != parts.len() || results.iter().any(|result| result.overflowed) {
+        let results = on_each_part(
+            columns.shares(&max_rows).into_iter().zip(&parts),
+            |(share, part)| {
+                let mut part_reader = DelimitedReader {
+                    header: Some(header.clone()),
+                    plan: Plan::of(&header),
+                    row: vec![f64::NAN; header.columns.len()],
+                    recording: share,
+                    diagnostics: Diagnostics::default(),
+                    n_data_lines: 0,
+                    size_hint_bytes: None,
+                    mapping: None,
+                    problems: Vec::new(),
+                    row_times: RowTimes::default(),
+                };
+                // Numbered from 2, so that no part's first line is taken for the file's
+                // first (where a byte-order mark is dropped).
+                let n_lines = part_reader.read_data_bytes(part, 1);
+                PartResult::of(part_reader, n_lines)
+            },
+        )?;
+        if results.iter().any(|result| result.overflowed) {
             return None;
         }
         let share_lens: Vec<[usize; N_COLUMNS]> =
@@ -403,6 +377,27 @@ mod parallel {
         Some(reader.finish(file_name))
     }
 
+    /// `work` on each item, the first on this thread and each other on a thread of its
+    /// own, the results in order; `None` if a thread panicked.
+    fn on_each_part<I, R>(items: I, work: impl Fn(I::Item) -> R + Sync) -> Option<Vec<R>>
+    where
+        I: Iterator,
+        I::Item: Send,
+        R: Send,
+    {
+        let mut items = items;
+        let first = items.next();
+        let work = &work;
+        std::thread::scope(|scope| {
+            let handles: Vec<_> = items.map(|item| scope.spawn(move || work(item))).collect();
+            let mut results: Vec<R> = first.map(work).into_iter().collect();
+            for handle in handles {
+                results.push(handle.join().ok()?);
+            }
+            Some(results)
+        })
+    }
+
     /// The data bytes cut into about `n_parts` parts that end just after a newline. A
     /// lone CR never ends a part, so every part starts a line, as when the file is read
     /// line by line.
@@ -423,6 +418,20 @@ mod parallel {
             start = end;
         }
         parts
+    }
+
+    /// The lines of a part: a line ends at an LF, a CRLF or a lone CR, or at the end of
+    /// the part. No stream gets more samples than this from the part.
+    fn count_lines(part: &[u8]) -> usize {
+        let n_endings = if memchr::memchr(b'\r', part).is_none() {
+            memchr::memchr_iter(b'\n', part).count()
+        } else {
+            memchr::memchr2_iter(b'\n', b'\r', part)
+                .filter(|&idx| part.get(idx) == Some(&b'\n') || part.get(idx + 1) != Some(&b'\n'))
+                .count()
+        };
+        let ends_a_line = matches!(part.last(), Some(b'\n' | b'\r') | None);
+        n_endings + usize::from(!ends_a_line)
     }
 
     /// What a part's reader leaves once its share is written.
@@ -694,6 +703,23 @@ mod parallel {
     #[cfg(test)]
     mod tests {
         use super::*;
+
+        #[test]
+        fn lines_are_counted_as_the_line_decoder_counts_them() {
+            for text in [
+                &b""[..],
+                b"a",
+                b"a\n",
+                b"a\r\nb",
+                b"a\rb\r",
+                b"a\r\r\nb\n\n",
+                b"\r\n\r\n",
+            ] {
+                let mut n_lines = 0;
+                crate::io::lines::decode_all(text, MAX_LINE_BYTES, |_| n_lines += 1);
+                assert_eq!(count_lines(text), n_lines, "{text:?}");
+            }
+        }
 
         #[test]
         fn shares_written_in_part_are_closed_up_in_order() {
@@ -1121,17 +1147,14 @@ impl<S: SampleSinks> DelimitedReader<S> {
             self.reserve(line_end - line_start + 1);
         }
         self.n_data_lines += 1;
-        // An empty list that keeps its room: taking it out and back costs no allocation.
-        let mut problems = std::mem::take(&mut self.problems);
-        self.record_row(line_number, &mut problems);
-        self.problems = problems;
+        self.record_row(line_number);
         Some(next_start)
     }
 
     fn read_data_line(&mut self, line_number: usize, text: &str) {
         let Some(header) = &self.header else { return };
         let delimiter = header.delimiter as u8;
-        let mut problems: Vec<String> = Vec::new();
+        let mut problems = std::mem::take(&mut self.problems);
         self.row.fill(f64::NAN);
         let bytes = text.as_bytes();
         let mut field_start = 0usize;
@@ -1189,13 +1212,16 @@ impl<S: SampleSinks> DelimitedReader<S> {
                 header.columns.len()
             ));
         }
-        self.record_row(line_number, &mut problems);
+        self.problems = problems;
+        self.record_row(line_number);
     }
 
     /// Records the values of the line in `self.row` (NaN where a field is empty or
-    /// unreadable) in their streams, with the line's problems as one diagnostic.
+    /// unreadable) in their streams, with the line's problems (`self.problems`, then
+    /// emptied) as one diagnostic.
     #[inline(always)]
-    fn record_row(&mut self, line_number: usize, problems: &mut Vec<String>) {
+    fn record_row(&mut self, line_number: usize) {
+        let problems = &mut self.problems;
         let row = &self.row;
         let value_at = |field: Option<usize>| {
             field
@@ -1219,20 +1245,10 @@ impl<S: SampleSinks> DelimitedReader<S> {
         self.row_times.record(t_raw);
         let plan = &self.plan;
         let targets = self.recording.targets();
-        for (fields, stream, label) in [
-            (plan.acc, targets.acc, "accelerometer"),
-            (plan.gyro, targets.gyro, "gyroscope"),
-            (plan.mag, targets.mag, "magnetometer"),
-        ] {
-            let Some([x, y, z]) = fields else { continue };
-            match (value_at(Some(x)), value_at(Some(y)), value_at(Some(z))) {
-                (Some(x), Some(y), Some(z)) => stream.push(t_raw, Vector3::new(x, y, z)),
-                (None, None, None) => {}
-                _ => problems.push(format!(
-                    "{label} has only some of x, y, z; that sample was skipped"
-                )),
-            }
-        }
+        // One call per sensor rather than a loop, so that each is compiled for its stream.
+        record_vector(row, plan.acc, targets.acc, t_raw, "accelerometer", problems);
+        record_vector(row, plan.gyro, targets.gyro, t_raw, "gyroscope", problems);
+        record_vector(row, plan.mag, targets.mag, t_raw, "magnetometer", problems);
         let scalar = |quantity: Quantity| value_at(plan.scalar[quantity as usize]);
         if let Some(temp) = scalar(Quantity::Temp) {
             targets.temp.push(t_raw, temp);
@@ -1354,7 +1370,11 @@ impl DelimitedReader {
         // Absolute times (epoch seconds, from date-times or epoch counters) are made
         // relative to the first sample; times that already count from a start are kept,
         // so that times the user quotes from the file still mean the same.
-        let first_raw = first_time(recording);
+        let first_raw = if self.row_times.went_back {
+            first_time(recording)
+        } else {
+            first_time_of_sorted(recording)
+        };
         let t0_raw = if first_raw.is_finite() && first_raw * time_scale > ABSOLUTE_TIME_S {
             first_raw
         } else {
@@ -1518,6 +1538,28 @@ fn parse_field_slowly(field: &str, is_time: bool) -> Option<f64> {
     })
 }
 
+/// Records the vector in the row's `fields` (x, y, z), if the plan has them: a sample
+/// when all three are there, a problem when only some are.
+#[inline(always)]
+fn record_vector(
+    row: &[f64],
+    fields: Option<[usize; 3]>,
+    stream: &mut impl SampleSink<Vector3<f64>>,
+    t_raw: f64,
+    label: &str,
+    problems: &mut Vec<String>,
+) {
+    let Some(fields) = fields else { return };
+    let [x, y, z] = fields.map(|idx| row.get(idx).copied().filter(|value| !value.is_nan()));
+    match (x, y, z) {
+        (Some(x), Some(y), Some(z)) => stream.push(t_raw, Vector3::new(x, y, z)),
+        (None, None, None) => {}
+        _ => problems.push(format!(
+            "{label} has only some of x, y, z; that sample was skipped"
+        )),
+    }
+}
+
 /// Where one stream's samples go.
 trait SampleSink<T> {
     fn push(&mut self, t_s: f64, value: T);
@@ -1630,6 +1672,25 @@ fn first_time(recording: &mut Recording) -> f64 {
     let mut first = f64::INFINITY;
     for_each_time(recording, |t| first = first.min(*t));
     first
+}
+
+/// [`first_time`] of a recording whose streams are sorted by time: the earliest of their
+/// first samples' times.
+fn first_time_of_sorted(recording: &Recording) -> f64 {
+    [
+        recording.acc_in_body_mps2.t_s.first(),
+        recording.gyro_in_body_radps.t_s.first(),
+        recording.mag_in_body_ut.t_s.first(),
+        recording.temp_c.t_s.first(),
+        recording.pressure_hpa.t_s.first(),
+        recording.gnss.t_s.first(),
+        recording.attitude.t_s.first(),
+        recording.ref_heading_rad.t_s.first(),
+        recording.ref_position_en_m.t_s.first(),
+    ]
+    .into_iter()
+    .flatten()
+    .fold(f64::INFINITY, |first, &t| first.min(t))
 }
 
 /// Gives back the room reserved for rows the file did not have.
@@ -2289,6 +2350,18 @@ mod tests {
         let line_by_line = read_line_by_line(&text).expect("readable");
         assert!(!line_by_line.report.diagnostics.is_empty());
         assert_eq!(in_parts, line_by_line);
+    }
+
+    #[test]
+    fn the_first_time_of_sorted_streams_is_the_earliest_first_sample() {
+        let mut recording = Recording::default();
+        recording.mag_in_body_ut.push(5.0, Vector3::zeros());
+        recording.mag_in_body_ut.push(9.0, Vector3::zeros());
+        recording.ref_heading_rad.push(3.5, 0.0);
+        recording.gnss.push(4.0, GnssFix::default());
+        assert_eq!(first_time_of_sorted(&recording), 3.5);
+        assert_eq!(first_time(&mut recording), 3.5);
+        assert_eq!(first_time_of_sorted(&Recording::default()), f64::INFINITY);
     }
 
     #[test]
