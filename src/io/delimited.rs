@@ -1106,12 +1106,13 @@ impl<S: SampleSinks> DelimitedReader<S> {
         for (slot, &used) in self.row.iter_mut().zip(&self.plan.used) {
             n_fields += 1;
             *slot = f64::NAN;
-            if used {
+            // An empty field (the next byte is the delimiter) needs no parse.
+            if used && bytes.get(pos) != Some(&delimiter) {
                 if let Some((value, end)) = parse_prefix_at(bytes, pos) {
                     *slot = value;
                     pos = end;
                 }
-            } else {
+            } else if !used {
                 while let Some(&byte) = bytes.get(pos) {
                     if byte == delimiter || byte == b'\n' || byte == b'\r' {
                         break;
