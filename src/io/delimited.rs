@@ -863,6 +863,7 @@ impl RowTimes {
     }
 
     /// Joins the rows that follow (another part of the file).
+    #[cfg(not(target_arch = "wasm32"))]
     fn then(self, next: RowTimes) -> RowTimes {
         match next.first {
             None => self,
