@@ -31,8 +31,8 @@
 use nalgebra::{Vector2, Vector3};
 
 use super::axes::PhoneMount;
-use super::lines::{decode_all, Line};
-use super::number::{parse_f64, parse_prefix};
+use super::lines::{decode_all, Line, LineDecoder};
+use super::number::{parse_f64, parse_prefix, parse_prefix_at};
 use super::{ensure_text, shorten, Diagnostics, HeaderInfo, ImportError, ImportReport};
 use crate::recording::{Attitude, GnssFix, Recording, Stream};
 
@@ -261,26 +261,57 @@ pub fn read_raw_mapped(
     if let Some(raw) = parallel::read_raw(file_name, bytes, mapping) {
         return raw;
     }
+    if let Some((mut reader, data_offset, n_header_lines)) =
+        read_up_to_header(bytes, mapping, Some(bytes.len()))
+    {
+        reader.read_data_bytes(bytes.get(data_offset..).unwrap_or_default(), n_header_lines);
+        return reader.finish(file_name);
+    }
     let mut reader = DelimitedReader::new(Some(bytes.len())).with_mapping(mapping.cloned());
     decode_all(bytes, MAX_LINE_BYTES, |line| reader.read_line(&line));
     reader.finish(file_name)
+}
+
+/// Reads lines up to and including the header: the reader, the offset of the first byte
+/// after the header's line ending, and the number of lines read. `None` when no line
+/// ending follows the header (the caller then reads line by line).
+fn read_up_to_header(
+    bytes: &[u8],
+    mapping: Option<&ColumnMapping>,
+    size_hint_bytes: Option<usize>,
+) -> Option<(DelimitedReader, usize, usize)> {
+    let mut reader = DelimitedReader::new(size_hint_bytes).with_mapping(mapping.cloned());
+    let mut decoder = LineDecoder::new(MAX_LINE_BYTES);
+    let mut offset = 0usize;
+    while reader.header.is_none() {
+        let line_end = offset + memchr::memchr(b'\n', bytes.get(offset..)?)? + 1;
+        decoder.feed(bytes.get(offset..line_end)?, |line| reader.read_line(&line));
+        offset = line_end;
+    }
+    Some((reader, offset, decoder.n_lines()))
 }
 
 /// Large files on native builds: the data lines are cut into one part per core at line
 /// boundaries, parsed side by side, and joined in order, with line numbers counted on
 /// across the parts. The result is the same as reading line by line (a test checks it);
 /// only the time differs. The browser build reads on one thread.
+///
+/// The dense streams' vectors are made once for the whole file, with room for at most
+/// one sample per line of each part, and each part writes into its own share of that
+/// room (so that each thread touches, and the system maps, its own memory, and no part
+/// is copied after the others); the shares are then closed up. GNSS fixes and attitudes
+/// (few, or absent) are gathered per part and appended.
 #[cfg(not(target_arch = "wasm32"))]
 mod parallel {
+    use std::mem::MaybeUninit;
+
     use super::*;
-    use crate::io::lines::LineDecoder;
 
     /// Below this size one thread is as fast.
     const MIN_PARALLEL_BYTES: usize = 4 << 20;
 
-    /// `None` when the file is better read on one thread: small, on one core, without a
-    /// time column (the sample number is then counted across the whole file), or with
-    /// lone-CR line endings (no LF to cut at).
+    /// `None` when the file is better read on one thread: small, on one core, or without
+    /// a time column (the sample number is then counted across the whole file).
     pub(super) fn read_raw(
         file_name: &str,
         bytes: &[u8],
@@ -291,24 +322,93 @@ mod parallel {
             return None;
         }
         // Read up to the header on this thread.
-        let mut reader = DelimitedReader::new(None).with_mapping(mapping.cloned());
-        let mut decoder = LineDecoder::new(MAX_LINE_BYTES);
-        let mut offset = 0usize;
-        while reader.header.is_none() {
-            let line_end = offset + memchr::memchr(b'\n', bytes.get(offset..)?)? + 1;
-            decoder.feed(bytes.get(offset..line_end)?, |line| reader.read_line(&line));
-            offset = line_end;
-        }
-        if reader.plan.time.is_none()
-            || memchr::memchr(b'\r', bytes.get(offset..)?).is_some_and(|_| has_lone_cr(bytes))
-        {
+        let (mut reader, data_offset, n_header_lines) = read_up_to_header(bytes, mapping, None)?;
+        // (Data lines read with the header, after lone CRs, would have to come first.)
+        if reader.plan.time.is_none() || reader.n_data_lines > 0 {
             return None;
         }
-        let n_header_lines = decoder.n_lines();
-        // Cut the rest into parts that end just after a newline.
-        let rest = bytes.get(offset..)?;
-        let part_len = rest.len() / n_threads + 1;
-        let mut parts: Vec<&[u8]> = Vec::with_capacity(n_threads);
+        let header = reader.header.clone()?;
+        let parts = cut_into_parts(bytes.get(data_offset..)?, n_threads);
+        let max_rows = on_each_part(parts.iter(), |part| count_lines(part))?;
+        let filled = reader.plan.filled_streams();
+        // Two rows of spare room, given back by `finish`. (Measured with glibc's malloc
+        // in the import benchmark's loop: with exact capacities the columns' memory went
+        // back to the system after every import, and the next import faulted it in
+        // again, 34,000 page faults per import instead of 14,000. The shrink's small
+        // remainders keep the heap in place. An allocator's detail, not a guarantee.)
+        let mut columns = Columns::new(filled, max_rows.iter().sum::<usize>() + 2);
+        let results = on_each_part(
+            columns.shares(&max_rows).into_iter().zip(&parts),
+            |(share, part)| {
+                let mut part_reader = DelimitedReader {
+                    header: Some(header.clone()),
+                    plan: Plan::of(&header),
+                    row: vec![f64::NAN; header.columns.len()],
+                    recording: share,
+                    diagnostics: Diagnostics::default(),
+                    n_data_lines: 0,
+                    size_hint_bytes: None,
+                    mapping: None,
+                    problems: Vec::new(),
+                    row_times: RowTimes::default(),
+                };
+                // Numbered from 2, so that no part's first line is taken for the file's
+                // first (where a byte-order mark is dropped).
+                let n_lines = part_reader.read_data_bytes(part, 1);
+                PartResult::of(part_reader, n_lines)
+            },
+        )?;
+        if results.iter().any(|result| result.overflowed) {
+            return None;
+        }
+        let share_lens: Vec<[usize; N_COLUMNS]> =
+            results.iter().map(|result| result.lens).collect();
+        columns.close_up(&max_rows, &share_lens, &mut reader.recording);
+        // Join in order; each part's line numbers count on from the lines before it.
+        let mut lines_before = n_header_lines;
+        for result in results {
+            for diagnostic in result.diagnostics.kept {
+                reader.diagnostics.push(
+                    diagnostic.line.map(|line| line - 1 + lines_before),
+                    diagnostic.message,
+                );
+            }
+            reader.diagnostics.n_not_kept += result.diagnostics.n_not_kept;
+            reader.n_data_lines += result.n_data_lines;
+            reader.row_times = reader.row_times.then(result.row_times);
+            reader.recording.append(result.sparse);
+            lines_before += result.n_lines;
+        }
+        Some(reader.finish(file_name))
+    }
+
+    /// `work` on each item, the first on this thread and each other on a thread of its
+    /// own, the results in order; `None` if a thread panicked.
+    fn on_each_part<I, R>(items: I, work: impl Fn(I::Item) -> R + Sync) -> Option<Vec<R>>
+    where
+        I: Iterator,
+        I::Item: Send,
+        R: Send,
+    {
+        let mut items = items;
+        let first = items.next();
+        let work = &work;
+        std::thread::scope(|scope| {
+            let handles: Vec<_> = items.map(|item| scope.spawn(move || work(item))).collect();
+            let mut results: Vec<R> = first.map(work).into_iter().collect();
+            for handle in handles {
+                results.push(handle.join().ok()?);
+            }
+            Some(results)
+        })
+    }
+
+    /// The data bytes cut into about `n_parts` parts that end just after a newline. A
+    /// lone CR never ends a part, so every part starts a line, as when the file is read
+    /// line by line.
+    fn cut_into_parts(rest: &[u8], n_parts: usize) -> Vec<&[u8]> {
+        let part_len = rest.len() / n_parts + 1;
+        let mut parts: Vec<&[u8]> = Vec::with_capacity(n_parts);
         let mut start = 0usize;
         while start < rest.len() {
             let tentative = (start + part_len).min(rest.len());
@@ -319,69 +419,345 @@ mod parallel {
                 Some(newline) if tentative < rest.len() => tentative + newline + 1,
                 _ => rest.len(),
             };
-            parts.push(rest.get(start..end)?);
+            parts.push(rest.get(start..end).unwrap_or_default());
             start = end;
         }
-        let header = reader.header.as_ref()?;
-        let results: Vec<(DelimitedReader, usize)> = std::thread::scope(|scope| {
-            let handles: Vec<_> = parts
-                .iter()
-                .enumerate()
-                .map(|(part_idx, part)| {
-                    // The first part's streams become the file's: they reserve room for
-                    // every row, so that the others are appended without moving them.
-                    let size_hint_bytes = if part_idx == 0 {
-                        rest.len()
-                    } else {
-                        part.len()
-                    };
-                    let mut part_reader = DelimitedReader {
-                        header: Some(header.clone()),
-                        plan: Plan::of(header),
-                        row: vec![f64::NAN; header.columns.len()],
-                        recording: Recording::default(),
-                        diagnostics: Diagnostics::default(),
-                        n_data_lines: 0,
-                        size_hint_bytes: Some(size_hint_bytes),
-                        mapping: None,
-                    };
-                    scope.spawn(move || {
-                        let mut part_decoder = LineDecoder::new(MAX_LINE_BYTES);
-                        part_decoder.feed(part, |line| part_reader.read_line(&line));
-                        part_decoder.finish(|line| part_reader.read_line(&line));
-                        let n_lines = part_decoder.n_lines();
-                        (part_reader, n_lines)
-                    })
-                })
-                .collect();
-            handles
-                .into_iter()
-                .filter_map(|handle| handle.join().ok())
-                .collect()
-        });
-        if results.len() != parts.len() {
-            return None;
-        }
-        // Join in order; each part's line numbers count on from the lines before it.
-        let mut lines_before = n_header_lines;
-        for (part_reader, n_lines) in results {
-            for diagnostic in part_reader.diagnostics.kept {
-                reader.diagnostics.push(
-                    diagnostic.line.map(|line| line + lines_before),
-                    diagnostic.message,
-                );
-            }
-            reader.diagnostics.n_not_kept += part_reader.diagnostics.n_not_kept;
-            reader.n_data_lines += part_reader.n_data_lines;
-            reader.recording.append(part_reader.recording);
-            lines_before += n_lines;
-        }
-        Some(reader.finish(file_name))
+        parts
     }
 
-    /// Whether any CR is not followed by LF.
-    fn has_lone_cr(bytes: &[u8]) -> bool {
-        memchr::memchr_iter(b'\r', bytes).any(|idx| bytes.get(idx + 1) != Some(&b'\n'))
+    /// The lines of a part: a line ends at an LF, a CRLF or a lone CR, or at the end of
+    /// the part. No stream gets more samples than this from the part.
+    fn count_lines(part: &[u8]) -> usize {
+        let n_endings = if memchr::memchr(b'\r', part).is_none() {
+            memchr::memchr_iter(b'\n', part).count()
+        } else {
+            memchr::memchr2_iter(b'\n', b'\r', part)
+                .filter(|&idx| part.get(idx) == Some(&b'\n') || part.get(idx + 1) != Some(&b'\n'))
+                .count()
+        };
+        let ends_a_line = matches!(part.last(), Some(b'\n' | b'\r') | None);
+        n_endings + usize::from(!ends_a_line)
+    }
+
+    /// What a part's reader leaves once its share is written.
+    struct PartResult {
+        /// Samples written in each column's share, in [`Columns`] order.
+        lens: [usize; N_COLUMNS],
+        overflowed: bool,
+        /// The part's GNSS fixes and attitudes.
+        sparse: Recording,
+        diagnostics: Diagnostics,
+        n_data_lines: usize,
+        n_lines: usize,
+        row_times: RowTimes,
+    }
+
+    impl PartResult {
+        fn of(reader: DelimitedReader<Share<'_>>, n_lines: usize) -> PartResult {
+            let share = reader.recording;
+            let streams = [
+                (share.acc.len, share.acc.overflowed),
+                (share.gyro.len, share.gyro.overflowed),
+                (share.mag.len, share.mag.overflowed),
+                (share.temp.len, share.temp.overflowed),
+                (share.pressure.len, share.pressure.overflowed),
+                (share.ref_heading.len, share.ref_heading.overflowed),
+                (share.ref_position.len, share.ref_position.overflowed),
+            ];
+            PartResult {
+                lens: streams.map(|(len, _)| len),
+                overflowed: streams.iter().any(|(_, overflowed)| *overflowed),
+                sparse: Recording {
+                    gnss: share.gnss,
+                    attitude: share.attitude,
+                    ..Recording::default()
+                },
+                diagnostics: reader.diagnostics,
+                n_data_lines: reader.n_data_lines,
+                n_lines,
+                row_times: reader.row_times,
+            }
+        }
+    }
+
+    /// The dense streams, in the order of [`PartResult::lens`].
+    const N_COLUMNS: usize = 7;
+
+    /// The dense streams' vectors for the whole file, empty, with room for every part.
+    struct Columns {
+        acc: Stream<Vector3<f64>>,
+        gyro: Stream<Vector3<f64>>,
+        mag: Stream<Vector3<f64>>,
+        temp: Stream<f64>,
+        pressure: Stream<f64>,
+        ref_heading: Stream<f64>,
+        ref_position: Stream<Vector2<f64>>,
+    }
+
+    impl Columns {
+        fn new(filled: FilledStreams, n_rows: usize) -> Columns {
+            fn stream<T>(filled: bool, n_rows: usize) -> Stream<T> {
+                let n_rows = if filled { n_rows } else { 0 };
+                Stream {
+                    t_s: Vec::with_capacity(n_rows),
+                    values: Vec::with_capacity(n_rows),
+                }
+            }
+            Columns {
+                acc: stream(filled.acc, n_rows),
+                gyro: stream(filled.gyro, n_rows),
+                mag: stream(filled.mag, n_rows),
+                temp: stream(filled.temp, n_rows),
+                pressure: stream(filled.pressure, n_rows),
+                ref_heading: stream(filled.ref_heading, n_rows),
+                ref_position: stream(filled.ref_position, n_rows),
+            }
+        }
+
+        /// One share of every column per part, of `max_rows[part_idx]` samples (fewer
+        /// where a column has less room: a stream the plan does not fill has none).
+        fn shares(&mut self, max_rows: &[usize]) -> Vec<Share<'_>> {
+            let mut acc = ShareRoom::of(&mut self.acc);
+            let mut gyro = ShareRoom::of(&mut self.gyro);
+            let mut mag = ShareRoom::of(&mut self.mag);
+            let mut temp = ShareRoom::of(&mut self.temp);
+            let mut pressure = ShareRoom::of(&mut self.pressure);
+            let mut ref_heading = ShareRoom::of(&mut self.ref_heading);
+            let mut ref_position = ShareRoom::of(&mut self.ref_position);
+            max_rows
+                .iter()
+                .map(|&size| Share {
+                    acc: acc.next_share(size),
+                    gyro: gyro.next_share(size),
+                    mag: mag.next_share(size),
+                    temp: temp.next_share(size),
+                    pressure: pressure.next_share(size),
+                    ref_heading: ref_heading.next_share(size),
+                    ref_position: ref_position.next_share(size),
+                    gnss: Stream::default(),
+                    attitude: Stream::default(),
+                })
+                .collect()
+        }
+
+        /// Closes up the shares (part after part, each with `share_lens[part_idx]`
+        /// samples written at its start) and moves the columns into `recording`.
+        fn close_up(
+            self,
+            max_rows: &[usize],
+            share_lens: &[[usize; N_COLUMNS]],
+            recording: &mut Recording,
+        ) {
+            let lens_of = |column_idx: usize| -> Vec<usize> {
+                share_lens
+                    .iter()
+                    .map(|lens| lens.get(column_idx).copied().unwrap_or(0))
+                    .collect()
+            };
+            let Columns {
+                mut acc,
+                mut gyro,
+                mut mag,
+                mut temp,
+                mut pressure,
+                mut ref_heading,
+                mut ref_position,
+            } = self;
+            close_up_stream(&mut acc, max_rows, &lens_of(0));
+            close_up_stream(&mut gyro, max_rows, &lens_of(1));
+            close_up_stream(&mut mag, max_rows, &lens_of(2));
+            close_up_stream(&mut temp, max_rows, &lens_of(3));
+            close_up_stream(&mut pressure, max_rows, &lens_of(4));
+            close_up_stream(&mut ref_heading, max_rows, &lens_of(5));
+            close_up_stream(&mut ref_position, max_rows, &lens_of(6));
+            recording.acc_in_body_mps2 = acc;
+            recording.gyro_in_body_radps = gyro;
+            recording.mag_in_body_ut = mag;
+            recording.temp_c = temp;
+            recording.pressure_hpa = pressure;
+            recording.ref_heading_rad = ref_heading;
+            recording.ref_position_en_m = ref_position;
+        }
+    }
+
+    fn close_up_stream<T: Copy>(stream: &mut Stream<T>, max_rows: &[usize], lens: &[usize]) {
+        close_up(&mut stream.t_s, max_rows, lens);
+        close_up(&mut stream.values, max_rows, lens);
+    }
+
+    /// The unused room of a vector, handed out in consecutive shares.
+    struct ShareRoom<'a, T> {
+        t_s: &'a mut [MaybeUninit<f64>],
+        values: &'a mut [MaybeUninit<T>],
+    }
+
+    impl<'a, T> ShareRoom<'a, T> {
+        fn of(stream: &'a mut Stream<T>) -> Self {
+            ShareRoom {
+                t_s: stream.t_s.spare_capacity_mut(),
+                values: stream.values.spare_capacity_mut(),
+            }
+        }
+
+        /// The next `size` samples of room (fewer where the room runs out).
+        fn next_share(&mut self, size: usize) -> ShareStream<'a, T> {
+            let t_s = std::mem::take(&mut self.t_s);
+            let (share_t_s, rest_t_s) = t_s.split_at_mut(size.min(t_s.len()));
+            self.t_s = rest_t_s;
+            let values = std::mem::take(&mut self.values);
+            let (share_values, rest_values) = values.split_at_mut(size.min(values.len()));
+            self.values = rest_values;
+            ShareStream {
+                t_s: share_t_s,
+                values: share_values,
+                len: 0,
+                overflowed: false,
+            }
+        }
+    }
+
+    /// One part's share of a dense stream: samples are written from its start.
+    struct ShareStream<'a, T> {
+        t_s: &'a mut [MaybeUninit<f64>],
+        values: &'a mut [MaybeUninit<T>],
+        len: usize,
+        /// A sample found no room (it cannot happen: a share has room for one sample per
+        /// line; the file is then read on one thread rather than lose it).
+        overflowed: bool,
+    }
+
+    impl<T> SampleSink<T> for ShareStream<'_, T> {
+        #[inline(always)]
+        fn push(&mut self, t_s: f64, value: T) {
+            match (self.t_s.get_mut(self.len), self.values.get_mut(self.len)) {
+                (Some(t_slot), Some(value_slot)) => {
+                    t_slot.write(t_s);
+                    value_slot.write(value);
+                    self.len += 1;
+                }
+                _ => self.overflowed = true,
+            }
+        }
+    }
+
+    /// One part's shares of every dense stream, and its own sparse streams.
+    struct Share<'a> {
+        acc: ShareStream<'a, Vector3<f64>>,
+        gyro: ShareStream<'a, Vector3<f64>>,
+        mag: ShareStream<'a, Vector3<f64>>,
+        temp: ShareStream<'a, f64>,
+        pressure: ShareStream<'a, f64>,
+        ref_heading: ShareStream<'a, f64>,
+        ref_position: ShareStream<'a, Vector2<f64>>,
+        gnss: Stream<GnssFix>,
+        attitude: Stream<Attitude>,
+    }
+
+    impl<'a> SampleSinks for Share<'a> {
+        type Vector = ShareStream<'a, Vector3<f64>>;
+        type Scalar = ShareStream<'a, f64>;
+        type Position = ShareStream<'a, Vector2<f64>>;
+
+        #[inline(always)]
+        fn targets(&mut self) -> Targets<'_, Self::Vector, Self::Scalar, Self::Position> {
+            Targets {
+                acc: &mut self.acc,
+                gyro: &mut self.gyro,
+                mag: &mut self.mag,
+                temp: &mut self.temp,
+                pressure: &mut self.pressure,
+                ref_heading: &mut self.ref_heading,
+                ref_position: &mut self.ref_position,
+                gnss: &mut self.gnss,
+                attitude: &mut self.attitude,
+            }
+        }
+
+        /// The room was made for the whole file beforehand.
+        fn reserve_rows(&mut self, _plan: &Plan, _n_rows: usize) {}
+    }
+
+    /// Closes up an empty vector whose unused room was handed out in consecutive shares
+    /// of `max_rows[part_idx]` elements (fewer where the room ran out), each written at
+    /// its start with `lens[part_idx]` elements: moves every share's elements down to
+    /// follow the previous share's and sets the length to their total.
+    fn close_up<T: Copy>(vec: &mut Vec<T>, max_rows: &[usize], lens: &[usize]) {
+        if !vec.is_empty() {
+            return;
+        }
+        let room = vec.spare_capacity_mut();
+        let mut share_start = 0usize;
+        let mut n_closed = 0usize;
+        for (&max_rows, &len) in max_rows.iter().zip(lens) {
+            let share_size = max_rows.min(room.len() - share_start);
+            let len = len.min(share_size);
+            if share_start != n_closed {
+                room.copy_within(share_start..share_start + len, n_closed);
+            }
+            n_closed += len;
+            share_start += share_size;
+        }
+        // SAFETY: `n_closed` ≤ capacity, and elements 0..n_closed are initialised: the
+        // shares were consecutive slices of this room, of the sizes computed the same
+        // way here as in `ShareRoom::next_share`, and each share's writer wrote its
+        // first `len` slots (`ShareStream::push` counts only slots it wrote); each share's
+        // written elements were just moved to follow the previous share's.
+        unsafe { vec.set_len(n_closed) };
+    }
+
+    #[cfg(test)]
+    mod tests {
+        use super::*;
+
+        #[test]
+        fn lines_are_counted_as_the_line_decoder_counts_them() {
+            for text in [
+                &b""[..],
+                b"a",
+                b"a\n",
+                b"a\r\nb",
+                b"a\rb\r",
+                b"a\r\r\nb\n\n",
+                b"\r\n\r\n",
+            ] {
+                let mut n_lines = 0;
+                crate::io::lines::decode_all(text, MAX_LINE_BYTES, |_| n_lines += 1);
+                assert_eq!(count_lines(text), n_lines, "{text:?}");
+            }
+        }
+
+        #[test]
+        fn shares_written_in_part_are_closed_up_in_order() {
+            let max_rows = [4usize, 3, 5];
+            let mut stream: Stream<f64> = Stream {
+                t_s: Vec::with_capacity(12),
+                values: Vec::with_capacity(12),
+            };
+            let mut room = ShareRoom::of(&mut stream);
+            let mut shares: Vec<ShareStream<'_, f64>> =
+                max_rows.iter().map(|&size| room.next_share(size)).collect();
+            for (share_idx, (share, n_written)) in shares.iter_mut().zip([2, 3, 0]).enumerate() {
+                for sample_idx in 0..n_written {
+                    let t_s = (share_idx * 10 + sample_idx) as f64;
+                    share.push(t_s, -t_s);
+                }
+            }
+            // A share that is full refuses (and flags) a sample instead of spilling over.
+            shares[1].push(99.0, -99.0);
+            assert!(shares[1].overflowed && !shares[0].overflowed);
+            let lens: Vec<usize> = shares.iter().map(|share| share.len).collect();
+            close_up_stream(&mut stream, &max_rows, &lens);
+            assert_eq!(stream.t_s, vec![0.0, 1.0, 10.0, 11.0, 12.0]);
+            assert_eq!(stream.values, vec![-0.0, -1.0, -10.0, -11.0, -12.0]);
+            // A column without room (a stream the plan does not fill) closes up empty.
+            let mut empty: Stream<f64> = Stream::default();
+            let mut room = ShareRoom::of(&mut empty);
+            let mut share = room.next_share(4);
+            share.push(1.0, 1.0);
+            assert!(share.overflowed);
+            close_up_stream(&mut empty, &max_rows, &[0, 0, 0]);
+            assert!(empty.is_empty());
+        }
     }
 }
 
@@ -442,18 +818,62 @@ impl RawImport {
 /// The delimited reader, line by line, for files read in chunks (see
 /// [`super::lines::LineDecoder`]). Values go straight into the recording in the file's
 /// units and are converted in place by [`DelimitedReader::finish`], so that memory holds
-/// one copy of the samples.
-pub struct DelimitedReader {
+/// one copy of the samples. (The parallel reader's parts write into their share of
+/// columns prepared for the whole file instead: `S`, see [`SampleSinks`].)
+pub struct DelimitedReader<S = Recording> {
     header: Option<Header>,
     plan: Plan,
     /// One value per field of the current line; NaN where the field is empty, unused or
     /// unreadable.
     row: Vec<f64>,
-    recording: Recording,
+    recording: S,
     diagnostics: Diagnostics,
     n_data_lines: usize,
     size_hint_bytes: Option<usize>,
     mapping: Option<ColumnMapping>,
+    /// The current line's problems (kept between lines for its room).
+    problems: Vec<String>,
+    row_times: RowTimes,
+}
+
+/// Whether the times of the rows read so far ever went back.
+#[derive(Debug, Clone, Copy)]
+struct RowTimes {
+    first: Option<f64>,
+    last: f64,
+    went_back: bool,
+}
+
+impl Default for RowTimes {
+    fn default() -> Self {
+        RowTimes {
+            first: None,
+            last: f64::NEG_INFINITY,
+            went_back: false,
+        }
+    }
+}
+
+impl RowTimes {
+    #[inline(always)]
+    fn record(&mut self, t_raw: f64) {
+        self.went_back |= t_raw < self.last;
+        self.last = t_raw;
+        self.first.get_or_insert(t_raw);
+    }
+
+    /// Joins the rows that follow (another part of the file).
+    #[cfg(not(target_arch = "wasm32"))]
+    fn then(self, next: RowTimes) -> RowTimes {
+        match next.first {
+            None => self,
+            Some(next_first) => RowTimes {
+                first: self.first.or(next.first),
+                last: next.last,
+                went_back: self.went_back || next.went_back || next_first < self.last,
+            },
+        }
+    }
 }
 
 /// Where each quantity sits in a data line, resolved once from the header.
@@ -464,7 +884,9 @@ struct Plan {
     gyro: Option<[usize; 3]>,
     mag: Option<[usize; 3]>,
     /// Indexed by `Quantity as usize` for the scalar quantities.
-    scalar: [Option<usize>; N_QUANTITIES],
+    /// (Boxed: readers are kept in an enum beside other formats' readers, and this is
+    /// most of their size.)
+    scalar: Box<[Option<usize>; N_QUANTITIES]>,
     /// Whether a field is used at all (unused fields are not parsed).
     used: Vec<bool>,
     /// Vector quantities whose header lacks an axis.
@@ -472,6 +894,19 @@ struct Plan {
 }
 
 impl Plan {
+    fn filled_streams(&self) -> FilledStreams {
+        let scalar = |quantity: Quantity| self.scalar[quantity as usize].is_some();
+        FilledStreams {
+            acc: self.acc.is_some(),
+            gyro: self.gyro.is_some(),
+            mag: self.mag.is_some(),
+            temp: scalar(Quantity::Temp),
+            pressure: scalar(Quantity::Pressure),
+            ref_heading: scalar(Quantity::RefHeading),
+            ref_position: scalar(Quantity::RefEast) && scalar(Quantity::RefNorth),
+        }
+    }
+
     fn of(header: &Header) -> Plan {
         let mut plan = Plan {
             time: header.time_field,
@@ -550,6 +985,8 @@ impl DelimitedReader {
             n_data_lines: 0,
             size_hint_bytes,
             mapping: None,
+            problems: Vec::new(),
+            row_times: RowTimes::default(),
         }
     }
 
@@ -560,6 +997,14 @@ impl DelimitedReader {
     }
 
     pub fn read_line(&mut self, line: &Line<'_>) {
+        self.read_any_line(line);
+    }
+}
+
+// Every method here is private: the (private) bound is no part of the public interface.
+#[allow(private_bounds)]
+impl<S: SampleSinks> DelimitedReader<S> {
+    fn read_any_line(&mut self, line: &Line<'_>) {
         if line.truncated {
             self.diagnostics.push(
                 Some(line.number),
@@ -603,39 +1048,120 @@ impl DelimitedReader {
         let n_rows = size_hint_bytes / first_line_bytes.max(1)
             + size_hint_bytes / first_line_bytes.max(1) / 50
             + 16;
-        let plan = &self.plan;
-        let recording = &mut self.recording;
-        for (planned, stream) in [
-            (plan.acc.is_some(), &mut recording.acc_in_body_mps2),
-            (plan.gyro.is_some(), &mut recording.gyro_in_body_radps),
-            (plan.mag.is_some(), &mut recording.mag_in_body_ut),
-        ] {
-            if planned {
-                stream.t_s.reserve_exact(n_rows);
-                stream.values.reserve_exact(n_rows);
+        self.recording.reserve_rows(&self.plan, n_rows);
+    }
+
+    /// Reads data lines (whole lines after the header; the last may lack its ending),
+    /// numbered on from `n_lines_before`, and returns how many lines there were. Lines of
+    /// plain numbers take [`DelimitedReader::read_line_fast`]; any other line (comments,
+    /// blanks, quotes, padding, lone CRs, bad fields, too long) goes through the line
+    /// decoder and [`DelimitedReader::read_line`], with the same line numbers and
+    /// diagnostics as when the whole file is read that way.
+    fn read_data_bytes(&mut self, bytes: &[u8], n_lines_before: usize) -> usize {
+        let Some(delimiter) = self.header.as_ref().map(|header| header.delimiter as u8) else {
+            return 0;
+        };
+        let mut line_start = 0usize;
+        let mut n_lines = n_lines_before;
+        while line_start < bytes.len() {
+            if let Some(next_start) = self.read_line_fast(bytes, line_start, delimiter, n_lines + 1)
+            {
+                n_lines += 1;
+                line_start = next_start;
+                continue;
+            }
+            let line_end = bytes
+                .get(line_start..)
+                .and_then(|rest| memchr::memchr(b'\n', rest))
+                .map_or(bytes.len(), |newline| line_start + newline + 1);
+            let mut decoder = LineDecoder::continuing(MAX_LINE_BYTES, n_lines);
+            decoder.feed(
+                bytes.get(line_start..line_end).unwrap_or_default(),
+                |line| self.read_any_line(&line),
+            );
+            if line_end == bytes.len() {
+                decoder.finish(|line| self.read_any_line(&line));
+            }
+            n_lines = decoder.n_lines();
+            line_start = line_end;
+        }
+        n_lines - n_lines_before
+    }
+
+    /// The data line at `bytes[line_start..]` when it is made of plain numbers and empty
+    /// fields (unused fields may hold anything but a line ending), has no more fields
+    /// than the header, no surrounding white space and an LF or CRLF ending: its values
+    /// are recorded and the index after its ending returned. `None`, with nothing
+    /// recorded, for every other line: [`DelimitedReader::read_line`] then reads it.
+    /// For the lines it takes, the result is the same as `read_line`'s.
+    #[inline(always)]
+    fn read_line_fast(
+        &mut self,
+        bytes: &[u8],
+        line_start: usize,
+        delimiter: u8,
+        line_number: usize,
+    ) -> Option<usize> {
+        let first = *bytes.get(line_start)?;
+        if first.is_ascii_whitespace() || first == b'#' {
+            return None;
+        }
+        let mut pos = line_start;
+        let mut n_fields = 0usize;
+        let mut line_end = None;
+        for (slot, &used) in self.row.iter_mut().zip(&self.plan.used) {
+            n_fields += 1;
+            *slot = f64::NAN;
+            // An empty field (the next byte is the delimiter) needs no parse.
+            if used && bytes.get(pos) != Some(&delimiter) {
+                if let Some((value, end)) = parse_prefix_at(bytes, pos) {
+                    *slot = value;
+                    pos = end;
+                }
+            } else if !used {
+                while let Some(&byte) = bytes.get(pos) {
+                    if byte == delimiter || byte == b'\n' || byte == b'\r' {
+                        break;
+                    }
+                    pos += 1;
+                }
+            }
+            match bytes.get(pos) {
+                Some(&byte) if byte == delimiter => pos += 1,
+                Some(b'\n' | b'\r') => {
+                    line_end = Some(pos);
+                    break;
+                }
+                // Not a number, or the end of the input without a line ending.
+                _ => return None,
             }
         }
-        let scalar = |quantity: Quantity| plan.scalar[quantity as usize].is_some();
-        for (planned, stream) in [
-            (scalar(Quantity::Temp), &mut recording.temp_c),
-            (scalar(Quantity::Pressure), &mut recording.pressure_hpa),
-            (scalar(Quantity::RefHeading), &mut recording.ref_heading_rad),
-        ] {
-            if planned {
-                stream.t_s.reserve_exact(n_rows);
-                stream.values.reserve_exact(n_rows);
-            }
+        // `None` here: a delimiter after the last column (more fields than the header).
+        let line_end = line_end?;
+        let next_start = match bytes.get(line_end..)? {
+            [b'\n', ..] => line_end + 1,
+            [b'\r', b'\n', ..] => line_end + 2,
+            _ => return None,
+        };
+        let last = *bytes.get(line_end.checked_sub(1)?)?;
+        if last.is_ascii_whitespace() || line_end - line_start > MAX_LINE_BYTES {
+            return None;
         }
-        if scalar(Quantity::RefEast) && scalar(Quantity::RefNorth) {
-            recording.ref_position_en_m.t_s.reserve_exact(n_rows);
-            recording.ref_position_en_m.values.reserve_exact(n_rows);
+        for slot in self.row.iter_mut().skip(n_fields) {
+            *slot = f64::NAN;
         }
+        if self.n_data_lines == 0 {
+            self.reserve(line_end - line_start + 1);
+        }
+        self.n_data_lines += 1;
+        self.record_row(line_number);
+        Some(next_start)
     }
 
     fn read_data_line(&mut self, line_number: usize, text: &str) {
         let Some(header) = &self.header else { return };
         let delimiter = header.delimiter as u8;
-        let mut problems: Vec<String> = Vec::new();
+        let mut problems = std::mem::take(&mut self.problems);
         self.row.fill(f64::NAN);
         let bytes = text.as_bytes();
         let mut field_start = 0usize;
@@ -693,6 +1219,16 @@ impl DelimitedReader {
                 header.columns.len()
             ));
         }
+        self.problems = problems;
+        self.record_row(line_number);
+    }
+
+    /// Records the values of the line in `self.row` (NaN where a field is empty or
+    /// unreadable) in their streams, with the line's problems (`self.problems`, then
+    /// emptied) as one diagnostic.
+    #[inline(always)]
+    fn record_row(&mut self, line_number: usize) {
+        let problems = &mut self.problems;
         let row = &self.row;
         let value_at = |field: Option<usize>| {
             field
@@ -706,34 +1242,26 @@ impl DelimitedReader {
                     problems.push("no time, so the line was skipped".to_string());
                     self.diagnostics
                         .push(Some(line_number), problems.join("; "));
+                    problems.clear();
                     return;
                 }
             },
             // Without a time column the sample number stands in for time.
             None => self.n_data_lines as f64 - 1.0,
         };
+        self.row_times.record(t_raw);
         let plan = &self.plan;
-        let recording = &mut self.recording;
-        for (fields, stream, label) in [
-            (plan.acc, &mut recording.acc_in_body_mps2, "accelerometer"),
-            (plan.gyro, &mut recording.gyro_in_body_radps, "gyroscope"),
-            (plan.mag, &mut recording.mag_in_body_ut, "magnetometer"),
-        ] {
-            let Some([x, y, z]) = fields else { continue };
-            match (value_at(Some(x)), value_at(Some(y)), value_at(Some(z))) {
-                (Some(x), Some(y), Some(z)) => stream.push(t_raw, Vector3::new(x, y, z)),
-                (None, None, None) => {}
-                _ => problems.push(format!(
-                    "{label} has only some of x, y, z; that sample was skipped"
-                )),
-            }
-        }
+        let targets = self.recording.targets();
+        // One call per sensor rather than a loop, so that each is compiled for its stream.
+        record_vector(row, plan.acc, targets.acc, t_raw, "accelerometer", problems);
+        record_vector(row, plan.gyro, targets.gyro, t_raw, "gyroscope", problems);
+        record_vector(row, plan.mag, targets.mag, t_raw, "magnetometer", problems);
         let scalar = |quantity: Quantity| value_at(plan.scalar[quantity as usize]);
         if let Some(temp) = scalar(Quantity::Temp) {
-            recording.temp_c.push(t_raw, temp);
+            targets.temp.push(t_raw, temp);
         }
         if let Some(pressure) = scalar(Quantity::Pressure) {
-            recording.pressure_hpa.push(t_raw, pressure);
+            targets.pressure.push(t_raw, pressure);
         }
         // A negative speed, course or accuracy is an "invalid" marker (phyphox: −1).
         let non_negative = |quantity: Quantity| scalar(quantity).filter(|value| *value >= 0.0);
@@ -745,11 +1273,22 @@ impl DelimitedReader {
             course_rad: non_negative(Quantity::Course),
             hacc_m: non_negative(Quantity::HorizontalAccuracy),
         };
-        if fix != GnssFix::default() {
-            recording.gnss.push(t_raw, fix);
+        let GnssFix {
+            lat_deg,
+            lon_deg,
+            alt_m,
+            speed_mps,
+            course_rad,
+            hacc_m,
+        } = fix;
+        if [lat_deg, lon_deg, alt_m, speed_mps, course_rad, hacc_m]
+            .iter()
+            .any(Option::is_some)
+        {
+            targets.gnss.push(t_raw, fix);
         }
         if let (Some(roll), Some(pitch)) = (scalar(Quantity::Roll), scalar(Quantity::Pitch)) {
-            recording.attitude.push(
+            targets.attitude.push(
                 t_raw,
                 Attitude {
                     roll_rad: roll,
@@ -759,11 +1298,11 @@ impl DelimitedReader {
             );
         }
         if let Some(heading) = scalar(Quantity::RefHeading) {
-            recording.ref_heading_rad.push(t_raw, heading);
+            targets.ref_heading.push(t_raw, heading);
         }
         match (scalar(Quantity::RefEast), scalar(Quantity::RefNorth)) {
-            (Some(east_m), Some(north_m)) => recording
-                .ref_position_en_m
+            (Some(east_m), Some(north_m)) => targets
+                .ref_position
                 .push(t_raw, Vector2::new(east_m, north_m)),
             (None, None) => {}
             _ => problems.push("reference position has only one of east and north".to_string()),
@@ -771,9 +1310,12 @@ impl DelimitedReader {
         if !problems.is_empty() {
             self.diagnostics
                 .push(Some(line_number), problems.join("; "));
+            problems.clear();
         }
     }
+}
 
+impl DelimitedReader {
     /// Converts times and units in place and hands over the import, still in the file's
     /// axes.
     pub fn finish(mut self, file_name: &str) -> Result<RawImport, ImportError> {
@@ -835,7 +1377,11 @@ impl DelimitedReader {
         // Absolute times (epoch seconds, from date-times or epoch counters) are made
         // relative to the first sample; times that already count from a start are kept,
         // so that times the user quotes from the file still mean the same.
-        let first_raw = first_time(recording);
+        let first_raw = if self.row_times.went_back {
+            first_time(recording)
+        } else {
+            first_time_of_sorted(recording)
+        };
         let t0_raw = if first_raw.is_finite() && first_raw * time_scale > ABSOLUTE_TIME_S {
             first_raw
         } else {
@@ -847,7 +1393,10 @@ impl DelimitedReader {
                 t0_raw * time_scale
             ));
         }
-        for_each_time(recording, |t| *t = (*t - t0_raw) * time_scale);
+        // (t − 0) · 1 is t: the pass is skipped when it would change nothing.
+        if t0_raw != 0.0 || time_scale != 1.0 {
+            for_each_time(recording, |t| *t = (*t - t0_raw) * time_scale);
+        }
         if t0_raw != 0.0 {
             recording.start_unix_s = Some(t0_raw * time_scale);
         }
@@ -908,7 +1457,13 @@ impl DelimitedReader {
             recording.attitude = Stream::default();
             notes.push("the app's roll/pitch/yaw columns were not used (their axis convention is the app's)".to_string());
         }
-        let n_out_of_order = recording.sort_all_by_time();
+        // Every stream's times are some of the rows' times, in the rows' order: when
+        // those never go back, no stream needs sorting (or the pass that looks).
+        let n_out_of_order = if self.row_times.went_back {
+            recording.sort_all_by_time()
+        } else {
+            0
+        };
         if n_out_of_order > 0 {
             self.diagnostics.push(
                 Some(header.line),
@@ -990,6 +1545,118 @@ fn parse_field_slowly(field: &str, is_time: bool) -> Option<f64> {
     })
 }
 
+/// Records the vector in the row's `fields` (x, y, z), if the plan has them: a sample
+/// when all three are there, a problem when only some are.
+#[inline(always)]
+fn record_vector(
+    row: &[f64],
+    fields: Option<[usize; 3]>,
+    stream: &mut impl SampleSink<Vector3<f64>>,
+    t_raw: f64,
+    label: &str,
+    problems: &mut Vec<String>,
+) {
+    let Some(fields) = fields else { return };
+    let [x, y, z] = fields.map(|idx| row.get(idx).copied().filter(|value| !value.is_nan()));
+    match (x, y, z) {
+        (Some(x), Some(y), Some(z)) => stream.push(t_raw, Vector3::new(x, y, z)),
+        (None, None, None) => {}
+        _ => problems.push(format!(
+            "{label} has only some of x, y, z; that sample was skipped"
+        )),
+    }
+}
+
+/// Where one stream's samples go.
+trait SampleSink<T> {
+    fn push(&mut self, t_s: f64, value: T);
+}
+
+impl<T> SampleSink<T> for Stream<T> {
+    /// [`Stream::push`], always inlined into the hot loop.
+    #[inline(always)]
+    fn push(&mut self, t_s: f64, value: T) {
+        self.t_s.push(t_s);
+        self.values.push(value);
+    }
+}
+
+/// The streams one row's samples go to.
+struct Targets<'a, V, S, P> {
+    acc: &'a mut V,
+    gyro: &'a mut V,
+    mag: &'a mut V,
+    temp: &'a mut S,
+    pressure: &'a mut S,
+    ref_heading: &'a mut S,
+    ref_position: &'a mut P,
+    gnss: &'a mut Stream<GnssFix>,
+    attitude: &'a mut Stream<Attitude>,
+}
+
+/// Where a reader's samples go: a recording, or (native, large files) one part's share
+/// of columns prepared for the whole file.
+trait SampleSinks {
+    type Vector: SampleSink<Vector3<f64>>;
+    type Scalar: SampleSink<f64>;
+    type Position: SampleSink<Vector2<f64>>;
+
+    fn targets(&mut self) -> Targets<'_, Self::Vector, Self::Scalar, Self::Position>;
+
+    /// Makes room for `n_rows` samples in each stream the plan fills.
+    fn reserve_rows(&mut self, plan: &Plan, n_rows: usize);
+}
+
+impl SampleSinks for Recording {
+    type Vector = Stream<Vector3<f64>>;
+    type Scalar = Stream<f64>;
+    type Position = Stream<Vector2<f64>>;
+
+    #[inline(always)]
+    fn targets(&mut self) -> Targets<'_, Self::Vector, Self::Scalar, Self::Position> {
+        Targets {
+            acc: &mut self.acc_in_body_mps2,
+            gyro: &mut self.gyro_in_body_radps,
+            mag: &mut self.mag_in_body_ut,
+            temp: &mut self.temp_c,
+            pressure: &mut self.pressure_hpa,
+            ref_heading: &mut self.ref_heading_rad,
+            ref_position: &mut self.ref_position_en_m,
+            gnss: &mut self.gnss,
+            attitude: &mut self.attitude,
+        }
+    }
+
+    fn reserve_rows(&mut self, plan: &Plan, n_rows: usize) {
+        fn reserve<T>(stream: &mut Stream<T>, planned: bool, n_rows: usize) {
+            if planned {
+                stream.t_s.reserve_exact(n_rows);
+                stream.values.reserve_exact(n_rows);
+            }
+        }
+        let filled = plan.filled_streams();
+        reserve(&mut self.acc_in_body_mps2, filled.acc, n_rows);
+        reserve(&mut self.gyro_in_body_radps, filled.gyro, n_rows);
+        reserve(&mut self.mag_in_body_ut, filled.mag, n_rows);
+        reserve(&mut self.temp_c, filled.temp, n_rows);
+        reserve(&mut self.pressure_hpa, filled.pressure, n_rows);
+        reserve(&mut self.ref_heading_rad, filled.ref_heading, n_rows);
+        reserve(&mut self.ref_position_en_m, filled.ref_position, n_rows);
+    }
+}
+
+/// Which of the dense streams a plan fills (the ones room is made for).
+#[derive(Debug, Clone, Copy)]
+struct FilledStreams {
+    acc: bool,
+    gyro: bool,
+    mag: bool,
+    temp: bool,
+    pressure: bool,
+    ref_heading: bool,
+    ref_position: bool,
+}
+
 /// Calls `f` on every sample time of every stream.
 fn for_each_time(recording: &mut Recording, mut f: impl FnMut(&mut f64)) {
     for t_s in [
@@ -1012,6 +1679,25 @@ fn first_time(recording: &mut Recording) -> f64 {
     let mut first = f64::INFINITY;
     for_each_time(recording, |t| first = first.min(*t));
     first
+}
+
+/// [`first_time`] of a recording whose streams are sorted by time: the earliest of their
+/// first samples' times.
+fn first_time_of_sorted(recording: &Recording) -> f64 {
+    [
+        recording.acc_in_body_mps2.t_s.first(),
+        recording.gyro_in_body_radps.t_s.first(),
+        recording.mag_in_body_ut.t_s.first(),
+        recording.temp_c.t_s.first(),
+        recording.pressure_hpa.t_s.first(),
+        recording.gnss.t_s.first(),
+        recording.attitude.t_s.first(),
+        recording.ref_heading_rad.t_s.first(),
+        recording.ref_position_en_m.t_s.first(),
+    ]
+    .into_iter()
+    .flatten()
+    .fold(f64::INFINITY, |first, &t| first.min(t))
 }
 
 /// Gives back the room reserved for rows the file did not have.
@@ -1557,6 +2243,132 @@ mod tests {
             .kept
             .iter()
             .any(|diagnostic| diagnostic.line == Some(9979)));
+    }
+
+    /// Reads `bytes` line by line through [`DelimitedReader::read_line`] only, the
+    /// reference the fast and parallel paths must equal.
+    fn read_line_by_line(bytes: &[u8]) -> Result<RawImport, ImportError> {
+        let mut reader = DelimitedReader::new(None);
+        decode_all(bytes, MAX_LINE_BYTES, |line| reader.read_line(&line));
+        reader.finish("f.csv")
+    }
+
+    /// Data lines the fast path takes and lines it must hand to the general path, with
+    /// the same result.
+    const TRICKY_LINES: &[&[u8]] = &[
+        b"0.5,1.25,-2.5,40.125,unused,12.5",
+        b"1,2,3,4,,5",
+        b"1.5,-9.6864,0.00058,33.259,x,359.999",
+        b"2,1e1,2E-1,3.5e+2,,1",
+        b"2.5,,,,,",
+        b"3,1,2,,,",
+        b",1,2,3,,4",
+        b" 4,1,2,3,,4",
+        b"4.5,1,2,3,,4 ",
+        b"5,1,2,3,,4,extra",
+        b"5.5,1,2,3,,4,",
+        b"6,\"7\",8,9,,10",
+        b"6.5,abc,8,9,,10",
+        b"7,NaN,8,9,,10",
+        b"7.5,1e400,8,9,,10",
+        b"8,1,2,3,\xff\xfe,4",
+        b"8.5,1\xff,2,3,,4",
+        b"\xef\xbb\xbf9,1,2,3,,4",
+        b"# a comment",
+        b"",
+        b"   ",
+        b"1.0,2,3,4,,5\t",
+        b"0.25,12345678.5,1.123456789,99999999,,7",
+        b"10,123456789012345678901,2,3,,4",
+        b"10.5,-,.,-.,,+",
+        b"11,+1.5,-0,0.000,,.5",
+    ];
+
+    #[test]
+    fn the_fast_path_reads_every_line_as_the_general_path_does() {
+        let header: &[u8] = b"t_s,mag_x_ut,mag_y_ut,mag_z_ut,colour,ref_heading_deg";
+        let endings: [&[u8]; 4] = [b"\n", b"\r\n", b"\r", b"\r\r\n"];
+        let mut state: u64 = 0x853C_49E6_748F_EA9B;
+        let mut next = |bound: usize| {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (state >> 33) as usize % bound
+        };
+        let mut long_line = b"12,1,2,3,".to_vec();
+        long_line.resize(MAX_LINE_BYTES + 10, b'z');
+        for case_idx in 0..400 {
+            let mut text = header.to_vec();
+            text.extend_from_slice(endings[next(2)]);
+            for _ in 0..next(30) {
+                let line: &[u8] = if next(50) == 0 {
+                    &long_line
+                } else {
+                    TRICKY_LINES[next(TRICKY_LINES.len())]
+                };
+                text.extend_from_slice(line);
+                // Mostly LF or CRLF, sometimes a lone CR or CR CR LF.
+                text.extend_from_slice(endings[if next(5) == 0 { 2 + next(2) } else { next(2) }]);
+            }
+            if next(3) == 0 {
+                // No line ending after the last line.
+                text.extend_from_slice(TRICKY_LINES[next(TRICKY_LINES.len())]);
+            }
+            let fast = read_raw("f.csv", &text);
+            let reference = read_line_by_line(&text);
+            assert_eq!(
+                fast,
+                reference,
+                "case {case_idx}: {:?}",
+                String::from_utf8_lossy(&text)
+            );
+        }
+    }
+
+    #[test]
+    fn a_large_file_with_every_kind_of_line_read_in_parts_equals_line_by_line() {
+        let header: &[u8] = b"t_s,mag_x_ut,mag_y_ut,mag_z_ut,colour,ref_heading_deg\n";
+        let mut text = header.to_vec();
+        let mut row_idx = 0usize;
+        while text.len() < 5 << 20 {
+            row_idx += 1;
+            let line = format!(
+                "{}.{:03},{}.5,-{},0.{},red,{}",
+                row_idx / 50,
+                row_idx % 1000,
+                row_idx % 97,
+                row_idx % 13,
+                row_idx % 7,
+                row_idx % 360
+            );
+            text.extend_from_slice(line.as_bytes());
+            if row_idx.is_multiple_of(10_007) {
+                let tricky = TRICKY_LINES[(row_idx / 10_007) % TRICKY_LINES.len()];
+                text.extend_from_slice(b"\r");
+                text.extend_from_slice(tricky);
+            }
+            text.extend_from_slice(if row_idx.is_multiple_of(3) {
+                b"\r\n"
+            } else {
+                b"\n"
+            });
+        }
+        let in_parts = read_raw("f.csv", &text).expect("readable");
+        let line_by_line = read_line_by_line(&text).expect("readable");
+        assert!(!line_by_line.report.diagnostics.is_empty());
+        assert_eq!(in_parts, line_by_line);
+    }
+
+    #[test]
+    fn the_first_time_of_sorted_streams_is_the_earliest_first_sample() {
+        let mut recording = Recording::default();
+        recording.mag_in_body_ut.push(5.0, Vector3::zeros());
+        recording.mag_in_body_ut.push(9.0, Vector3::zeros());
+        recording.ref_heading_rad.push(3.5, 0.0);
+        recording.gnss.push(4.0, GnssFix::default());
+        assert_eq!(first_time_of_sorted(&recording), 3.5);
+        assert_eq!(first_time(&mut recording), 3.5);
+        assert_eq!(first_time_of_sorted(&Recording::default()), f64::INFINITY);
     }
 
     #[test]

@@ -40,6 +40,15 @@ impl LineDecoder {
         }
     }
 
+    /// A decoder for text that continues after `n_lines_before` lines: its first line is
+    /// numbered `n_lines_before + 1`.
+    pub fn continuing(max_line_bytes: usize, n_lines_before: usize) -> Self {
+        Self {
+            n_lines_emitted: n_lines_before,
+            ..Self::new(max_line_bytes)
+        }
+    }
+
     /// Feeds one chunk, calling `on_line` for each line it completes. A line that lies
     /// wholly inside the chunk is handed over without a copy.
     pub fn feed(&mut self, chunk: &[u8], mut on_line: impl FnMut(Line<'_>)) {

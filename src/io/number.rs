@@ -109,6 +109,130 @@ pub fn parse_prefix(bytes: &[u8]) -> Option<(f64, usize)> {
     ))
 }
 
+/// `10^n` for the lengths of digit runs the eight-byte parser takes (0 to 7 digits).
+const POWERS_OF_TEN_U64: [u64; 8] = [1, 10, 100, 1_000, 10_000, 100_000, 1_000_000, 10_000_000];
+
+/// The same as [`parse_prefix`] on `bytes[start..]` (the value and the index just after
+/// the number), eight bytes at a time: runs of digits are found and converted with a
+/// few word operations instead of one step per digit. Most numbers in logs
+/// (`-9.7677`, `33.259`) lie in one eight-byte word with the point and the byte after
+/// them; longer ones take two words, one per run of digits. Digit runs cannot cross a
+/// line ending, so the words read may reach into the next line; near the end of
+/// `bytes`, and for runs of eight digits or more or an exponent, it hands over to
+/// [`parse_prefix`]. A test checks that both agree.
+#[inline(always)]
+pub fn parse_prefix_at(bytes: &[u8], start: usize) -> Option<(f64, usize)> {
+    let rest = bytes.get(start..)?;
+    // A sign, at most seven digits, a point and at most seven digits fit in 17 bytes;
+    // two eight-byte reads need at most 18.
+    let Some(head) = rest.first_chunk::<18>() else {
+        return parse_prefix(rest).map(|(value, consumed)| (value, start + consumed));
+    };
+    let (negative, int_start) = match head.first() {
+        Some(b'-') => (true, 1),
+        Some(b'+') => (false, 1),
+        _ => (false, 0),
+    };
+    let word = word_at(head, int_start);
+    let offsets = word ^ 0x3030_3030_3030_3030;
+    let non_digit = non_digit_bytes(offsets);
+    let n_int_digits = (non_digit.trailing_zeros() / 8) as usize;
+    let (mantissa, n_frac_digits, end) = if head.get(int_start + n_int_digits) == Some(&b'.') {
+        // The point is the first non-digit byte; the next one ends the fraction.
+        let after_point = non_digit & non_digit.wrapping_sub(1);
+        if after_point != 0 {
+            // Point and fraction inside the word: the fraction's digits are moved down
+            // over the point, and all digits are converted at once.
+            let n_end = (after_point.trailing_zeros() / 8) as usize;
+            let int_part = offsets & low_bytes(n_int_digits);
+            let frac_part = (offsets >> 8) & low_bytes(n_end - 1) & !low_bytes(n_int_digits);
+            (
+                digits_value(int_part | frac_part, n_end - 1),
+                n_end - 1 - n_int_digits,
+                int_start + n_end,
+            )
+        } else if n_int_digits < 8 {
+            // The fraction runs past the word: a second word from the point on.
+            let frac_start = int_start + n_int_digits + 1;
+            let frac_offsets = word_at(head, frac_start) ^ 0x3030_3030_3030_3030;
+            let n_frac_digits = (non_digit_bytes(frac_offsets).trailing_zeros() / 8) as usize;
+            if n_frac_digits >= 8 {
+                return parse_prefix(rest).map(|(value, consumed)| (value, start + consumed));
+            }
+            (
+                digits_value(offsets, n_int_digits) * POWERS_OF_TEN_U64[n_frac_digits]
+                    + digits_value(frac_offsets, n_frac_digits),
+                n_frac_digits,
+                frac_start + n_frac_digits,
+            )
+        } else {
+            return parse_prefix(rest).map(|(value, consumed)| (value, start + consumed));
+        }
+    } else if n_int_digits < 8 {
+        // No point: an integer.
+        (
+            digits_value(offsets, n_int_digits),
+            0,
+            int_start + n_int_digits,
+        )
+    } else {
+        return parse_prefix(rest).map(|(value, consumed)| (value, start + consumed));
+    };
+    if matches!(head.get(end), Some(b'e' | b'E')) {
+        return parse_prefix(rest).map(|(value, consumed)| (value, start + consumed));
+    }
+    if n_int_digits == 0 && n_frac_digits == 0 {
+        // No digit at all: "", "-", ".", "-.".
+        return None;
+    }
+    // At most 14 digits: below 2^53, so the conversion to f64 is exact, and dividing by
+    // an exactly representable power of ten rounds once (Clinger).
+    let magnitude = mantissa as i64 as f64 / POWERS_OF_TEN[n_frac_digits];
+    Some((if negative { -magnitude } else { magnitude }, start + end))
+}
+
+/// The eight bytes from `offset` (at most 10) of an 18-byte window, as a little-endian
+/// word: the first byte is the lowest.
+#[inline(always)]
+fn word_at(head: &[u8; 18], offset: usize) -> u64 {
+    let mut word = [0u8; 8];
+    if let Some(bytes) = head.get(offset..offset + 8) {
+        word.copy_from_slice(bytes);
+    }
+    u64::from_le_bytes(word)
+}
+
+/// The high bit of every byte of `offsets` (a word with `'0'` xored out of every byte)
+/// that was not an ASCII digit. A digit's byte is then in 0..=9 and every other byte is
+/// not: adding 0x76 to the low seven bits sets the high bit of those of 10 or more
+/// (without a carry into the next byte), and bytes of 0x80 or more have it already.
+#[inline(always)]
+fn non_digit_bytes(offsets: u64) -> u64 {
+    (((offsets & 0x7F7F_7F7F_7F7F_7F7F) + 0x7676_7676_7676_7676) | offsets) & 0x8080_8080_8080_8080
+}
+
+/// The mask of the first `n_bytes` (0 to 7) bytes of a word.
+#[inline(always)]
+fn low_bytes(n_bytes: usize) -> u64 {
+    (1u64 << ((8 * n_bytes) & 63)) - 1
+}
+
+/// The value of the first `n_digits` bytes (0 to 7) of `offsets`, digit values 0..=9
+/// (the bytes after them are ignored),
+/// read as a decimal integer: shifted so that they end the word (the bytes before them
+/// become leading zeros), then pairs, quadruples and octets of digits are combined by
+/// multiplication (D. Lemire, "Faster parsing of 8-digit integers", 2018; simdjson).
+#[inline(always)]
+fn digits_value(offsets: u64, n_digits: usize) -> u64 {
+    if n_digits == 0 || n_digits >= 8 {
+        return 0;
+    }
+    let digits = offsets << (8 * (8 - n_digits));
+    let pairs = (digits.wrapping_mul(10) + (digits >> 8)) & 0x00FF_00FF_00FF_00FF;
+    let quads = (pairs.wrapping_mul(100) + (pairs >> 16)) & 0x0000_FFFF_0000_FFFF;
+    quads.wrapping_mul(10_000).wrapping_add(quads >> 32) & 0xFFFF_FFFF
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -168,6 +292,81 @@ mod tests {
             "1e-400",
         ] {
             check(text);
+        }
+    }
+
+    /// [`parse_prefix_at`] against [`parse_prefix`] on numbers followed by what follows
+    /// them in a line (a delimiter, a line ending, more text) and at the end of input.
+    fn check_at(text: &str) {
+        for tail in ["", ",", ",1.5,2", "\n0.5,1", "\r\n", "e", "x", "..", ";-3"] {
+            let line = format!("ab,{text}{tail}");
+            let bytes = line.as_bytes();
+            let expect =
+                parse_prefix(&bytes[3..]).map(|(value, consumed)| (value.to_bits(), 3 + consumed));
+            let got = parse_prefix_at(bytes, 3).map(|(value, end)| (value.to_bits(), end));
+            assert_eq!(got, expect, "{line:?}");
+        }
+    }
+
+    #[test]
+    fn the_eight_byte_parser_agrees_with_the_digit_by_digit_one() {
+        for text in [
+            "0",
+            "-0",
+            "+1",
+            "1.",
+            ".5",
+            "-.5",
+            "9.6864",
+            "-9.6864",
+            "33.259",
+            "0.00058",
+            "18199.980",
+            "1234567.1234567",
+            "12345678.5",
+            "1.12345678",
+            "99999999",
+            "9999999.9999999",
+            "1.839072609E1",
+            "3.446083327E-3",
+            "1e22",
+            "",
+            "-",
+            ".",
+            "-.",
+            "+",
+            "1.2.3",
+            "0012.50",
+            "-0.000",
+            "7",
+            "-7.",
+            "1234567",
+            "12345678",
+        ] {
+            check_at(text);
+        }
+        let mut state: u64 = 0x9E37_79B9_7F4A_7C15;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            state >> 33
+        };
+        for _ in 0..50_000 {
+            let n_int = (next() % 10) as usize;
+            let n_frac = (next() % 10) as usize;
+            let mut text = String::new();
+            match next() % 3 {
+                0 => text.push('-'),
+                1 if next() % 4 == 0 => text.push('+'),
+                _ => {}
+            }
+            text.extend((0..n_int).map(|_| char::from(b'0' + (next() % 10) as u8)));
+            if next() % 5 != 0 {
+                text.push('.');
+                text.extend((0..n_frac).map(|_| char::from(b'0' + (next() % 10) as u8)));
+            }
+            check_at(&text);
         }
     }
 
