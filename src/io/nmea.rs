@@ -59,12 +59,16 @@
 //! where there is one). Sentences without a time (VTG, HDG, HDM, HDT, PTNTHPR) are placed
 //! evenly, line by line, between the timed sentences around them; see [`NmeaReader`].
 
+use std::borrow::Cow;
 use std::fmt;
 
-use super::lines::{decode_all, Line};
+use super::lines::Line;
 use super::{ensure_text, shorten, Diagnostics, ImportError, ImportReport};
 use crate::angle::wrap_to_2pi;
 use crate::recording::{Attitude, DeviceHeading, GnssFix, North, Recording};
+
+#[cfg(not(target_arch = "wasm32"))]
+mod parallel;
 
 pub const FORMAT_NAME: &str = "NMEA 0183";
 
@@ -987,11 +991,108 @@ pub fn looks_like(sample_lines: &[&str]) -> bool {
 
 /// Reads NMEA 0183 bytes. Fails only when nothing can be read; every skipped line
 /// becomes a diagnostic in the report.
+///
+/// Parsing a line needs no state, applying it does (the clock, the epoch merge, the
+/// placing of untimed sentences, the counts): on native builds a large file is parsed
+/// on every core and applied in order on one thread ([`parallel`]), with the same
+/// result as reading it line by line; the browser build reads on one thread.
 pub fn read(file_name: &str, bytes: &[u8]) -> Result<ImportReport, ImportError> {
     ensure_text(file_name, bytes)?;
+    #[cfg(not(target_arch = "wasm32"))]
+    if let Some(report) = parallel::read(file_name, bytes) {
+        return report;
+    }
     let mut reader = NmeaReader::new();
-    decode_all(bytes, MAX_LINE_BYTES, |line| reader.read_decoded(&line));
+    for_each_line(bytes, |line_number, content| {
+        reader.apply(line_number, LineEvent::of(content));
+    });
     reader.finish(file_name)
+}
+
+/// Calls `on_line` with the 1-based number and the content (without its terminator) of
+/// every line of a whole buffer: the lines [`decode_all`](super::lines::decode_all)
+/// gives (CR, LF and CRLF end a line; a last line without an ending counts), but as
+/// bytes borrowed from the buffer. Returns the number of lines.
+fn for_each_line<'a>(bytes: &'a [u8], mut on_line: impl FnMut(usize, &'a [u8])) -> usize {
+    let mut rest = bytes;
+    let mut n_lines = 0usize;
+    while let Some(end_idx) = memchr::memchr2(b'\n', b'\r', rest) {
+        let (content, tail) = rest.split_at(end_idx);
+        n_lines += 1;
+        on_line(n_lines, content);
+        rest = match tail {
+            [b'\r', b'\n', after @ ..] | [_, after @ ..] => after,
+            [] => tail,
+        };
+    }
+    if !rest.is_empty() {
+        n_lines += 1;
+        on_line(n_lines, rest);
+    }
+    n_lines
+}
+
+/// What one line is, parsed but not yet applied to a reader. Parsing needs no state,
+/// so lines can be parsed anywhere (on another thread) and applied in order later.
+#[derive(Debug, Clone, PartialEq)]
+enum LineEvent<'a> {
+    /// Nothing but whitespace (and perhaps a byte-order mark): not a data line.
+    Blank,
+    /// Longer than [`MAX_LINE_BYTES`].
+    Truncated,
+    Known(Sentence),
+    Unknown {
+        address: Cow<'a, str>,
+        has_checksum: bool,
+    },
+    Error(SentenceError),
+}
+
+impl<'a> LineEvent<'a> {
+    /// A line's content as [`for_each_line`] gives it: cut when too long (as the line
+    /// decoder cuts it), replacing bytes that are not UTF-8 (as it does).
+    fn of(content: &'a [u8]) -> LineEvent<'a> {
+        if content.len() > MAX_LINE_BYTES {
+            return LineEvent::Truncated;
+        }
+        match std::str::from_utf8(content) {
+            Ok(text) => LineEvent::parse(text),
+            Err(_) => LineEvent::parse(&String::from_utf8_lossy(content)).into_owned(),
+        }
+    }
+
+    fn parse(text: &'a str) -> LineEvent<'a> {
+        if is_blank(text) {
+            return LineEvent::Blank;
+        }
+        match parse_line(text) {
+            Ok(Parsed::Known(sentence)) => LineEvent::Known(sentence),
+            Ok(Parsed::Unknown {
+                address,
+                has_checksum,
+            }) => LineEvent::Unknown {
+                address: Cow::Borrowed(address),
+                has_checksum,
+            },
+            Err(error) => LineEvent::Error(error),
+        }
+    }
+
+    fn into_owned(self) -> LineEvent<'static> {
+        match self {
+            LineEvent::Blank => LineEvent::Blank,
+            LineEvent::Truncated => LineEvent::Truncated,
+            LineEvent::Known(sentence) => LineEvent::Known(sentence),
+            LineEvent::Unknown {
+                address,
+                has_checksum,
+            } => LineEvent::Unknown {
+                address: Cow::Owned(address.into_owned()),
+                has_checksum,
+            },
+            LineEvent::Error(error) => LineEvent::Error(error),
+        }
+    }
 }
 
 /// What one sentence gives the recording.
@@ -1142,45 +1243,48 @@ impl NmeaReader {
     /// Reads one line. `line_number` is 1-based and should increase from line to line:
     /// untimed sentences are placed in time by it.
     pub fn read_line(&mut self, line_number: usize, text: &str) {
-        if is_blank(text) {
-            return;
-        }
-        self.n_data_lines += 1;
-        match parse_line(text) {
-            Ok(Parsed::Known(sentence)) => {
-                if !sentence.has_checksum {
-                    self.n_without_checksum += 1;
-                }
-                self.take(line_number, sentence.data);
-            }
-            Ok(Parsed::Unknown {
-                address,
-                has_checksum,
-            }) => {
-                if !has_checksum {
-                    self.n_without_checksum += 1;
-                }
-                self.count_unknown(line_number, address);
-            }
-            Err(error) => self.diagnostics.push(Some(line_number), error.to_string()),
-        }
+        self.apply(line_number, LineEvent::parse(text));
     }
 
     /// Reads one line from [`LineDecoder`](super::lines::LineDecoder), skipping it with
     /// a diagnostic if the decoder had to cut it.
     pub fn read_decoded(&mut self, line: &Line<'_>) {
         if line.truncated {
-            self.n_data_lines += 1;
-            self.diagnostics.push(
-                Some(line.number),
+            self.apply(line.number, LineEvent::Truncated);
+        } else {
+            self.read_line(line.number, &line.text);
+        }
+    }
+
+    /// Applies one parsed line: the only place lines change the reader's state.
+    fn apply(&mut self, line_number: usize, event: LineEvent<'_>) {
+        match event {
+            LineEvent::Blank => return,
+            LineEvent::Truncated => self.diagnostics.push(
+                Some(line_number),
                 format!(
                     "line longer than {MAX_LINE_BYTES} bytes, so not one NMEA sentence \
                      (at most 82 characters); it was skipped"
                 ),
-            );
-        } else {
-            self.read_line(line.number, &line.text);
+            ),
+            LineEvent::Known(sentence) => {
+                if !sentence.has_checksum {
+                    self.n_without_checksum += 1;
+                }
+                self.take(line_number, sentence.data);
+            }
+            LineEvent::Unknown {
+                address,
+                has_checksum,
+            } => {
+                if !has_checksum {
+                    self.n_without_checksum += 1;
+                }
+                self.count_unknown(line_number, &address);
+            }
+            LineEvent::Error(error) => self.diagnostics.push(Some(line_number), error.to_string()),
         }
+        self.n_data_lines += 1;
     }
 
     fn count_unknown(&mut self, line_number: usize, address: &str) {
