@@ -13,7 +13,7 @@
 
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::mpsc;
+use std::sync::{mpsc, Mutex};
 
 use super::{for_each_line, LineEvent, NmeaReader};
 use crate::io::{ImportError, ImportReport};
@@ -45,12 +45,15 @@ struct ParsedBatch<'a> {
     n_lines: usize,
 }
 
-fn parse_batch(batch: &[u8]) -> ParsedBatch<'_> {
+/// Parses one batch into `events` (an emptied vector of an earlier batch, so that its
+/// memory is reused rather than asked of the system again).
+fn parse_batch<'a>(batch: &'a [u8], mut events: Vec<(usize, LineEvent<'a>)>) -> ParsedBatch<'a> {
+    events.clear();
     // Sentences of 40 to 80 bytes are the usual case; a rough guess saves regrowing.
-    let mut events = Vec::with_capacity(batch.len() / 48 + 1);
+    events.reserve(batch.len() / 48 + 1);
     let n_lines = for_each_line(batch, |line_number, content| {
         let event = LineEvent::of(content);
-        if event != LineEvent::Blank {
+        if !matches!(event, LineEvent::Blank) {
             events.push((line_number, event));
         }
     });
@@ -94,6 +97,15 @@ pub(super) fn read_in_batches(
         let batch_idx = next_to_parse.fetch_add(1, Ordering::Relaxed);
         batches.get(batch_idx).map(|batch| (batch_idx, *batch))
     };
+    // Emptied event vectors, handed back for the next batches.
+    let spare_events: Mutex<Vec<Vec<(usize, LineEvent<'_>)>>> = Mutex::new(Vec::new());
+    let spare = || {
+        spare_events
+            .lock()
+            .ok()
+            .and_then(|mut spare| spare.pop())
+            .unwrap_or_default()
+    };
     let mut reader = NmeaReader::new();
     std::thread::scope(|scope| {
         let (sender, receiver) = mpsc::sync_channel::<(usize, ParsedBatch<'_>)>(n_threads);
@@ -101,7 +113,10 @@ pub(super) fn read_in_batches(
             let sender = sender.clone();
             scope.spawn(move || {
                 while let Some((batch_idx, batch)) = claim() {
-                    if sender.send((batch_idx, parse_batch(batch))).is_err() {
+                    if sender
+                        .send((batch_idx, parse_batch(batch, spare())))
+                        .is_err()
+                    {
                         break;
                     }
                 }
@@ -127,7 +142,7 @@ pub(super) fn read_in_batches(
                 }
                 if waiting.len() < MAX_BATCHES_WAITING {
                     if let Some((batch_idx, batch)) = claim() {
-                        waiting.insert(batch_idx, parse_batch(batch));
+                        waiting.insert(batch_idx, parse_batch(batch, spare()));
                         continue;
                     }
                 }
@@ -138,14 +153,21 @@ pub(super) fn read_in_batches(
                     // Every worker has stopped without sending this batch (one
                     // panicked, which the scope reports): parse it here.
                     Err(mpsc::RecvError) => {
-                        break parse_batch(batches.get(next_idx).copied().unwrap_or_default())
+                        break parse_batch(
+                            batches.get(next_idx).copied().unwrap_or_default(),
+                            Vec::new(),
+                        )
                     }
                 }
             };
-            for (line_number, event) in parsed.events {
+            let mut events = parsed.events;
+            for (line_number, event) in events.drain(..) {
                 reader.apply(lines_before + line_number, event);
             }
             lines_before += parsed.n_lines;
+            if let Ok(mut spare) = spare_events.lock() {
+                spare.push(events);
+            }
         }
     });
     reader.finish(file_name)
