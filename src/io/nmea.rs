@@ -2350,6 +2350,77 @@ mod tests {
     }
 
     #[test]
+    fn numbers_from_bytes_read_as_from_text() {
+        let mut texts: Vec<String> = [
+            "12345678901234567890123",
+            "0",
+            "-0",
+            "5",
+            "5.",
+            ".5",
+            "-.5",
+            ".",
+            "-",
+            "",
+            "1.2.3",
+            "12a",
+            "+5",
+            "1e3",
+            "4808.22924",
+            "01134.56746",
+            "00.00",
+            "99999999",
+            "123456789",
+            "1234567890123456",
+            "12345678901234567",
+            "1234567890123456789",
+            "12345678901234567890",
+            "9007199254740993",
+            "9007199254740992",
+            "0.1234567890123456",
+            "-84.00",
+            "0.00000000000000001",
+            "1 2",
+            " 1",
+            "1 ",
+        ]
+        .iter()
+        .map(|text| text.to_string())
+        .collect();
+        let mut state = 11u64;
+        for _ in 0..20_000 {
+            state = lcg(state);
+            let n_integer = (state >> 33) as usize % 12;
+            state = lcg(state);
+            let n_fraction = (state >> 33) as usize % 12;
+            let mut text = String::new();
+            if state % 3 == 0 {
+                text.push('-');
+            }
+            for _ in 0..n_integer {
+                state = lcg(state);
+                text.push(char::from(b'0' + (state >> 40) as u8 % 10));
+            }
+            if n_fraction > 0 || state % 5 == 0 {
+                text.push('.');
+            }
+            for _ in 0..n_fraction {
+                state = lcg(state);
+                text.push(char::from(b'0' + (state >> 40) as u8 % 10));
+            }
+            texts.push(text);
+        }
+        for text in &texts {
+            let general = crate::io::number::parse_f64(text).map(f64::to_bits);
+            assert_eq!(
+                parse_f64_bytes(text.as_bytes()).map(f64::to_bits),
+                general,
+                "{text:?}"
+            );
+        }
+    }
+
+    #[test]
     fn fractional_seconds_and_dates() {
         assert_eq!(time_of_day_s("T", b"000000"), Ok(Some(0.0)));
         assert_eq!(time_of_day_s("T", b"235959.75"), Ok(Some(86_399.75)));
