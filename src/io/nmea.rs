@@ -732,12 +732,12 @@ fn parse_vtg(fields: [&[u8]; 9]) -> Result<Vtg, SentenceError> {
         && [knots, n_letter, kmph, k_letter, mode]
             .iter()
             .all(|field| field.is_empty());
-    let (course_true, course_magnetic, knots, kmph, mode): (&[u8], &[u8], &[u8], &[u8], &[u8]) =
-        if is_legacy {
-            (course_true, t_letter, course_magnetic, m_letter, b"")
-        } else {
-            (course_true, course_magnetic, knots, kmph, mode)
-        };
+    let no_mode: &[u8] = b"";
+    let (course_true, course_magnetic, knots, kmph, mode) = if is_legacy {
+        (course_true, t_letter, course_magnetic, m_letter, no_mode)
+    } else {
+        (course_true, course_magnetic, knots, kmph, mode)
+    };
     let speed_mps = match number(S, "speed over ground (knots)", knots)? {
         Some(knots) => Some(knots * MPS_PER_KNOT),
         None => number(S, "speed over ground (km/h)", kmph)?.map(|kmph| kmph / 3.6),
@@ -2394,14 +2394,14 @@ mod tests {
             state = lcg(state);
             let n_fraction = (state >> 33) as usize % 12;
             let mut text = String::new();
-            if state % 3 == 0 {
+            if state.is_multiple_of(3) {
                 text.push('-');
             }
             for _ in 0..n_integer {
                 state = lcg(state);
                 text.push(char::from(b'0' + (state >> 40) as u8 % 10));
             }
-            if n_fraction > 0 || state % 5 == 0 {
+            if n_fraction > 0 || state.is_multiple_of(5) {
                 text.push('.');
             }
             for _ in 0..n_fraction {
