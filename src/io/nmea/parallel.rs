@@ -297,4 +297,54 @@ mod tests {
             assert_eq!(lines, decoded, "batches of {batch_bytes}");
         }
     }
+
+    /// Lines to draw logs from: sentences that set and cross the date and midnight,
+    /// untimed ones, bad ones, unknown ones, blanks and noise.
+    const POOL: &[&[u8]] = &[
+        b"$GPRMC,235959.50,A,4807.038,N,01131.000,E,022.4,084.4,311299,003.1,W*5A",
+        b"$GNRMC,000000.50,A,4807.038,N,01131.000,E,022.4,084.4,010100,,*78",
+        b"$GPGGA,235959.50,4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,*72",
+        b"$GPGGA,000001,4807.038,S,01131.000,W,0,08,0.9,545.4,M,46.9,M,,",
+        b"$GPGGA,120000,,,,,1,,,,,,,,",
+        b"$HEHDT,128.0,T*22",
+        b"$HEHDT,128.0,T*23",
+        b"$GPVTG,054.7,T,034.4,M,005.5,N,010.2,K*48",
+        b"$HCHDG,101.1,,,7.1,W*3C",
+        b"$PTNTHPR,85.9,N,-0.9,N,0.8,N*2C",
+        b"$PTNTHPR,,P,0.3,N,0.1,N*06",
+        b"$GPGSV,3,1,11*00",
+        b"$PXYZ,1",
+        b"$GPRMC,bad*00",
+        b"",
+        b"   ",
+        b"\xef\xbb\xbf$HEHDT,1.0,T",
+        b"n\xffo\xc3",
+    ];
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig {
+            cases: 128,
+            ..proptest::prelude::ProptestConfig::default()
+        })]
+
+        #[test]
+        fn any_log_in_any_batches_reads_as_one_thread_does(
+            picks in proptest::collection::vec((0..POOL.len(), 0usize..4), 1..120),
+            n_threads in 1usize..4,
+            batch_bytes in 1usize..400,
+        ) {
+            let mut bytes = Vec::new();
+            for &(line_idx, ending_idx) in &picks {
+                bytes.extend_from_slice(POOL[line_idx]);
+                bytes.extend_from_slice([&b"\r\n"[..], b"\n", b"\r", b""][ending_idx]);
+            }
+            let mut reader = NmeaReader::new();
+            decode_all(&bytes, super::super::MAX_LINE_BYTES, |line| reader.read_decoded(&line));
+            let sequential = reader.finish("any.nmea");
+            proptest::prop_assert_eq!(
+                read_in_batches("any.nmea", &bytes, n_threads, batch_bytes),
+                sequential
+            );
+        }
+    }
 }
