@@ -59,12 +59,16 @@
 //! where there is one). Sentences without a time (VTG, HDG, HDM, HDT, PTNTHPR) are placed
 //! evenly, line by line, between the timed sentences around them; see [`NmeaReader`].
 
+use std::borrow::Cow;
 use std::fmt;
 
-use super::lines::{decode_all, Line};
+use super::lines::Line;
 use super::{ensure_text, shorten, Diagnostics, ImportError, ImportReport};
 use crate::angle::wrap_to_2pi;
 use crate::recording::{Attitude, DeviceHeading, GnssFix, North, Recording};
+
+#[cfg(not(target_arch = "wasm32"))]
+mod parallel;
 
 pub const FORMAT_NAME: &str = "NMEA 0183";
 
@@ -248,14 +252,14 @@ pub enum HprStatus {
 }
 
 impl HprStatus {
-    fn from_letter(letter: &str) -> Option<HprStatus> {
+    fn from_letter(letter: &[u8]) -> Option<HprStatus> {
         match letter {
-            "L" => Some(HprStatus::LowAlarm),
-            "M" => Some(HprStatus::LowWarning),
-            "N" => Some(HprStatus::Normal),
-            "O" => Some(HprStatus::HighWarning),
-            "P" => Some(HprStatus::HighAlarm),
-            "C" => Some(HprStatus::TuningAnalogCircuit),
+            b"L" => Some(HprStatus::LowAlarm),
+            b"M" => Some(HprStatus::LowWarning),
+            b"N" => Some(HprStatus::Normal),
+            b"O" => Some(HprStatus::HighWarning),
+            b"P" => Some(HprStatus::HighAlarm),
+            b"C" => Some(HprStatus::TuningAnalogCircuit),
             _ => None,
         }
     }
@@ -368,24 +372,26 @@ impl fmt::Display for SentenceError {
 impl std::error::Error for SentenceError {}
 
 impl SentenceError {
-    fn bad_number(sentence: &'static str, field: &'static str, text: &str) -> SentenceError {
+    #[cold]
+    fn bad_number(sentence: &'static str, field: &'static str, text: &[u8]) -> SentenceError {
         SentenceError::BadNumber {
             sentence,
             field,
-            text: shorten(text),
+            text: shorten(&field_text(text)),
         }
     }
 
+    #[cold]
     fn bad_value(
         sentence: &'static str,
         field: &'static str,
-        text: &str,
+        text: &[u8],
         expected: &'static str,
     ) -> SentenceError {
         SentenceError::BadValue {
             sentence,
             field,
-            text: shorten(text),
+            text: shorten(&field_text(text)),
             expected,
         }
     }
@@ -394,7 +400,7 @@ impl SentenceError {
 /// Parses one sentence. Leading and trailing whitespace (and a byte-order mark) are
 /// ignored; a `*hh` checksum is verified when present.
 pub fn parse_sentence(text: &str) -> Result<Sentence, SentenceError> {
-    match parse_line(text)? {
+    match parse_line(text.as_bytes())? {
         Parsed::Known(sentence) => Ok(sentence),
         Parsed::Unknown { address, .. } => Err(SentenceError::UnknownSentence {
             address: shorten(address),
@@ -412,66 +418,88 @@ enum Parsed<'a> {
     },
 }
 
-fn parse_line(text: &str) -> Result<Parsed<'_>, SentenceError> {
-    let text = text.trim_start_matches('\u{feff}').trim_ascii();
-    let bytes = text.as_bytes();
+/// The text of a field, for a message. Fields are cut at ASCII bytes from UTF-8 text,
+/// so they are UTF-8 themselves; the replacement only guards against a caller's bug.
+fn field_text(field: &[u8]) -> Cow<'_, str> {
+    String::from_utf8_lossy(field)
+}
+
+/// Parses the bytes of one line, which must be UTF-8 (text, or ASCII bytes): bytes
+/// rather than `str` so that an ASCII line needs no UTF-8 validation.
+#[inline(always)]
+fn parse_line(bytes: &[u8]) -> Result<Parsed<'_>, SentenceError> {
+    let mut bytes = bytes;
+    while let Some(rest) = bytes.strip_prefix("\u{feff}".as_bytes()) {
+        bytes = rest;
+    }
+    let bytes = bytes.trim_ascii();
     if !matches!(bytes.first(), Some(b'$' | b'!')) {
         return Err(SentenceError::NotASentence);
     }
     // The checksum delimiter is searched from the end, where it is; `*` may not appear
     // in the data, so a line with two is corrupt either way.
-    let (body, has_checksum) = match bytes.iter().rposition(|&byte| byte == b'*') {
-        None => (text.get(1..).unwrap_or_default(), false),
+    let (body, has_checksum, found) = match bytes.iter().rposition(|&byte| byte == b'*') {
+        None => (bytes.get(1..).unwrap_or_default(), false, None),
         Some(star_idx) => {
-            let calculated = xor_bytes(bytes.get(1..star_idx).unwrap_or_default());
             let found = match bytes.get(star_idx + 1..) {
                 Some([high, low]) => hex_pair(*high, *low),
                 _ => None,
             }
             .ok_or(SentenceError::BadChecksumField)?;
-            if found != calculated {
-                return Err(SentenceError::ChecksumMismatch { calculated, found });
-            }
-            (text.get(1..star_idx).unwrap_or_default(), true)
+            (
+                bytes.get(1..star_idx).unwrap_or_default(),
+                true,
+                Some(found),
+            )
         }
     };
+    let scan = BodyScan::of(body);
+    if let Some(found) = found {
+        if found != scan.xor {
+            return Err(SentenceError::ChecksumMismatch {
+                calculated: scan.xor,
+                found,
+            });
+        }
+    }
 
-    let mut fields = Fields { rest: Some(body) };
-    let address = fields.next_field().unwrap_or_default();
+    let fields = Fields { body, scan: &scan };
+    let address = fields.address();
     if address.is_empty()
         || !address
-            .bytes()
+            .iter()
             .all(|byte| byte.is_ascii_uppercase() || byte.is_ascii_digit())
     {
         return Err(SentenceError::NotASentence);
     }
-    let unknown = Parsed::Unknown {
-        address,
+    let unknown = || Parsed::Unknown {
+        // Upper-case letters and digits only, so always UTF-8.
+        address: std::str::from_utf8(address).unwrap_or_default(),
         has_checksum,
     };
     // Byte patterns rather than string comparisons: this runs once per line.
-    let (talker, data) = match *address.as_bytes() {
+    let (talker, data) = match *address {
         [b'P', b'T', b'N', b'T', b'H', b'P', b'R'] => {
-            (None, SentenceData::Hpr(parse_hpr(&mut fields)?))
+            (None, SentenceData::Hpr(parse_hpr(fields.take())?))
         }
-        [b'P', ..] => return Ok(unknown),
+        [b'P', ..] => return Ok(unknown()),
         [first, second, a, b, c] => {
             let data = match [a, b, c] {
-                [b'R', b'M', b'C'] => SentenceData::Rmc(parse_rmc(&mut fields)?),
-                [b'G', b'G', b'A'] => SentenceData::Gga(parse_gga(&mut fields)?),
-                [b'V', b'T', b'G'] => SentenceData::Vtg(parse_vtg(&mut fields)?),
-                [b'H', b'D', b'G'] => SentenceData::Hdg(parse_hdg(&mut fields)?),
+                [b'R', b'M', b'C'] => SentenceData::Rmc(parse_rmc(fields.take())?),
+                [b'G', b'G', b'A'] => SentenceData::Gga(parse_gga(fields.take())?),
+                [b'V', b'T', b'G'] => SentenceData::Vtg(parse_vtg(fields.take())?),
+                [b'H', b'D', b'G'] => SentenceData::Hdg(parse_hdg(fields.take())?),
                 [b'H', b'D', b'M'] => {
-                    SentenceData::Hdm(parse_heading_only(&mut fields, "HDM", "M")?)
+                    SentenceData::Hdm(parse_heading_only(fields.take(), "HDM", b'M')?)
                 }
                 [b'H', b'D', b'T'] => {
-                    SentenceData::Hdt(parse_heading_only(&mut fields, "HDT", "T")?)
+                    SentenceData::Hdt(parse_heading_only(fields.take(), "HDT", b'T')?)
                 }
-                _ => return Ok(unknown),
+                _ => return Ok(unknown()),
             };
             (Some([first, second]), data)
         }
-        _ => return Ok(unknown),
+        _ => return Ok(unknown()),
     };
     Ok(Parsed::Known(Sentence {
         talker,
@@ -480,69 +508,164 @@ fn parse_line(text: &str) -> Result<Parsed<'_>, SentenceError> {
     }))
 }
 
-/// The XOR of all bytes, eight at a time (XOR is associative, so the lanes of the
-/// wide XOR fold down to the same byte).
-fn xor_bytes(bytes: &[u8]) -> u8 {
-    let mut chunks = bytes.chunks_exact(8);
-    let mut wide = 0u64;
-    for chunk in &mut chunks {
-        wide ^= u64::from_le_bytes(<[u8; 8]>::try_from(chunk).unwrap_or_default());
-    }
-    let narrow = chunks.remainder().iter().fold(0u8, |acc, byte| acc ^ byte);
-    wide.to_le_bytes()
-        .iter()
-        .fold(narrow, |acc, byte| acc ^ byte)
-}
-
+#[inline(always)]
 fn hex_pair(high: u8, low: u8) -> Option<u8> {
     let digit = |byte: u8| (byte as char).to_digit(16);
     let value = digit(high)? * 16 + digit(low)?;
     u8::try_from(value).ok()
 }
 
-/// The next `N` fields; missing trailing fields are empty (null), extra ones ignored.
-/// The comma-separated fields of a sentence. Hand-written because fields are a few
-/// bytes long, too short for `str::split`'s search to pay off on the hot path.
-struct Fields<'a> {
-    rest: Option<&'a str>,
+/// How many commas [`BodyScan`] records: the address and the twelve fields of the
+/// longest sentence read (RMC, GGA) need thirteen.
+const MAX_COMMAS: usize = 16;
+
+/// One pass over a sentence body, eight bytes at a time: the checksum (the XOR of all
+/// bytes; XOR is associative, so the lanes of the wide XOR fold down to it) and where
+/// the first [`MAX_COMMAS`] commas are. One pass instead of one for the checksum and
+/// one byte by byte per field.
+struct BodyScan {
+    xor: u8,
+    n_commas: usize,
+    comma_idx: [usize; MAX_COMMAS],
 }
 
-impl<'a> Fields<'a> {
-    fn next_field(&mut self) -> Option<&'a str> {
-        let rest = self.rest?;
-        match rest.bytes().position(|byte| byte == b',') {
-            Some(comma_idx) => {
-                // A comma is ASCII, so both sides of it are char boundaries.
-                self.rest = rest.get(comma_idx + 1..);
-                rest.get(..comma_idx)
+impl BodyScan {
+    #[inline(always)]
+    fn of(body: &[u8]) -> BodyScan {
+        let mut scan = BodyScan {
+            xor: 0,
+            n_commas: 0,
+            comma_idx: [0; MAX_COMMAS],
+        };
+        let mut xor_word = 0u64;
+        let mut words = body.chunks_exact(8);
+        let mut word_start = 0usize;
+        for word in &mut words {
+            let word = u64::from_le_bytes(<[u8; 8]>::try_from(word).unwrap_or_default());
+            xor_word ^= word;
+            scan.note_commas(word, word_start);
+            word_start += 8;
+        }
+        // The last bytes, padded with zeros, which change neither the XOR nor the
+        // commas: read as the body's last eight bytes shifted down past those already
+        // seen, where the body is that long.
+        let remainder = words.remainder();
+        let word = match body
+            .len()
+            .checked_sub(8)
+            .and_then(|start| body.get(start..))
+        {
+            Some(last_eight) if !remainder.is_empty() => {
+                let last_eight =
+                    u64::from_le_bytes(<[u8; 8]>::try_from(last_eight).unwrap_or_default());
+                last_eight >> (8 * (8 - remainder.len()))
             }
-            None => {
-                self.rest = None;
-                Some(rest)
-            }
+            _ => remainder
+                .iter()
+                .rev()
+                .fold(0u64, |word, &byte| word << 8 | u64::from(byte)),
+        };
+        xor_word ^= word;
+        scan.note_commas(word, word_start);
+        scan.xor = xor_word
+            .to_le_bytes()
+            .iter()
+            .fold(0u8, |acc, byte| acc ^ byte);
+        scan
+    }
+
+    /// Records the commas among the eight bytes of `word` (little-endian, so byte `k`
+    /// is bits `8k..8k + 8`), which start at `word_start` in the body.
+    #[inline(always)]
+    fn note_commas(&mut self, word: u64, word_start: usize) {
+        const LOW_7_BITS: u64 = 0x7f7f_7f7f_7f7f_7f7f;
+        const COMMAS: u64 = 0x2c2c_2c2c_2c2c_2c2c;
+        // A byte of `diff` is zero exactly where `word` has a comma. Adding 0x7f to
+        // the low seven bits of a byte sets its high bit unless they are all zero, and
+        // never carries into the next byte, so the high bit of each byte of `comma_bits`
+        // is set exactly where `diff` has a zero byte (the common `(x - 0x01…) & !x`
+        // trick also flags a 0x01 byte above a zero one: a `-` after a comma).
+        let diff = word ^ COMMAS;
+        let mut comma_bits = !(((diff & LOW_7_BITS) + LOW_7_BITS) | diff | LOW_7_BITS);
+        while comma_bits != 0 {
+            let Some(slot) = self.comma_idx.get_mut(self.n_commas) else {
+                return;
+            };
+            *slot = word_start + (comma_bits.trailing_zeros() / 8) as usize;
+            self.n_commas += 1;
+            comma_bits &= comma_bits - 1;
         }
     }
 }
 
-fn take_fields<'a, const N: usize>(fields: &mut Fields<'a>) -> [&'a str; N] {
-    let mut taken = [""; N];
-    for slot in &mut taken {
-        match fields.next_field() {
-            Some(field) => *slot = field.trim_ascii(),
-            None => break,
-        }
-    }
-    taken
+/// The comma-separated fields of a sentence body: field 0 is the address.
+struct Fields<'a, 'b> {
+    body: &'a [u8],
+    scan: &'b BodyScan,
 }
 
-fn parse_rmc(fields: &mut Fields<'_>) -> Result<Rmc, SentenceError> {
+impl<'a> Fields<'a, '_> {
+    /// The address: the body up to its first comma.
+    #[inline(always)]
+    fn address(&self) -> &'a [u8] {
+        let end = match self.scan.n_commas {
+            0 => self.body.len(),
+            _ => self
+                .scan
+                .comma_idx
+                .first()
+                .copied()
+                .unwrap_or(self.body.len()),
+        };
+        self.body.get(..end).unwrap_or_default()
+    }
+
+    /// The `N` fields after the address, trimmed; missing trailing fields are empty
+    /// (null), extra ones ignored.
+    #[inline(always)]
+    fn take<const N: usize>(&self) -> [&'a [u8]; N] {
+        let mut taken: [&'a [u8]; N] = [&[]; N];
+        let commas = self
+            .scan
+            .comma_idx
+            .get(..self.scan.n_commas)
+            .unwrap_or_default();
+        // Field k + 1 starts after comma k and ends at comma k + 1 or the body's end.
+        for (field_idx, slot) in taken.iter_mut().enumerate() {
+            let Some(&comma_idx) = commas.get(field_idx) else {
+                break;
+            };
+            let end = commas
+                .get(field_idx + 1)
+                .copied()
+                .unwrap_or(self.body.len());
+            *slot = trim_field(self.body.get(comma_idx + 1..end).unwrap_or_default());
+        }
+        taken
+    }
+}
+
+/// A field without surrounding ASCII whitespace; a field without any, the usual one,
+/// is seen as such from its two ends.
+#[inline(always)]
+fn trim_field(field: &[u8]) -> &[u8] {
+    match (field.first(), field.last()) {
+        (Some(first), Some(last)) if first.is_ascii_whitespace() || last.is_ascii_whitespace() => {
+            field.trim_ascii()
+        }
+        _ => field,
+    }
+}
+
+#[inline(always)]
+fn parse_rmc(fields: [&[u8]; 12]) -> Result<Rmc, SentenceError> {
     const S: &str = "RMC";
     let [time, status, lat, lat_ns, lon, lon_ew, knots, course_deg, date, var_deg, var_ew, mode] =
-        take_fields::<12>(fields);
+        fields;
     let status_valid = match status {
-        "A" => true,
-        "V" => false,
-        "" => {
+        b"A" => true,
+        b"V" => false,
+        b"" => {
             return Err(SentenceError::MissingField {
                 sentence: S,
                 field: "status",
@@ -559,19 +682,30 @@ fn parse_rmc(fields: &mut Fields<'_>) -> Result<Rmc, SentenceError> {
         course_rad: heading_rad(S, "course over ground", course_deg)?,
         date: parse_date(S, date)?,
         magnetic_variation_rad: east_positive_rad(S, "magnetic variation", var_deg, var_ew)?,
-        mode: mode.chars().next(),
+        mode: first_char(mode),
     })
 }
 
-fn parse_gga(fields: &mut Fields<'_>) -> Result<Gga, SentenceError> {
+/// The first character of a field.
+#[inline(always)]
+fn first_char(field: &[u8]) -> Option<char> {
+    match field.first() {
+        Some(&byte) if byte.is_ascii() => Some(char::from(byte)),
+        Some(_) => field_text(field).chars().next(),
+        None => None,
+    }
+}
+
+#[inline(always)]
+fn parse_gga(fields: [&[u8]; 12]) -> Result<Gga, SentenceError> {
     const S: &str = "GGA";
     let [time, lat, lat_ns, lon, lon_ew, quality, n_sats, hdop, alt, alt_unit, sep, sep_unit] =
-        take_fields::<12>(fields);
+        fields;
     for (unit, field) in [
         (alt_unit, "altitude unit"),
         (sep_unit, "geoid separation unit"),
     ] {
-        if !matches!(unit, "" | "M") {
+        if !matches!(unit, b"" | b"M") {
             return Err(SentenceError::bad_value(S, field, unit, "M (metres)"));
         }
     }
@@ -587,18 +721,20 @@ fn parse_gga(fields: &mut Fields<'_>) -> Result<Gga, SentenceError> {
     })
 }
 
-fn parse_vtg(fields: &mut Fields<'_>) -> Result<Vtg, SentenceError> {
+#[inline(always)]
+fn parse_vtg(fields: [&[u8]; 9]) -> Result<Vtg, SentenceError> {
     const S: &str = "VTG";
     let [course_true, t_letter, course_magnetic, m_letter, knots, n_letter, kmph, k_letter, mode] =
-        take_fields::<9>(fields);
+        fields;
     // NMEA 1.x receivers send the four values without their unit letters, so the
     // second field is a number and nothing follows the fourth.
-    let is_legacy = !matches!(t_letter, "T" | "")
+    let is_legacy = !matches!(t_letter, b"T" | b"")
         && [knots, n_letter, kmph, k_letter, mode]
             .iter()
             .all(|field| field.is_empty());
+    let no_mode: &[u8] = b"";
     let (course_true, course_magnetic, knots, kmph, mode) = if is_legacy {
-        (course_true, t_letter, course_magnetic, m_letter, "")
+        (course_true, t_letter, course_magnetic, m_letter, no_mode)
     } else {
         (course_true, course_magnetic, knots, kmph, mode)
     };
@@ -610,14 +746,13 @@ fn parse_vtg(fields: &mut Fields<'_>) -> Result<Vtg, SentenceError> {
         course_true_rad: heading_rad(S, "true course", course_true)?,
         course_magnetic_rad: heading_rad(S, "magnetic course", course_magnetic)?,
         speed_mps,
-        mode: mode.chars().next(),
+        mode: first_char(mode),
     })
 }
 
-fn parse_hdg(fields: &mut Fields<'_>) -> Result<Hdg, SentenceError> {
+fn parse_hdg(fields: [&[u8]; 5]) -> Result<Hdg, SentenceError> {
     const S: &str = "HDG";
-    let [heading, deviation, deviation_direction, variation, variation_direction] =
-        take_fields::<5>(fields);
+    let [heading, deviation, deviation_direction, variation, variation_direction] = fields;
     let sensor_heading_rad =
         heading_rad(S, "heading", heading)?.ok_or(SentenceError::MissingField {
             sentence: S,
@@ -630,18 +765,19 @@ fn parse_hdg(fields: &mut Fields<'_>) -> Result<Hdg, SentenceError> {
     })
 }
 
+#[inline(always)]
 fn parse_heading_only(
-    fields: &mut Fields<'_>,
+    fields: [&[u8]; 2],
     sentence: &'static str,
-    letter: &'static str,
+    letter: u8,
 ) -> Result<HeadingOnly, SentenceError> {
-    let [heading, reference] = take_fields::<2>(fields);
-    if !(reference.is_empty() || reference == letter) {
+    let [heading, reference] = fields;
+    if !(reference.is_empty() || reference == [letter]) {
         return Err(SentenceError::bad_value(
             sentence,
             "reference letter",
             reference,
-            letter,
+            if letter == b'M' { "M" } else { "T" },
         ));
     }
     let heading_rad =
@@ -652,11 +788,10 @@ fn parse_heading_only(
     Ok(HeadingOnly { heading_rad })
 }
 
-fn parse_hpr(fields: &mut Fields<'_>) -> Result<Hpr, SentenceError> {
+fn parse_hpr(fields: [&[u8]; 6]) -> Result<Hpr, SentenceError> {
     const S: &str = "PTNTHPR";
-    let [heading, heading_status, pitch, pitch_status, roll, roll_status] =
-        take_fields::<6>(fields);
-    let status = |field: &'static str, letter: &str| -> Result<HprStatus, SentenceError> {
+    let [heading, heading_status, pitch, pitch_status, roll, roll_status] = fields;
+    let status = |field: &'static str, letter: &[u8]| -> Result<HprStatus, SentenceError> {
         if letter.is_empty() {
             return Err(SentenceError::MissingField { sentence: S, field });
         }
@@ -664,7 +799,7 @@ fn parse_hpr(fields: &mut Fields<'_>) -> Result<Hpr, SentenceError> {
             .ok_or_else(|| SentenceError::bad_value(S, field, letter, "one of N, M, L, O, P, C"))
     };
     let angle =
-        |field: &'static str, text: &str, max_deg: f64, expected: &'static str| match number(
+        |field: &'static str, text: &[u8], max_deg: f64, expected: &'static str| match number(
             S, field, text,
         )? {
             Some(value_deg) if (-max_deg..=max_deg).contains(&value_deg) => {
@@ -707,39 +842,64 @@ fn parse_hpr(fields: &mut Fields<'_>) -> Result<Hpr, SentenceError> {
     })
 }
 
+/// A decimal number as [`super::number::parse_f64`] reads it, from bytes: Clinger's
+/// fast path, else the standard library's parser.
+#[inline(always)]
+fn parse_f64_bytes(text: &[u8]) -> Option<f64> {
+    match super::number::parse_prefix(text) {
+        Some((value, consumed)) if consumed == text.len() => Some(value),
+        _ => std::str::from_utf8(text).ok()?.parse::<f64>().ok(),
+    }
+}
+
 /// A finite decimal number, `None` for a null field.
+#[inline(always)]
 fn number(
     sentence: &'static str,
     field: &'static str,
-    text: &str,
+    text: &[u8],
 ) -> Result<Option<f64>, SentenceError> {
     if text.is_empty() {
         return Ok(None);
     }
-    match super::number::parse_f64(text) {
+    match parse_f64_bytes(text) {
         Some(value) if value.is_finite() => Ok(Some(value)),
         _ => Err(SentenceError::bad_number(sentence, field, text)),
     }
 }
 
-fn integer<T: std::str::FromStr>(
+/// A whole number as `str::parse` reads it: up to nine plain digits directly, anything
+/// else (a sign, more digits) through `str::parse`.
+#[inline(always)]
+fn integer<T: std::str::FromStr + TryFrom<u32>>(
     sentence: &'static str,
     field: &'static str,
-    text: &str,
+    text: &[u8],
 ) -> Result<Option<T>, SentenceError> {
     if text.is_empty() {
         return Ok(None);
     }
-    text.parse::<T>()
+    if text.len() <= 9 && text.iter().all(u8::is_ascii_digit) {
+        let value = text
+            .iter()
+            .fold(0u32, |value, digit| value * 10 + u32::from(digit - b'0'));
+        if let Ok(value) = T::try_from(value) {
+            return Ok(Some(value));
+        }
+    }
+    std::str::from_utf8(text)
+        .ok()
+        .and_then(|text| text.parse::<T>().ok())
         .map(Some)
-        .map_err(|_| SentenceError::bad_number(sentence, field, text))
+        .ok_or_else(|| SentenceError::bad_number(sentence, field, text))
 }
 
 /// A heading or course in degrees, 0 to 360, as radians in `[0, 2π)`.
+#[inline(always)]
 fn heading_rad(
     sentence: &'static str,
     field: &'static str,
-    text: &str,
+    text: &[u8],
 ) -> Result<Option<f64>, SentenceError> {
     match number(sentence, field, text)? {
         Some(value_deg) if (0.0..=360.0).contains(&value_deg) => {
@@ -757,6 +917,7 @@ fn heading_rad(
 
 /// A heading already checked to lie in 0-360°, as radians in `[0, 2π)`. Only 360
 /// itself needs wrapping, which spares the hot path the remainder in `wrap_to_2pi`.
+#[inline(always)]
 fn heading_0_360_rad(heading_deg: f64) -> f64 {
     let heading_rad = heading_deg.to_radians();
     if heading_rad >= std::f64::consts::TAU {
@@ -768,19 +929,20 @@ fn heading_0_360_rad(heading_deg: f64) -> f64 {
 
 /// An angle with an E/W letter, east positive. A value without its letter is dropped
 /// rather than guessed, and does not cost the rest of the sentence.
+#[inline(always)]
 fn east_positive_rad(
     sentence: &'static str,
     field: &'static str,
-    value: &str,
-    direction: &str,
+    value: &[u8],
+    direction: &[u8],
 ) -> Result<Option<f64>, SentenceError> {
     let Some(value_deg) = number(sentence, field, value)? else {
         return Ok(None);
     };
     match direction {
-        "E" => Ok(Some(value_deg.to_radians())),
-        "W" => Ok(Some(-value_deg.to_radians())),
-        "" => Ok(None),
+        b"E" => Ok(Some(value_deg.to_radians())),
+        b"W" => Ok(Some(-value_deg.to_radians())),
+        b"" => Ok(None),
         other => Err(SentenceError::bad_value(sentence, field, other, "E or W")),
     }
 }
@@ -793,11 +955,12 @@ enum Axis {
 
 /// `ddmm.mmmm` (latitude) or `dddmm.mmmm` (longitude) and its hemisphere letter, as
 /// decimal degrees, south and west negative.
+#[inline(always)]
 fn coordinate(
     sentence: &'static str,
     axis: Axis,
-    value: &str,
-    hemisphere: &str,
+    value: &[u8],
+    hemisphere: &[u8],
 ) -> Result<Option<f64>, SentenceError> {
     let (field, hemisphere_field, max_deg, positive, negative, expected_letters, expected_value) =
         match axis {
@@ -805,8 +968,8 @@ fn coordinate(
                 "latitude",
                 "latitude hemisphere",
                 90.0,
-                "N",
-                "S",
+                b"N",
+                b"S",
                 "N or S",
                 "ddmm.mmmm, at most 90°",
             ),
@@ -814,8 +977,8 @@ fn coordinate(
                 "longitude",
                 "longitude hemisphere",
                 180.0,
-                "E",
-                "W",
+                b"E",
+                b"W",
                 "E or W",
                 "dddmm.mmmm, at most 180°",
             ),
@@ -834,7 +997,13 @@ fn coordinate(
     let Some(ddmm) = number(sentence, field, value)? else {
         return Ok(None);
     };
-    let degrees = (ddmm / 100.0).trunc();
+    // Truncation through an integer where that is exact (`f64::trunc` is a library
+    // call on baseline x86-64); negative or huge values are refused below either way.
+    let degrees = if (0.0..1e15).contains(&ddmm) {
+        ((ddmm / 100.0) as u64) as f64
+    } else {
+        (ddmm / 100.0).trunc()
+    };
     let minutes = ddmm - degrees * 100.0;
     let decimal_deg = degrees + minutes / 60.0;
     if !(ddmm >= 0.0 && minutes < 60.0 && decimal_deg <= max_deg) {
@@ -860,6 +1029,7 @@ fn coordinate(
 }
 
 /// Two ASCII digits at `at`, as a number.
+#[inline(always)]
 fn two_digits(bytes: &[u8], at: usize) -> Option<u8> {
     match bytes.get(at..at + 2)? {
         [tens @ b'0'..=b'9', ones @ b'0'..=b'9'] => Some((tens - b'0') * 10 + (ones - b'0')),
@@ -868,25 +1038,21 @@ fn two_digits(bytes: &[u8], at: usize) -> Option<u8> {
 }
 
 /// `hhmmss` with optional decimals, as seconds since midnight.
-fn time_of_day_s(sentence: &'static str, text: &str) -> Result<Option<f64>, SentenceError> {
+#[inline(always)]
+fn time_of_day_s(sentence: &'static str, text: &[u8]) -> Result<Option<f64>, SentenceError> {
     if text.is_empty() {
         return Ok(None);
     }
     let bad = || SentenceError::bad_value(sentence, "time", text, "hhmmss.ss (UTC)");
-    let bytes = text.as_bytes();
     let (Some(hours), Some(minutes), Some(_)) = (
-        two_digits(bytes, 0),
-        two_digits(bytes, 2),
-        two_digits(bytes, 4),
+        two_digits(text, 0),
+        two_digits(text, 2),
+        two_digits(text, 4),
     ) else {
         return Err(bad());
     };
-    // The seconds keep their decimals; bytes 0..6 are ASCII digits, so 4 is a char
-    // boundary. A leap second (60) is allowed.
-    let seconds = text
-        .get(4..)
-        .and_then(super::number::parse_f64)
-        .ok_or_else(bad)?;
+    // The seconds keep their decimals. A leap second (60) is allowed.
+    let seconds = text.get(4..).and_then(parse_f64_bytes).ok_or_else(bad)?;
     if hours > 23 || minutes > 59 || !(0.0..61.0).contains(&seconds) {
         return Err(bad());
     }
@@ -896,16 +1062,16 @@ fn time_of_day_s(sentence: &'static str, text: &str) -> Result<Option<f64>, Sent
 }
 
 /// `ddmmyy`. Two-digit years 80-99 are 1980-1999 (GPS began in 1980), the rest 20xx.
-fn parse_date(sentence: &'static str, text: &str) -> Result<Option<NmeaDate>, SentenceError> {
+#[inline(always)]
+fn parse_date(sentence: &'static str, text: &[u8]) -> Result<Option<NmeaDate>, SentenceError> {
     if text.is_empty() {
         return Ok(None);
     }
-    let bytes = text.as_bytes();
     let (Some(day), Some(month), Some(year), 6) = (
-        two_digits(bytes, 0),
-        two_digits(bytes, 2),
-        two_digits(bytes, 4),
-        bytes.len(),
+        two_digits(text, 0),
+        two_digits(text, 2),
+        two_digits(text, 4),
+        text.len(),
     ) else {
         return Err(SentenceError::bad_value(sentence, "date", text, "ddmmyy"));
     };
@@ -987,11 +1153,118 @@ pub fn looks_like(sample_lines: &[&str]) -> bool {
 
 /// Reads NMEA 0183 bytes. Fails only when nothing can be read; every skipped line
 /// becomes a diagnostic in the report.
+///
+/// Parsing a line needs no state, applying it does (the clock, the epoch merge, the
+/// placing of untimed sentences, the counts): on native builds a large file is parsed
+/// on every core and applied in order on one thread ([`parallel`]), with the same
+/// result as reading it line by line; the browser build reads on one thread.
 pub fn read(file_name: &str, bytes: &[u8]) -> Result<ImportReport, ImportError> {
     ensure_text(file_name, bytes)?;
+    #[cfg(not(target_arch = "wasm32"))]
+    if let Some(report) = parallel::read(file_name, bytes) {
+        return report;
+    }
     let mut reader = NmeaReader::new();
-    decode_all(bytes, MAX_LINE_BYTES, |line| reader.read_decoded(&line));
+    for_each_line(bytes, |line_number, content| {
+        reader.apply(line_number, LineEvent::of(content));
+    });
     reader.finish(file_name)
+}
+
+/// Calls `on_line` with the 1-based number and the content (without its terminator) of
+/// every line of a whole buffer: the lines [`decode_all`](super::lines::decode_all)
+/// gives (CR, LF and CRLF end a line; a last line without an ending counts), but as
+/// bytes borrowed from the buffer. Returns the number of lines.
+fn for_each_line<'a>(bytes: &'a [u8], mut on_line: impl FnMut(usize, &'a [u8])) -> usize {
+    let mut rest = bytes;
+    let mut n_lines = 0usize;
+    while let Some(end_idx) = memchr::memchr2(b'\n', b'\r', rest) {
+        let (content, tail) = rest.split_at(end_idx);
+        n_lines += 1;
+        on_line(n_lines, content);
+        rest = match tail {
+            [b'\r', b'\n', after @ ..] | [_, after @ ..] => after,
+            [] => tail,
+        };
+    }
+    if !rest.is_empty() {
+        n_lines += 1;
+        on_line(n_lines, rest);
+    }
+    n_lines
+}
+
+/// What one line is, parsed but not yet applied to a reader. Parsing needs no state,
+/// so lines can be parsed anywhere (on another thread) and applied in order later.
+#[derive(Debug, Clone, PartialEq)]
+enum LineEvent<'a> {
+    /// Nothing but whitespace (and perhaps a byte-order mark): not a data line.
+    Blank,
+    /// Longer than [`MAX_LINE_BYTES`].
+    Truncated,
+    Known(Sentence),
+    Unknown {
+        address: Cow<'a, str>,
+        has_checksum: bool,
+    },
+    Error(SentenceError),
+}
+
+impl<'a> LineEvent<'a> {
+    /// A line's content as [`for_each_line`] gives it: cut when too long (as the line
+    /// decoder cuts it), replacing bytes that are not UTF-8 (as it does).
+    fn of(content: &'a [u8]) -> LineEvent<'a> {
+        if content.len() > MAX_LINE_BYTES {
+            return LineEvent::Truncated;
+        }
+        // A sentence in ASCII, the usual line, is parsed from its bytes; anything else
+        // is decoded first.
+        if matches!(content.first(), Some(b'$' | b'!')) && content.is_ascii() {
+            return LineEvent::of_sentence(content);
+        }
+        match std::str::from_utf8(content) {
+            Ok(text) => LineEvent::parse(text),
+            Err(_) => LineEvent::parse(&String::from_utf8_lossy(content)).into_owned(),
+        }
+    }
+
+    fn parse(text: &'a str) -> LineEvent<'a> {
+        if is_blank(text) {
+            return LineEvent::Blank;
+        }
+        LineEvent::of_sentence(text.as_bytes())
+    }
+
+    /// A line that is not blank, as UTF-8 bytes.
+    fn of_sentence(bytes: &'a [u8]) -> LineEvent<'a> {
+        match parse_line(bytes) {
+            Ok(Parsed::Known(sentence)) => LineEvent::Known(sentence),
+            Ok(Parsed::Unknown {
+                address,
+                has_checksum,
+            }) => LineEvent::Unknown {
+                address: Cow::Borrowed(address),
+                has_checksum,
+            },
+            Err(error) => LineEvent::Error(error),
+        }
+    }
+
+    fn into_owned(self) -> LineEvent<'static> {
+        match self {
+            LineEvent::Blank => LineEvent::Blank,
+            LineEvent::Truncated => LineEvent::Truncated,
+            LineEvent::Known(sentence) => LineEvent::Known(sentence),
+            LineEvent::Unknown {
+                address,
+                has_checksum,
+            } => LineEvent::Unknown {
+                address: Cow::Owned(address.into_owned()),
+                has_checksum,
+            },
+            LineEvent::Error(error) => LineEvent::Error(error),
+        }
+    }
 }
 
 /// What one sentence gives the recording.
@@ -1142,45 +1415,48 @@ impl NmeaReader {
     /// Reads one line. `line_number` is 1-based and should increase from line to line:
     /// untimed sentences are placed in time by it.
     pub fn read_line(&mut self, line_number: usize, text: &str) {
-        if is_blank(text) {
-            return;
-        }
-        self.n_data_lines += 1;
-        match parse_line(text) {
-            Ok(Parsed::Known(sentence)) => {
-                if !sentence.has_checksum {
-                    self.n_without_checksum += 1;
-                }
-                self.take(line_number, sentence.data);
-            }
-            Ok(Parsed::Unknown {
-                address,
-                has_checksum,
-            }) => {
-                if !has_checksum {
-                    self.n_without_checksum += 1;
-                }
-                self.count_unknown(line_number, address);
-            }
-            Err(error) => self.diagnostics.push(Some(line_number), error.to_string()),
-        }
+        self.apply(line_number, LineEvent::parse(text));
     }
 
     /// Reads one line from [`LineDecoder`](super::lines::LineDecoder), skipping it with
     /// a diagnostic if the decoder had to cut it.
     pub fn read_decoded(&mut self, line: &Line<'_>) {
         if line.truncated {
-            self.n_data_lines += 1;
-            self.diagnostics.push(
-                Some(line.number),
+            self.apply(line.number, LineEvent::Truncated);
+        } else {
+            self.read_line(line.number, &line.text);
+        }
+    }
+
+    /// Applies one parsed line: the only place lines change the reader's state.
+    fn apply(&mut self, line_number: usize, event: LineEvent<'_>) {
+        match event {
+            LineEvent::Blank => return,
+            LineEvent::Truncated => self.diagnostics.push(
+                Some(line_number),
                 format!(
                     "line longer than {MAX_LINE_BYTES} bytes, so not one NMEA sentence \
                      (at most 82 characters); it was skipped"
                 ),
-            );
-        } else {
-            self.read_line(line.number, &line.text);
+            ),
+            LineEvent::Known(sentence) => {
+                if !sentence.has_checksum {
+                    self.n_without_checksum += 1;
+                }
+                self.take(line_number, sentence.data);
+            }
+            LineEvent::Unknown {
+                address,
+                has_checksum,
+            } => {
+                if !has_checksum {
+                    self.n_without_checksum += 1;
+                }
+                self.count_unknown(line_number, &address);
+            }
+            LineEvent::Error(error) => self.diagnostics.push(Some(line_number), error.to_string()),
         }
+        self.n_data_lines += 1;
     }
 
     fn count_unknown(&mut self, line_number: usize, address: &str) {
@@ -2074,13 +2350,84 @@ mod tests {
     }
 
     #[test]
+    fn numbers_from_bytes_read_as_from_text() {
+        let mut texts: Vec<String> = [
+            "12345678901234567890123",
+            "0",
+            "-0",
+            "5",
+            "5.",
+            ".5",
+            "-.5",
+            ".",
+            "-",
+            "",
+            "1.2.3",
+            "12a",
+            "+5",
+            "1e3",
+            "4808.22924",
+            "01134.56746",
+            "00.00",
+            "99999999",
+            "123456789",
+            "1234567890123456",
+            "12345678901234567",
+            "1234567890123456789",
+            "12345678901234567890",
+            "9007199254740993",
+            "9007199254740992",
+            "0.1234567890123456",
+            "-84.00",
+            "0.00000000000000001",
+            "1 2",
+            " 1",
+            "1 ",
+        ]
+        .iter()
+        .map(|text| text.to_string())
+        .collect();
+        let mut state = 11u64;
+        for _ in 0..20_000 {
+            state = lcg(state);
+            let n_integer = (state >> 33) as usize % 12;
+            state = lcg(state);
+            let n_fraction = (state >> 33) as usize % 12;
+            let mut text = String::new();
+            if state.is_multiple_of(3) {
+                text.push('-');
+            }
+            for _ in 0..n_integer {
+                state = lcg(state);
+                text.push(char::from(b'0' + (state >> 40) as u8 % 10));
+            }
+            if n_fraction > 0 || state.is_multiple_of(5) {
+                text.push('.');
+            }
+            for _ in 0..n_fraction {
+                state = lcg(state);
+                text.push(char::from(b'0' + (state >> 40) as u8 % 10));
+            }
+            texts.push(text);
+        }
+        for text in &texts {
+            let general = crate::io::number::parse_f64(text).map(f64::to_bits);
+            assert_eq!(
+                parse_f64_bytes(text.as_bytes()).map(f64::to_bits),
+                general,
+                "{text:?}"
+            );
+        }
+    }
+
+    #[test]
     fn fractional_seconds_and_dates() {
-        assert_eq!(time_of_day_s("T", "000000"), Ok(Some(0.0)));
-        assert_eq!(time_of_day_s("T", "235959.75"), Ok(Some(86_399.75)));
-        assert_eq!(time_of_day_s("T", "120000."), Ok(Some(43_200.0)));
-        assert!(time_of_day_s("T", "1200").is_err());
-        assert!(time_of_day_s("T", "240000").is_err());
-        assert!(time_of_day_s("T", "12000a").is_err());
+        assert_eq!(time_of_day_s("T", b"000000"), Ok(Some(0.0)));
+        assert_eq!(time_of_day_s("T", b"235959.75"), Ok(Some(86_399.75)));
+        assert_eq!(time_of_day_s("T", b"120000."), Ok(Some(43_200.0)));
+        assert!(time_of_day_s("T", b"1200").is_err());
+        assert!(time_of_day_s("T", b"240000").is_err());
+        assert!(time_of_day_s("T", b"12000a").is_err());
         assert_eq!(
             NmeaDate {
                 year: 1970,
@@ -2101,7 +2448,7 @@ mod tests {
         );
         assert_eq!(crate::civil::civil_from_days(11_017), (2000, 3, 1));
         assert_eq!(
-            parse_date("T", "010180"),
+            parse_date("T", b"010180"),
             Ok(Some(NmeaDate {
                 year: 1980,
                 month: 1,
@@ -2109,15 +2456,15 @@ mod tests {
             }))
         );
         assert_eq!(
-            parse_date("T", "311279"),
+            parse_date("T", b"311279"),
             Ok(Some(NmeaDate {
                 year: 2079,
                 month: 12,
                 day: 31
             }))
         );
-        assert!(parse_date("T", "320194").is_err());
-        assert!(parse_date("T", "0101944").is_err());
+        assert!(parse_date("T", b"320194").is_err());
+        assert!(parse_date("T", b"0101944").is_err());
         assert_eq!(thousands(24_000), "24,000");
         assert_eq!(thousands(1_204), "1,204");
         assert_eq!(thousands(999), "999");
