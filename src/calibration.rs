@@ -119,6 +119,8 @@ impl Default for CalibrationOptions {
 const MAX_SPHERE_GAP_PCT: f64 = 15.0;
 /// The most train samples a fit sees (evenly thinned beyond).
 const MAX_FIT_SAMPLES: usize = 20_000;
+/// The longest gap (s) across which a temperature or a gyro heading is interpolated.
+const MAX_CONDITION_GAP_S: f64 = 2.0;
 /// A measured field this many times off the expected one is a unit or a magnet problem.
 const FIELD_RATIO_WARNING: f64 = 2.0;
 
@@ -234,6 +236,10 @@ pub struct CalibrationAnalysis {
     /// ellipse method's).
     pub field_raw_ut: Vec<f64>,
     pub field_corrected_ut: Vec<f64>,
+    /// Conditions at each sample, for the heading models that learn from them: the
+    /// temperature, and the integrated gyro heading (relative to its start).
+    pub temp_c: Vec<Option<f64>>,
+    pub gyro_heading_deg: Vec<Option<f64>>,
 }
 
 impl CalibrationAnalysis {
@@ -679,6 +685,25 @@ pub fn calibrate(
         .map(|(method, _)| method);
 
     let field_raw_ut: Vec<f64> = samples.mag_ut.iter().map(|mag| mag.norm()).collect();
+    let temp_c: Vec<Option<f64>> = samples
+        .t_s
+        .iter()
+        .map(|&t_s| recording.temp_c.interpolate_at(t_s, MAX_CONDITION_GAP_S))
+        .collect();
+    let gyro =
+        crate::reference::gyro::gyro_heading(&recording, options.gravity_window_s, None, false);
+    let gyro_heading_deg: Vec<Option<f64>> = samples
+        .t_s
+        .iter()
+        .map(|&t_s| {
+            gyro.as_ref()
+                .and_then(|gyro| {
+                    gyro.heading_rad
+                        .interpolate_angle_at(t_s, MAX_CONDITION_GAP_S)
+                })
+                .map(f64::to_degrees)
+        })
+        .collect();
     let mean_raw_field_ut = field_raw_ut.iter().sum::<f64>() / field_raw_ut.len().max(1) as f64;
     if let Some(expected) = &expected {
         let ratio = mean_raw_field_ut / expected.total_ut;
@@ -734,6 +759,8 @@ pub fn calibrate(
             .collect(),
         headings_deg,
         field_corrected_ut: field_corrected_ut.unwrap_or_default(),
+        temp_c,
+        gyro_heading_deg,
         field_raw_ut,
     })
 }

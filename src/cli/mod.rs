@@ -594,6 +594,23 @@ fn heading_text(report: &HeadingReport) -> String {
             );
         }
     }
+    for neural in &report.neural {
+        let _ = writeln!(
+            text,
+            "  MLP on {}: inputs {}; {} pairs, {} hidden neurons, {} L-BFGS iterations ({:?}), train MSE {:.2} deg², \
+             validation MSE {}",
+            neural.base_label,
+            neural.inputs.join(", "),
+            neural.n_pairs,
+            neural.n_hidden,
+            neural.iterations,
+            neural.stop,
+            neural.train_mse_deg2,
+            neural
+                .validation_mse_deg2
+                .map_or("—".to_string(), |mse| format!("{mse:.2} deg²"))
+        );
+    }
     if let Some(online) = &report.online {
         let model = online.model;
         let _ = writeln!(

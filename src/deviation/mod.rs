@@ -10,12 +10,16 @@
 //! - [`fourier`]: the PDR paper's unified model `δ = A + B sin ξ' + C cos ξ' + D sin 2ξ'
 //!   + E cos 2ξ'` (Eq. 12), fitted by least squares on the train part;
 //! - [`rls`]: the same model adapted online while the reference is good;
+//! - [`neural`]: the 2007 paper's neural network (heading, |H|, gyro heading, dip,
+//!   temperature in; the deviation out), on the raw heading and on the field-domain
+//!   method that fits its train part best;
 //!
-//! each on the raw heading and on top of each field-domain calibration ("ellipse +
-//! Fourier"). The comparison reports mean, std, RMS, 95th percentile and the share
+//! the Fourier model on the raw heading and on top of each field-domain calibration
+//! ("ellipse + Fourier"). The comparison reports mean, std, RMS, 95th percentile and the share
 //! within ±5° on train and on check, as the papers' tables do.
 
 pub mod fourier;
+pub mod neural;
 pub mod rls;
 
 use serde::Serialize;
@@ -104,6 +108,9 @@ pub struct HeadingReport {
     pub n_check_referenced: usize,
     pub rows: Vec<HeadingRow>,
     pub fourier: Vec<FourierReport>,
+    /// The neural-network corrections (on the raw heading and on the best field-domain
+    /// method), with their inputs and training.
+    pub neural: Vec<neural::NeuralReport>,
     pub online: Option<OnlineReport>,
     /// The row with the lowest check RMS (train RMS without a check part).
     pub best: Option<String>,
@@ -161,6 +168,10 @@ pub fn compare(calibration: &CalibrationAnalysis, options: &HeadingOptions) -> H
         ref_heading_deg,
         raw_heading_deg,
         headings_deg: method_headings_deg,
+        level_raw_ut,
+        field_raw_ut,
+        temp_c,
+        gyro_heading_deg,
         ..
     } = calibration;
     let (calibration_report, t_s, ref_heading_deg) = (
@@ -342,6 +353,89 @@ pub fn compare(calibration: &CalibrationAnalysis, options: &HeadingOptions) -> H
         );
     }
 
+    // The neural network on the raw heading (the paper's) and on the field-domain
+    // method that fits its train part best.
+    let horizontal_ut: Vec<f64> = level_raw_ut.iter().map(|level| level.norm()).collect();
+    let dip_deg: Vec<f64> = horizontal_ut
+        .iter()
+        .zip(field_raw_ut)
+        .map(|(&horizontal, &total)| {
+            (horizontal / total.max(f64::MIN_POSITIVE))
+                .clamp(-1.0, 1.0)
+                .acos()
+                .to_degrees()
+        })
+        .collect();
+    let conditions = neural::Conditions {
+        horizontal_ut: &horizontal_ut,
+        dip_deg: &dip_deg,
+        gyro_heading_deg,
+        temp_c,
+    };
+    let best_field_base = bases
+        .iter()
+        .skip(1)
+        .filter_map(|base| Some((base, stats_of(&base.heading_rad, true)?.rms_deg)))
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .map(|(base, _)| base);
+    let mut neural_reports = Vec::new();
+    for base in bases.iter().take(1).chain(best_field_base) {
+        let (key, label) = if base.key == "raw" {
+            (
+                "mlp".to_string(),
+                "MLP (the 2007 paper's inputs)".to_string(),
+            )
+        } else {
+            (format!("{}+mlp", base.key), format!("{} + MLP", base.label))
+        };
+        match neural::train_correction(
+            &base.key,
+            &base.label,
+            &base.heading_rad,
+            &reference_rad,
+            &conditions,
+            &bins,
+            1,
+        ) {
+            Ok(correction) => {
+                let corrected: Vec<f64> = base
+                    .heading_rad
+                    .iter()
+                    .enumerate()
+                    .map(|(idx, &heading)| {
+                        correction
+                            .correct_rad(heading, &conditions, idx)
+                            .unwrap_or(f64::NAN)
+                    })
+                    .collect();
+                rows.push(HeadingRow {
+                    key: key.clone(),
+                    label,
+                    train: stats_of(&corrected, true),
+                    check: stats_of(&corrected, false),
+                    error: None,
+                });
+                series.push((key, to_degrees(&corrected)));
+                if !correction.report.missing_inputs.is_empty() {
+                    notes.push(format!(
+                        "{}: the log has no {}, so the network learned from {}",
+                        base.label,
+                        correction.report.missing_inputs.join(" and "),
+                        correction.report.inputs.join(", ")
+                    ));
+                }
+                neural_reports.push(correction.report);
+            }
+            Err(reason) => rows.push(HeadingRow {
+                key,
+                label,
+                train: None,
+                check: None,
+                error: Some(reason),
+            }),
+        }
+    }
+
     // Online adaptation over every referenced sample in time order, on the base whose
     // batch model fits best (the raw heading when nothing else was fitted).
     let online_base = fourier_reports
@@ -403,6 +497,7 @@ pub fn compare(calibration: &CalibrationAnalysis, options: &HeadingOptions) -> H
             n_check_referenced,
             rows,
             fourier: fourier_reports,
+            neural: neural_reports,
             online,
             best,
             notes,
@@ -514,6 +609,49 @@ mod tests {
                 ]
             );
         }
+    }
+
+    #[test]
+    fn when_the_error_depends_on_temperature_the_mlp_beats_the_fourier_model_on_check() {
+        // Hard iron that drifts 1 µT/°C with a ±10 °C swing every 5 minutes: the
+        // deviation is no longer a function of heading alone.
+        let config = WalkConfig {
+            temp_swing_c: 10.0,
+            temp_period_s: 300.0,
+            hard_iron_temp_coeff_ut_per_c: [1.0, -0.8, 0.0],
+            ..WalkConfig::from_seed(12, 1200.0)
+        };
+        let options = HeadingOptions {
+            calibration: CalibrationOptions {
+                methods: vec![Method::MinMax],
+                ..CalibrationOptions::default()
+            },
+            ..HeadingOptions::default()
+        };
+        let analysis = analyse_headings(simulated(&config), &options).expect("analyses");
+        let check_rms = |key: &str| {
+            analysis
+                .report
+                .rows
+                .iter()
+                .find(|row| row.key == key)
+                .and_then(|row| row.check)
+                .map_or(f64::INFINITY, |stats| stats.rms_deg)
+        };
+        let (fourier, mlp) = (check_rms("min_max+fourier"), check_rms("min_max+mlp"));
+        eprintln!("temperature-dependent error, check RMS: min/max + Fourier {fourier:.2}°, min/max + MLP {mlp:.2}°");
+        assert!(mlp < 0.7 * fourier, "MLP {mlp}° against Fourier {fourier}°");
+        let neural = analysis
+            .report
+            .neural
+            .iter()
+            .find(|report| report.base_key == "min_max")
+            .expect("trained");
+        assert_eq!(
+            neural.inputs,
+            vec!["heading", "|H|", "gyro heading", "dip", "temperature"]
+        );
+        assert_eq!(neural.correlation.len(), 25);
     }
 
     #[test]

@@ -1,0 +1,229 @@
+//! Neural-network dynamic calibration: a one-hidden-layer perceptron learns the heading
+//! deviation from the heading and the conditions it depends on.
+//!
+//! Source: Noureldin, Osman and El-Sheimy (2007), `compass-calibration-ann-2007.txt`,
+//! Sections 3 and 5: five inputs (raw heading, |H|, gyro heading, magnetic dip,
+//! temperature), 10-15 logistic hidden neurons, the heading correction as the output,
+//! trained on a reference heading. Here:
+//!
+//! - each heading input enters as its sine and cosine, so that 359° and 1° are
+//!   neighbours (the paper's raw angle has a jump at north);
+//! - |H| is the horizontal magnitude of the levelled raw field, the dip
+//!   `acos(|H| / |B|)` from the same field;
+//! - an input the log does not have (no gyro, no temperature) is left out, and the
+//!   report names the inputs used;
+//! - the target is the deviation (reference − heading) in degrees, unwrapped about its
+//!   circular mean, as for the Fourier model; samples are 1 s circular means;
+//! - training is [`crate::nn::train`]: L-BFGS with early stopping on a validation share,
+//!   from a fixed seed (the same data give the same weights).
+
+use serde::Serialize;
+
+use crate::angle::wrap_to_pi;
+use crate::nn::{correlation_matrix, train, Dataset, Mlp, TrainOptions, TrainingReport};
+
+/// Share of samples a condition must be known at for it to be an input.
+const MIN_INPUT_COVERAGE: f64 = 0.9;
+
+/// The per-sample conditions the network may use.
+pub struct Conditions<'a> {
+    pub horizontal_ut: &'a [f64],
+    pub dip_deg: &'a [f64],
+    pub gyro_heading_deg: &'a [Option<f64>],
+    pub temp_c: &'a [Option<f64>],
+}
+
+/// What the network learned from and how training went.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct NeuralReport {
+    pub base_key: String,
+    pub base_label: String,
+    /// The paper's inputs used, in order.
+    pub inputs: Vec<&'static str>,
+    /// The paper's inputs the log lacks.
+    pub missing_inputs: Vec<&'static str>,
+    pub n_pairs: usize,
+    /// Pearson correlation of the inputs over the training pairs (the paper's Table 1),
+    /// row-major over `inputs`; `None` for a constant input.
+    pub correlation: Vec<Option<f64>>,
+    pub n_hidden: usize,
+    pub iterations: usize,
+    pub stop: crate::nn::StopReason,
+    pub train_mse_deg2: f64,
+    pub validation_mse_deg2: Option<f64>,
+}
+
+/// A trained correction: predicts the deviation (radians) at a sample.
+pub struct NeuralCorrection {
+    model: Mlp,
+    use_gyro: bool,
+    use_temp: bool,
+    pub report: NeuralReport,
+}
+
+fn coverage(values: &[Option<f64>]) -> f64 {
+    values
+        .iter()
+        .filter(|value| value.is_some_and(f64::is_finite))
+        .count() as f64
+        / values.len().max(1) as f64
+}
+
+impl NeuralCorrection {
+    /// The network's input row at sample `idx`, `None` where an input is missing.
+    fn row(&self, heading_rad: f64, conditions: &Conditions<'_>, idx: usize) -> Option<Vec<f64>> {
+        input_row(heading_rad, conditions, idx, self.use_gyro, self.use_temp)
+    }
+
+    /// The corrected heading (radians) at sample `idx`, `None` where an input is missing.
+    pub fn correct_rad(
+        &self,
+        heading_rad: f64,
+        conditions: &Conditions<'_>,
+        idx: usize,
+    ) -> Option<f64> {
+        let row = self.row(heading_rad, conditions, idx)?;
+        let deviation_deg = *self.model.predict(&row).ok()?.first()?;
+        deviation_deg
+            .is_finite()
+            .then(|| crate::angle::wrap_to_2pi(heading_rad + deviation_deg.to_radians()))
+    }
+}
+
+fn input_row(
+    heading_rad: f64,
+    conditions: &Conditions<'_>,
+    idx: usize,
+    use_gyro: bool,
+    use_temp: bool,
+) -> Option<Vec<f64>> {
+    let mut row = Vec::with_capacity(7);
+    row.push(heading_rad.sin());
+    row.push(heading_rad.cos());
+    row.push(*conditions.horizontal_ut.get(idx)?);
+    if use_gyro {
+        let gyro_rad = (*conditions.gyro_heading_deg.get(idx)?)?.to_radians();
+        row.push(gyro_rad.sin());
+        row.push(gyro_rad.cos());
+    }
+    row.push(*conditions.dip_deg.get(idx)?);
+    if use_temp {
+        row.push((*conditions.temp_c.get(idx)?)?);
+    }
+    row.iter().all(|value| value.is_finite()).then_some(row)
+}
+
+/// Trains the correction on `bins` (groups of train sample indices, each a second of
+/// samples with a reference) of the base heading `heading_rad` against `reference_rad`.
+pub fn train_correction(
+    base_key: &str,
+    base_label: &str,
+    heading_rad: &[f64],
+    reference_rad: &[Option<f64>],
+    conditions: &Conditions<'_>,
+    bins: &[Vec<usize>],
+    seed: u64,
+) -> Result<NeuralCorrection, String> {
+    let use_gyro = coverage(conditions.gyro_heading_deg) >= MIN_INPUT_COVERAGE;
+    let use_temp = coverage(conditions.temp_c) >= MIN_INPUT_COVERAGE;
+    let mut inputs = vec!["heading", "|H|"];
+    let mut missing = Vec::new();
+    if use_gyro {
+        inputs.push("gyro heading");
+    } else {
+        missing.push("gyro heading");
+    }
+    inputs.push("dip");
+    if use_temp {
+        inputs.push("temperature");
+    } else {
+        missing.push("temperature");
+    }
+    // One row per bin: the mean of its samples' rows, the circular mean deviation.
+    let mut rows: Vec<f64> = Vec::new();
+    let mut targets_rad: Vec<f64> = Vec::new();
+    let mut paper_rows: Vec<f64> = Vec::new();
+    let mut width = 0usize;
+    for bin in bins {
+        let mut sum: Vec<f64> = Vec::new();
+        let (mut sum_sin, mut sum_cos, mut n) = (0.0, 0.0, 0usize);
+        for &idx in bin {
+            let (Some(&heading), Some(&Some(reference))) =
+                (heading_rad.get(idx), reference_rad.get(idx))
+            else {
+                continue;
+            };
+            let Some(row) = input_row(heading, conditions, idx, use_gyro, use_temp) else {
+                continue;
+            };
+            if sum.is_empty() {
+                sum = vec![0.0; row.len()];
+            }
+            for (total, value) in sum.iter_mut().zip(&row) {
+                *total += value;
+            }
+            let deviation = wrap_to_pi(reference - heading);
+            sum_sin += deviation.sin();
+            sum_cos += deviation.cos();
+            n += 1;
+        }
+        if n == 0 {
+            continue;
+        }
+        width = sum.len();
+        let mean: Vec<f64> = sum.iter().map(|total| total / n as f64).collect();
+        // The paper's five inputs, for its correlation table: angles in degrees.
+        let heading_deg = mean[0].atan2(mean[1]).to_degrees().rem_euclid(360.0);
+        paper_rows.push(heading_deg);
+        paper_rows.push(mean[2]);
+        let mut next = 3;
+        if use_gyro {
+            paper_rows.push(mean[3].atan2(mean[4]).to_degrees().rem_euclid(360.0));
+            next = 5;
+        }
+        paper_rows.extend(mean.get(next..).unwrap_or_default());
+        rows.extend(mean);
+        targets_rad.push(sum_sin.atan2(sum_cos));
+    }
+    let n_pairs = targets_rad.len();
+    if n_pairs < 50 || width == 0 {
+        return Err(format!("needs at least 50 seconds of train samples with a reference heading; there were {n_pairs}"));
+    }
+    // Unwrap about the circular mean, in degrees.
+    let (sum_sin, sum_cos) = targets_rad.iter().fold((0.0, 0.0), |(s, c), &target| {
+        (s + target.sin(), c + target.cos())
+    });
+    let mean_rad = sum_sin.atan2(sum_cos);
+    let targets_deg: Vec<f64> = targets_rad
+        .iter()
+        .map(|&target| (mean_rad + wrap_to_pi(target - mean_rad)).to_degrees())
+        .collect();
+    let data = Dataset::new(&rows, width, &targets_deg, 1).map_err(|error| error.to_string())?;
+    let options = TrainOptions {
+        seed,
+        ..TrainOptions::default()
+    };
+    let (model, training): (Mlp, TrainingReport) =
+        train(&data, &options).map_err(|error| error.to_string())?;
+    let correlation = correlation_matrix(&paper_rows, inputs.len())
+        .map(|matrix| matrix.coefficients)
+        .unwrap_or_default();
+    Ok(NeuralCorrection {
+        model,
+        use_gyro,
+        use_temp,
+        report: NeuralReport {
+            base_key: base_key.to_string(),
+            base_label: base_label.to_string(),
+            inputs,
+            missing_inputs: missing,
+            n_pairs,
+            correlation,
+            n_hidden: options.n_hidden,
+            iterations: training.iterations,
+            stop: training.stop,
+            train_mse_deg2: training.train_mse,
+            validation_mse_deg2: training.validation_mse,
+        },
+    })
+}
