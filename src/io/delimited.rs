@@ -1880,13 +1880,14 @@ fn resolve(raw_name: &str) -> Option<(Column, Naming)> {
         }
         [compact]
             if compact.len() == 2
-                && sensor_of(&compact[..1]).is_some()
-                && axis_of(&compact[1..]).is_some() =>
+                && compact.get(..1).and_then(sensor_of).is_some()
+                && compact.get(1..).and_then(axis_of).is_some() =>
         {
-            // "mx", "ax", "gz".
-            let quantity = sensor_of(&compact[..1])?;
+            // "mx", "ax", "gz". `get` and not indexing: a two-byte name may be one
+            // character ("À"), and slicing inside it would panic.
+            let quantity = compact.get(..1).and_then(sensor_of)?;
             return Some((
-                column(quantity, axis_of(&compact[1..])?, scale),
+                column(quantity, compact.get(1..).and_then(axis_of)?, scale),
                 Naming::Suffixed,
             ));
         }
@@ -2111,6 +2112,14 @@ mod tests {
 
     fn read_text(text: &str) -> ImportReport {
         read("test.csv", text.as_bytes()).expect("readable")
+    }
+
+    #[test]
+    fn a_two_byte_column_name_that_is_one_character_does_not_panic() {
+        // Found by the arbitrary-bytes property test: "À" is two bytes, one character.
+        for text in ["À,mx,my,mz\n1,2,3,4\n", "t_s,À\n0,1\n", "À\n1\n"] {
+            let _ = read("accents.csv", text.as_bytes());
+        }
     }
 
     #[test]
