@@ -5,35 +5,11 @@
 
 use std::path::{Path, PathBuf};
 
+mod common;
+
+use common::{read_named, shared_data};
 use compass_pdr::io::import::{import_files, Inspection};
 use compass_pdr::io::summary::StreamSummary;
-
-fn shared_data() -> Option<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data");
-    if dir.is_dir() {
-        Some(dir)
-    } else {
-        eprintln!(
-            "skipped: {} not found (the real recordings live beside the project; CI has them)",
-            dir.display()
-        );
-        None
-    }
-}
-
-/// Each file's name and bytes, read whole.
-fn read_named(paths: &[PathBuf]) -> Vec<(String, Vec<u8>)> {
-    paths
-        .iter()
-        .map(|path| {
-            let name = path
-                .file_name()
-                .map(|name| name.to_string_lossy().into_owned())
-                .unwrap_or_default();
-            (name, std::fs::read(path).expect("readable file"))
-        })
-        .collect()
-}
 
 fn as_slices(contents: &[(String, Vec<u8>)]) -> Vec<(&str, &[u8])> {
     contents

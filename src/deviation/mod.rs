@@ -230,14 +230,14 @@ pub fn compare(calibration: &CalibrationAnalysis, options: &HeadingOptions) -> H
     let mut rows = Vec::new();
     let mut series: Vec<(String, Vec<f64>)> = Vec::new();
     for base in &bases {
-        rows.push(HeadingRow {
-            key: base.key.clone(),
-            label: base.label.clone(),
-            train: stats_of(&base.heading_rad, true),
-            check: stats_of(&base.heading_rad, false),
-            error: None,
-        });
-        series.push((base.key.clone(), to_degrees(&base.heading_rad)));
+        push_scored(
+            &mut rows,
+            &mut series,
+            base.key.clone(),
+            base.label.clone(),
+            &base.heading_rad,
+            &stats_of,
+        );
     }
     // Field-domain methods that could not be fitted are listed with their reason.
     for method_report in calibration_report
@@ -310,14 +310,7 @@ pub fn compare(calibration: &CalibrationAnalysis, options: &HeadingOptions) -> H
                     .iter()
                     .map(|&heading| fit.model.correct_rad(heading))
                     .collect();
-                rows.push(HeadingRow {
-                    key: key.clone(),
-                    label,
-                    train: stats_of(&corrected, true),
-                    check: stats_of(&corrected, false),
-                    error: None,
-                });
-                series.push((key, to_degrees(&corrected)));
+                push_scored(&mut rows, &mut series, key, label, &corrected, &stats_of);
                 if fit.terms != fourier::FourierTerms::Full {
                     notes.push(format!(
                         "{}: the train headings cover too little of the circle for all five terms, so only {} were \
@@ -408,14 +401,7 @@ pub fn compare(calibration: &CalibrationAnalysis, options: &HeadingOptions) -> H
                             .unwrap_or(f64::NAN)
                     })
                     .collect();
-                rows.push(HeadingRow {
-                    key: key.clone(),
-                    label,
-                    train: stats_of(&corrected, true),
-                    check: stats_of(&corrected, false),
-                    error: None,
-                });
-                series.push((key, to_degrees(&corrected)));
+                push_scored(&mut rows, &mut series, key, label, &corrected, &stats_of);
                 if !correction.report.missing_inputs.is_empty() {
                     notes.push(format!(
                         "{}: the log has no {}, so the network learned from {}",
@@ -529,6 +515,25 @@ fn steady_mean(values_rad: &[f64], indices: &[usize]) -> Option<f64> {
         .fold(0.0, f64::max);
     (spread_rad <= MAX_BIN_SPREAD_RAD && !indices.is_empty())
         .then_some(crate::angle::wrap_to_2pi(mean_rad))
+}
+
+/// Adds a method's row (its errors on train and check) and its heading series.
+fn push_scored(
+    rows: &mut Vec<HeadingRow>,
+    series: &mut Vec<(String, Vec<f64>)>,
+    key: String,
+    label: String,
+    headings_rad: &[f64],
+    stats_of: &impl Fn(&[f64], bool) -> Option<HeadingErrorStats>,
+) {
+    rows.push(HeadingRow {
+        key: key.clone(),
+        label,
+        train: stats_of(headings_rad, true),
+        check: stats_of(headings_rad, false),
+        error: None,
+    });
+    series.push((key, to_degrees(headings_rad)));
 }
 
 fn to_degrees(headings_rad: &[f64]) -> Vec<f64> {

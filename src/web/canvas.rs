@@ -22,16 +22,23 @@ pub fn draw(
     plot: Plot,
     analysis: &CalibrationAnalysis,
 ) -> Result<(), String> {
+    draw_with(canvas, |area| match plot {
+        Plot::CircleFit => draw_circle_fit(area, analysis),
+        Plot::HeadingError => draw_heading_error(area, analysis),
+        Plot::FieldMagnitude => draw_field_magnitude_of(area, analysis),
+    })
+}
+
+/// Clears the canvas to white, draws one plot on it, and presents it.
+fn draw_with(
+    canvas: &HtmlCanvasElement,
+    plot: impl FnOnce(&DrawingArea<CanvasBackend, plotters::coord::Shift>) -> Result<(), PlotError>,
+) -> Result<(), String> {
     let backend =
         CanvasBackend::with_canvas_object(canvas.clone()).ok_or("the canvas has no 2D context")?;
     let area = backend.into_drawing_area();
     area.fill(&WHITE).map_err(|error| format!("{error:?}"))?;
-    let drawn: Result<(), PlotError> = match plot {
-        Plot::CircleFit => draw_circle_fit(&area, analysis),
-        Plot::HeadingError => draw_heading_error(&area, analysis),
-        Plot::FieldMagnitude => draw_field_magnitude_of(&area, analysis),
-    };
-    drawn.map_err(|error| error.to_string())?;
+    plot(&area).map_err(|error| error.to_string())?;
     area.present().map_err(|error| format!("{error:?}"))
 }
 
@@ -47,16 +54,10 @@ pub fn draw_heading(
     plot: HeadingPlot,
     analysis: &HeadingAnalysis,
 ) -> Result<(), String> {
-    let backend =
-        CanvasBackend::with_canvas_object(canvas.clone()).ok_or("the canvas has no 2D context")?;
-    let area = backend.into_drawing_area();
-    area.fill(&WHITE).map_err(|error| format!("{error:?}"))?;
-    let drawn: Result<(), PlotError> = match plot {
-        HeadingPlot::DeviationCurve => draw_deviation_curve(&area, analysis),
-        HeadingPlot::ResidualHistogram => draw_residual_histogram(&area, analysis),
-    };
-    drawn.map_err(|error| error.to_string())?;
-    area.present().map_err(|error| format!("{error:?}"))
+    draw_with(canvas, |area| match plot {
+        HeadingPlot::DeviationCurve => draw_deviation_curve(area, analysis),
+        HeadingPlot::ResidualHistogram => draw_residual_histogram(area, analysis),
+    })
 }
 
 /// Replaces a plot by a message, so that a failed analysis never leaves a blank or
