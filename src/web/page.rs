@@ -166,7 +166,10 @@ impl Page {
         let file_name = demo_url.rsplit('/').next().unwrap_or(&demo_url).to_string();
         self.set_state("loading", &format!("Loading the demo log {file_name}…"));
         match fetch_bytes(&demo_url).await {
-            Ok(bytes) => self.analyse_and_show(&[(file_name.as_str(), bytes.as_slice())]),
+            Ok(bytes) => {
+                self.analyse_and_show(&[(file_name.as_str(), bytes.as_slice())])
+                    .await
+            }
             Err(message) => self.show_error(&format!("Could not load the demo log {demo_url}: {message}. Drop a log to analyse it instead.")),
         }
     }
@@ -256,7 +259,7 @@ impl Page {
                     return;
                 }
             }
-            page.show_result(result);
+            page.show_result(result).await;
             if !remembered_for.is_empty() {
                 let status = page.status.text_content().unwrap_or_default();
                 page.status.set_text_content(Some(&format!(
@@ -333,9 +336,15 @@ impl Page {
         })
     }
 
-    fn show_result(&self, result: Result<CalibrationAnalysis, AnalysisError>) {
+    /// Shows the calibration, lets the browser breathe (paint, answer input), then
+    /// learns and shows the heading models: two shorter blocks instead of one long one.
+    async fn show_result(&self, result: Result<CalibrationAnalysis, AnalysisError>) {
         match result {
-            Ok(analysis) => self.show_analysis(&analysis),
+            Ok(analysis) => {
+                self.show_calibration(&analysis);
+                yield_to_browser().await;
+                self.show_heading_models(&analysis);
+            }
             Err(error) => self.show_error(&error.to_string()),
         }
     }
@@ -357,31 +366,27 @@ impl Page {
         }
     }
 
-    fn analyse_and_show(&self, files: &[(&str, &[u8])]) {
-        self.show_result(analyse_files(files, &CalibrationOptions::default()));
+    async fn analyse_and_show(&self, files: &[(&str, &[u8])]) {
+        self.show_result(analyse_files(files, &CalibrationOptions::default()))
+            .await;
     }
 
+    /// The whole analysis at once (the browser tests use it).
+    #[cfg(test)]
     pub fn show_analysis(&self, analysis: &CalibrationAnalysis) {
+        self.show_calibration(analysis);
+        self.show_heading_models(analysis);
+    }
+
+    /// The calibration's context, device calibration, notes, diagnostics and plots.
+    fn show_calibration(&self, analysis: &CalibrationAnalysis) {
         let report = &analysis.report;
-        // The heading models stand on the calibration: every method and every stack on
-        // the same split.
-        let headings = compare(analysis, &HeadingOptions::default());
         self.body.set_attribute("data-file", &report.file_name).ok();
         self.set_text("result-file", &report.file_name);
         self.show_context(report);
-        self.show_methods(&headings.report);
-        self.show_deviation_model(&headings.report);
-        for (canvas, plot) in [
-            (&self.deviation_canvas, HeadingPlot::DeviationCurve),
-            (&self.residuals_canvas, HeadingPlot::ResidualHistogram),
-        ] {
-            if let Err(message) = canvas::draw_heading(canvas, plot, &headings) {
-                let _ = canvas::draw_message(
-                    canvas,
-                    &format!("This plot could not be drawn: {message}"),
-                );
-            }
-        }
+        // The table waits for the heading models; no stale rows meanwhile.
+        self.fill_list("methods-body", std::iter::empty());
+        self.fill_list("deviation-model", std::iter::empty());
         self.show_device_calibration(analysis);
         self.fill_list("notes", or_none(report.notes.iter().cloned()));
         self.show_diagnostics(report);
@@ -391,6 +396,33 @@ impl Page {
             (&self.field_canvas, Plot::FieldMagnitude),
         ] {
             if let Err(message) = canvas::draw(canvas, plot, analysis) {
+                let _ = canvas::draw_message(
+                    canvas,
+                    &format!("This plot could not be drawn: {message}"),
+                );
+            }
+        }
+        self.set_state(
+            "loading",
+            &format!(
+                "Calibrated {}; learning the heading models…",
+                report.file_name
+            ),
+        );
+    }
+
+    /// The heading models on top of the calibration: every method and every stack on
+    /// the same split, the deviation curve and the residuals; then the page is ready.
+    fn show_heading_models(&self, analysis: &CalibrationAnalysis) {
+        let report = &analysis.report;
+        let headings = compare(analysis, &HeadingOptions::default());
+        self.show_methods(&headings.report);
+        self.show_deviation_model(&headings.report);
+        for (canvas, plot) in [
+            (&self.deviation_canvas, HeadingPlot::DeviationCurve),
+            (&self.residuals_canvas, HeadingPlot::ResidualHistogram),
+        ] {
+            if let Err(message) = canvas::draw_heading(canvas, plot, &headings) {
                 let _ = canvas::draw_message(
                     canvas,
                     &format!("This plot could not be drawn: {message}"),
@@ -667,6 +699,22 @@ fn or_none(items: impl Iterator<Item = String>) -> impl Iterator<Item = String> 
     let mut items = items.peekable();
     let none = items.peek().is_none().then(|| "None.".to_string());
     items.chain(none)
+}
+
+/// Lets the browser run its queued work (painting, input) before the next step: a
+/// zero-delay timeout, awaited.
+async fn yield_to_browser() {
+    let promise = js_sys::Promise::new(&mut |resolve, _reject| {
+        let scheduled = web_sys::window().is_some_and(|window| {
+            window
+                .set_timeout_with_callback_and_timeout_and_arguments_0(&resolve, 0)
+                .is_ok()
+        });
+        if !scheduled {
+            let _ = resolve.call0(&wasm_bindgen::JsValue::NULL);
+        }
+    });
+    let _ = JsFuture::from(promise).await;
 }
 
 /// Puts a bug report into the status area, whatever state the page is in.
