@@ -31,8 +31,25 @@ use crate::angle::wrap_to_pi;
 use crate::calib::tilt::{smooth_specific_force, Tilt};
 use crate::recording::{Recording, Stream};
 
-/// Gyro samples further apart than this (s) are a gap: the turn across it is unknown.
+/// Gyro samples further apart than this (s), or than three of the log's typical
+/// intervals where that is longer (a log of per-second means), are a gap: the turn
+/// across it is unknown.
 const MAX_GYRO_GAP_S: f64 = 0.5;
+
+/// The gap limit for this gyro stream: [`MAX_GYRO_GAP_S`], or three median intervals.
+fn gap_limit_s(t_s: &[f64]) -> f64 {
+    let mut intervals: Vec<f64> = t_s
+        .windows(2)
+        .map(|pair| pair[1] - pair[0])
+        .filter(|dt| *dt > 0.0)
+        .collect();
+    if intervals.is_empty() {
+        return MAX_GYRO_GAP_S;
+    }
+    let middle = intervals.len() / 2;
+    let median = *intervals.select_nth_unstable_by(middle, f64::total_cmp).1;
+    MAX_GYRO_GAP_S.max(3.0 * median)
+}
 /// How far apart (s) anchor samples must spread before a drift is fitted.
 const MIN_DRIFT_SPAN_S: f64 = 60.0;
 /// The largest drift searched for a closed loop (rad/s, about 2.9°/s: far beyond any
@@ -80,6 +97,7 @@ pub fn gyro_heading(
     closed_loop: bool,
 ) -> Option<GyroHeading> {
     let gyro = &recording.gyro_in_body_radps;
+    let max_gap_s = gap_limit_s(&gyro.t_s);
     let gravity = smooth_specific_force(&recording.acc_in_body_mps2, gravity_window_s);
     let mut relative = Stream::default();
     let mut heading_rad = 0.0;
@@ -90,7 +108,7 @@ pub fn gyro_heading(
             Some(Tilt::LEVEL)
         } else {
             gravity
-                .interpolate_at(t_s, MAX_GYRO_GAP_S)
+                .interpolate_at(t_s, max_gap_s)
                 .and_then(Tilt::from_specific_force)
         };
         let Some(tilt) = tilt else { continue };
@@ -103,7 +121,7 @@ pub fn gyro_heading(
         let heading_rate_radps = (rate.y * sin_roll + rate.z * cos_roll) / cos_pitch;
         if let Some((previous_t_s, previous_rate_radps)) = previous {
             let dt_s = t_s - previous_t_s;
-            if dt_s > MAX_GYRO_GAP_S {
+            if dt_s > max_gap_s {
                 n_gaps += 1;
             } else if dt_s > 0.0 {
                 heading_rad += 0.5 * (heading_rate_radps + previous_rate_radps) * dt_s;
@@ -118,7 +136,7 @@ pub fn gyro_heading(
         // Offsets anchor − gyro, unwrapped along time.
         let mut offsets: Vec<(f64, f64)> = Vec::new();
         for (&t_s, &reference_rad) in anchor.t_s.iter().zip(&anchor.values) {
-            let Some(gyro_rad) = relative.interpolate_at(t_s, MAX_GYRO_GAP_S) else {
+            let Some(gyro_rad) = relative.interpolate_at(t_s, max_gap_s) else {
                 continue;
             };
             let offset_rad = wrap_to_pi(reference_rad - gyro_rad);
@@ -240,6 +258,7 @@ fn loop_closing_drift(recording: &Recording, relative: &Stream<f64>) -> Option<(
     }
     // Each gyro step: (dt, heading, walking).
     let first_t_s = *relative.t_s.first()?;
+    let max_gap_s = gap_limit_s(&relative.t_s);
     let steps: Vec<(f64, f64, f64)> = relative
         .t_s
         .windows(2)
@@ -248,7 +267,7 @@ fn loop_closing_drift(recording: &Recording, relative: &Stream<f64>) -> Option<(
             let [t0_s, t1_s] = pair else { return None };
             let dt_s = t1_s - t0_s;
             let is_walking = walking.interpolate_at(*t1_s, 0.5).unwrap_or(0.0);
-            (dt_s > 0.0 && dt_s <= MAX_GYRO_GAP_S && is_walking > 0.5).then_some((
+            (dt_s > 0.0 && dt_s <= max_gap_s && is_walking > 0.5).then_some((
                 dt_s,
                 heading_rad,
                 t1_s - first_t_s,
