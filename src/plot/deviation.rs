@@ -157,12 +157,7 @@ pub fn draw_residual_histogram<DB: DrawingBackend>(
 ) -> Result<(), PlotError> {
     let error =
         PlotError::from_backend::<DrawingAreaErrorKind<DB::ErrorType>>("residual histogram");
-    let fit = analysis
-        .report
-        .fourier
-        .iter()
-        .find(|report| report.base_key == "raw")
-        .map(|report| &report.fit);
+    let fit = analysis.report.featured_fourier().map(|report| &report.fit);
     let (bars, max_count, caption) = match fit {
         Some(fit) => {
             let histogram = &fit.histogram;

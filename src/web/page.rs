@@ -610,6 +610,17 @@ impl Page {
                 fourier.fit.within_5_deg_pct
             )
         });
+        let neural = report.neural.iter().map(|neural| {
+            format!(
+                "MLP on {}: inputs {}; {} one-second pairs, {} logistic neurons, {} L-BFGS iterations, train MSE {:.2} deg²",
+                neural.base_label,
+                neural.inputs.join(", "),
+                neural.n_pairs,
+                neural.n_hidden,
+                neural.iterations,
+                neural.train_mse_deg2
+            )
+        });
         let online = report.online.iter().map(|online| {
             let model = online.model;
             format!(
@@ -620,7 +631,7 @@ impl Page {
         let notes = report.notes.iter().cloned();
         self.fill_list(
             "deviation-model",
-            or_none(models.chain(online).chain(notes)),
+            or_none(models.chain(neural).chain(online).chain(notes)),
         );
     }
 

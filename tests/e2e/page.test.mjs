@@ -116,6 +116,7 @@ test('the demo is analysed and drawn on load, with the CLI\'s figures', async ()
   assert.match(await text(page, 'context'), /Reference heading: the log's reference-heading column/);
   assert.match(await text(page, 'calibration'), /Hard iron \(/);
   const ellipseModel = expected.fourier.find((fourier) => fourier.base_key === 'ellipse').fit.model;
+  assert.match(await text(page, 'deviation-model'), /MLP on min\/max: inputs heading, \|H\|, gyro heading, dip, temperature/);
   assert.match(await text(page, 'deviation-model'), new RegExp(`ellipse \\(tilt-aware 2D\\): A ${ellipseModel.a_deg.toFixed(2)}°`));
   await page.screenshot({ path: join(out, 'demo.png'), fullPage: true });
   assert.deepEqual(problems, []);
