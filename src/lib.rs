@@ -43,10 +43,12 @@
 //!
 //! ## Limits (today)
 //!
-//! Calibration is field-domain only (min/max, a tilt-aware ellipse, a 3D ellipsoid,
-//! reference-heading least squares); the heading-dependent deviation that remains (a
-//! car's own field, a mount's misalignment) waits for the heading models. Tilt comes from
-//! the accelerometer averaged over a second, so fast sway is not compensated.
+//! Field-domain calibration (min/max, a tilt-aware ellipse, a 3D ellipsoid,
+//! reference-heading least squares) is followed by heading models learned from a
+//! reference ([`deviation`]: the PDR paper's Fourier model, online too, and the 2007
+//! paper's neural network). Tilt comes from the direction of specific force averaged over
+//! a second, so fast sway is not compensated (a gyro-aided attitude would). Dead
+//! reckoning (steps, step length, the EKF) is not built yet.
 
 pub mod align;
 pub mod analysis;
