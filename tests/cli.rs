@@ -151,6 +151,38 @@ fn calibrate_draws_the_plots_to_svg() {
     assert!(String::from_utf8_lossy(&output.stdout).contains("best:"));
 }
 
+#[test]
+fn heading_compares_every_method_and_draws_the_deviation_figure() {
+    let dir = scratch_dir("heading");
+    let svg = dir.join("deviation.svg");
+    let demo = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/demo-walk.csv");
+    let demo = demo.to_str().unwrap_or_default();
+    let output = compass_pdr(&["heading", demo, "--plot", svg.to_str().unwrap_or_default()]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    let text = std::fs::read_to_string(&svg).expect("SVG written");
+    for caption in [
+        "Deviation curve (Eq. 12)",
+        "Residuals:",
+        "Heading error over time",
+        "Online A…E",
+    ] {
+        assert!(text.contains(caption), "{caption} missing from the figure");
+    }
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(
+        stdout.contains("min/max + Fourier") && stdout.contains("MLP on "),
+        "{stdout}"
+    );
+    let output = compass_pdr(&["heading", demo, "--json", "--reference", "legs"]);
+    // The demo has positions on every row: legs between them are a reference too.
+    assert!(output.status.success(), "{}", stderr(&output));
+    let report: serde_json::Value = serde_json::from_slice(&output.stdout).expect("JSON");
+    assert_eq!(report["reference"]["kind"], "legs");
+    assert!(report["rows"]
+        .as_array()
+        .is_some_and(|rows| rows.len() >= 9));
+}
+
 /// Bad input: exit code 1, a message naming the file and what to do, never a panic.
 fn check_refused(test_name: &str, file_name: &str, content: &[u8], expect_in_message: &str) {
     let dir = scratch_dir(test_name);

@@ -79,8 +79,8 @@ enum Command {
         /// Print the result as JSON.
         #[arg(long)]
         json: bool,
-        /// Also draw the deviation curve, the residual histogram and the heading error
-        /// over time to this SVG file.
+        /// Also draw the deviation curve, the residual histogram, the heading error over
+        /// time and the online coefficients to this SVG file.
         #[arg(long)]
         plot: Option<PathBuf>,
     },
@@ -495,7 +495,7 @@ fn run_heading(
     let report = &analysis.report;
     print_import_diagnostics(&report.file_name, &report.calibration.diagnostics);
     if let Some(plot) = plot {
-        let root = SVGBackend::new(plot, (1800, 540)).into_drawing_area();
+        let root = SVGBackend::new(plot, (1400, 1000)).into_drawing_area();
         draw_deviation_figure(&root, &analysis)
             .map_err(|error| format!("{error} ({})", plot.display()))?;
     }

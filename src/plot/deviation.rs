@@ -1,7 +1,7 @@
 //! The heading-model figure: the deviation curve (deviation against heading, with the
 //! fitted Eq. 12 curve and the residuals, for the base whose model fits best), the residual histogram (the PDR
-//! paper's Fig. 7), and the heading error over time of the raw heading and the best
-//! method.
+//! paper's Fig. 7), the heading error over time of the raw heading and the best
+//! method, and the online model's coefficients converging.
 
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -13,23 +13,24 @@ use crate::deviation::HeadingAnalysis;
 
 const RESIDUAL_COLOR: RGBColor = RGBColor(120, 120, 120);
 
-/// The three panels side by side. This is what `compass-pdr heading --plot` writes.
+/// The four panels, two by two. This is what `compass-pdr heading --plot` writes.
 pub fn draw_deviation_figure<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
     analysis: &HeadingAnalysis,
 ) -> Result<(), PlotError> {
     area.fill(&WHITE)
         .map_err(PlotError::from_backend("figure"))?;
-    let panels = area.split_evenly((1, 3));
-    let [curve, histogram, over_time] = panels.as_slice() else {
+    let panels = area.split_evenly((2, 2));
+    let [curve, histogram, over_time, online] = panels.as_slice() else {
         return Err(PlotError {
             plot: "figure",
-            reason: "the drawing area did not split in three".to_string(),
+            reason: "the drawing area did not split in four".to_string(),
         });
     };
     draw_deviation_curve(curve, analysis)?;
     draw_residual_histogram(histogram, analysis)?;
     draw_heading_errors(over_time, analysis)?;
+    draw_online_convergence(online, analysis)?;
     area.present().map_err(PlotError::from_backend("figure"))
 }
 
@@ -298,6 +299,89 @@ pub fn draw_heading_errors<DB: DrawingBackend>(
         .map_err(&error)?
         .label(best_label.as_str())
         .legend(|(x, y)| Circle::new((x + 8, y), 3, CORRECTED_COLOR.filled()));
+    super::draw_legend(&mut chart, SeriesLabelPosition::LowerRight).map_err(&error)?;
+    Ok(())
+}
+
+/// The online model's coefficients A to E over time, as recursive least squares refits
+/// them while the reference is good: they settle as the headings fill the circle.
+pub fn draw_online_convergence<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    analysis: &HeadingAnalysis,
+) -> Result<(), PlotError> {
+    let error =
+        PlotError::from_backend::<DrawingAreaErrorKind<DB::ErrorType>>("online convergence");
+    let (snapshots, caption) = match &analysis.report.online {
+        Some(online) => (
+            online.snapshots.as_slice(),
+            format!(
+                "Online A…E on {} (RLS, memory {:.0} s)",
+                online.base_label, online.memory_s
+            ),
+        ),
+        None => (
+            &[][..],
+            "Online A…E (no reference to learn from)".to_string(),
+        ),
+    };
+    let coefficient = |snapshot: &crate::deviation::rls::RlsSnapshot, idx: usize| {
+        let model = snapshot.model;
+        [
+            model.a_deg,
+            model.b_deg,
+            model.c_deg,
+            model.d_deg,
+            model.e_deg,
+        ]
+        .get(idx)
+        .copied()
+        .unwrap_or(0.0)
+    };
+    let limit_deg = snapshots
+        .iter()
+        .flat_map(|snapshot| (0..5).map(move |idx| coefficient(snapshot, idx).abs()))
+        .fold(5.0, f64::max)
+        .min(180.0)
+        * 1.1;
+    let (first_s, last_s) = (
+        snapshots.first().map_or(0.0, |snapshot| snapshot.t_s),
+        snapshots.last().map_or(1.0, |snapshot| snapshot.t_s),
+    );
+    let mut chart = ChartBuilder::on(area)
+        .caption(caption, ("sans-serif", 16))
+        .margin(12)
+        .x_label_area_size(36)
+        .y_label_area_size(48)
+        .build_cartesian_2d(first_s..last_s.max(first_s + 1e-3), -limit_deg..limit_deg)
+        .map_err(&error)?;
+    chart
+        .configure_mesh()
+        .x_desc("time (s)")
+        .y_desc("coefficient (°)")
+        .light_line_style(WHITE.mix(0.0))
+        .draw()
+        .map_err(&error)?;
+    let colors = [
+        RGBColor(30, 100, 200),
+        RGBColor(230, 120, 30),
+        RGBColor(40, 150, 70),
+        RGBColor(170, 50, 160),
+        RGBColor(120, 120, 120),
+    ];
+    for (idx, (name, color)) in ["A", "B", "C", "D", "E"].iter().zip(colors).enumerate() {
+        chart
+            .draw_series(LineSeries::new(
+                snapshots
+                    .iter()
+                    .map(|snapshot| (snapshot.t_s, coefficient(snapshot, idx))),
+                color.stroke_width(2),
+            ))
+            .map_err(&error)?
+            .label(*name)
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 16, y)], color.stroke_width(2))
+            });
+    }
     super::draw_legend(&mut chart, SeriesLabelPosition::LowerRight).map_err(&error)?;
     Ok(())
 }

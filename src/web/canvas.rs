@@ -6,7 +6,9 @@ use web_sys::HtmlCanvasElement;
 
 use crate::calibration::CalibrationAnalysis;
 use crate::deviation::HeadingAnalysis;
-use crate::plot::deviation::{draw_deviation_curve, draw_residual_histogram};
+use crate::plot::deviation::{
+    draw_deviation_curve, draw_online_convergence, draw_residual_histogram,
+};
 use crate::plot::{draw_circle_fit, draw_field_magnitude_of, draw_heading_error, PlotError};
 
 /// Which plot goes on a canvas.
@@ -47,6 +49,7 @@ fn draw_with(
 pub enum HeadingPlot {
     DeviationCurve,
     ResidualHistogram,
+    OnlineConvergence,
 }
 
 pub fn draw_heading(
@@ -57,6 +60,7 @@ pub fn draw_heading(
     draw_with(canvas, |area| match plot {
         HeadingPlot::DeviationCurve => draw_deviation_curve(area, analysis),
         HeadingPlot::ResidualHistogram => draw_residual_histogram(area, analysis),
+        HeadingPlot::OnlineConvergence => draw_online_convergence(area, analysis),
     })
 }
 

@@ -30,6 +30,7 @@ const HEADING_CANVAS_ID: &str = "plot-heading";
 const FIELD_CANVAS_ID: &str = "plot-field";
 const DEVIATION_CANVAS_ID: &str = "plot-deviation";
 const RESIDUALS_CANVAS_ID: &str = "plot-residuals";
+const ONLINE_CANVAS_ID: &str = "plot-online";
 const PROGRESS_ID: &str = "progress";
 
 /// Bytes read from a file at a time: small enough that the page answers between
@@ -72,6 +73,7 @@ pub struct Page {
     field_canvas: HtmlCanvasElement,
     deviation_canvas: HtmlCanvasElement,
     residuals_canvas: HtmlCanvasElement,
+    online_canvas: HtmlCanvasElement,
 }
 
 impl Page {
@@ -102,6 +104,7 @@ impl Page {
             field_canvas: canvas(FIELD_CANVAS_ID)?,
             deviation_canvas: canvas(DEVIATION_CANVAS_ID)?,
             residuals_canvas: canvas(RESIDUALS_CANVAS_ID)?,
+            online_canvas: canvas(ONLINE_CANVAS_ID)?,
             body,
             document,
         }))
@@ -421,6 +424,7 @@ impl Page {
         for (canvas, plot) in [
             (&self.deviation_canvas, HeadingPlot::DeviationCurve),
             (&self.residuals_canvas, HeadingPlot::ResidualHistogram),
+            (&self.online_canvas, HeadingPlot::OnlineConvergence),
         ] {
             if let Err(message) = canvas::draw_heading(canvas, plot, &headings) {
                 let _ = canvas::draw_message(
@@ -470,6 +474,7 @@ impl Page {
             &self.field_canvas,
             &self.deviation_canvas,
             &self.residuals_canvas,
+            &self.online_canvas,
         ] {
             let _ = canvas::draw_message(canvas, &format!("No plot: {message}"));
         }

@@ -125,7 +125,7 @@ fn add_page_skeleton() {
            <ul id="calibration"></ul><ul id="notes"></ul><ul id="diagnostics"></ul>
            <canvas id="plot-circle" width="320" height="240"></canvas><canvas id="plot-heading" width="320" height="240"></canvas>
            <canvas id="plot-field" width="320" height="240"></canvas><ul id="deviation-model"></ul>
-           <canvas id="plot-deviation" width="320" height="240"></canvas><canvas id="plot-residuals" width="320" height="240"></canvas>"#,
+           <canvas id="plot-deviation" width="320" height="240"></canvas><canvas id="plot-residuals" width="320" height="240"></canvas><canvas id="plot-online" width="320" height="240"></canvas>"#,
     );
     document
         .body()

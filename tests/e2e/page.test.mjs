@@ -80,7 +80,7 @@ async function assertStatsMatch(page, expected) {
 const checkRms = (report, key) => report.rows.find((row) => row.key === key)?.check?.rms_deg;
 
 async function assertPlotsDrawn(page) {
-  for (const id of ['plot-circle', 'plot-heading', 'plot-field', 'plot-deviation', 'plot-residuals']) {
+  for (const id of ['plot-circle', 'plot-heading', 'plot-field', 'plot-deviation', 'plot-residuals', 'plot-online']) {
     const n = await drawnPixels(page, id);
     assert.ok(n > 10_000, `#${id} has ${n} drawn pixels`);
   }
