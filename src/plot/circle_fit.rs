@@ -31,23 +31,15 @@ pub fn draw_circle_fit<DB: DrawingBackend>(
     }
     let (x_range, y_range) = equal_scale_ranges(area, (min_x, max_x), (min_y, max_y));
 
-    let mut chart = ChartBuilder::on(area)
-        .caption(
-            "Level-plane field (µT): raw, fitted ellipse, corrected",
-            ("sans-serif", 16),
-        )
-        .margin(12)
-        .x_label_area_size(36)
-        .y_label_area_size(48)
-        .build_cartesian_2d(x_range, y_range)
-        .map_err(&error)?;
-    chart
-        .configure_mesh()
-        .x_desc("Xh (µT)")
-        .y_desc("Yh (µT)")
-        .light_line_style(WHITE.mix(0.0))
-        .draw()
-        .map_err(&error)?;
+    let mut chart = super::styled_chart(
+        area,
+        "Level-plane field (µT): raw, fitted ellipse, corrected",
+        x_range,
+        y_range,
+        "Xh (µT)",
+        "Yh (µT)",
+    )
+    .map_err(&error)?;
 
     let raw = &analysis.level_raw_ut;
     chart

@@ -103,23 +103,15 @@ pub fn draw_deviation_curve<DB: DrawingBackend>(
         .fold(10.0, f64::max)
         .min(180.0)
         * 1.1;
-    let mut chart = ChartBuilder::on(area)
-        .caption(
-            format!("Deviation curve (Eq. 12) of {base_label}"),
-            ("sans-serif", 16),
-        )
-        .margin(12)
-        .x_label_area_size(36)
-        .y_label_area_size(48)
-        .build_cartesian_2d(0.0..360.0, -limit_deg..limit_deg)
-        .map_err(&error)?;
-    chart
-        .configure_mesh()
-        .x_desc("heading before the model (°)")
-        .y_desc("reference − heading (°)")
-        .light_line_style(WHITE.mix(0.0))
-        .draw()
-        .map_err(&error)?;
+    let mut chart = super::styled_chart(
+        area,
+        format!("Deviation curve (Eq. 12) of {base_label}"),
+        0.0..360.0,
+        -limit_deg..limit_deg,
+        "heading before the model (°)",
+        "reference − heading (°)",
+    )
+    .map_err(&error)?;
     chart
         .draw_series(
             points
@@ -180,20 +172,15 @@ pub fn draw_residual_histogram<DB: DrawingBackend>(
         }
         None => (Vec::new(), 1, "Residuals (no model fitted)".to_string()),
     };
-    let mut chart = ChartBuilder::on(area)
-        .caption(caption, ("sans-serif", 16))
-        .margin(12)
-        .x_label_area_size(36)
-        .y_label_area_size(48)
-        .build_cartesian_2d(-20.0..20.0, 0.0..(max_count as f64 * 1.1))
-        .map_err(&error)?;
-    chart
-        .configure_mesh()
-        .x_desc("residual (°)")
-        .y_desc("pairs (1 s means)")
-        .light_line_style(WHITE.mix(0.0))
-        .draw()
-        .map_err(&error)?;
+    let mut chart = super::styled_chart(
+        area,
+        caption,
+        -20.0..20.0,
+        0.0..(max_count as f64 * 1.1),
+        "residual (°)",
+        "pairs (1 s means)",
+    )
+    .map_err(&error)?;
     chart
         .draw_series(bars.iter().map(|&(from_deg, to_deg, count)| {
             Rectangle::new(
@@ -255,20 +242,15 @@ pub fn draw_heading_errors<DB: DrawingBackend>(
         t_s.first().copied().unwrap_or(0.0),
         t_s.last().copied().unwrap_or(1.0),
     );
-    let mut chart = ChartBuilder::on(area)
-        .caption("Heading error over time", ("sans-serif", 16))
-        .margin(12)
-        .x_label_area_size(36)
-        .y_label_area_size(48)
-        .build_cartesian_2d(first_s..last_s.max(first_s + 1e-3), -limit_deg..limit_deg)
-        .map_err(&error)?;
-    chart
-        .configure_mesh()
-        .x_desc("time (s)")
-        .y_desc("error (°)")
-        .light_line_style(WHITE.mix(0.0))
-        .draw()
-        .map_err(&error)?;
+    let mut chart = super::styled_chart(
+        area,
+        "Heading error over time",
+        first_s..last_s.max(first_s + 1e-3),
+        -limit_deg..limit_deg,
+        "time (s)",
+        "error (°)",
+    )
+    .map_err(&error)?;
     if let Some(until_s) = analysis
         .report
         .train_until_s
@@ -347,20 +329,15 @@ pub fn draw_online_convergence<DB: DrawingBackend>(
         snapshots.first().map_or(0.0, |snapshot| snapshot.t_s),
         snapshots.last().map_or(1.0, |snapshot| snapshot.t_s),
     );
-    let mut chart = ChartBuilder::on(area)
-        .caption(caption, ("sans-serif", 16))
-        .margin(12)
-        .x_label_area_size(36)
-        .y_label_area_size(48)
-        .build_cartesian_2d(first_s..last_s.max(first_s + 1e-3), -limit_deg..limit_deg)
-        .map_err(&error)?;
-    chart
-        .configure_mesh()
-        .x_desc("time (s)")
-        .y_desc("coefficient (°)")
-        .light_line_style(WHITE.mix(0.0))
-        .draw()
-        .map_err(&error)?;
+    let mut chart = super::styled_chart(
+        area,
+        caption,
+        first_s..last_s.max(first_s + 1e-3),
+        -limit_deg..limit_deg,
+        "time (s)",
+        "coefficient (°)",
+    )
+    .map_err(&error)?;
     let colors = [
         RGBColor(30, 100, 200),
         RGBColor(230, 120, 30),

@@ -70,20 +70,15 @@ pub fn draw_field_magnitude<DB: DrawingBackend>(
         Some(value) => format!("Field magnitude |B| against WMM {value:.1} µT"),
         None => "Field magnitude |B| (no WMM value: needs a position and a date)".to_owned(),
     };
-    let mut chart = ChartBuilder::on(area)
-        .caption(caption, ("sans-serif", 16))
-        .margin(12)
-        .x_label_area_size(36)
-        .y_label_area_size(48)
-        .build_cartesian_2d(time_range.clone(), magnitude_range)
-        .map_err(&error)?;
-    chart
-        .configure_mesh()
-        .x_desc("time (s)")
-        .y_desc("|B| (µT)")
-        .light_line_style(WHITE.mix(0.0))
-        .draw()
-        .map_err(&error)?;
+    let mut chart = super::styled_chart(
+        area,
+        caption,
+        time_range.clone(),
+        magnitude_range,
+        "time (s)",
+        "|B| (µT)",
+    )
+    .map_err(&error)?;
 
     chart
         .draw_series(LineSeries::new(raw, RAW_COLOR.stroke_width(1)))

@@ -79,19 +79,7 @@ pub fn draw_heading_error<DB: DrawingBackend>(
         )
     };
 
-    let mut chart = ChartBuilder::on(area)
-        .caption(caption, ("sans-serif", 16))
-        .margin(12)
-        .x_label_area_size(36)
-        .y_label_area_size(48)
-        .build_cartesian_2d(time_range, y_range)
-        .map_err(&error)?;
-    chart
-        .configure_mesh()
-        .x_desc("time (s)")
-        .y_desc(y_desc)
-        .light_line_style(WHITE.mix(0.0))
-        .draw()
+    let mut chart = super::styled_chart(area, caption, time_range, y_range, "time (s)", y_desc)
         .map_err(&error)?;
 
     chart

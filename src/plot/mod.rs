@@ -9,6 +9,7 @@ pub mod deviation;
 pub mod field_magnitude;
 pub mod heading_error;
 
+use plotters::coord::types::RangedCoordf64;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use thiserror::Error;
@@ -94,6 +95,34 @@ pub(crate) fn draw_legend<'a, DB: DrawingBackend + 'a, CT: plotters::coord::Coor
 }
 
 /// The indices of at most `max_points` evenly spaced elements of `0..len`.
+/// A chart with two `f64` axes.
+pub(crate) type XyChart<'a, DB> = ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+
+/// A chart in the plots' common style: a 16 px sans-serif caption, 12 px margins, room
+/// for the axis labels, both axes described and the light grid lines hidden.
+pub(crate) fn styled_chart<'a, DB: DrawingBackend>(
+    area: &'a DrawingArea<DB, Shift>,
+    caption: impl AsRef<str>,
+    x_range: std::ops::Range<f64>,
+    y_range: std::ops::Range<f64>,
+    x_desc: &str,
+    y_desc: &str,
+) -> Result<XyChart<'a, DB>, DrawingAreaErrorKind<DB::ErrorType>> {
+    let mut chart = ChartBuilder::on(area)
+        .caption(caption.as_ref(), ("sans-serif", 16))
+        .margin(12)
+        .x_label_area_size(36)
+        .y_label_area_size(48)
+        .build_cartesian_2d(x_range, y_range)?;
+    chart
+        .configure_mesh()
+        .x_desc(x_desc)
+        .y_desc(y_desc)
+        .light_line_style(WHITE.mix(0.0))
+        .draw()?;
+    Ok(chart)
+}
+
 pub(crate) fn thinned_indices(len: usize, max_points: usize) -> impl Iterator<Item = usize> {
     let stride = len.div_ceil(max_points.max(1)).max(1);
     (0..len).step_by(stride)
