@@ -786,22 +786,36 @@ impl TiltAwareProblem<'_> {
     }
 }
 
+/// Writes a Levenberg-Marquardt step's free parameters into the full set (the fits
+/// here hold some parameters fixed).
+pub(super) fn set_free(full: &mut [f64], free: &[usize], params: &DVector<f64>) {
+    for (&param_idx, &value) in free.iter().zip(params.iter()) {
+        if let Some(slot) = full.get_mut(param_idx) {
+            *slot = value;
+        }
+    }
+}
+
+/// The free parameters of the full set, as Levenberg-Marquardt sees them.
+pub(super) fn free_of(full: &[f64], free: &[usize]) -> DVector<f64> {
+    DVector::from_iterator(
+        free.len(),
+        free.iter()
+            .map(|&param_idx| full.get(param_idx).copied().unwrap_or(0.0)),
+    )
+}
+
 impl LeastSquaresProblem<f64, Dyn, Dyn> for TiltAwareProblem<'_> {
     type ResidualStorage = Owned<f64, Dyn>;
     type JacobianStorage = Owned<f64, Dyn, Dyn>;
     type ParameterStorage = Owned<f64, Dyn>;
 
     fn set_params(&mut self, params: &DVector<f64>) {
-        for (&param_idx, &value) in self.free.iter().zip(params.iter()) {
-            self.full[param_idx] = value;
-        }
+        set_free(&mut self.full, &self.free, params);
     }
 
     fn params(&self) -> DVector<f64> {
-        DVector::from_iterator(
-            self.free.len(),
-            self.free.iter().map(|&param_idx| self.full[param_idx]),
-        )
+        free_of(&self.full, &self.free)
     }
 
     fn residuals(&self) -> Option<DVector<f64>> {

@@ -184,16 +184,11 @@ impl LeastSquaresProblem<f64, Dyn, Dyn> for IsotropicProblem<'_> {
     type ParameterStorage = Owned<f64, Dyn>;
 
     fn set_params(&mut self, params: &DVector<f64>) {
-        for (&param_idx, &value) in self.free.iter().zip(params.iter()) {
-            self.params[param_idx] = value;
-        }
+        super::plane::set_free(&mut self.params, &self.free, params);
     }
 
     fn params(&self) -> DVector<f64> {
-        DVector::from_iterator(
-            self.free.len(),
-            self.free.iter().map(|&param_idx| self.params[param_idx]),
-        )
+        super::plane::free_of(&self.params, &self.free)
     }
 
     fn residuals(&self) -> Option<DVector<f64>> {
