@@ -247,17 +247,12 @@ mod tests {
         }
     }
 
+    /// Short decimals as sensor logs write them, signs and bare points included.
+    const SHORT_DECIMALS: [&str; 8] = ["0", "-0", "+1", "1.", ".5", "-.5", "9.6864", "-9.6864"];
+
     #[test]
     fn agrees_with_the_standard_library_bit_for_bit() {
-        for text in [
-            "0",
-            "-0",
-            "+1",
-            "1.",
-            ".5",
-            "-.5",
-            "9.6864",
-            "-9.6864",
+        for text in SHORT_DECIMALS.into_iter().chain([
             "1.839072609E1",
             "3.446083327E-3",
             "1e22",
@@ -290,7 +285,7 @@ mod tests {
             "-0.000",
             "1E400",
             "1e-400",
-        ] {
+        ]) {
             check(text);
         }
     }
@@ -310,15 +305,7 @@ mod tests {
 
     #[test]
     fn the_eight_byte_parser_agrees_with_the_digit_by_digit_one() {
-        for text in [
-            "0",
-            "-0",
-            "+1",
-            "1.",
-            ".5",
-            "-.5",
-            "9.6864",
-            "-9.6864",
+        for text in SHORT_DECIMALS.into_iter().chain([
             "33.259",
             "0.00058",
             "18199.980",
@@ -342,7 +329,7 @@ mod tests {
             "-7.",
             "1234567",
             "12345678",
-        ] {
+        ]) {
             check_at(text);
         }
         let mut state: u64 = 0x9E37_79B9_7F4A_7C15;
