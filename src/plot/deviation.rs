@@ -112,25 +112,9 @@ pub fn draw_deviation_curve<DB: DrawingBackend>(
         "reference − heading (°)",
     )
     .map_err(&error)?;
-    chart
-        .draw_series(
-            points
-                .iter()
-                .map(|&point| Circle::new(point, 1, RAW_COLOR.filled())),
-        )
-        .map_err(&error)?
-        .label("deviation")
-        .legend(|(x, y)| Circle::new((x + 8, y), 3, RAW_COLOR.filled()));
+    super::draw_dots(&mut chart, &points, RAW_COLOR, "deviation").map_err(&error)?;
     if !residuals.is_empty() {
-        chart
-            .draw_series(
-                residuals
-                    .iter()
-                    .map(|&point| Circle::new(point, 1, RESIDUAL_COLOR.filled())),
-            )
-            .map_err(&error)?
-            .label("residual")
-            .legend(|(x, y)| Circle::new((x + 8, y), 3, RESIDUAL_COLOR.filled()));
+        super::draw_dots(&mut chart, &residuals, RESIDUAL_COLOR, "residual").map_err(&error)?;
         chart
             .draw_series(LineSeries::new(curve, CORRECTED_COLOR.stroke_width(2)))
             .map_err(&error)?
@@ -265,22 +249,8 @@ pub fn draw_heading_errors<DB: DrawingBackend>(
             .label("train | check")
             .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], BLACK.mix(0.4)));
     }
-    chart
-        .draw_series(
-            raw.iter()
-                .map(|&point| Circle::new(point, 1, RAW_COLOR.filled())),
-        )
-        .map_err(&error)?
-        .label("uncalibrated")
-        .legend(|(x, y)| Circle::new((x + 8, y), 3, RAW_COLOR.filled()));
-    chart
-        .draw_series(
-            best.iter()
-                .map(|&point| Circle::new(point, 1, CORRECTED_COLOR.filled())),
-        )
-        .map_err(&error)?
-        .label(best_label.as_str())
-        .legend(|(x, y)| Circle::new((x + 8, y), 3, CORRECTED_COLOR.filled()));
+    super::draw_dots(&mut chart, &raw, RAW_COLOR, "uncalibrated").map_err(&error)?;
+    super::draw_dots(&mut chart, &best, CORRECTED_COLOR, best_label.as_str()).map_err(&error)?;
     super::draw_legend(&mut chart, SeriesLabelPosition::LowerRight).map_err(&error)?;
     Ok(())
 }

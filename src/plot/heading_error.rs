@@ -82,24 +82,8 @@ pub fn draw_heading_error<DB: DrawingBackend>(
     let mut chart = super::styled_chart(area, caption, time_range, y_range, "time (s)", y_desc)
         .map_err(&error)?;
 
-    chart
-        .draw_series(
-            before
-                .iter()
-                .map(|&point| Circle::new(point, 1, RAW_COLOR.filled())),
-        )
-        .map_err(&error)?
-        .label("before calibration")
-        .legend(|(x, y)| Circle::new((x + 8, y), 3, RAW_COLOR.filled()));
-    chart
-        .draw_series(
-            after
-                .iter()
-                .map(|&point| Circle::new(point, 1, CORRECTED_COLOR.filled())),
-        )
-        .map_err(&error)?
-        .label(best_label.as_str())
-        .legend(|(x, y)| Circle::new((x + 8, y), 3, CORRECTED_COLOR.filled()));
+    super::draw_dots(&mut chart, &before, RAW_COLOR, "before calibration").map_err(&error)?;
+    super::draw_dots(&mut chart, &after, CORRECTED_COLOR, best_label.as_str()).map_err(&error)?;
     super::draw_legend(&mut chart, SeriesLabelPosition::LowerRight).map_err(&error)?;
     Ok(())
 }

@@ -123,6 +123,24 @@ pub(crate) fn styled_chart<'a, DB: DrawingBackend>(
     Ok(chart)
 }
 
+/// Points as small dots, with a legend entry.
+pub(crate) fn draw_dots<DB: DrawingBackend>(
+    chart: &mut XyChart<'_, DB>,
+    points: &[(f64, f64)],
+    color: RGBColor,
+    label: &str,
+) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    chart
+        .draw_series(
+            points
+                .iter()
+                .map(|&point| Circle::new(point, 1, color.filled())),
+        )?
+        .label(label)
+        .legend(move |(x, y)| Circle::new((x + 8, y), 3, color.filled()));
+    Ok(())
+}
+
 pub(crate) fn thinned_indices(len: usize, max_points: usize) -> impl Iterator<Item = usize> {
     let stride = len.div_ceil(max_points.max(1)).max(1);
     (0..len).step_by(stride)
