@@ -60,6 +60,7 @@ pub mod deviation;
 pub mod geo;
 pub mod io;
 pub mod nn;
+pub mod pdr;
 pub mod plot;
 pub mod recording;
 pub mod reference;

@@ -15,7 +15,11 @@ use compass_pdr::io::canonical_csv;
 use compass_pdr::io::delimited::ColumnMapping;
 use compass_pdr::io::import::{header_signature, merge, ChunkedImport, Inspection};
 use compass_pdr::io::{Diagnostics, ImportReport};
-use compass_pdr::plot::{draw_calibration_figure, draw_deviation_figure};
+use compass_pdr::pdr::export::{track_text, TrackFormat};
+use compass_pdr::pdr::fusion::{GnssPolicy, Outage};
+use compass_pdr::pdr::step_length::{StepLengthModel, StepModelKind};
+use compass_pdr::pdr::{self, HeadingChoice, PdrOptions, PdrReport};
+use compass_pdr::plot::{draw_calibration_figure, draw_deviation_figure, draw_pdr_figure};
 use compass_pdr::reference::{ReferenceChoice, ReferenceOptions};
 use compass_pdr::sim::walk::{simulate, WalkConfig};
 use compass_pdr::stats::HeadingErrorStats;
@@ -84,6 +88,25 @@ enum Command {
         #[arg(long)]
         plot: Option<PathBuf>,
     },
+    /// Dead-reckon a walk: steps, step lengths trained on GNSS (or a known distance),
+    /// headings from the best heading model, and the [E, N, l, a] EKF that bridges GNSS
+    /// outages; with the paper's accuracy figures against reference positions.
+    Pdr {
+        #[command(flatten)]
+        input: ImportArgs,
+        #[command(flatten)]
+        pdr: PdrArgs,
+        /// Print the result as JSON.
+        #[arg(long)]
+        json: bool,
+        /// Write the track: .csv (local metres, and latitude/longitude when the log has
+        /// GNSS), .geojson or .gpx (these need GNSS).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Draw the trajectory, the step lengths and the position error to this SVG file.
+        #[arg(long)]
+        plot: Option<PathBuf>,
+    },
     /// Show what a log holds: its format, streams (count, rate, duration, gaps), what
     /// was assumed, and every line that was skipped.
     Inspect {
@@ -139,6 +162,84 @@ struct AnalysisArgs {
     /// (indoors): the magnetic model needs a place for the expected field.
     #[arg(long, allow_hyphen_values = true)]
     position: Option<String>,
+}
+
+/// The choices of dead reckoning.
+#[derive(Debug, clap::Args)]
+struct PdrArgs {
+    /// Ignore GNSS from START to END (seconds of log time), as the paper's evaluation
+    /// does; repeat for several outages.
+    #[arg(long = "outage", value_name = "START:END")]
+    outages: Vec<String>,
+    /// The step-length model: linear (SL = A + B·SF + C·SV), weinberg
+    /// (SL = K·(Amax − Amin)^¼) or mlp (16 tanh neurons).
+    #[arg(long, default_value = "weinberg")]
+    step_model: String,
+    /// The heading: auto (the heading model with the lowest check error against GNSS
+    /// course, else the best calibration), a model key from `compass-pdr heading`
+    /// (ellipse, ellipse+fourier, mlp, ...), gyro (the gyro aligned to the compass), or
+    /// device (the device's own fused yaw, e.g. Android's rotation vector).
+    #[arg(long, default_value = "auto")]
+    heading_model: String,
+    /// The walk is known to be this long (m): fits Weinberg's K.
+    #[arg(long)]
+    known_distance: Option<f64>,
+    /// The walk ends where it started: report the loop-closure error.
+    #[arg(long)]
+    closed_loop: bool,
+    /// Declination: `auto` (the World Magnetic Model at the log's first position and
+    /// date), or degrees, east positive.
+    #[arg(long, default_value = "auto", allow_hyphen_values = true)]
+    declination: String,
+    /// Where the log was recorded, `LAT,LON` in degrees, for logs without GNSS.
+    #[arg(long, allow_hyphen_values = true)]
+    position: Option<String>,
+}
+
+impl PdrArgs {
+    fn options(&self) -> Result<PdrOptions, String> {
+        let mut outages = Vec::new();
+        for text in &self.outages {
+            outages.push(Outage::parse(text).ok_or_else(|| {
+                format!("--outage {text}: give START:END in seconds of log time, START before END, e.g. --outage 240:840")
+            })?);
+        }
+        let step_model = StepModelKind::parse(&self.step_model).ok_or_else(|| {
+            format!(
+                "--step-model {}: choose linear, weinberg or mlp",
+                self.step_model
+            )
+        })?;
+        if let Some(distance) = self
+            .known_distance
+            .filter(|distance| !(distance.is_finite() && *distance > 0.0))
+        {
+            return Err(format!(
+                "--known-distance {distance}: give the walk's length in metres"
+            ));
+        }
+        let calibration = CalibrationOptions {
+            declination: parse_declination(&self.declination)?,
+            position_deg: self.position.as_deref().map(parse_position).transpose()?,
+            ..CalibrationOptions::default()
+        };
+        let defaults = PdrOptions::default();
+        Ok(PdrOptions {
+            step_model,
+            heading: HeadingChoice::parse(&self.heading_model),
+            heading_options: HeadingOptions {
+                calibration,
+                ..HeadingOptions::default()
+            },
+            known_distance_m: self.known_distance,
+            closed_loop: self.closed_loop,
+            gnss: GnssPolicy {
+                outages,
+                ..defaults.gnss.clone()
+            },
+            ..defaults
+        })
+    }
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -223,6 +324,15 @@ pub fn main() -> ExitCode {
             truth,
         } => run_simulate(seed, duration_s, &out, truth.as_deref()),
         Command::Inspect { input, json } => run_inspect(&input, json),
+        Command::Pdr {
+            input,
+            pdr,
+            json,
+            out,
+            plot,
+        } => pdr
+            .options()
+            .and_then(|options| run_pdr(&input, &options, json, out.as_deref(), plot.as_deref())),
         Command::Calibrate {
             input,
             method,
@@ -506,6 +616,146 @@ fn run_heading(
     } else {
         print_out(&heading_text(report))
     }
+}
+
+fn run_pdr(
+    input: &ImportArgs,
+    options: &PdrOptions,
+    json: bool,
+    out: Option<&Path>,
+    plot: Option<&Path>,
+) -> Result<(), String> {
+    let report = import_paths(input)?;
+    print_import_diagnostics(&report.file_name, &report.diagnostics);
+    let analysis = pdr::run(report, options).map_err(|error| error.to_string())?;
+    if let Some(out) = out {
+        let name = out.to_string_lossy();
+        let format = TrackFormat::from_file_name(&name).ok_or_else(|| {
+            format!("--out {name}: end the file name with .csv, .geojson or .gpx")
+        })?;
+        let text =
+            track_text(&analysis, format).map_err(|error| format!("--out {name}: {error}"))?;
+        std::fs::write(out, text).map_err(|error| format!("cannot write {name}: {error}"))?;
+    }
+    if let Some(plot) = plot {
+        let root = SVGBackend::new(plot, (1400, 1000)).into_drawing_area();
+        draw_pdr_figure(&root, &analysis)
+            .map_err(|error| format!("{error} ({})", plot.display()))?;
+    }
+    if json {
+        let text = serde_json::to_string_pretty(&analysis.report)
+            .map_err(|error| format!("cannot encode the result: {error}"))?;
+        print_out(&(text + "\n"))
+    } else {
+        print_out(&pdr_text(&analysis.report))
+    }
+}
+
+/// The PDR result as the paper's tables: steps, the step model, and the errors.
+fn pdr_text(report: &PdrReport) -> String {
+    use std::fmt::Write as _;
+    let mut text = String::new();
+    let _ = writeln!(
+        text,
+        "{}: {} steps in {} bouts over {:.0} s{}, {:.1} m dead-reckoned",
+        report.file_name,
+        report.n_steps,
+        report.n_bouts,
+        report.duration_s,
+        report
+            .mean_step_frequency_hz
+            .map_or(String::new(), |hz| format!(" ({hz:.2} steps/s)")),
+        report.pdr_distance_m
+    );
+    let model = match &report.step_model.model {
+        StepLengthModel::Linear {
+            a_m,
+            b_m_per_hz,
+            c_m_per_var,
+        } => format!("linear SL = {a_m:.3} + {b_m_per_hz:.3}·SF + {c_m_per_var:.4}·SV"),
+        StepLengthModel::Weinberg { k } => format!("Weinberg SL = {k:.4}·(Amax − Amin)^¼"),
+        StepLengthModel::Neural { .. } => "neural network, 16 tanh neurons".to_string(),
+    };
+    let trained = match report.step_model.trained_on {
+        "gnss_speed" => format!(
+            "trained on the GNSS speed of {} steps{}",
+            report.step_model.n_references,
+            report
+                .step_model
+                .train_rms_m
+                .map_or(String::new(), |rms| format!(", RMS {rms:.3} m"))
+        ),
+        "known_distance" => "fitted to the known distance".to_string(),
+        _ => "not trained (default)".to_string(),
+    };
+    let _ = writeln!(text, "  step model: {model}, {trained}");
+    let _ = writeln!(
+        text,
+        "  heading: {} ({})",
+        report.heading_label, report.heading_key
+    );
+    let fixes = &report.fixes;
+    let _ = writeln!(
+        text,
+        "  GNSS fixes: {} used, {} after a reset, {} in outages, {} too inaccurate, {} rejected by the gate",
+        fixes.used, fixes.used_after_reset, fixes.in_outage, fixes.poor_accuracy, fixes.rejected
+    );
+    let position_row =
+        |text: &mut String, name: &str, errors: &compass_pdr::pdr::metrics::PositionErrors| {
+            let _ = writeln!(
+            text,
+            "  {name:<26} {:>5} pts {:>8.1} m {:>7.2} m {:>6.2} % {:>7.2} m {:>6.2} % {:>+7.2} %",
+            errors.n_points,
+            errors.distance_m,
+            errors.rms_m,
+            errors.rms_pct,
+            errors.max_m,
+            errors.max_pct,
+            errors.distance_error_pct
+        );
+        };
+    if report.position_error.is_some() || !report.outage_position_errors.is_empty() {
+        let _ = writeln!(
+            text,
+            "  {:<26} {:>9} {:>10} {:>9} {:>8} {:>9} {:>8} {:>9}",
+            "position error", "points", "distance", "RMS", "RMS", "max", "max", "distance"
+        );
+    }
+    if let Some(errors) = &report.position_error {
+        position_row(&mut text, "whole walk", errors);
+    }
+    for (outage, errors) in report.outages.iter().zip(&report.outage_position_errors) {
+        position_row(
+            &mut text,
+            &format!("outage {:.0}-{:.0} s", outage.start_s, outage.end_s),
+            errors,
+        );
+    }
+    if let Some(error) = &report.step_length_error_m {
+        let _ = writeln!(
+            text,
+            "  step length error: {:+.3} ± {:.3} m over {} steps",
+            error.mean, error.std, error.n
+        );
+    }
+    if let Some(error) = &report.heading_error_deg {
+        let _ = writeln!(
+            text,
+            "  heading error: {:+.2} ± {:.2}° over {} steps",
+            error.mean, error.std, error.n
+        );
+    }
+    if let Some(closure) = &report.loop_closure {
+        let _ = writeln!(
+            text,
+            "  loop closure: {:.2} m, {:.2} % of {:.1} m",
+            closure.gap_m, closure.gap_pct, closure.length_m
+        );
+    }
+    for note in &report.notes {
+        let _ = writeln!(text, "  note: {note}");
+    }
+    text
 }
 
 /// The heading comparison as a table, then each Fourier model as the paper's Table II.

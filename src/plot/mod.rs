@@ -8,6 +8,7 @@ pub mod circle_fit;
 pub mod deviation;
 pub mod field_magnitude;
 pub mod heading_error;
+pub mod pdr;
 
 use plotters::coord::types::RangedCoordf64;
 use plotters::coord::Shift;
@@ -20,6 +21,7 @@ pub use circle_fit::draw_circle_fit;
 pub use deviation::draw_deviation_figure;
 pub use field_magnitude::draw_field_magnitude;
 pub use heading_error::draw_heading_error;
+pub use pdr::draw_pdr_figure;
 
 /// At most this many points of one series are drawn; longer series are thinned evenly.
 pub const MAX_POINTS_PER_SERIES: usize = 4000;

@@ -1,0 +1,842 @@
+//! Pedestrian dead reckoning: steps, step lengths, headings and the EKF that bridges
+//! GNSS outages (Chen et al., *A unified heading error model and step length
+//! estimation for PDR*, Sections III, V and VI; Fig. 2).
+//!
+//! ## Layout
+//!
+//! - `steps.rs`: step detection (sliding window, zero crossing and peak detection on
+//!   `|f|`) with SF, SV, Amax and Amin per step.
+//! - `step_length.rs`: the linear (Eq. 2), Weinberg (Eq. 3) and neural step-length
+//!   models, fitted to per-step references or to a known distance.
+//! - `ekf.rs`: the `[E, N, l, a]` filter of Eq. 13 with GNSS position updates ("how to
+//!   fuse").
+//! - `fusion.rs`: GNSS/PDR switching: outages, accuracy and χ² gates, recovery ("when
+//!   to fuse").
+//! - `metrics.rs`: the paper's accuracy figures (Tables I, III, IV) and loop closure.
+//! - this file: [`run`], the pipeline from an imported recording to a [`PdrAnalysis`].
+//!
+//! ## The pipeline
+//!
+//! 1. GNSS fixes inside the outages are set aside; the heading models of
+//!    [`crate::deviation`] then train on the GNSS course that is left (Fig. 2: "the
+//!    speed and heading from GPS are utilized to train the step length model and
+//!    calibrate the compass"), never on a reference-heading column, which in a test log
+//!    is the truth.
+//! 2. Steps are detected; each gets the heading of the chosen model (circular mean over
+//!    the step) and a length from the step model.
+//! 3. The step model trains on the GNSS speed over each step while GNSS is good, or on
+//!    a known distance (a loop of known length), else keeps Weinberg's default K.
+//! 4. One filter runs through the steps and the admissible fixes.
+//! 5. Reference positions (a truth track, surveyed waypoints) score the track; a
+//!    reference-heading column scores the headings.
+
+pub mod ekf;
+pub mod export;
+pub mod fusion;
+pub mod metrics;
+pub mod step_length;
+pub mod steps;
+
+use serde::Serialize;
+
+use crate::analysis::AnalysisError;
+use crate::calibration::{calibrate, CalibrationOptions};
+use crate::deviation::{compare, HeadingOptions};
+use crate::geo::{Geodetic, LocalFrame};
+use crate::io::ImportReport;
+use crate::recording::{Recording, Stream};
+use crate::reference::gyro::gyro_heading;
+use crate::reference::{ReferenceChoice, ReferenceOptions};
+
+use ekf::EkfNoise;
+use fusion::{fuse, FixInput, FixUse, GnssPolicy, Outage, StepInput, TrackPoint};
+use metrics::{LoopClosure, MeanStd, PositionErrors};
+use step_length::{StepLengthModel, StepModelKind, StepReference};
+use steps::{detect_steps, Step, StepOptions};
+
+/// Where each step's heading comes from: a base heading, optionally carried by the gyro.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct HeadingChoice {
+    pub base: HeadingBase,
+    /// The integrated gyro, aligned (offset and drift) to the base heading over the whole
+    /// walk: smooth and turn-true like a gyro, absolute like the base.
+    pub gyro_aligned: bool,
+}
+
+/// The absolute heading a walk's steps take.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(rename_all = "snake_case", tag = "kind", content = "key")]
+pub enum HeadingBase {
+    /// The heading model with the lowest check error against GNSS course, else the best
+    /// field-domain calibration.
+    Auto,
+    /// A row of the heading comparison by key (`ellipse`, `ellipse+fourier`, `mlp`, ...).
+    Model(String),
+    /// The device's own fused yaw (Android's rotation vector, a compass module's HPR),
+    /// magnetic, turned to true north by the declination.
+    Device,
+}
+
+impl HeadingChoice {
+    pub const AUTO: HeadingChoice = HeadingChoice {
+        base: HeadingBase::Auto,
+        gyro_aligned: false,
+    };
+
+    /// `auto`, a model key, `device`, or any of them after `gyro+` (`gyro` alone is
+    /// `gyro+auto`).
+    pub fn parse(text: &str) -> HeadingChoice {
+        let text = text.trim();
+        let (gyro_aligned, base) = match text.strip_prefix("gyro") {
+            Some("") => (true, "auto"),
+            Some(rest) if rest.starts_with('+') || rest.starts_with('-') => (true, &rest[1..]),
+            _ => (false, text),
+        };
+        let base = match base {
+            "auto" | "compass" => HeadingBase::Auto,
+            "device" => HeadingBase::Device,
+            key => HeadingBase::Model(key.replace('-', "+")),
+        };
+        HeadingChoice { base, gyro_aligned }
+    }
+}
+
+/// Everything that changes the result.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PdrOptions {
+    pub steps: StepOptions,
+    pub step_model: StepModelKind,
+    pub heading: HeadingChoice,
+    /// The heading comparison (declination, position, methods). Its reference choice is
+    /// replaced by GNSS course.
+    pub heading_options: HeadingOptions,
+    /// A distance the walk is known to cover (m): fits Weinberg's K.
+    pub known_distance_m: Option<f64>,
+    /// The walk ends where it started: report the loop-closure error.
+    pub closed_loop: bool,
+    pub gnss: GnssPolicy,
+    pub noise: EkfNoise,
+    /// The network's initial weights.
+    pub seed: u64,
+}
+
+impl Default for PdrOptions {
+    fn default() -> Self {
+        PdrOptions {
+            steps: StepOptions::default(),
+            step_model: StepModelKind::Weinberg,
+            heading: HeadingChoice::AUTO,
+            heading_options: HeadingOptions::default(),
+            known_distance_m: None,
+            closed_loop: false,
+            gnss: GnssPolicy::default(),
+            noise: EkfNoise::default(),
+            seed: 1,
+        }
+    }
+}
+
+/// How the step model was trained.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StepModelReport {
+    pub requested: StepModelKind,
+    pub model: StepLengthModel,
+    /// `gnss_speed`, `known_distance` or `default`.
+    pub trained_on: &'static str,
+    pub n_references: usize,
+    /// RMS of the model against its own references (m).
+    pub train_rms_m: Option<f64>,
+}
+
+/// What became of the GNSS fixes.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+pub struct FixCounts {
+    pub used: usize,
+    pub used_after_reset: usize,
+    pub in_outage: usize,
+    pub poor_accuracy: usize,
+    pub rejected: usize,
+    pub before_walk: usize,
+}
+
+/// What `compass-pdr pdr --json` prints.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PdrReport {
+    pub file_name: String,
+    pub n_steps: usize,
+    pub n_bouts: usize,
+    pub mean_step_frequency_hz: Option<f64>,
+    pub pdr_distance_m: f64,
+    pub duration_s: f64,
+    pub step_model: StepModelReport,
+    /// The heading used: its key and label, and the heading comparison's best row.
+    pub heading_key: String,
+    pub heading_label: String,
+    pub frame_origin_lat_lon_deg: Option<[f64; 2]>,
+    pub outages: Vec<Outage>,
+    pub fixes: FixCounts,
+    /// Against reference positions over the whole walk, and over each outage.
+    pub position_error: Option<PositionErrors>,
+    pub outage_position_errors: Vec<PositionErrors>,
+    /// Model step length minus the reference step length (m).
+    pub step_length_error_m: Option<MeanStd>,
+    /// Filtered step heading minus the reference heading (deg).
+    pub heading_error_deg: Option<MeanStd>,
+    pub loop_closure: Option<LoopClosure>,
+    pub notes: Vec<String>,
+}
+
+/// The report with the series the plots and exports draw.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PdrAnalysis {
+    pub report: PdrReport,
+    pub steps: Vec<Step>,
+    /// The model's length and the chosen heading of each step.
+    pub step_lengths_m: Vec<f64>,
+    pub step_headings_rad: Vec<f64>,
+    /// The reference length of each step, where there is one.
+    pub step_references_m: Vec<Option<f64>>,
+    pub track: Vec<TrackPoint>,
+    /// GNSS fixes in the local frame and what became of each.
+    pub fixes: Vec<(FixInput, FixUse)>,
+    /// Reference positions in the local frame.
+    pub reference_en_m: Vec<(f64, [f64; 2])>,
+    pub frame: Option<LocalFrame>,
+}
+
+/// Why PDR could not run.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum PdrError {
+    #[error(transparent)]
+    Analysis(#[from] AnalysisError),
+    #[error("{file_name} has no accelerometer samples, so no steps can be detected. PDR needs acc_x_mps2, acc_y_mps2, acc_z_mps2 (or the format's accelerometer).")]
+    NoAccelerometer { file_name: String },
+    #[error("{file_name}: no steps were detected in {duration_s:.0} s of accelerometer data. Check that the log is of walking, sampled at 25 Hz or more.")]
+    NoSteps { file_name: String, duration_s: f64 },
+}
+
+/// Dead-reckons an imported recording.
+pub fn run(report: ImportReport, options: &PdrOptions) -> Result<PdrAnalysis, PdrError> {
+    let file_name = report.file_name.clone();
+    let recording = report.recording.clone();
+    let acc = &recording.acc_in_body_mps2;
+    if acc.is_empty() {
+        return Err(PdrError::NoAccelerometer { file_name });
+    }
+    let mut notes = Vec::new();
+
+    // 1. Headings, trained on the GNSS course outside the outages.
+    let mut for_headings = report;
+    for_headings.recording.gnss = without_outages(&recording.gnss, &options.gnss.outages);
+    let heading_options = HeadingOptions {
+        calibration: CalibrationOptions {
+            reference: ReferenceOptions {
+                choice: ReferenceChoice::Gps,
+                ..options.heading_options.calibration.reference
+            },
+            ..options.heading_options.calibration.clone()
+        },
+        ..options.heading_options.clone()
+    };
+    let calibration = calibrate(for_headings, &heading_options.calibration)?;
+    let headings = compare(&calibration, &heading_options);
+    let has_reference = headings.report.reference.is_some();
+    let compass_key = match (&options.heading.base, &headings.report.best) {
+        (HeadingBase::Model(key), _) => key.clone(),
+        (_, Some(best)) if has_reference => best.clone(),
+        _ => best_field_domain_key(&headings.report),
+    };
+    let compass_series = headings
+        .headings_deg
+        .iter()
+        .find(|(key, _)| *key == compass_key)
+        .or_else(|| headings.headings_deg.iter().find(|(key, _)| key == "raw"));
+    let Some((compass_key, compass_deg)) = compass_series else {
+        return Err(PdrError::NoSteps {
+            file_name,
+            duration_s: acc.duration_s(),
+        });
+    };
+    if let HeadingBase::Model(requested) = &options.heading.base {
+        if requested != compass_key {
+            notes.push(format!("There is no heading model '{requested}' for this log; the {compass_key} heading was used. The models are: {}.", model_keys(&headings.headings_deg)));
+        }
+    }
+    let compass = Stream {
+        t_s: headings.t_s.clone(),
+        values: compass_deg.iter().map(|deg| deg.to_radians()).collect(),
+    };
+    let compass_label = label_of(&headings.report, compass_key);
+    let (base_stream, base_key, base_label) = match options.heading.base {
+        HeadingBase::Device => {
+            let declination_rad = headings
+                .report
+                .calibration
+                .declination
+                .declination_deg
+                .to_radians();
+            let mut device = Stream::default();
+            for (&t_s, attitude) in recording
+                .attitude
+                .t_s
+                .iter()
+                .zip(&recording.attitude.values)
+            {
+                if let Some(yaw_rad) = attitude.yaw_rad.filter(|yaw| yaw.is_finite()) {
+                    device.push(t_s, crate::angle::wrap_to_2pi(yaw_rad + declination_rad));
+                }
+            }
+            if device.is_empty() {
+                notes.push(
+                    "The log has no device yaw (rotation vector): the compass heading was used."
+                        .to_string(),
+                );
+                (compass, compass_key.clone(), compass_label)
+            } else {
+                (
+                    device,
+                    "device".to_string(),
+                    "the device's own yaw (rotation vector) with the declination".to_string(),
+                )
+            }
+        }
+        _ => (compass, compass_key.clone(), compass_label),
+    };
+    let gyro = options
+        .heading
+        .gyro_aligned
+        .then(|| {
+            gyro_heading(
+                &recording,
+                heading_options.calibration.gravity_window_s,
+                Some(&base_stream),
+                false,
+            )
+        })
+        .flatten();
+    if options.heading.gyro_aligned && gyro.is_none() {
+        notes.push(format!(
+            "The log has no gyroscope: the {base_key} heading was used without it."
+        ));
+    }
+    let (heading_stream, heading_key, heading_label) = match gyro {
+        Some(gyro) => (
+            gyro.heading_rad,
+            format!("gyro+{base_key}"),
+            format!("the gyro aligned to {base_label}"),
+        ),
+        None => (base_stream, base_key, base_label),
+    };
+
+    // 2. Steps and their headings.
+    let detection = detect_steps(acc, &options.steps);
+    notes.extend(detection.notes.iter().cloned());
+    let steps = detection.steps.clone();
+    if steps.is_empty() {
+        return Err(PdrError::NoSteps {
+            file_name,
+            duration_s: acc.duration_s(),
+        });
+    }
+    let step_headings_rad: Vec<f64> = steps
+        .iter()
+        .map(|step| mean_heading(&heading_stream, step.t_start_s, step.t_end_s))
+        .collect();
+    let n_without_heading = step_headings_rad.iter().filter(|h| !h.is_finite()).count();
+    if n_without_heading > 0 {
+        notes.push(format!("{n_without_heading} steps had no heading sample within a second and kept the previous step's heading."));
+    }
+    let step_headings_rad = fill_forward(step_headings_rad);
+
+    // 3. The local frame, the fixes and the reference positions.
+    let frame = first_good_fix(&recording, &options.gnss).map(LocalFrame::at);
+    let fixes: Vec<FixInput> = frame
+        .map(|frame| {
+            recording
+                .gnss
+                .t_s
+                .iter()
+                .zip(&recording.gnss.values)
+                .filter_map(|(&t_s, fix)| {
+                    let en = frame.en_of(fix.lat_deg?, fix.lon_deg?);
+                    Some(FixInput {
+                        t_s,
+                        en_m: [en.x, en.y],
+                        hacc_m: fix.hacc_m,
+                    })
+                })
+                .collect()
+        })
+        .unwrap_or_default();
+    let reference_en_m = reference_positions(
+        &recording,
+        frame.as_ref(),
+        &fixes,
+        &options.gnss,
+        &mut notes,
+    );
+
+    // 4. Step lengths.
+    let gnss_references = gnss_step_references(&recording, &steps, &options.gnss);
+    let step_model = train_step_model(&steps, &gnss_references, options, &mut notes);
+    let step_lengths_m: Vec<f64> = steps
+        .iter()
+        .map(|step| step_model.model.length_m(step))
+        .collect();
+
+    // 5. The filter.
+    let first_step = &steps[0];
+    let (start_en_m, start_sigma_m) =
+        start_position(first_step, &fixes, &reference_en_m, &options.gnss);
+    let inputs: Vec<StepInput> = steps
+        .iter()
+        .zip(&step_lengths_m)
+        .zip(&step_headings_rad)
+        .map(|((step, &length_m), &heading_rad)| StepInput {
+            t_start_s: step.t_start_s,
+            t_s: step.t_end_s,
+            length_m,
+            heading_rad,
+        })
+        .collect();
+    let fused = fuse(
+        &inputs,
+        &fixes,
+        start_en_m,
+        start_sigma_m,
+        options.noise,
+        &options.gnss,
+    );
+    let mut fix_counts = FixCounts::default();
+    for decision in &fused.fix_use {
+        let counter = match decision {
+            FixUse::Used => &mut fix_counts.used,
+            FixUse::UsedAfterReset => &mut fix_counts.used_after_reset,
+            FixUse::InOutage => &mut fix_counts.in_outage,
+            FixUse::PoorAccuracy => &mut fix_counts.poor_accuracy,
+            FixUse::Rejected => &mut fix_counts.rejected,
+            FixUse::BeforeWalk => &mut fix_counts.before_walk,
+        };
+        *counter += 1;
+    }
+    if !fixes.is_empty() && fix_counts.used + fix_counts.used_after_reset == 0 {
+        notes.push(format!(
+            "None of the {} GNSS fixes was used (accuracy worse than {} m, or in outages): the track is dead-reckoned throughout.",
+            fixes.len(),
+            options.gnss.max_hacc_m
+        ));
+    }
+
+    // 6. Scores.
+    let track = fused.track;
+    let (walk_start_s, walk_end_s) = (
+        track.first().map_or(0.0, |point| point.t_s),
+        track.last().map_or(0.0, |point| point.t_s),
+    );
+    let position_error =
+        metrics::position_errors(&track, &reference_en_m, walk_start_s, walk_end_s);
+    let outage_position_errors = options
+        .gnss
+        .outages
+        .iter()
+        .filter_map(|outage| {
+            metrics::position_errors(&track, &reference_en_m, outage.start_s, outage.end_s)
+        })
+        .collect();
+    let step_references_m = step_reference_lengths(&steps, &reference_en_m, &gnss_references);
+    let step_length_error_m = MeanStd::of(
+        step_lengths_m
+            .iter()
+            .zip(&step_references_m)
+            .filter_map(|(length, reference)| reference.map(|reference| length - reference)),
+    );
+    let heading_error_deg =
+        metrics::heading_error_deg(steps.iter().zip(&track[1..]).filter_map(|(step, point)| {
+            let reference = recording
+                .ref_heading_rad
+                .interpolate_angle_at(step.mid_s(), 0.5)?;
+            Some((point.heading_rad, reference))
+        }));
+    let loop_closure = options
+        .closed_loop
+        .then(|| {
+            let length_m = options
+                .known_distance_m
+                .unwrap_or_else(|| metrics::track_distance_m(&track, walk_start_s, walk_end_s));
+            metrics::loop_closure(&track, length_m)
+        })
+        .flatten();
+    let pdr_distance_m = metrics::track_distance_m(&track, walk_start_s, walk_end_s);
+    let report = PdrReport {
+        file_name,
+        n_steps: steps.len(),
+        n_bouts: detection.n_bouts,
+        mean_step_frequency_hz: detection.mean_frequency_hz(),
+        pdr_distance_m,
+        duration_s: walk_end_s - walk_start_s,
+        step_model,
+        heading_key,
+        heading_label,
+        frame_origin_lat_lon_deg: frame
+            .map(|frame| [frame.origin().lat_deg, frame.origin().lon_deg]),
+        outages: options.gnss.outages.clone(),
+        fixes: fix_counts,
+        position_error,
+        outage_position_errors,
+        step_length_error_m,
+        heading_error_deg,
+        loop_closure,
+        notes,
+    };
+    Ok(PdrAnalysis {
+        report,
+        steps,
+        step_lengths_m,
+        step_headings_rad,
+        step_references_m,
+        track,
+        fixes: fixes.into_iter().zip(fused.fix_use).collect(),
+        reference_en_m,
+        frame,
+    })
+}
+
+fn without_outages(
+    gnss: &Stream<crate::recording::GnssFix>,
+    outages: &[Outage],
+) -> Stream<crate::recording::GnssFix> {
+    let mut kept = Stream::default();
+    for (&t_s, fix) in gnss.t_s.iter().zip(&gnss.values) {
+        if !outages.iter().any(|outage| outage.contains(t_s)) {
+            kept.push(t_s, *fix);
+        }
+    }
+    kept
+}
+
+/// The field-domain method to use without a reference: the 3D fit, else the ellipse,
+/// else min/max, else the raw heading.
+fn best_field_domain_key(report: &crate::deviation::HeadingReport) -> String {
+    ["ellipsoid", "ellipse", "min_max"]
+        .iter()
+        .find(|key| {
+            report
+                .rows
+                .iter()
+                .any(|row| row.key == **key && row.error.is_none())
+        })
+        .map_or_else(|| "raw".to_string(), |key| key.to_string())
+}
+
+fn label_of(report: &crate::deviation::HeadingReport, key: &str) -> String {
+    report
+        .rows
+        .iter()
+        .find(|row| row.key == key)
+        .map_or_else(|| key.to_string(), |row| row.label.clone())
+}
+
+fn model_keys(series: &[(String, Vec<f64>)]) -> String {
+    series
+        .iter()
+        .map(|(key, _)| key.as_str())
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// The circular mean of the heading samples within a step, else the heading
+/// interpolated at its middle (within a second); NaN when there is none.
+fn mean_heading(heading: &Stream<f64>, start_s: f64, end_s: f64) -> f64 {
+    let first = heading.t_s.partition_point(|&t| t < start_s);
+    let last = heading.t_s.partition_point(|&t| t < end_s);
+    let (mut sin_sum, mut cos_sum) = (0.0, 0.0);
+    for value in heading.values.get(first..last).unwrap_or(&[]) {
+        sin_sum += value.sin();
+        cos_sum += value.cos();
+    }
+    if sin_sum != 0.0 || cos_sum != 0.0 {
+        return crate::angle::wrap_to_2pi(sin_sum.atan2(cos_sum));
+    }
+    heading
+        .interpolate_angle_at(0.5 * (start_s + end_s), 1.0)
+        .unwrap_or(f64::NAN)
+}
+
+fn fill_forward(values: Vec<f64>) -> Vec<f64> {
+    let first_finite = values
+        .iter()
+        .copied()
+        .find(|v| v.is_finite())
+        .unwrap_or(0.0);
+    let mut last = first_finite;
+    values
+        .into_iter()
+        .map(|value| {
+            if value.is_finite() {
+                last = value;
+            }
+            last
+        })
+        .collect()
+}
+
+/// The first fix with a position that the policy would take (its accuracy), where the
+/// local frame is anchored.
+fn first_good_fix(recording: &Recording, policy: &GnssPolicy) -> Option<Geodetic> {
+    recording
+        .gnss
+        .t_s
+        .iter()
+        .zip(&recording.gnss.values)
+        .find_map(|(&t_s, fix)| {
+            let input = FixInput {
+                t_s,
+                en_m: [0.0, 0.0],
+                hacc_m: fix.hacc_m,
+            };
+            policy.admissible(&input).ok()?;
+            Some(Geodetic {
+                lat_deg: fix.lat_deg?,
+                lon_deg: fix.lon_deg?,
+                alt_m: fix.alt_m.unwrap_or(0.0),
+            })
+        })
+}
+
+/// Reference positions in the filter's frame. Latitude/longitude references go through
+/// the frame; metric references are used as they are without GNSS, and with GNSS are
+/// shifted by their mean offset from the fixes that are used (both frames point east
+/// and north, so a shift ties them).
+fn reference_positions(
+    recording: &Recording,
+    frame: Option<&LocalFrame>,
+    fixes: &[FixInput],
+    policy: &GnssPolicy,
+    notes: &mut Vec<String>,
+) -> Vec<(f64, [f64; 2])> {
+    let mut out: Vec<(f64, [f64; 2])> = Vec::new();
+    if let Some(frame) = frame {
+        let lat_lon = &recording.ref_position_lat_lon_deg;
+        out.extend(
+            lat_lon
+                .t_s
+                .iter()
+                .zip(&lat_lon.values)
+                .map(|(&t_s, value)| {
+                    let en = frame.en_of(value.x, value.y);
+                    (t_s, [en.x, en.y])
+                }),
+        );
+    }
+    let metric = &recording.ref_position_en_m;
+    if metric.is_empty() {
+        return out;
+    }
+    let metric_3d = Stream {
+        t_s: metric.t_s.clone(),
+        values: metric
+            .values
+            .iter()
+            .map(|en| nalgebra::Vector3::new(en.x, en.y, 0.0))
+            .collect(),
+    };
+    let mut shift = [0.0, 0.0];
+    if frame.is_some() {
+        let mut n = 0usize;
+        for fix in fixes.iter().filter(|fix| policy.admissible(fix).is_ok()) {
+            if let Some(reference) = metric_3d.interpolate_at(fix.t_s, 1.0) {
+                shift[0] += fix.en_m[0] - reference.x;
+                shift[1] += fix.en_m[1] - reference.y;
+                n += 1;
+            }
+        }
+        if n == 0 {
+            notes.push("The reference positions do not overlap the GNSS fixes in time, so they cannot be placed in the GNSS frame and score nothing.".to_string());
+            return out;
+        }
+        shift = [shift[0] / n as f64, shift[1] / n as f64];
+        notes.push(format!(
+            "The reference positions were tied to the GNSS frame by their mean offset from {n} fixes ({:.1} m east, {:.1} m north).",
+            shift[0], shift[1]
+        ));
+    }
+    out.extend(
+        metric
+            .t_s
+            .iter()
+            .zip(&metric.values)
+            .map(|(&t_s, value)| (t_s, [value.x + shift[0], value.y + shift[1]])),
+    );
+    out.sort_by(|a, b| a.0.total_cmp(&b.0));
+    out
+}
+
+/// Per-step references from the GNSS speed while GNSS is good: the speed at the middle
+/// of the step (interpolated across at most 1.5 s) times its duration. The last step of
+/// a bout, whose end is a guess, has none.
+fn gnss_step_references(
+    recording: &Recording,
+    steps: &[Step],
+    policy: &GnssPolicy,
+) -> Vec<StepReference> {
+    let mut speed = Stream::default();
+    for (&t_s, fix) in recording.gnss.t_s.iter().zip(&recording.gnss.values) {
+        let input = FixInput {
+            t_s,
+            en_m: [0.0, 0.0],
+            hacc_m: fix.hacc_m,
+        };
+        if let (Some(speed_mps), Ok(_)) = (fix.speed_mps, policy.admissible(&input)) {
+            if speed_mps.is_finite() && speed_mps >= 0.0 {
+                speed.push(t_s, speed_mps);
+            }
+        }
+    }
+    steps
+        .iter()
+        .enumerate()
+        .filter(|(_, step)| !step.ends_bout)
+        .filter_map(|(step_idx, step)| {
+            let speed_mps = speed.interpolate_at(step.mid_s(), 1.5)?;
+            Some(StepReference {
+                step_idx,
+                length_m: speed_mps * step.duration_s(),
+            })
+        })
+        .collect()
+}
+
+fn train_step_model(
+    steps: &[Step],
+    gnss_references: &[StepReference],
+    options: &PdrOptions,
+    notes: &mut Vec<String>,
+) -> StepModelReport {
+    let requested = options.step_model;
+    let rms_on = |model: &StepLengthModel, references: &[StepReference]| {
+        let squares: Vec<f64> = references
+            .iter()
+            .filter_map(|reference| {
+                let step = steps.get(reference.step_idx)?;
+                Some((model.length_m(step) - reference.length_m).powi(2))
+            })
+            .collect();
+        (!squares.is_empty()).then(|| (squares.iter().sum::<f64>() / squares.len() as f64).sqrt())
+    };
+    if let Some(distance_m) = options.known_distance_m {
+        if requested != StepModelKind::Weinberg {
+            notes.push(format!(
+                "A known distance fits only the Weinberg model; it was used instead of the {} model.",
+                requested.key()
+            ));
+        }
+        match step_length::fit_weinberg_to_distance(steps, distance_m) {
+            Ok(model) => {
+                return StepModelReport {
+                    requested,
+                    model,
+                    trained_on: "known_distance",
+                    n_references: steps.len(),
+                    train_rms_m: None,
+                }
+            }
+            Err(error) => notes.push(format!("The known distance was not used: {error}.")),
+        }
+    }
+    if !gnss_references.is_empty() {
+        match step_length::fit(requested, steps, gnss_references, options.seed) {
+            Ok(model) => {
+                let train_rms_m = rms_on(&model, gnss_references);
+                return StepModelReport {
+                    requested,
+                    model,
+                    trained_on: "gnss_speed",
+                    n_references: gnss_references.len(),
+                    train_rms_m,
+                };
+            }
+            Err(error) => notes.push(format!("The step model kept its default: {error}.")),
+        }
+    } else {
+        notes.push(format!(
+            "Nothing trained the step model (no GNSS speed while GNSS was good, no known distance): Weinberg's K = {} was used. Give --known-distance for a walk of known length.",
+            step_length::DEFAULT_WEINBERG_K
+        ));
+    }
+    StepModelReport {
+        requested,
+        model: StepLengthModel::Weinberg {
+            k: step_length::DEFAULT_WEINBERG_K,
+        },
+        trained_on: "default",
+        n_references: 0,
+        train_rms_m: None,
+    }
+}
+
+/// The filter's start: the first admissible fix within 5 s of the first step (σ its
+/// accuracy), else the first reference position (a surveyed start, σ 0.5 m), else the
+/// origin (σ 0).
+fn start_position(
+    first_step: &Step,
+    fixes: &[FixInput],
+    reference_en_m: &[(f64, [f64; 2])],
+    policy: &GnssPolicy,
+) -> ([f64; 2], f64) {
+    let near_start = fixes
+        .iter()
+        .filter(|fix| (fix.t_s - first_step.t_start_s).abs() <= 5.0)
+        .find_map(|fix| {
+            policy
+                .admissible(fix)
+                .ok()
+                .map(|sigma_m| (fix.en_m, sigma_m))
+        });
+    if let Some(found) = near_start {
+        return found;
+    }
+    if let Some((_, first)) = reference_en_m.first() {
+        return (*first, 0.5);
+    }
+    ([0.0, 0.0], 0.0)
+}
+
+/// Each step's reference length: from dense reference positions (5 Hz or more: the
+/// distance between the positions at its start and end), else its GNSS reference.
+fn step_reference_lengths(
+    steps: &[Step],
+    reference_en_m: &[(f64, [f64; 2])],
+    gnss_references: &[StepReference],
+) -> Vec<Option<f64>> {
+    let dense = reference_en_m.len() >= 2 && {
+        let span_s = reference_en_m.last().map_or(0.0, |r| r.0) - reference_en_m[0].0;
+        span_s > 0.0 && reference_en_m.len() as f64 / span_s >= 5.0
+    };
+    if dense {
+        let stream = Stream {
+            t_s: reference_en_m.iter().map(|(t, _)| *t).collect(),
+            values: reference_en_m
+                .iter()
+                .map(|(_, en)| nalgebra::Vector3::new(en[0], en[1], 0.0))
+                .collect(),
+        };
+        return steps
+            .iter()
+            .map(|step| {
+                if step.ends_bout {
+                    return None;
+                }
+                let a = stream.interpolate_at(step.t_start_s, 0.5)?;
+                let b = stream.interpolate_at(step.t_end_s, 0.5)?;
+                Some((b - a).norm())
+            })
+            .collect();
+    }
+    let mut out = vec![None; steps.len()];
+    for reference in gnss_references {
+        if let Some(slot) = out.get_mut(reference.step_idx) {
+            *slot = Some(reference.length_m);
+        }
+    }
+    out
+}

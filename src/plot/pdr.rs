@@ -1,0 +1,338 @@
+//! The PDR figure: the trajectory (reference, GNSS, the dead-reckoned track with the
+//! outages highlighted, equal axes and a scale bar in metres), the step lengths over
+//! time (the model's, the filter's and the references), and the position error over
+//! time against the reference positions (else the filter's own σ).
+
+use plotters::coord::Shift;
+use plotters::prelude::*;
+
+use super::{thinned_indices, PlotError, MAX_POINTS_PER_SERIES};
+use crate::pdr::fusion::FixUse;
+use crate::pdr::metrics::position_at;
+use crate::pdr::PdrAnalysis;
+
+const REFERENCE_COLOR: RGBColor = RGBColor(30, 30, 30);
+const GNSS_COLOR: RGBColor = RGBColor(31, 119, 180);
+const IGNORED_COLOR: RGBColor = RGBColor(170, 170, 170);
+const TRACK_COLOR: RGBColor = RGBColor(214, 39, 40);
+const OUTAGE_COLOR: RGBColor = RGBColor(255, 127, 14);
+
+/// The trajectory on the left, step lengths and position error on the right. This is
+/// what `compass-pdr pdr --plot` writes.
+pub fn draw_pdr_figure<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    analysis: &PdrAnalysis,
+) -> Result<(), PlotError> {
+    area.fill(&WHITE)
+        .map_err(PlotError::from_backend("figure"))?;
+    let (width, _) = area.dim_in_pixel();
+    let (left, right) = area.split_horizontally(width * 55 / 100);
+    let panels = right.split_evenly((2, 1));
+    let [lengths, errors] = panels.as_slice() else {
+        return Err(PlotError {
+            plot: "figure",
+            reason: "the drawing area did not split in two".to_string(),
+        });
+    };
+    draw_trajectory(&left, analysis)?;
+    draw_step_lengths(lengths, analysis)?;
+    draw_position_error(errors, analysis)?;
+    area.present().map_err(PlotError::from_backend("figure"))
+}
+
+/// A range that holds `values` with a margin, at least `min_span` wide.
+fn padded(values: impl Iterator<Item = f64>, min_span: f64) -> (f64, f64) {
+    let (lo, hi) = values
+        .filter(|v| v.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+            (lo.min(v), hi.max(v))
+        });
+    if !(lo.is_finite() && hi.is_finite()) {
+        return (-min_span / 2.0, min_span / 2.0);
+    }
+    let span = (hi - lo).max(min_span);
+    let centre = 0.5 * (lo + hi);
+    (centre - 0.55 * span, centre + 0.55 * span)
+}
+
+/// A round length for a scale bar about a fifth of `span_m`.
+fn scale_bar_m(span_m: f64) -> f64 {
+    let target = span_m / 5.0;
+    let power = 10f64.powf(target.log10().floor());
+    [1.0, 2.0, 5.0, 10.0]
+        .iter()
+        .map(|step| step * power)
+        .rfind(|length| *length <= target)
+        .unwrap_or(power)
+}
+
+pub fn draw_trajectory<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    analysis: &PdrAnalysis,
+) -> Result<(), PlotError> {
+    let error = PlotError::from_backend::<DrawingAreaErrorKind<DB::ErrorType>>("trajectory");
+    let track: Vec<(f64, f64)> = analysis
+        .track
+        .iter()
+        .map(|point| (point.east_m, point.north_m))
+        .collect();
+    let reference: Vec<(f64, f64)> =
+        thinned_indices(analysis.reference_en_m.len(), MAX_POINTS_PER_SERIES)
+            .filter_map(|idx| analysis.reference_en_m.get(idx))
+            .map(|(_, en)| (en[0], en[1]))
+            .collect();
+    let mut used: Vec<(f64, f64)> = Vec::new();
+    let mut ignored: Vec<(f64, f64)> = Vec::new();
+    {
+        for (fix, decision) in &analysis.fixes {
+            let point = (fix.en_m[0], fix.en_m[1]);
+            match decision {
+                FixUse::Used | FixUse::UsedAfterReset => used.push(point),
+                FixUse::InOutage | FixUse::Rejected => ignored.push(point),
+                // Fixes of hundreds of metres of error would only stretch the axes.
+                FixUse::PoorAccuracy | FixUse::BeforeWalk => {}
+            }
+        }
+    }
+    let all = || track.iter().chain(&reference).chain(&used).chain(&ignored);
+    let (x_lo, x_hi) = padded(all().map(|p| p.0), 10.0);
+    let (y_lo, y_hi) = padded(all().map(|p| p.1), 10.0);
+    // Equal axes: widen the range that is short for the plot area's aspect.
+    let (width_px, height_px) = area.dim_in_pixel();
+    let plot_w = f64::from(width_px.saturating_sub(80).max(1));
+    let plot_h = f64::from(height_px.saturating_sub(90).max(1));
+    let metres_per_px = ((x_hi - x_lo) / plot_w).max((y_hi - y_lo) / plot_h);
+    let (x_mid, y_mid) = (0.5 * (x_lo + x_hi), 0.5 * (y_lo + y_hi));
+    let x_range = (x_mid - 0.5 * metres_per_px * plot_w)..(x_mid + 0.5 * metres_per_px * plot_w);
+    let y_range = (y_mid - 0.5 * metres_per_px * plot_h)..(y_mid + 0.5 * metres_per_px * plot_h);
+    let caption = match &analysis.report.position_error {
+        Some(errors) => format!(
+            "Trajectory: {} steps, RMS error {:.1} m ({:.1} %)",
+            analysis.report.n_steps, errors.rms_m, errors.rms_pct
+        ),
+        None => format!(
+            "Trajectory: {} steps, {:.0} m",
+            analysis.report.n_steps, analysis.report.pdr_distance_m
+        ),
+    };
+    let mut chart = super::styled_chart(
+        area,
+        caption,
+        x_range.clone(),
+        y_range.clone(),
+        "east (m)",
+        "north (m)",
+    )
+    .map_err(&error)?;
+    if !reference.is_empty() {
+        chart
+            .draw_series(LineSeries::new(
+                reference.clone(),
+                REFERENCE_COLOR.stroke_width(1),
+            ))
+            .map_err(&error)?
+            .label("reference")
+            .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], REFERENCE_COLOR));
+        if reference.len() < 200 {
+            chart
+                .draw_series(
+                    reference
+                        .iter()
+                        .map(|&p| Cross::new(p, 4, REFERENCE_COLOR.stroke_width(2))),
+                )
+                .map_err(&error)?;
+        }
+    }
+    if !used.is_empty() {
+        super::draw_dots(&mut chart, &used, GNSS_COLOR, "GNSS used").map_err(&error)?;
+    }
+    if !ignored.is_empty() {
+        super::draw_dots(
+            &mut chart,
+            &ignored,
+            IGNORED_COLOR,
+            "GNSS ignored (outage, gate)",
+        )
+        .map_err(&error)?;
+    }
+    chart
+        .draw_series(LineSeries::new(track.clone(), TRACK_COLOR.stroke_width(2)))
+        .map_err(&error)?
+        .label("PDR")
+        .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], TRACK_COLOR.stroke_width(2)));
+    let mut labelled = false;
+    for outage in &analysis.report.outages {
+        let segment: Vec<(f64, f64)> = analysis
+            .track
+            .iter()
+            .filter(|point| outage.contains(point.t_s))
+            .map(|point| (point.east_m, point.north_m))
+            .collect();
+        if segment.len() < 2 {
+            continue;
+        }
+        let series = chart
+            .draw_series(LineSeries::new(segment, OUTAGE_COLOR.stroke_width(3)))
+            .map_err(&error)?;
+        if !labelled {
+            series.label("PDR in outage").legend(|(x, y)| {
+                PathElement::new([(x, y), (x + 16, y)], OUTAGE_COLOR.stroke_width(3))
+            });
+            labelled = true;
+        }
+    }
+    if let (Some(first), Some(last)) = (track.first(), track.last()) {
+        chart
+            .draw_series([
+                Circle::new(*first, 5, TRACK_COLOR.filled()),
+                Circle::new(*last, 5, TRACK_COLOR.stroke_width(2)),
+            ])
+            .map_err(&error)?;
+    }
+    // The scale bar, bottom left.
+    let span_m = x_range.end - x_range.start;
+    let bar_m = scale_bar_m(span_m);
+    let x0 = x_range.start + 0.05 * span_m;
+    let y0 = y_range.start + 0.05 * (y_range.end - y_range.start);
+    chart
+        .draw_series([PathElement::new(
+            [(x0, y0), (x0 + bar_m, y0)],
+            BLACK.stroke_width(3),
+        )])
+        .map_err(&error)?;
+    chart
+        .draw_series([Text::new(
+            format!("{bar_m} m"),
+            (x0, y0 + 0.02 * (y_range.end - y_range.start)),
+            ("sans-serif", 13),
+        )])
+        .map_err(&error)?;
+    super::draw_legend(&mut chart, SeriesLabelPosition::UpperRight).map_err(&error)
+}
+
+pub fn draw_step_lengths<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    analysis: &PdrAnalysis,
+) -> Result<(), PlotError> {
+    let error = PlotError::from_backend::<DrawingAreaErrorKind<DB::ErrorType>>("step lengths");
+    let model: Vec<(f64, f64)> = analysis
+        .steps
+        .iter()
+        .zip(&analysis.step_lengths_m)
+        .map(|(step, length)| (step.t_end_s, *length))
+        .collect();
+    let references: Vec<(f64, f64)> = analysis
+        .steps
+        .iter()
+        .zip(&analysis.step_references_m)
+        .filter_map(|(step, reference)| reference.map(|length| (step.t_end_s, length)))
+        .collect();
+    let filtered: Vec<(f64, f64)> = analysis
+        .track
+        .iter()
+        .skip(1)
+        .map(|p| (p.t_s, p.length_m))
+        .collect();
+    let (t_lo, t_hi) = padded(model.iter().map(|p| p.0), 1.0);
+    let (l_lo, l_hi) = padded(model.iter().chain(&references).map(|p| p.1), 0.3);
+    let mut chart = super::styled_chart(
+        area,
+        format!(
+            "Step length: {}",
+            analysis.report.step_model.model.kind().label()
+        ),
+        t_lo..t_hi,
+        l_lo.max(0.0)..l_hi,
+        "time (s)",
+        "step length (m)",
+    )
+    .map_err(&error)?;
+    if !references.is_empty() {
+        super::draw_dots(&mut chart, &references, IGNORED_COLOR, "reference").map_err(&error)?;
+    }
+    super::draw_dots(&mut chart, &model, GNSS_COLOR, "model").map_err(&error)?;
+    chart
+        .draw_series(LineSeries::new(filtered, TRACK_COLOR.stroke_width(1)))
+        .map_err(&error)?
+        .label("EKF l")
+        .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], TRACK_COLOR));
+    super::draw_legend(&mut chart, SeriesLabelPosition::UpperRight).map_err(&error)
+}
+
+pub fn draw_position_error<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    analysis: &PdrAnalysis,
+) -> Result<(), PlotError> {
+    let error = PlotError::from_backend::<DrawingAreaErrorKind<DB::ErrorType>>("position error");
+    let against_reference: Vec<(f64, f64)> =
+        thinned_indices(analysis.reference_en_m.len(), MAX_POINTS_PER_SERIES)
+            .filter_map(|idx| {
+                let (t_s, truth) = analysis.reference_en_m.get(idx)?;
+                let estimate = position_at(&analysis.track, *t_s)?;
+                Some((
+                    *t_s,
+                    ((estimate[0] - truth[0]).powi(2) + (estimate[1] - truth[1]).powi(2)).sqrt(),
+                ))
+            })
+            .collect();
+    let sigma: Vec<(f64, f64)> = analysis
+        .track
+        .iter()
+        .map(|p| (p.t_s, p.position_sigma_m))
+        .collect();
+    let (t_lo, t_hi) = padded(sigma.iter().map(|p| p.0), 1.0);
+    let top = against_reference
+        .iter()
+        .chain(&sigma)
+        .map(|p| p.1)
+        .filter(|v| v.is_finite())
+        .fold(1.0, f64::max)
+        * 1.1;
+    let caption = if against_reference.is_empty() {
+        "Position uncertainty (no reference positions)"
+    } else {
+        "Position error against the reference"
+    };
+    let mut chart = super::styled_chart(area, caption, t_lo..t_hi, 0.0..top, "time (s)", "metres")
+        .map_err(&error)?;
+    for outage in &analysis.report.outages {
+        chart
+            .draw_series([Rectangle::new(
+                [
+                    (outage.start_s.max(t_lo), 0.0),
+                    (outage.end_s.min(t_hi), top),
+                ],
+                OUTAGE_COLOR.mix(0.15).filled(),
+            )])
+            .map_err(&error)?;
+    }
+    if !against_reference.is_empty() {
+        chart
+            .draw_series(LineSeries::new(
+                against_reference,
+                TRACK_COLOR.stroke_width(2),
+            ))
+            .map_err(&error)?
+            .label("error")
+            .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], TRACK_COLOR.stroke_width(2)));
+    }
+    chart
+        .draw_series(LineSeries::new(sigma, GNSS_COLOR.stroke_width(1)))
+        .map_err(&error)?
+        .label("filter σ")
+        .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], GNSS_COLOR));
+    super::draw_legend(&mut chart, SeriesLabelPosition::UpperLeft).map_err(&error)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn scale_bars_are_round() {
+        assert_eq!(scale_bar_m(100.0), 20.0);
+        assert_eq!(scale_bar_m(40.0), 5.0);
+        assert_eq!(scale_bar_m(700.0), 100.0);
+        assert_eq!(padded([].into_iter(), 10.0), (-5.0, 5.0));
+    }
+}
