@@ -184,6 +184,10 @@ struct PdrArgs {
     /// The walk is known to be this long (m): fits Weinberg's K.
     #[arg(long)]
     known_distance: Option<f64>,
+    /// Weinberg's K from an earlier walk (this command prints the K it fitted), used
+    /// when nothing in this log trains the step model.
+    #[arg(long)]
+    weinberg_k: Option<f64>,
     /// The walk ends where it started: report the loop-closure error.
     #[arg(long)]
     closed_loop: bool,
@@ -218,6 +222,9 @@ impl PdrArgs {
                 "--known-distance {distance}: give the walk's length in metres"
             ));
         }
+        if let Some(k) = self.weinberg_k.filter(|k| !(k.is_finite() && *k > 0.0)) {
+            return Err(format!("--weinberg-k {k}: give a positive K, e.g. 0.45"));
+        }
         let calibration = CalibrationOptions {
             declination: parse_declination(&self.declination)?,
             position_deg: self.position.as_deref().map(parse_position).transpose()?,
@@ -232,6 +239,7 @@ impl PdrArgs {
                 ..HeadingOptions::default()
             },
             known_distance_m: self.known_distance,
+            weinberg_k: self.weinberg_k,
             closed_loop: self.closed_loop,
             gnss: GnssPolicy {
                 outages,
@@ -686,6 +694,7 @@ fn pdr_text(report: &PdrReport) -> String {
                 .map_or(String::new(), |rms| format!(", RMS {rms:.3} m"))
         ),
         "known_distance" => "fitted to the known distance".to_string(),
+        "given_k" => "K given with --weinberg-k".to_string(),
         _ => "not trained (default)".to_string(),
     };
     let _ = writeln!(text, "  step model: {model}, {trained}");

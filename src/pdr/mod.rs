@@ -112,6 +112,9 @@ pub struct PdrOptions {
     pub heading_options: HeadingOptions,
     /// A distance the walk is known to cover (m): fits Weinberg's K.
     pub known_distance_m: Option<f64>,
+    /// Weinberg's K from an earlier walk (`compass-pdr pdr` prints the K it fitted), used
+    /// when nothing in this log trains the step model.
+    pub weinberg_k: Option<f64>,
     /// The walk ends where it started: report the loop-closure error.
     pub closed_loop: bool,
     pub gnss: GnssPolicy,
@@ -128,6 +131,7 @@ impl Default for PdrOptions {
             heading: HeadingChoice::AUTO,
             heading_options: HeadingOptions::default(),
             known_distance_m: None,
+            weinberg_k: None,
             closed_loop: false,
             gnss: GnssPolicy::default(),
             noise: EkfNoise::default(),
@@ -141,7 +145,7 @@ impl Default for PdrOptions {
 pub struct StepModelReport {
     pub requested: StepModelKind,
     pub model: StepLengthModel,
-    /// `gnss_speed`, `known_distance` or `default`.
+    /// `gnss_speed`, `known_distance`, `given_k` or `default`.
     pub trained_on: &'static str,
     pub n_references: usize,
     /// RMS of the model against its own references (m).
@@ -757,9 +761,25 @@ fn train_step_model(
             }
             Err(error) => notes.push(format!("The step model kept its default: {error}.")),
         }
-    } else {
+    }
+    if let Some(k) = options.weinberg_k.filter(|k| k.is_finite() && *k > 0.0) {
+        if requested != StepModelKind::Weinberg {
+            notes.push(format!(
+                "Nothing in the log trains the {} model; the given Weinberg K was used.",
+                requested.key()
+            ));
+        }
+        return StepModelReport {
+            requested,
+            model: StepLengthModel::Weinberg { k },
+            trained_on: "given_k",
+            n_references: 0,
+            train_rms_m: None,
+        };
+    }
+    if gnss_references.is_empty() {
         notes.push(format!(
-            "Nothing trained the step model (no GNSS speed while GNSS was good, no known distance): Weinberg's K = {} was used. Give --known-distance for a walk of known length.",
+            "Nothing trained the step model (no GNSS speed while GNSS was good, no known distance): Weinberg's K = {} was used. Give --known-distance for a walk of known length, or --weinberg-k from an earlier walk.",
             step_length::DEFAULT_WEINBERG_K
         ));
     }
@@ -839,4 +859,58 @@ fn step_reference_lengths(
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::io::canonical_csv;
+    use crate::io::import::import;
+    use crate::sim::walk::{simulate, GnssSim, WalkConfig};
+
+    fn sim_report(config: &WalkConfig) -> ImportReport {
+        let text = canonical_csv::write(&simulate(config));
+        import("sim.csv", text.as_bytes()).expect("readable")
+    }
+
+    #[test]
+    fn scratch_outage() {
+        let config = WalkConfig {
+            gnss: Some(GnssSim {
+                position_noise_m: 3.0,
+                hacc_m: 3.0,
+                ..GnssSim::default()
+            }),
+            ..WalkConfig::from_seed(21, 900.0)
+        };
+        for model in [
+            StepModelKind::Weinberg,
+            StepModelKind::Linear,
+            StepModelKind::Neural,
+        ] {
+            let options = PdrOptions {
+                step_model: model,
+                gnss: GnssPolicy {
+                    outages: vec![Outage {
+                        start_s: 240.0,
+                        end_s: 840.0,
+                    }],
+                    ..GnssPolicy::default()
+                },
+                ..PdrOptions::default()
+            };
+            let analysis = run(sim_report(&config), &options).expect("runs");
+            let r = &analysis.report;
+            eprintln!(
+                "{model:?} steps {} key {} model {:?} fixes {:?}",
+                r.n_steps, r.heading_key, r.step_model.trained_on, r.fixes
+            );
+            eprintln!("  whole {:?}", r.position_error);
+            eprintln!("  outage {:?}", r.outage_position_errors);
+            eprintln!(
+                "  sl {:?} hd {:?} notes {:?}",
+                r.step_length_error_m, r.heading_error_deg, r.notes
+            );
+        }
+    }
 }

@@ -1,0 +1,141 @@
+//! Replay tests of pedestrian dead reckoning (issue 6) on the real recordings in
+//! `../shared/data`: the step count and loop closure of the hallway loop, and the error
+//! at the surveyed waypoints of the two indoor walks. Skipped, with a message, when
+//! `../shared/data` is absent.
+#![cfg(not(target_arch = "wasm32"))]
+
+mod common;
+
+use compass_pdr::calibration::CalibrationOptions;
+use compass_pdr::deviation::HeadingOptions;
+use compass_pdr::io::import::import_files;
+use compass_pdr::pdr::step_length::StepLengthModel;
+use compass_pdr::pdr::{run, HeadingChoice, PdrAnalysis, PdrOptions};
+use std::path::PathBuf;
+
+fn dead_reckon(paths: &[PathBuf], options: &PdrOptions) -> PdrAnalysis {
+    let contents = common::read_named(paths);
+    let slices: Vec<(&str, &[u8])> = contents
+        .iter()
+        .map(|(name, bytes)| (name.as_str(), bytes.as_slice()))
+        .collect();
+    run(import_files(&slices).expect("imports"), options).expect("dead-reckons")
+}
+
+#[test]
+fn hallway_loop_has_its_168_steps_and_closes_within_3_percent() {
+    let Some(data) = common::shared_data() else {
+        return;
+    };
+    let dir = data.join("phyphox-hallway-loop");
+    let paths = common::files_in(&dir, "csv");
+    // The loop's known length (116 m) fits Weinberg's K; the heading is the calibrated
+    // compass (indoor GNSS, 22-669 m, is refused by the accuracy gate).
+    let analysis = dead_reckon(
+        &paths,
+        &PdrOptions {
+            known_distance_m: Some(116.0),
+            closed_loop: true,
+            ..PdrOptions::default()
+        },
+    );
+    let report = &analysis.report;
+    eprintln!(
+        "phyphox loop: {} steps, heading {}, step model {:?}, closure {:?}",
+        report.n_steps, report.heading_key, report.step_model.model, report.loop_closure
+    );
+    assert!(
+        (165..=171).contains(&report.n_steps),
+        "168 ± 3 steps: {}",
+        report.n_steps
+    );
+    assert_eq!(report.step_model.trained_on, "known_distance");
+    let closure = report.loop_closure.expect("a closed loop");
+    assert!(closure.gap_pct < 3.0, "{closure:?}");
+    assert_eq!(
+        report.fixes.used, 0,
+        "indoor fixes are refused: {:?}",
+        report.fixes
+    );
+}
+
+/// The indoor walks: the phone held flat, no GNSS; the walk starts at the first
+/// waypoint, and no later waypoint trains anything.
+fn indoor_walk(data: &std::path::Path, floor: &str, heading: &str, k: Option<f64>) -> PdrAnalysis {
+    let paths = common::files_in(&data.join("msft-indoor-2020/site1").join(floor), "txt");
+    dead_reckon(
+        &paths,
+        &PdrOptions {
+            heading: HeadingChoice::parse(heading),
+            weinberg_k: k,
+            heading_options: HeadingOptions {
+                calibration: CalibrationOptions {
+                    position_deg: Some((30.3, 120.1)),
+                    ..CalibrationOptions::default()
+                },
+                ..HeadingOptions::default()
+            },
+            ..PdrOptions::default()
+        },
+    )
+}
+
+#[test]
+fn indoor_walks_at_the_waypoints() {
+    let Some(data) = common::shared_data() else {
+        return;
+    };
+    // The paper's protocol for the step model: train it on one walk, use it on another.
+    // Here each walk's K is fitted to its own waypoint path (the steps between its first
+    // and last waypoint) and given to the other walk.
+    let fitted_k = |floor: &str| {
+        let analysis = indoor_walk(&data, floor, "device", None);
+        let errors = analysis
+            .report
+            .position_error
+            .expect("waypoints score the walk");
+        // The steps between the first and the last waypoint walked the waypoint path.
+        let sum: f64 = analysis
+            .steps
+            .iter()
+            .filter(|step| (errors.start_s..=errors.end_s).contains(&step.mid_s()))
+            .map(compass_pdr::pdr::step_length::weinberg_feature)
+            .sum();
+        errors.distance_m / sum
+    };
+    let (k_f1, k_f4) = (fitted_k("F1"), fitted_k("F4"));
+    eprintln!("Weinberg K fitted to the waypoint path: F1 {k_f1:.4}, F4 {k_f4:.4}");
+    eprintln!("| walk | heading | step model | steps | path (m) | RMS (m) | RMS (%) | max (m) | distance error (%) |");
+    let mut best = std::collections::HashMap::new();
+    for (floor, other_k) in [("F1", k_f4), ("F4", k_f1)] {
+        for heading in ["auto", "device", "gyro+device"] {
+            for (k_label, k) in [("default K", None), ("K of the other walk", Some(other_k))] {
+                let analysis = indoor_walk(&data, floor, heading, k);
+                let report = &analysis.report;
+                let errors = report.position_error.expect("waypoints score the walk");
+                let k_value = match report.step_model.model {
+                    StepLengthModel::Weinberg { k } => k,
+                    _ => f64::NAN,
+                };
+                eprintln!(
+                    "| {floor} | {} | Weinberg, {k_label} ({k_value:.3}) | {} | {:.1} | {:.2} | {:.2} | {:.2} | {:+.1} |",
+                    report.heading_key,
+                    report.n_steps,
+                    errors.distance_m,
+                    errors.rms_m,
+                    errors.rms_pct,
+                    errors.max_m,
+                    errors.distance_error_pct
+                );
+                let entry = best.entry(floor).or_insert(f64::INFINITY);
+                *entry = f64::min(*entry, errors.rms_pct);
+            }
+        }
+    }
+    eprintln!("best RMS: {best:?}");
+    // Issue 6 asks for under 3 % of the path: F4 meets it, F1 does not (3.3 %); the
+    // README has the table and why. These bounds hold what the best configuration
+    // reaches today, so that a change that loses accuracy fails here.
+    assert!(best["F1"] < 3.5, "{best:?}");
+    assert!(best["F4"] < 2.5, "{best:?}");
+}
