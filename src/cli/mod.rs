@@ -188,6 +188,10 @@ struct PdrArgs {
     /// when nothing in this log trains the step model.
     #[arg(long)]
     weinberg_k: Option<f64>,
+    /// Train the step model on the log's reference positions (straight stretches
+    /// between them); without this they only score the track.
+    #[arg(long)]
+    train_on_reference: bool,
     /// The walk ends where it started: report the loop-closure error.
     #[arg(long)]
     closed_loop: bool,
@@ -240,6 +244,7 @@ impl PdrArgs {
             },
             known_distance_m: self.known_distance,
             weinberg_k: self.weinberg_k,
+            train_on_reference_positions: self.train_on_reference,
             closed_loop: self.closed_loop,
             gnss: GnssPolicy {
                 outages,
@@ -695,6 +700,14 @@ fn pdr_text(report: &PdrReport) -> String {
         ),
         "known_distance" => "fitted to the known distance".to_string(),
         "given_k" => "K given with --weinberg-k".to_string(),
+        "reference_positions" => format!(
+            "trained on {} straight stretches between reference positions",
+            report.step_model.n_references
+        ),
+        "gnss_positions" => format!(
+            "trained on {} straight stretches between GNSS fixes",
+            report.step_model.n_references
+        ),
         _ => "not trained (default)".to_string(),
     };
     let _ = writeln!(text, "  step model: {model}, {trained}");

@@ -24,8 +24,10 @@
 //!    is the truth.
 //! 2. Steps are detected; each gets the heading of the chosen model (circular mean over
 //!    the step) and a length from the step model.
-//! 3. The step model trains on the GNSS speed over each step while GNSS is good, or on
-//!    a known distance (a loop of known length), else keeps Weinberg's default K.
+//! 3. The step model trains on, in this order: a known distance (a loop of known
+//!    length); the reference positions, when asked to; the GNSS speed over each step
+//!    while GNSS is good; the distance between GNSS fixes on straight stretches (logs
+//!    without speed); else a K given from an earlier walk, else Weinberg's default.
 //! 4. One filter runs through the steps and the admissible fixes.
 //! 5. Reference positions (a truth track, surveyed waypoints) score the track; a
 //!    reference-heading column scores the headings.
@@ -51,7 +53,7 @@ use crate::reference::{ReferenceChoice, ReferenceOptions};
 use ekf::EkfNoise;
 use fusion::{fuse, FixInput, FixUse, GnssPolicy, Outage, StepInput, TrackPoint};
 use metrics::{LoopClosure, MeanStd, PositionErrors};
-use step_length::{StepLengthModel, StepModelKind, StepReference};
+use step_length::{SegmentReference, StepLengthModel, StepModelKind, StepReference};
 use steps::{detect_steps, Step, StepOptions};
 
 /// Where each step's heading comes from: a base heading, optionally carried by the gyro.
@@ -115,6 +117,10 @@ pub struct PdrOptions {
     /// Weinberg's K from an earlier walk (`compass-pdr pdr` prints the K it fitted), used
     /// when nothing in this log trains the step model.
     pub weinberg_k: Option<f64>,
+    /// Train the step model on the log's reference positions (the distance between
+    /// consecutive ones on straight stretches). Off by default: the reference positions
+    /// then only score the track.
+    pub train_on_reference_positions: bool,
     /// The walk ends where it started: report the loop-closure error.
     pub closed_loop: bool,
     pub gnss: GnssPolicy,
@@ -132,6 +138,7 @@ impl Default for PdrOptions {
             heading_options: HeadingOptions::default(),
             known_distance_m: None,
             weinberg_k: None,
+            train_on_reference_positions: false,
             closed_loop: false,
             gnss: GnssPolicy::default(),
             noise: EkfNoise::default(),
@@ -145,7 +152,8 @@ impl Default for PdrOptions {
 pub struct StepModelReport {
     pub requested: StepModelKind,
     pub model: StepLengthModel,
-    /// `gnss_speed`, `known_distance`, `given_k` or `default`.
+    /// `known_distance`, `reference_positions`, `gnss_speed`, `gnss_positions`,
+    /// `given_k` or `default`.
     pub trained_on: &'static str,
     pub n_references: usize,
     /// RMS of the model against its own references (m).
@@ -382,7 +390,31 @@ pub fn run(report: ImportReport, options: &PdrOptions) -> Result<PdrAnalysis, Pd
 
     // 4. Step lengths.
     let gnss_references = gnss_step_references(&recording, &steps, &options.gnss);
-    let step_model = train_step_model(&steps, &gnss_references, options, &mut notes);
+    let admissible_fixes: Vec<(f64, [f64; 2])> = fixes
+        .iter()
+        .filter(|fix| options.gnss.admissible(fix).is_ok())
+        .map(|fix| (fix.t_s, fix.en_m))
+        .collect();
+    let sets = ReferenceSets {
+        known_distance: options.known_distance_m.map(|distance_m| {
+            vec![SegmentReference {
+                steps: 0..steps.len(),
+                distance_m,
+            }]
+        }),
+        reference_positions: options
+            .train_on_reference_positions
+            .then(|| straight_segments(&reference_en_m, &steps, &step_headings_rad, 3.0, 5.0)),
+        gnss_speed: &gnss_references,
+        gnss_positions: straight_segments(
+            &admissible_fixes,
+            &steps,
+            &step_headings_rad,
+            20.0,
+            15.0,
+        ),
+    };
+    let step_model = train_step_model(&steps, &sets, options, &mut notes);
     let step_lengths_m: Vec<f64> = steps
         .iter()
         .map(|step| step_model.model.length_m(step))
@@ -710,56 +742,79 @@ fn gnss_step_references(
         .collect()
 }
 
+/// Where the step model's references come from, in the order they are tried.
+struct ReferenceSets<'a> {
+    known_distance: Option<Vec<SegmentReference>>,
+    reference_positions: Option<Vec<SegmentReference>>,
+    gnss_speed: &'a [StepReference],
+    gnss_positions: Vec<SegmentReference>,
+}
+
 fn train_step_model(
     steps: &[Step],
-    gnss_references: &[StepReference],
+    sets: &ReferenceSets<'_>,
     options: &PdrOptions,
     notes: &mut Vec<String>,
 ) -> StepModelReport {
     let requested = options.step_model;
-    let rms_on = |model: &StepLengthModel, references: &[StepReference]| {
-        let squares: Vec<f64> = references
+    let rms_on = |model: &StepLengthModel, segments: &[SegmentReference]| {
+        let squares: Vec<f64> = segments
             .iter()
-            .filter_map(|reference| {
-                let step = steps.get(reference.step_idx)?;
-                Some((model.length_m(step) - reference.length_m).powi(2))
+            .filter_map(|segment| {
+                let run = steps.get(segment.steps.clone())?;
+                let modelled: f64 = run.iter().map(|step| model.length_m(step)).sum();
+                Some(((modelled - segment.distance_m) / run.len().max(1) as f64).powi(2))
             })
             .collect();
         (!squares.is_empty()).then(|| (squares.iter().sum::<f64>() / squares.len() as f64).sqrt())
     };
-    if let Some(distance_m) = options.known_distance_m {
-        if requested != StepModelKind::Weinberg {
+    let per_step: Vec<SegmentReference> = sets
+        .gnss_speed
+        .iter()
+        .map(|reference| SegmentReference {
+            steps: reference.step_idx..reference.step_idx + 1,
+            distance_m: reference.length_m,
+        })
+        .collect();
+    let candidates: [(&'static str, Option<&[SegmentReference]>); 4] = [
+        ("known_distance", sets.known_distance.as_deref()),
+        ("reference_positions", sets.reference_positions.as_deref()),
+        (
+            "gnss_speed",
+            (!per_step.is_empty()).then_some(per_step.as_slice()),
+        ),
+        (
+            "gnss_positions",
+            (!sets.gnss_positions.is_empty()).then_some(sets.gnss_positions.as_slice()),
+        ),
+    ];
+    for (source, segments) in candidates {
+        let Some(segments) = segments else { continue };
+        // Runs of several steps fit the network only through a Weinberg model.
+        let kind = if requested == StepModelKind::Neural
+            && segments.iter().any(|s| s.steps.len() != 1)
+        {
             notes.push(format!(
-                "A known distance fits only the Weinberg model; it was used instead of the {} model.",
-                requested.key()
+                "The {source} references are distances over several steps, which train only the Weinberg and linear models; Weinberg's was fitted."
             ));
-        }
-        match step_length::fit_weinberg_to_distance(steps, distance_m) {
+            StepModelKind::Weinberg
+        } else {
+            requested
+        };
+        match step_length::fit_segments(kind, steps, segments, options.seed) {
             Ok(model) => {
+                let train_rms_m = rms_on(&model, segments);
                 return StepModelReport {
                     requested,
                     model,
-                    trained_on: "known_distance",
-                    n_references: steps.len(),
-                    train_rms_m: None,
-                }
-            }
-            Err(error) => notes.push(format!("The known distance was not used: {error}.")),
-        }
-    }
-    if !gnss_references.is_empty() {
-        match step_length::fit(requested, steps, gnss_references, options.seed) {
-            Ok(model) => {
-                let train_rms_m = rms_on(&model, gnss_references);
-                return StepModelReport {
-                    requested,
-                    model,
-                    trained_on: "gnss_speed",
-                    n_references: gnss_references.len(),
+                    trained_on: source,
+                    n_references: segments.len(),
                     train_rms_m,
                 };
             }
-            Err(error) => notes.push(format!("The step model kept its default: {error}.")),
+            Err(error) => notes.push(format!(
+                "The {source} references did not train the step model: {error}."
+            )),
         }
     }
     if let Some(k) = options.weinberg_k.filter(|k| k.is_finite() && *k > 0.0) {
@@ -777,12 +832,10 @@ fn train_step_model(
             train_rms_m: None,
         };
     }
-    if gnss_references.is_empty() {
-        notes.push(format!(
-            "Nothing trained the step model (no GNSS speed while GNSS was good, no known distance): Weinberg's K = {} was used. Give --known-distance for a walk of known length, or --weinberg-k from an earlier walk.",
-            step_length::DEFAULT_WEINBERG_K
-        ));
-    }
+    notes.push(format!(
+        "Nothing trained the step model (no GNSS while GNSS was good, no known distance): Weinberg's K = {} was used. Give --known-distance for a walk of known length, or --weinberg-k from an earlier walk.",
+        step_length::DEFAULT_WEINBERG_K
+    ));
     StepModelReport {
         requested,
         model: StepLengthModel::Weinberg {
@@ -792,6 +845,93 @@ fn train_step_model(
         n_references: 0,
         train_rms_m: None,
     }
+}
+
+/// The steps whose middle lies between two times.
+fn steps_between(steps: &[Step], start_s: f64, end_s: f64) -> std::ops::Range<usize> {
+    let first = steps.partition_point(|step| step.mid_s() < start_s);
+    let last = steps.partition_point(|step| step.mid_s() <= end_s);
+    first..last.max(first)
+}
+
+/// The speed (m/s) of the least-squares line through timed positions.
+fn line_speed_mps(positions: &[(f64, [f64; 2])]) -> Option<f64> {
+    let n = positions.len() as f64;
+    let mean_t = positions.iter().map(|(t, _)| t).sum::<f64>() / n;
+    let mean_e = positions.iter().map(|(_, p)| p[0]).sum::<f64>() / n;
+    let mean_n = positions.iter().map(|(_, p)| p[1]).sum::<f64>() / n;
+    let (mut stt, mut ste, mut stn) = (0.0, 0.0, 0.0);
+    for (t, p) in positions {
+        let dt = t - mean_t;
+        stt += dt * dt;
+        ste += dt * (p[0] - mean_e);
+        stn += dt * (p[1] - mean_n);
+    }
+    (stt > 0.0).then(|| (ste * ste + stn * stn).sqrt() / stt)
+}
+
+/// The circular spread (rad) of the headings of a run of steps.
+fn heading_spread_rad(headings: &[f64]) -> f64 {
+    let n = headings.len().max(1) as f64;
+    let (sin, cos) = headings
+        .iter()
+        .fold((0.0, 0.0), |(s, c), h| (s + h.sin(), c + h.cos()));
+    let resultant = ((sin / n).powi(2) + (cos / n).powi(2)).sqrt().min(1.0);
+    (-2.0 * resultant.max(1e-12).ln()).sqrt()
+}
+
+/// Segments between positions (GNSS fixes or reference positions) on straight
+/// stretches: from each position, the first one at least `span_s` later; kept when the
+/// steps between them hold their heading (spread under 8°), so that the path is a line.
+/// Its length is the speed of a least-squares line through all the positions of the
+/// span times the span: over 20 fixes of 3 m noise that is good to about 2.3 m, where
+/// the chord between the two end fixes would be good to 4.2 m. The
+/// end is chosen by time, not by distance: choosing the first fix far enough away
+/// would prefer fixes whose noise lengthens the chord. The next segment starts where
+/// this one ended.
+fn straight_segments(
+    positions: &[(f64, [f64; 2])],
+    steps: &[Step],
+    step_headings_rad: &[f64],
+    span_s: f64,
+    min_chord_m: f64,
+) -> Vec<SegmentReference> {
+    let mut segments = Vec::new();
+    let mut start = 0usize;
+    while start < positions.len() {
+        let (t_a, _) = positions[start];
+        let Some(offset) = positions[start + 1..]
+            .iter()
+            .position(|(t_b, _)| t_b - t_a >= span_s)
+        else {
+            break;
+        };
+        let end = start + 1 + offset;
+        let (t_b, _) = positions[end];
+        let span = positions.get(start..=end).unwrap_or(&[]);
+        let chord_m = line_speed_mps(span).map_or(0.0, |speed| speed * (t_b - t_a));
+        if span.len() < 3 || t_b - t_a > 2.0 * span_s || chord_m < min_chord_m {
+            start += 1;
+            continue;
+        }
+        let run = steps_between(steps, t_a, t_b);
+        let straight = step_headings_rad.get(run.clone()).is_some_and(|headings| {
+            !headings.is_empty() && heading_spread_rad(headings) < 8f64.to_radians()
+        });
+        let walking = steps
+            .get(run.clone())
+            .is_some_and(|run| !run.iter().any(|step| step.ends_bout));
+        if straight && walking && run.len() >= 5 {
+            segments.push(SegmentReference {
+                steps: run,
+                distance_m: chord_m,
+            });
+            start = end;
+        } else {
+            start += 1;
+        }
+    }
+    segments
 }
 
 /// The filter's start: the first admissible fix within 5 s of the first step (σ its
@@ -873,44 +1013,81 @@ mod tests {
         import("sim.csv", text.as_bytes()).expect("readable")
     }
 
-    #[test]
-    fn scratch_outage() {
-        let config = WalkConfig {
+    fn with_gnss(seed: u64, duration_s: f64) -> WalkConfig {
+        WalkConfig {
             gnss: Some(GnssSim {
                 position_noise_m: 3.0,
                 hacc_m: 3.0,
                 ..GnssSim::default()
             }),
-            ..WalkConfig::from_seed(21, 900.0)
+            ..WalkConfig::from_seed(seed, duration_s)
+        }
+    }
+
+    fn weinberg_k(analysis: &PdrAnalysis) -> f64 {
+        match analysis.report.step_model.model {
+            StepLengthModel::Weinberg { k } => k,
+            _ => f64::NAN,
+        }
+    }
+
+    #[test]
+    fn gnss_positions_train_the_step_model_when_the_log_has_no_speed() {
+        // 20 minutes: each 20-s stretch knows its length to about 2.3 m (3 m fixes), so
+        // about 50 stretches give K to about 1.3 %.
+        let config = with_gnss(21, 1200.0);
+        let with_speed = run(sim_report(&config), &PdrOptions::default()).expect("runs");
+        assert_eq!(with_speed.report.step_model.trained_on, "gnss_speed");
+        let mut report = sim_report(&config);
+        for fix in &mut report.recording.gnss.values {
+            fix.speed_mps = None;
+        }
+        let without_speed = run(report, &PdrOptions::default()).expect("runs");
+        let summary = &without_speed.report.step_model;
+        assert_eq!(
+            summary.trained_on, "gnss_positions",
+            "{:?}",
+            without_speed.report.notes
+        );
+        assert!(summary.n_references >= 10, "{summary:?}");
+        let (k_speed, k_positions) = (weinberg_k(&with_speed), weinberg_k(&without_speed));
+        assert!(
+            (k_positions / k_speed - 1.0).abs() < 0.04,
+            "{k_speed} from speed, {k_positions} from positions"
+        );
+    }
+
+    #[test]
+    fn straight_segments_follow_straight_runs_of_steps_only() {
+        let step = |k: usize| Step {
+            t_start_s: 0.5 * k as f64,
+            t_end_s: 0.5 * (k + 1) as f64,
+            t_peak_s: 0.5 * k as f64 + 0.1,
+            frequency_hz: 2.0,
+            variance_mps2_sq: 1.0,
+            a_max_mps2: 11.0,
+            a_min_mps2: 8.5,
+            ends_bout: false,
         };
-        for model in [
-            StepModelKind::Weinberg,
-            StepModelKind::Linear,
-            StepModelKind::Neural,
-        ] {
-            let options = PdrOptions {
-                step_model: model,
-                gnss: GnssPolicy {
-                    outages: vec![Outage {
-                        start_s: 240.0,
-                        end_s: 840.0,
-                    }],
-                    ..GnssPolicy::default()
-                },
-                ..PdrOptions::default()
-            };
-            let analysis = run(sim_report(&config), &options).expect("runs");
-            let r = &analysis.report;
-            eprintln!(
-                "{model:?} steps {} key {} model {:?} fixes {:?}",
-                r.n_steps, r.heading_key, r.step_model.trained_on, r.fixes
-            );
-            eprintln!("  whole {:?}", r.position_error);
-            eprintln!("  outage {:?}", r.outage_position_errors);
-            eprintln!(
-                "  sl {:?} hd {:?} notes {:?}",
-                r.step_length_error_m, r.heading_error_deg, r.notes
-            );
+        let steps: Vec<Step> = (0..200).map(step).collect();
+        // North for 50 s, then turning 9° a step.
+        let headings: Vec<f64> = (0..200)
+            .map(|k| {
+                if k < 100 {
+                    0.0
+                } else {
+                    (k - 100) as f64 * 9f64.to_radians()
+                }
+            })
+            .collect();
+        let positions: Vec<(f64, [f64; 2])> = (0..100)
+            .map(|t| (t as f64, [0.0, 1.4 * t as f64]))
+            .collect();
+        let segments = straight_segments(&positions, &steps, &headings, 20.0, 15.0);
+        assert!(!segments.is_empty());
+        for segment in &segments {
+            assert!(segment.steps.end <= 100, "{segment:?}");
+            assert!(segment.distance_m >= 15.0);
         }
     }
 }

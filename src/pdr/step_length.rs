@@ -8,10 +8,11 @@
 //! - a neural network with 16 `tansig` (tanh) hidden neurons fed by SF, SV, Amax and
 //!   Amin (the network code is [`crate::nn`], shared with the heading correction).
 //!
-//! References are per step (GNSS speed over the step, reference positions) or one total
-//! distance for a run of steps (a loop of known length): a total fits Weinberg's K
-//! exactly (`K = D / Σ(Amax − Amin)^¼`), and the linear model and the network need
-//! per-step references.
+//! References are per step (GNSS speed over the step) or a distance for a run of steps
+//! (GNSS fixes or reference positions at its ends on a straight stretch, a loop of known
+//! length). Weinberg's and the linear model fit segment totals by least squares (one
+//! segment fits K exactly: `K = D / Σ(Amax − Amin)^¼`); the network needs per-step
+//! references.
 
 use nalgebra::{Matrix3, Vector3};
 use serde::Serialize;
@@ -150,20 +151,13 @@ fn neural_inputs(step: &Step) -> [f64; 4] {
     ]
 }
 
-/// The references that are believable walking steps of finite features.
-fn usable<'a>(
-    steps: &'a [Step],
-    references: &'a [StepReference],
-) -> impl Iterator<Item = (&'a Step, f64)> + 'a {
-    references.iter().filter_map(|reference| {
-        let step = steps.get(reference.step_idx)?;
-        let finite = step.frequency_hz.is_finite()
-            && step.variance_mps2_sq.is_finite()
-            && step.a_max_mps2.is_finite()
-            && step.a_min_mps2.is_finite();
-        (finite && PLAUSIBLE_STEP_M.contains(&reference.length_m))
-            .then_some((step, reference.length_m))
-    })
+/// A distance walked by a run of consecutive steps: one step (GNSS speed over it), the
+/// steps between two GNSS fixes on a straight stretch or between two reference
+/// positions, or a whole walk of known length.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SegmentReference {
+    pub steps: std::ops::Range<usize>,
+    pub distance_m: f64,
 }
 
 /// Fits `kind` to per-step references. `seed` fixes the network's initial weights.
@@ -173,36 +167,73 @@ pub fn fit(
     references: &[StepReference],
     seed: u64,
 ) -> Result<StepLengthModel, StepModelError> {
-    let pairs: Vec<(&Step, f64)> = usable(steps, references).collect();
+    let segments: Vec<SegmentReference> = references
+        .iter()
+        .map(|reference| SegmentReference {
+            steps: reference.step_idx..reference.step_idx + 1,
+            distance_m: reference.length_m,
+        })
+        .collect();
+    fit_segments(kind, steps, &segments, seed)
+}
+
+/// Fits `kind` to segment references by least squares on the segments' totals: Weinberg's
+/// K minimises Σ (D − K·Σx)², the linear model Σ (D − n·A − B·ΣSF − C·ΣSV)². The network
+/// needs one step per segment. Segments whose mean step is not a believable walking
+/// step, or that reach past the steps, are left out.
+pub fn fit_segments(
+    kind: StepModelKind,
+    steps: &[Step],
+    segments: &[SegmentReference],
+    seed: u64,
+) -> Result<StepLengthModel, StepModelError> {
+    let usable: Vec<(&[Step], f64)> = segments
+        .iter()
+        .filter_map(|segment| {
+            let run = steps.get(segment.steps.clone())?;
+            let finite = run.iter().all(|step| {
+                step.frequency_hz.is_finite()
+                    && step.variance_mps2_sq.is_finite()
+                    && step.a_max_mps2.is_finite()
+                    && step.a_min_mps2.is_finite()
+            });
+            let mean_m = segment.distance_m / run.len().max(1) as f64;
+            (!run.is_empty() && finite && PLAUSIBLE_STEP_M.contains(&mean_m))
+                .then_some((run, segment.distance_m))
+        })
+        .collect();
+    let n_steps: usize = usable.iter().map(|(run, _)| run.len()).sum();
     match kind {
         StepModelKind::Weinberg => {
-            let (sum_xy, sum_xx) = pairs.iter().fold((0.0, 0.0), |(xy, xx), (step, length)| {
-                let x = weinberg_feature(step);
-                (xy + x * length, xx + x * x)
+            let (sum_xy, sum_xx) = usable.iter().fold((0.0, 0.0), |(xy, xx), (run, distance)| {
+                let x: f64 = run.iter().map(weinberg_feature).sum();
+                (xy + x * distance, xx + x * x)
             });
-            if pairs.len() < 5 || sum_xx <= 0.0 {
+            if n_steps < 5 || sum_xx <= 0.0 {
                 return Err(StepModelError::TooFewReferences {
                     model: "Weinberg",
                     needed: 5,
-                    found: pairs.len(),
+                    found: n_steps,
                 });
             }
             Ok(StepLengthModel::Weinberg { k: sum_xy / sum_xx })
         }
         StepModelKind::Linear => {
-            if pairs.len() < 20 {
+            if usable.len() < 20 {
                 return Err(StepModelError::TooFewReferences {
                     model: "linear",
                     needed: 20,
-                    found: pairs.len(),
+                    found: usable.len(),
                 });
             }
             let mut normal = Matrix3::<f64>::zeros();
             let mut rhs = Vector3::<f64>::zeros();
-            for (step, length) in &pairs {
-                let row = Vector3::new(1.0, step.frequency_hz, step.variance_mps2_sq);
+            for (run, distance) in &usable {
+                let row = run.iter().fold(Vector3::zeros(), |sum, step| {
+                    sum + Vector3::new(1.0, step.frequency_hz, step.variance_mps2_sq)
+                });
                 normal += row * row.transpose();
-                rhs += row * *length;
+                rhs += row * *distance;
             }
             // Scale the columns so the conditioning test means something.
             let scale = Vector3::from_iterator((0..3).map(|i| normal[(i, i)].sqrt().max(1e-12)));
@@ -224,18 +255,23 @@ pub fn fit(
             })
         }
         StepModelKind::Neural => {
-            if pairs.len() < 40 {
+            if usable.iter().any(|(run, _)| run.len() != 1) {
+                return Err(StepModelError::NeedsPerStepReferences {
+                    model: "neural-network",
+                });
+            }
+            if usable.len() < 40 {
                 return Err(StepModelError::TooFewReferences {
                     model: "neural-network",
                     needed: 40,
-                    found: pairs.len(),
+                    found: usable.len(),
                 });
             }
-            let inputs: Vec<f64> = pairs
+            let inputs: Vec<f64> = usable
                 .iter()
-                .flat_map(|(step, _)| neural_inputs(step))
+                .flat_map(|(run, _)| run.iter().flat_map(neural_inputs))
                 .collect();
-            let targets: Vec<f64> = pairs.iter().map(|(_, length)| *length).collect();
+            let targets: Vec<f64> = usable.iter().map(|(_, length)| *length).collect();
             let data = Dataset::new(&inputs, 4, &targets, 1)
                 .map_err(|error| StepModelError::Training(error.to_string()))?;
             let options = TrainOptions {
@@ -261,21 +297,15 @@ pub fn fit_weinberg_to_distance(
     steps: &[Step],
     distance_m: f64,
 ) -> Result<StepLengthModel, StepModelError> {
-    let sum: f64 = steps
-        .iter()
-        .map(weinberg_feature)
-        .filter(|x| x.is_finite())
-        .sum();
-    if steps.len() < 5 || sum <= 0.0 || !(distance_m.is_finite() && distance_m > 0.0) {
-        return Err(StepModelError::TooFewReferences {
-            model: "Weinberg",
-            needed: 5,
-            found: steps.len(),
-        });
-    }
-    Ok(StepLengthModel::Weinberg {
-        k: distance_m / sum,
-    })
+    fit_segments(
+        StepModelKind::Weinberg,
+        steps,
+        &[SegmentReference {
+            steps: 0..steps.len(),
+            distance_m,
+        }],
+        0,
+    )
 }
 
 #[cfg(test)]
