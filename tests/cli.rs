@@ -183,6 +183,79 @@ fn heading_compares_every_method_and_draws_the_deviation_figure() {
         .is_some_and(|rows| rows.len() >= 9));
 }
 
+#[test]
+fn pdr_dead_reckons_the_demo_and_writes_the_track_and_figure() {
+    let dir = scratch_dir("pdr");
+    let (svg, csv, gpx) = (
+        dir.join("pdr.svg"),
+        dir.join("track.csv"),
+        dir.join("track.gpx"),
+    );
+    let demo = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/demo-walk.csv");
+    let demo = demo.to_str().unwrap_or_default();
+    let output = compass_pdr(&[
+        "pdr",
+        demo,
+        "--known-distance",
+        "217",
+        "--plot",
+        svg.to_str().unwrap_or_default(),
+        "--out",
+        csv.to_str().unwrap_or_default(),
+    ]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(stdout.contains("fitted to the known distance"), "{stdout}");
+    assert!(stdout.contains("GNSS: none in the log"), "{stdout}");
+    let figure = std::fs::read_to_string(&svg).expect("SVG written");
+    for caption in [
+        "Trajectory: ",
+        "Step length: Weinberg",
+        "Position error against the reference",
+    ] {
+        assert!(
+            figure.contains(caption),
+            "{caption} missing from the figure"
+        );
+    }
+    let track = std::fs::read_to_string(&csv).expect("track written");
+    assert!(track.starts_with("t_s,east_m,north_m,lat_deg,lon_deg,"));
+    assert!(track.lines().count() > 300, "a row per step");
+
+    let output = compass_pdr(&["pdr", demo, "--json", "--step-model", "linear"]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    let report: serde_json::Value = serde_json::from_slice(&output.stdout).expect("JSON");
+    assert!(report["n_steps"]
+        .as_u64()
+        .is_some_and(|n| (300..330).contains(&n)));
+    assert!(report["position_error"]["rms_m"].is_number());
+    // Nothing in the demo trains a linear model: the default Weinberg K is used, and said.
+    assert_eq!(report["step_model"]["trained_on"], "default");
+
+    // A track without GNSS has no latitude and longitude for GPX; a bad outage is refused.
+    for (args, expected) in [
+        (
+            vec!["--out", gpx.to_str().unwrap_or_default()],
+            "can only be written as CSV",
+        ),
+        (vec!["--outage", "5"], "give START:END in seconds"),
+        (
+            vec!["--step-model", "stride"],
+            "choose linear, weinberg or mlp",
+        ),
+        (
+            vec!["--out", "track.kml"],
+            "end the file name with .csv, .geojson or .gpx",
+        ),
+    ] {
+        let mut all = vec!["pdr", demo];
+        all.extend(args);
+        let output = compass_pdr(&all);
+        assert_eq!(output.status.code(), Some(1));
+        assert!(stderr(&output).contains(expected), "{}", stderr(&output));
+    }
+}
+
 /// Bad input: exit code 1, a message naming the file and what to do, never a panic.
 fn check_refused(test_name: &str, file_name: &str, content: &[u8], expect_in_message: &str) {
     let dir = scratch_dir(test_name);

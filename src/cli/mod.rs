@@ -717,11 +717,17 @@ fn pdr_text(report: &PdrReport) -> String {
         report.heading_label, report.heading_key
     );
     let fixes = &report.fixes;
-    let _ = writeln!(
-        text,
-        "  GNSS fixes: {} used, {} after a reset, {} in outages, {} too inaccurate, {} rejected by the gate",
-        fixes.used, fixes.used_after_reset, fixes.in_outage, fixes.poor_accuracy, fixes.rejected
-    );
+    if fixes.used + fixes.used_after_reset + fixes.in_outage + fixes.poor_accuracy + fixes.rejected
+        == 0
+    {
+        let _ = writeln!(text, "  GNSS: none in the log");
+    } else {
+        let _ = writeln!(
+            text,
+            "  GNSS fixes: {} used, {} after a reset, {} in outages, {} too inaccurate, {} rejected by the gate",
+            fixes.used, fixes.used_after_reset, fixes.in_outage, fixes.poor_accuracy, fixes.rejected
+        );
+    }
     let position_row =
         |text: &mut String, name: &str, errors: &compass_pdr::pdr::metrics::PositionErrors| {
             let _ = writeln!(

@@ -455,6 +455,21 @@ pub fn run(report: ImportReport, options: &PdrOptions) -> Result<PdrAnalysis, Pd
         };
         *counter += 1;
     }
+    if frame.is_none() {
+        // No fix was good enough to anchor a frame: all were refused for accuracy.
+        fix_counts.poor_accuracy = recording
+            .gnss
+            .values
+            .iter()
+            .filter(|fix| fix.lat_deg.is_some() && fix.lon_deg.is_some())
+            .count();
+        if fix_counts.poor_accuracy > 0 {
+            notes.push(format!(
+                "None of the {} GNSS fixes reported an accuracy within {} m: the track is dead-reckoned throughout.",
+                fix_counts.poor_accuracy, options.gnss.max_hacc_m
+            ));
+        }
+    }
     if !fixes.is_empty() && fix_counts.used + fix_counts.used_after_reset == 0 {
         notes.push(format!(
             "None of the {} GNSS fixes was used (accuracy worse than {} m, or in outages): the track is dead-reckoned throughout.",
