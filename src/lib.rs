@@ -48,7 +48,10 @@
 //! reference ([`deviation`]: the PDR paper's Fourier model, online too, and the 2007
 //! paper's neural network). Tilt comes from the direction of specific force averaged over
 //! a second, so fast sway is not compensated (a gyro-aided attitude would). Dead
-//! reckoning (steps, step length, the EKF) is not built yet.
+//! reckoning ([`pdr`]) detects steps, fits a step-length model to GNSS or a known
+//! distance, and runs the paper's `[E, N, l, a]` EKF through GNSS outages; it has no
+//! map matching, so indoors its heading is only as good as the compass or the device's
+//! own yaw.
 
 pub mod align;
 pub mod analysis;
