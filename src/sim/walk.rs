@@ -539,10 +539,19 @@ mod tests {
             "the steady gait no longer writes assets/demo-walk.csv"
         );
         assert!(truth.steps.is_empty());
-        // The config's JSON (the demo's truth file) has no gait in it.
-        let json = serde_json::to_value(&config).expect("serialisable");
+    }
+
+    #[cfg(not(target_arch = "wasm32"))]
+    #[test]
+    fn the_steady_config_json_has_no_gait_and_the_varied_one_says_varied() {
+        // The demo's truth file is this JSON: it reads as before there was a gait.
+        let json = serde_json::to_value(WalkConfig::from_seed(1, 180.0)).expect("serialisable");
         assert!(json.get("gait").is_none(), "{json}");
         assert_eq!(json["step_length_m"], 0.7);
+        let json =
+            serde_json::to_value(WalkConfig::pdr_walk(1, 180.0, 50.0)).expect("serialisable");
+        assert_eq!(json["gait"]["kind"], "varied");
+        assert_eq!(json["gait"]["weinberg_k"], 0.48);
     }
 
     /// The truth speed at each sample: the distance to the next sample over dt.
