@@ -46,6 +46,89 @@ fn the_committed_demo_is_what_the_simulator_writes() {
 }
 
 #[test]
+fn simulate_writes_the_pdr_scenario_with_its_step_truth() {
+    let dir = scratch_dir("pdr-scenario");
+    let (out, truth) = (dir.join("pdr-walk.csv"), dir.join("pdr-walk.truth.json"));
+    let output = compass_pdr(&[
+        "simulate",
+        "--scenario",
+        "pdr",
+        "--seed",
+        "3",
+        "--duration-s",
+        "120",
+        "--sample-rate-hz",
+        "100",
+        "--out",
+        out.to_str().unwrap_or_default(),
+        "--truth",
+        truth.to_str().unwrap_or_default(),
+    ]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    let text = std::fs::read_to_string(&out).expect("written");
+    assert_eq!(text.lines().count(), 1 + 12_000);
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&truth).expect("truth written")).expect("JSON");
+    assert_eq!(json["config"]["gait"]["kind"], "varied");
+    assert_eq!(json["config"]["sample_rate_hz"], 100.0);
+    assert_eq!(json["config"]["gnss"]["position_noise_m"], 3.0);
+    let steps = json["steps"].as_array().cloned().unwrap_or_default();
+    assert!(steps.len() > 100, "{} steps", steps.len());
+    let sum_of_lengths_m: f64 = steps
+        .iter()
+        .map(|step| step["length_m"].as_f64().unwrap_or(f64::NAN))
+        .sum();
+    let path_length_m = json["path_length_m"].as_f64().unwrap_or(f64::NAN);
+    assert!(
+        (sum_of_lengths_m - path_length_m).abs() < 1e-6,
+        "{sum_of_lengths_m} vs {path_length_m}"
+    );
+    for key in [
+        "t_start_s",
+        "t_end_s",
+        "frequency_hz",
+        "heading_rad",
+        "vertical_peak_to_peak_mps2",
+    ] {
+        assert!(steps[0][key].is_f64(), "{key}");
+    }
+
+    // The demo's truth stays the config alone, without a gait.
+    let demo_truth = dir.join("demo.truth.json");
+    let output = compass_pdr(&[
+        "simulate",
+        "--duration-s",
+        "10",
+        "--out",
+        dir.join("demo.csv").to_str().unwrap_or_default(),
+        "--truth",
+        demo_truth.to_str().unwrap_or_default(),
+    ]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&demo_truth).expect("written")).expect("JSON");
+    assert_eq!(json["seed"], 1);
+    assert!(
+        json.get("gait").is_none() && json.get("steps").is_none(),
+        "{json}"
+    );
+
+    let bad = compass_pdr(&[
+        "simulate",
+        "--sample-rate-hz",
+        "0",
+        "--out",
+        dir.join("never.csv").to_str().unwrap_or_default(),
+    ]);
+    assert_eq!(bad.status.code(), Some(1));
+    assert!(
+        stderr(&bad).contains("--sample-rate-hz 0 is out of range"),
+        "{}",
+        stderr(&bad)
+    );
+}
+
+#[test]
 fn calibrate_prints_json_with_the_heading_errors() {
     let demo = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/demo-walk.csv");
     let output = compass_pdr(&[

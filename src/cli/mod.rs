@@ -21,7 +21,8 @@ use compass_pdr::pdr::step_length::{StepLengthModel, StepModelKind};
 use compass_pdr::pdr::{self, HeadingChoice, PdrOptions, PdrReport};
 use compass_pdr::plot::{draw_calibration_figure, draw_deviation_figure, draw_pdr_figure};
 use compass_pdr::reference::{ReferenceChoice, ReferenceOptions};
-use compass_pdr::sim::walk::{simulate, WalkConfig};
+use compass_pdr::sim::gait::StepTruth;
+use compass_pdr::sim::walk::{simulate_with_truth, WalkConfig};
 use compass_pdr::stats::HeadingErrorStats;
 use plotters::prelude::{IntoDrawingArea, SVGBackend};
 
@@ -46,9 +47,17 @@ enum Command {
         /// Where to write the canonical CSV.
         #[arg(long)]
         out: PathBuf,
-        /// Where to write the simulator's parameters as JSON (the truth).
+        /// Where to write the simulator's parameters as JSON (the truth); for the PDR
+        /// scenario, with the truth of every step.
         #[arg(long)]
         truth: Option<PathBuf>,
+        /// Which walk: the demo's, or the PDR scenario (varied steps with per-step
+        /// truth, a compass error of the unified model, GNSS with 3 m noise).
+        #[arg(long, value_enum, default_value_t = Scenario::Demo)]
+        scenario: Scenario,
+        /// Samples per second of the motion sensors (phones log at 50 or 100).
+        #[arg(long, default_value_t = 50.0)]
+        sample_rate_hz: f64,
     },
     /// Calibrate the magnetometer of a log and compare headings with its reference.
     Calibrate {
@@ -300,6 +309,14 @@ impl AnalysisArgs {
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum Scenario {
+    /// A steady walk with hard iron and scale factors (`assets/demo-walk.csv`).
+    Demo,
+    /// Issue 6's PDR walk: varied steps, unified-model compass error, 3 m GNSS noise.
+    Pdr,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 enum MethodChoice {
     /// Min/max autocalibration (Eq. 6-7 of the 2007 paper).
     Minmax,
@@ -335,7 +352,16 @@ pub fn main() -> ExitCode {
             duration_s,
             out,
             truth,
-        } => run_simulate(seed, duration_s, &out, truth.as_deref()),
+            scenario,
+            sample_rate_hz,
+        } => run_simulate(
+            seed,
+            duration_s,
+            scenario,
+            sample_rate_hz,
+            &out,
+            truth.as_deref(),
+        ),
         Command::Inspect { input, json } => run_inspect(&input, json),
         Command::Pdr {
             input,
@@ -387,9 +413,19 @@ pub fn main() -> ExitCode {
     }
 }
 
+/// The truth file of the PDR scenario: the config and every step.
+#[derive(serde::Serialize)]
+struct PdrTruth<'a> {
+    config: &'a WalkConfig,
+    path_length_m: f64,
+    steps: &'a [StepTruth],
+}
+
 fn run_simulate(
     seed: u64,
     duration_s: f64,
+    scenario: Scenario,
+    sample_rate_hz: f64,
     out: &Path,
     truth: Option<&Path>,
 ) -> Result<(), String> {
@@ -398,13 +434,32 @@ fn run_simulate(
             "--duration-s {duration_s} is out of range: give a number of seconds from 0 to 86400"
         ));
     }
-    let config = WalkConfig::from_seed(seed, duration_s);
-    let text = canonical_csv::write(&simulate(&config));
-    std::fs::write(out, text)
+    if !(sample_rate_hz.is_finite() && (10.0..=1000.0).contains(&sample_rate_hz)) {
+        return Err(format!(
+            "--sample-rate-hz {sample_rate_hz} is out of range: give a rate from 10 to 1000 Hz"
+        ));
+    }
+    let config = match scenario {
+        Scenario::Demo => WalkConfig {
+            sample_rate_hz,
+            ..WalkConfig::from_seed(seed, duration_s)
+        },
+        Scenario::Pdr => WalkConfig::pdr_walk(seed, duration_s, sample_rate_hz),
+    };
+    let (rows, walk_truth) = simulate_with_truth(&config);
+    std::fs::write(out, canonical_csv::write(&rows))
         .map_err(|error| format!("cannot write {}: {error}", out.display()))?;
     if let Some(truth) = truth {
-        let json = serde_json::to_string_pretty(&config)
-            .map_err(|error| format!("cannot encode the truth: {error}"))?;
+        // The demo's truth file stays the config alone, as assets/demo-walk.truth.json.
+        let encoded = match scenario {
+            Scenario::Demo => serde_json::to_string_pretty(&config),
+            Scenario::Pdr => serde_json::to_string_pretty(&PdrTruth {
+                config: &config,
+                path_length_m: walk_truth.path_length_m,
+                steps: &walk_truth.steps,
+            }),
+        };
+        let json = encoded.map_err(|error| format!("cannot encode the truth: {error}"))?;
         std::fs::write(truth, json + "\n")
             .map_err(|error| format!("cannot write {}: {error}", truth.display()))?;
     }

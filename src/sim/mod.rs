@@ -5,12 +5,15 @@
 //! hard iron, axis scale factors and noise (the hard/soft-iron model of Eq. 2-3 of the
 //! 2007 paper, with a diagonal matrix); the accelerometer sees gravity, the tilt of the
 //! hand, and a vertical bounce at the step frequency. The true heading and position are
-//! written as the reference columns.
+//! written as the reference columns. [`gait`] is the varied gait of the PDR scenario
+//! (`WalkConfig::pdr_walk`): steps whose frequency and length vary, accelerations that
+//! follow Weinberg's relation, and the truth of every step.
 //!
 //! Randomness comes from [`rng::SplitMix64`], written out here rather than taken from a
 //! crate so that a seed gives the same log forever, on every platform: the demo in
 //! `assets/` depends on it.
 
 pub mod field;
+pub mod gait;
 pub mod rng;
 pub mod walk;

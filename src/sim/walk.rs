@@ -12,10 +12,16 @@
 //! - accelerometer: specific force `f = a − g` with a vertical bounce and a fore-aft
 //!   surge at the step frequency while walking, rotated into the body frame;
 //! - gyroscope: the exact body rates of the Euler-angle motion, plus bias and noise.
+//!
+//! The gait is [`Gait::Steady`] (fixed steps, the committed demo's) or
+//! [`Gait::Varied`] (steps that vary, with accelerations that follow Weinberg's
+//! relation and the truth of every step: `gait.rs`). [`simulate_with_truth`] returns
+//! that step truth with the log.
 
 use nalgebra::{Rotation3, Vector2, Vector3};
 use serde::Serialize;
 
+use super::gait::{Gait, GaitMotion, GaitPlan, GaitVariation, StepPositions, StepTruth};
 use super::rng::SplitMix64;
 use crate::angle::wrap_to_2pi;
 use crate::geo::{Geodetic, LocalFrame};
@@ -41,8 +47,13 @@ pub struct WalkConfig {
     pub acc_noise_mps2: f64,
     pub gyro_bias_radps: [f64; 3],
     pub gyro_noise_radps: f64,
+    /// The steady gait's step frequency and length (the varied gait has its own).
     pub step_frequency_hz: f64,
     pub step_length_m: f64,
+    /// How the pedestrian walks. The steady gait is not written in the JSON of the
+    /// config, which therefore reads as it did before there was a choice.
+    #[serde(skip_serializing_if = "Gait::is_steady")]
+    pub gait: Gait,
     /// The hand's mean tilt and the sway about it while walking.
     pub mean_pitch_deg: f64,
     pub mean_roll_deg: f64,
@@ -122,6 +133,7 @@ impl WalkConfig {
             gyro_noise_radps: 0.005,
             step_frequency_hz: 1.8,
             step_length_m: 0.7,
+            gait: Gait::Steady,
             mean_pitch_deg: 6.0,
             mean_roll_deg: -3.0,
             sway_pitch_deg: 2.0,
@@ -135,6 +147,46 @@ impl WalkConfig {
             gnss: None,
         }
     }
+
+    /// The PDR scenario of issue 6: the walk of [`WalkConfig::from_seed`] at
+    /// `sample_rate_hz` (50 or 100 Hz on phones), with the varied gait of
+    /// [`GaitVariation::default`] and a GNSS receiver with 3 m noise (1 Hz fixes, 2°
+    /// course noise, the speed with 0.05 m/s noise, a reported accuracy of 3 m).
+    ///
+    /// The heading error is the PDR paper's unified model, Eq. 12: the compass deviates
+    /// by exactly `δ = A + B·sin ψ' + C·cos ψ' + D·sin 2ψ' + E·cos 2ψ'` (ψ' the raw
+    /// heading), with A to E drawn from the seed: A within ±5°, B and C within ±6°, D and
+    /// E within ±3°, so the raw heading is wrong by up to about 18°. That is the error
+    /// the paper learns from GNSS courses and compensates before its EKF (the values
+    /// of its Table II are larger, B up to 40°, after devices were mounted next to the
+    /// compass). Hard iron, scale factors and their temperature drift are then not
+    /// simulated; the hand's tilt and sway, gyro bias and sensor noise are.
+    pub fn pdr_walk(seed: u64, duration_s: f64, sample_rate_hz: f64) -> Self {
+        let mut rng = SplitMix64::new(seed ^ 0x0BAD_5EED_0000_0006);
+        let mut draw = |half_range_deg: f64| rng.uniform_in(-half_range_deg, half_range_deg);
+        let deviation_deg = [draw(5.0), draw(6.0), draw(6.0), draw(3.0), draw(3.0)];
+        WalkConfig {
+            sample_rate_hz,
+            gait: Gait::Varied(GaitVariation::default()),
+            deviation_deg: Some(deviation_deg),
+            gnss: Some(GnssSim {
+                position_noise_m: 3.0,
+                hacc_m: 3.0,
+                ..GnssSim::default()
+            }),
+            ..WalkConfig::from_seed(seed, duration_s)
+        }
+    }
+}
+
+/// The truth of a walk beyond its reference columns.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct WalkTruth {
+    /// The length of the path the truth position followed, summed sample by sample.
+    pub path_length_m: f64,
+    /// The steps, in order (empty for [`Gait::Steady`]); their lengths add up to
+    /// `path_length_m`.
+    pub steps: Vec<StepTruth>,
 }
 
 /// One phase of the walk: how long, whether walking, and the turn rate.
@@ -193,6 +245,32 @@ fn plan_route(config: &WalkConfig, rng: &mut SplitMix64) -> Vec<Phase> {
 
 /// Simulates the walk: one canonical row per sample.
 pub fn simulate(config: &WalkConfig) -> Vec<CanonicalRow> {
+    simulate_with_truth(config).0
+}
+
+/// The walking phases of a route: start and end times (s), in order.
+fn walking_phases(phases: &[Phase]) -> Vec<(f64, f64)> {
+    let mut phase_start_s = 0.0;
+    let mut walking = Vec::new();
+    for phase in phases {
+        if phase.is_walking {
+            walking.push((phase_start_s, phase_start_s + phase.duration_s));
+        }
+        phase_start_s += phase.duration_s;
+    }
+    walking
+}
+
+/// The gait while the walk is simulated: the steady gait's fade, or the varied gait's
+/// planned steps.
+enum GaitState {
+    Steady { weight: f64 },
+    Varied(GaitPlan),
+}
+
+/// Simulates the walk: one canonical row per sample, and the truth of its steps. The
+/// rows are those of [`simulate`].
+pub fn simulate_with_truth(config: &WalkConfig) -> (Vec<CanonicalRow>, WalkTruth) {
     let mut rng = SplitMix64::new(config.seed);
     let phases = plan_route(config, &mut rng);
     let dt_s = 1.0 / config.sample_rate_hz;
@@ -214,8 +292,26 @@ pub fn simulate(config: &WalkConfig) -> Vec<CanonicalRow> {
     let mut position_en_m = Vector2::zeros();
     let mut phase_idx = 0usize;
     let mut phase_start_s = 0.0;
-    // The sway fades in and out over a second when walking starts and stops.
-    let mut gait_weight = 0.0f64;
+    let mut gait = match config.gait {
+        // The sway fades in and out over a second when walking starts and stops.
+        Gait::Steady => GaitState::Steady { weight: 0.0 },
+        Gait::Varied(variation) => GaitState::Varied(GaitPlan::new(
+            &variation,
+            &walking_phases(&phases),
+            config.duration_s,
+            config.seed,
+        )),
+    };
+    let step_boundaries = match &gait {
+        GaitState::Steady { .. } => Vec::new(),
+        GaitState::Varied(plan) => plan.step_boundaries(),
+    };
+    let mut step_positions = match &gait {
+        GaitState::Steady { .. } => Vec::new(),
+        GaitState::Varied(plan) => vec![StepPositions::default(); plan.n_steps()],
+    };
+    let mut next_boundary_idx = 0usize;
+    let mut path_length_m = 0.0;
     let mut rows = Vec::with_capacity(n_samples);
     let gnss_frame = config.gnss.map(|gnss| {
         LocalFrame::at(Geodetic {
@@ -235,18 +331,33 @@ pub fn simulate(config: &WalkConfig) -> Vec<CanonicalRow> {
             is_walking: false,
             turn_rate_radps: 0.0,
         });
-        let target_weight = if phase.is_walking { 1.0 } else { 0.0 };
-        gait_weight += (target_weight - gait_weight) * (dt_s / 0.5).min(1.0);
-        let gait_phase_rad = step_omega_radps * t_s;
+        let motion = match &mut gait {
+            GaitState::Steady { weight } => {
+                let target_weight = if phase.is_walking { 1.0 } else { 0.0 };
+                *weight += (target_weight - *weight) * (dt_s / 0.5).min(1.0);
+                let gait_phase_rad = step_omega_radps * t_s;
+                GaitMotion {
+                    weight: *weight,
+                    phase_rad: gait_phase_rad,
+                    phase_rate_radps: step_omega_radps,
+                    down_mps2: *weight * 1.5 * gait_phase_rad.sin(),
+                    forward_mps2: *weight * 0.8 * gait_phase_rad.cos(),
+                    speed_mps: *weight * walking_speed_mps,
+                }
+            }
+            GaitState::Varied(plan) => plan.motion_at(t_s),
+        };
+        let gait_phase_rad = motion.phase_rad;
 
         // Attitude and its rate (for the gyroscope).
-        let sway_pitch_rad = gait_weight * config.sway_pitch_deg.to_radians();
-        let sway_roll_rad = gait_weight * config.sway_roll_deg.to_radians();
+        let sway_pitch_rad = motion.weight * config.sway_pitch_deg.to_radians();
+        let sway_roll_rad = motion.weight * config.sway_roll_deg.to_radians();
         let pitch_rad = config.mean_pitch_deg.to_radians() + sway_pitch_rad * gait_phase_rad.sin();
         let roll_rad =
             config.mean_roll_deg.to_radians() + sway_roll_rad * (gait_phase_rad / 2.0).sin();
-        let pitch_rate_radps = sway_pitch_rad * step_omega_radps * gait_phase_rad.cos();
-        let roll_rate_radps = sway_roll_rad * step_omega_radps / 2.0 * (gait_phase_rad / 2.0).cos();
+        let pitch_rate_radps = sway_pitch_rad * motion.phase_rate_radps * gait_phase_rad.cos();
+        let roll_rate_radps =
+            sway_roll_rad * motion.phase_rate_radps / 2.0 * (gait_phase_rad / 2.0).cos();
         let yaw_rate_radps = phase.turn_rate_radps;
         // The device faces the walking direction plus the misalignment.
         let device_heading_rad = heading_rad + config.misalignment_deg.to_radians();
@@ -254,8 +365,8 @@ pub fn simulate(config: &WalkConfig) -> Vec<CanonicalRow> {
         let body_from_ned = ned_from_body.inverse();
 
         // Specific force: body acceleration minus gravity (NED, down positive).
-        let bounce_mps2 = gait_weight * 1.5 * gait_phase_rad.sin();
-        let surge_mps2 = gait_weight * 0.8 * gait_phase_rad.cos();
+        let bounce_mps2 = motion.down_mps2;
+        let surge_mps2 = motion.forward_mps2;
         let acc_in_ned_mps2 = Vector3::new(
             surge_mps2 * heading_rad.cos(),
             surge_mps2 * heading_rad.sin(),
@@ -319,7 +430,7 @@ pub fn simulate(config: &WalkConfig) -> Vec<CanonicalRow> {
                 let noisy_en_m = position_en_m
                     + Vector2::new(rng.gaussian(), rng.gaussian()) * gnss.position_noise_m;
                 let position = frame.geodetic_of(Vector3::new(noisy_en_m.x, noisy_en_m.y, 0.0));
-                let speed_mps = gait_weight * walking_speed_mps;
+                let speed_mps = motion.speed_mps;
                 row.lat_deg = Some(position.lat_deg);
                 row.lon_deg = Some(position.lon_deg);
                 row.gps_hacc_m = Some(gnss.hacc_m);
@@ -334,10 +445,51 @@ pub fn simulate(config: &WalkConfig) -> Vec<CanonicalRow> {
 
         // Advance the truth to the next sample.
         heading_rad += yaw_rate_radps * dt_s;
-        let speed_mps = gait_weight * walking_speed_mps;
-        position_en_m += Vector2::new(heading_rad.sin(), heading_rad.cos()) * speed_mps * dt_s;
+        let direction_en = Vector2::new(heading_rad.sin(), heading_rad.cos());
+        match &gait {
+            GaitState::Steady { .. } => {
+                let speed_mps = motion.speed_mps;
+                position_en_m += direction_en * speed_mps * dt_s;
+                path_length_m += speed_mps * dt_s;
+            }
+            GaitState::Varied(plan) => {
+                // The position moves by the exact integral of the speed, so that the
+                // steps (which start and end between samples) add up to the path. A
+                // step boundary within this interval is where the path has moved by
+                // the distance walked up to it.
+                let t_next_s = (sample_idx + 1) as f64 * dt_s;
+                let distance_now_m = plan.distance_at(t_s);
+                while let Some(boundary) = step_boundaries.get(next_boundary_idx) {
+                    if boundary.t_s >= t_next_s {
+                        break;
+                    }
+                    let at_boundary_en_m = position_en_m
+                        + direction_en * (plan.distance_at(boundary.t_s) - distance_now_m);
+                    let at_boundary = Some([at_boundary_en_m.x, at_boundary_en_m.y]);
+                    if let Some(positions) = step_positions.get_mut(boundary.step_idx) {
+                        if boundary.is_start {
+                            positions.start_en_m = at_boundary;
+                        } else {
+                            positions.end_en_m = at_boundary;
+                        }
+                    }
+                    next_boundary_idx += 1;
+                }
+                let advance_m = plan.distance_at(t_next_s) - distance_now_m;
+                position_en_m += direction_en * advance_m;
+                path_length_m += advance_m;
+            }
+        }
     }
-    rows
+    let steps = match &gait {
+        GaitState::Steady { .. } => Vec::new(),
+        GaitState::Varied(plan) => plan.truth(&step_positions),
+    };
+    let truth = WalkTruth {
+        path_length_m,
+        steps,
+    };
+    (rows, truth)
 }
 
 /// δ(ψ') for a true heading ψ: solves ψ = ψ' + δ(ψ') by Newton's method (δ' > −1 for
@@ -375,6 +527,282 @@ mod tests {
     use crate::analysis::analyse_file;
     use crate::calibration::{CalibrationOptions, Method, MethodParameters};
     use crate::io::canonical_csv;
+
+    #[test]
+    fn the_steady_gait_still_writes_the_committed_demo_byte_for_byte() {
+        let committed = include_str!("../../assets/demo-walk.csv");
+        let config = WalkConfig::from_seed(1, 180.0);
+        assert!(config.gait.is_steady());
+        let (rows, truth) = simulate_with_truth(&config);
+        assert!(
+            canonical_csv::write(&rows) == committed,
+            "the steady gait no longer writes assets/demo-walk.csv"
+        );
+        assert!(truth.steps.is_empty());
+    }
+
+    #[cfg(not(target_arch = "wasm32"))]
+    #[test]
+    fn the_steady_config_json_has_no_gait_and_the_varied_one_says_varied() {
+        // The demo's truth file is this JSON: it reads as before there was a gait.
+        let json = serde_json::to_value(WalkConfig::from_seed(1, 180.0)).expect("serialisable");
+        assert!(json.get("gait").is_none(), "{json}");
+        assert_eq!(json["step_length_m"], 0.7);
+        let json =
+            serde_json::to_value(WalkConfig::pdr_walk(1, 180.0, 50.0)).expect("serialisable");
+        assert_eq!(json["gait"]["kind"], "varied");
+        assert_eq!(json["gait"]["weinberg_k"], 0.48);
+    }
+
+    /// The truth speed at each sample: the distance to the next sample over dt.
+    fn truth_speeds_mps(rows: &[CanonicalRow]) -> Vec<f64> {
+        rows.windows(2)
+            .map(|pair| {
+                let (Some(from), Some(to)) = (pair[0].ref_en_m, pair[1].ref_en_m) else {
+                    return f64::NAN;
+                };
+                (to - from).norm() / (pair[1].t_s - pair[0].t_s)
+            })
+            .collect()
+    }
+
+    /// The properties every varied walk has, whatever its sample rate.
+    fn check_varied_walk(config: &WalkConfig) -> (Vec<CanonicalRow>, WalkTruth) {
+        let Gait::Varied(variation) = config.gait else {
+            panic!("a varied gait: {config:?}");
+        };
+        let (rows, truth) = simulate_with_truth(config);
+        let steps = &truth.steps;
+        assert_eq!(
+            rows.len(),
+            (config.duration_s * config.sample_rate_hz).round() as usize
+        );
+        assert!(steps.len() > 100, "{}", steps.len());
+
+        // The steps account for the whole path, and each one's positions for its length.
+        let sum_of_lengths_m: f64 = steps.iter().map(|step| step.length_m).sum();
+        assert!(
+            (sum_of_lengths_m - truth.path_length_m).abs() < 1e-6,
+            "{sum_of_lengths_m} vs {}",
+            truth.path_length_m
+        );
+        let path_from_rows_m: f64 = rows
+            .windows(2)
+            .filter_map(|pair| Some((pair[1].ref_en_m? - pair[0].ref_en_m?).norm()))
+            .sum();
+        assert!(
+            (path_from_rows_m - truth.path_length_m).abs() < 1e-6,
+            "{path_from_rows_m} vs {}",
+            truth.path_length_m
+        );
+        let last_position = rows.last().and_then(|row| row.ref_en_m).unwrap_or_default();
+        let last_end = steps.last().map(|step| step.end_en_m).unwrap_or_default();
+        assert!((last_position - Vector2::from(last_end)).norm() < 1e-9);
+        for pair in steps.windows(2) {
+            assert!(pair[0].t_end_s <= pair[1].t_start_s + 1e-12);
+            if pair[0].t_end_s == pair[1].t_start_s {
+                assert_eq!(pair[0].end_en_m, pair[1].start_en_m);
+            }
+        }
+        for step in steps {
+            let chord_m = (Vector2::from(step.end_en_m) - Vector2::from(step.start_en_m)).norm();
+            // A chord is shorter than the arc only within a turn: by 1 % in the
+            // sharpest (180° in 4 s, about 29° per step).
+            assert!(
+                chord_m <= step.length_m + 1e-9 && chord_m > 0.985 * step.length_m,
+                "{step:?}"
+            );
+            assert!(step.t_start_s > 0.0 && step.t_end_s < config.duration_s);
+        }
+
+        // Frequencies and lengths within the configured ranges.
+        let [low_hz, high_hz] = variation.frequency_range_hz;
+        let (min_hz, max_hz) = (
+            low_hz * (1.0 - variation.frequency_jitter),
+            high_hz * (1.0 + variation.frequency_jitter),
+        );
+        let full_length_m = |frequency_hz: f64| {
+            variation.length_intercept_m + variation.length_per_frequency_m_s * frequency_hz
+        };
+        for step in steps {
+            assert!(
+                (min_hz - 1e-9..=max_hz + 1e-9).contains(&step.frequency_hz),
+                "{step:?}"
+            );
+            let nominal_m = full_length_m(step.frequency_hz);
+            // First and last steps of a bout cover 3/4 of a full one.
+            assert!(
+                step.length_m <= nominal_m * (1.0 + variation.length_jitter) + 1e-9
+                    && step.length_m >= 0.75 * nominal_m * (1.0 - variation.length_jitter) - 1e-9,
+                "{step:?}"
+            );
+            let weinberg_mps2 = (step.length_m / variation.weinberg_k).powi(4);
+            assert!((step.vertical_peak_to_peak_mps2 - weinberg_mps2).abs() < 1e-9);
+        }
+        // Speeds: the truth never walks faster than the fastest step, and the GNSS
+        // speed follows it (0.05 m/s noise).
+        let speeds_mps = truth_speeds_mps(&rows);
+        let fastest_mps = max_hz * full_length_m(max_hz) * (1.0 + variation.length_jitter);
+        assert!(speeds_mps.iter().all(|speed| *speed <= fastest_mps + 1e-9));
+        let mut n_fixes = 0;
+        for (row, truth_speed_mps) in rows.iter().zip(&speeds_mps) {
+            if let Some(gps_speed_mps) = row.gps_speed_mps {
+                n_fixes += 1;
+                assert!(
+                    (gps_speed_mps - truth_speed_mps).abs() < 0.3,
+                    "{gps_speed_mps} vs {truth_speed_mps} at {} s",
+                    row.t_s
+                );
+            }
+        }
+        if config.gnss.is_some() {
+            assert!(n_fixes as f64 >= config.duration_s - 1.0, "{n_fixes}");
+        }
+        (rows, truth)
+    }
+
+    fn describe(truth: &WalkTruth, duration_s: f64) -> String {
+        let steps = &truth.steps;
+        let range = |values: Vec<f64>| {
+            let min = values.iter().copied().fold(f64::INFINITY, f64::min);
+            let max = values.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            format!("{min:.3}-{max:.3}")
+        };
+        format!(
+            "{} steps in {duration_s} s ({:.1} per minute), {:.1} m; SF {} Hz, SL {} m, Amax-Amin {} m/s²",
+            steps.len(),
+            steps.len() as f64 * 60.0 / duration_s,
+            truth.path_length_m,
+            range(steps.iter().map(|step| step.frequency_hz).collect()),
+            range(steps.iter().map(|step| step.length_m).collect()),
+            range(steps.iter().map(|step| step.vertical_peak_to_peak_mps2).collect()),
+        )
+    }
+
+    #[test]
+    fn the_pdr_walk_has_varied_steps_that_add_up_to_its_path() {
+        let config = WalkConfig::pdr_walk(21, 900.0, 50.0);
+        let (rows, truth) = check_varied_walk(&config);
+        eprintln!("pdr_walk(21, 900 s, 50 Hz): {}", describe(&truth, 900.0));
+        let per_minute = truth.steps.len() as f64 * 60.0 / 900.0;
+        assert!((85.0..125.0).contains(&per_minute), "{per_minute}");
+        // The pace varies from leg to leg.
+        let frequencies_hz: Vec<f64> = truth.steps.iter().map(|step| step.frequency_hz).collect();
+        let min_hz = frequencies_hz.iter().copied().fold(f64::INFINITY, f64::min);
+        let max_hz = frequencies_hz.iter().copied().fold(0.0, f64::max);
+        assert!(min_hz < 1.6 && max_hz > 2.0, "{min_hz}-{max_hz}");
+        let gps_speeds_mps: Vec<f64> = rows.iter().filter_map(|row| row.gps_speed_mps).collect();
+        let fast = gps_speeds_mps.iter().filter(|speed| **speed > 1.4).count();
+        let slow = gps_speeds_mps
+            .iter()
+            .filter(|speed| (0.5..1.1).contains(*speed))
+            .count();
+        assert!(fast > 30 && slow > 30, "{fast} fast and {slow} slow fixes");
+        // The compass deviates by the unified model; the GNSS fixes carry 3 m noise.
+        assert!(config.deviation_deg.is_some());
+        assert_eq!(config.gnss.map(|gnss| gnss.position_noise_m), Some(3.0));
+    }
+
+    #[test]
+    fn the_varied_gait_works_at_100_hz_with_the_same_steps() {
+        let (_, truth_50) = check_varied_walk(&WalkConfig::pdr_walk(5, 300.0, 50.0));
+        let (rows_100, truth_100) = check_varied_walk(&WalkConfig::pdr_walk(5, 300.0, 100.0));
+        eprintln!(
+            "pdr_walk(5, 300 s, 100 Hz): {}",
+            describe(&truth_100, 300.0)
+        );
+        assert_eq!(rows_100.len(), 30_000);
+        // The steps do not depend on the sample rate; the path, by a hair (the heading
+        // is integrated per sample in turns).
+        assert_eq!(truth_50.steps.len(), truth_100.steps.len());
+        for (step_50, step_100) in truth_50.steps.iter().zip(&truth_100.steps) {
+            assert_eq!(step_50.t_start_s, step_100.t_start_s);
+            assert_eq!(step_50.length_m, step_100.length_m);
+            assert!((step_50.heading_rad - step_100.heading_rad).abs() < 0.02);
+        }
+    }
+
+    /// Amax − Amin of `values` over the samples of each step.
+    fn peak_to_peak_per_step(
+        rows: &[CanonicalRow],
+        steps: &[StepTruth],
+        value: impl Fn(&CanonicalRow) -> f64,
+    ) -> Vec<f64> {
+        steps
+            .iter()
+            .map(|step| {
+                let in_step = rows
+                    .iter()
+                    .filter(|row| (step.t_start_s..step.t_end_s).contains(&row.t_s))
+                    .map(&value);
+                let (min, max) = in_step
+                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(min, max), v| {
+                        (min.min(v), max.max(v))
+                    });
+                max - min
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_vertical_specific_force_follows_weinberg_step_by_step() {
+        // A level, noise-free device: acc_z is the vertical specific force.
+        for sample_rate_hz in [50.0, 100.0] {
+            let config = WalkConfig {
+                acc_noise_mps2: 0.0,
+                mean_pitch_deg: 0.0,
+                mean_roll_deg: 0.0,
+                sway_pitch_deg: 0.0,
+                sway_roll_deg: 0.0,
+                ..WalkConfig::pdr_walk(8, 240.0, sample_rate_hz)
+            };
+            let Gait::Varied(variation) = config.gait else {
+                panic!("varied");
+            };
+            let (rows, truth) = simulate_with_truth(&config);
+            let measured = peak_to_peak_per_step(&rows, &truth.steps, |row| {
+                row.acc_mps2.unwrap_or_default().z
+            });
+            let mut worst: f64 = 0.0;
+            for (step, peak_to_peak_mps2) in truth.steps.iter().zip(measured) {
+                let weinberg_mps2 = (step.length_m / variation.weinberg_k).powi(4);
+                let ratio = peak_to_peak_mps2 / weinberg_mps2;
+                worst = worst.max((ratio - 1.0).abs());
+                // Sampling misses the very top of the peaks by a little (csv rounding
+                // to 1e-4 m/s² is below that).
+                assert!(
+                    (0.97..=1.0 + 1e-3).contains(&ratio),
+                    "{step:?}: {peak_to_peak_mps2}"
+                );
+            }
+            eprintln!(
+                "{sample_rate_hz} Hz: sampled Amax-Amin within {:.2} % of (SL/K)^4",
+                100.0 * worst
+            );
+        }
+    }
+
+    #[test]
+    fn weinberg_fitted_on_the_noisy_accelerometer_magnitude_gives_back_k() {
+        let config = WalkConfig::pdr_walk(13, 300.0, 50.0);
+        let (rows, truth) = simulate_with_truth(&config);
+        let measured = peak_to_peak_per_step(&rows, &truth.steps, |row| {
+            row.acc_mps2.unwrap_or_default().norm()
+        });
+        // K = SL / (Amax − Amin)^(1/4), step by step.
+        let mut k_per_step: Vec<f64> = truth
+            .steps
+            .iter()
+            .zip(&measured)
+            .map(|(step, peak_to_peak_mps2)| step.length_m / peak_to_peak_mps2.powf(0.25))
+            .collect();
+        k_per_step.sort_by(f64::total_cmp);
+        let median_k = k_per_step[k_per_step.len() / 2];
+        let (low_k, high_k) = (k_per_step[0], k_per_step[k_per_step.len() - 1]);
+        eprintln!("K from |acc|: median {median_k:.4}, range {low_k:.4}-{high_k:.4}");
+        assert!((median_k - 0.48).abs() < 0.01, "{median_k}");
+        assert!(low_k > 0.45 && high_k < 0.5, "{low_k}-{high_k}");
+    }
 
     #[test]
     fn the_same_seed_gives_the_same_log() {
