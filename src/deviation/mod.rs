@@ -52,6 +52,9 @@ pub struct HeadingOptions {
     /// Memory of the online adaptation (s): the forgetting factor per update is
     /// exp(−spacing / memory).
     pub online_memory_s: f64,
+    /// Train the neural-network corrections (the slowest models by far; dead reckoning
+    /// leaves them out unless asked for one).
+    pub neural: bool,
 }
 
 impl Default for HeadingOptions {
@@ -59,6 +62,7 @@ impl Default for HeadingOptions {
         HeadingOptions {
             calibration: CalibrationOptions::default(),
             online_memory_s: 300.0,
+            neural: true,
         }
     }
 }
@@ -372,7 +376,8 @@ pub fn compare(calibration: &CalibrationAnalysis, options: &HeadingOptions) -> H
         .min_by(|a, b| a.1.total_cmp(&b.1))
         .map(|(base, _)| base);
     let mut neural_reports = Vec::new();
-    for base in bases.iter().take(1).chain(best_field_base) {
+    let neural_bases = if options.neural { 2 } else { 0 };
+    for base in bases.iter().take(1).chain(best_field_base).take(neural_bases) {
         let (key, label) = if base.key == "raw" {
             (
                 "mlp".to_string(),

@@ -69,8 +69,9 @@ pub struct HeadingChoice {
 #[derive(Debug, Clone, PartialEq, Serialize)]
 #[serde(rename_all = "snake_case", tag = "kind", content = "key")]
 pub enum HeadingBase {
-    /// The heading model with the lowest check error against GNSS course, else the best
-    /// field-domain calibration.
+    /// The heading model with the lowest check error against GNSS course (field-domain
+    /// calibrations and Fourier models; the networks only when asked for by key), else
+    /// the best field-domain calibration.
     Auto,
     /// A row of the heading comparison by key (`ellipse`, `ellipse+fourier`, `mlp`, ...).
     Model(String),
@@ -248,6 +249,9 @@ pub fn run(report: ImportReport, options: &PdrOptions) -> Result<PdrAnalysis, Pd
             },
             ..options.heading_options.calibration.clone()
         },
+        // The networks train only when one is asked for: they would dominate the time
+        // of the whole pipeline.
+        neural: matches!(&options.heading.base, HeadingBase::Model(key) if key.contains("mlp")),
         ..options.heading_options.clone()
     };
     let refit_report = for_headings.clone();
