@@ -6,7 +6,8 @@
 //
 // Usage: node bench/wasm-bench.mjs [--runs N] [--page PAGE]   (bench/run builds the
 // module and the inputs first). PAGE is index.html (import, the default),
-// ellipsoid.html (ellipsoid fit) or mlp.html (MLP training; bench/mlp.sh).
+// ellipsoid.html (ellipsoid fit), mlp.html (MLP training; bench/mlp.sh) or pdr.html (PDR EKF
+// and pipeline; bench/pdr.sh).
 import { createServer } from 'node:http';
 import { createReadStream, existsSync, statSync } from 'node:fs';
 import { dirname, extname, join, normalize, resolve, sep } from 'node:path';
@@ -24,6 +25,7 @@ const INPUTS_OF_PAGE = {
   'index.html': ['target/bench-data/walk.csv', 'target/bench-data/track.nmea'],
   'ellipsoid.html': [1000, 10000, 100000, 1000000].map((n) => `target/bench-data/sphere_${n}.f64`),
   'mlp.html': ['target/bench-data/mlp_samples.f64', 'target/bench-data/mlp_settings.json'],
+  'pdr.html': ['target/bench-data/pdr_steps.f64', 'target/bench-data/pdr_settings.json', 'target/bench-data/pdr_hour.csv'],
 };
 if (!(pageName in INPUTS_OF_PAGE)) {
   console.error(`--page must be one of ${Object.keys(INPUTS_OF_PAGE).join(', ')}`);

@@ -8,6 +8,7 @@
 mod canvas;
 mod mapping;
 mod nn_bench;
+mod pdr_bench;
 mod page;
 
 #[cfg(test)]
