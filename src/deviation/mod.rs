@@ -377,7 +377,12 @@ pub fn compare(calibration: &CalibrationAnalysis, options: &HeadingOptions) -> H
         .map(|(base, _)| base);
     let mut neural_reports = Vec::new();
     let neural_bases = if options.neural { 2 } else { 0 };
-    for base in bases.iter().take(1).chain(best_field_base).take(neural_bases) {
+    for base in bases
+        .iter()
+        .take(1)
+        .chain(best_field_base)
+        .take(neural_bases)
+    {
         let (key, label) = if base.key == "raw" {
             (
                 "mlp".to_string(),

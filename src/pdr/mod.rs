@@ -42,7 +42,7 @@ pub mod steps;
 use serde::Serialize;
 
 use crate::analysis::AnalysisError;
-use crate::calibration::{calibrate, CalibrationOptions};
+use crate::calibration::{calibrate, CalibrationOptions, Method};
 use crate::deviation::{compare, HeadingOptions};
 use crate::geo::{Geodetic, LocalFrame};
 use crate::io::ImportReport;
@@ -265,10 +265,15 @@ pub fn run(report: ImportReport, options: &PdrOptions) -> Result<PdrAnalysis, Pd
     };
     // The split chose the model; the dead reckoning uses it trained on every sample
     // GNSS referenced (Fig. 2: the model trains while GNSS is good).
+    // Only the chosen model's field-domain method is fitted again.
+    let base_method = Method::ALL
+        .into_iter()
+        .find(|method| compass_key.split('+').next() == Some(method.key()));
     let headings = if has_reference && heading_options.calibration.train_until_s.is_none() {
         let everything = HeadingOptions {
             calibration: CalibrationOptions {
                 train_until_s: Some(f64::INFINITY),
+                methods: vec![base_method.unwrap_or(Method::MinMax)],
                 ..heading_options.calibration.clone()
             },
             ..heading_options.clone()

@@ -8,8 +8,8 @@
 mod canvas;
 mod mapping;
 mod nn_bench;
-mod pdr_bench;
 mod page;
+mod pdr_bench;
 
 #[cfg(test)]
 mod tests;

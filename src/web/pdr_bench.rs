@@ -46,7 +46,12 @@ pub fn pdr_ekf_steps(
     for pair in steps.chunks_exact(2).take(n_steps) {
         ekf.step(pair[0], pair[1]);
     }
-    Ok(ekf.x.iter().chain(ekf.p.iter().flatten()).copied().collect())
+    Ok(ekf
+        .x
+        .iter()
+        .chain(ekf.p.iter().flatten())
+        .copied()
+        .collect())
 }
 
 /// The whole pipeline on a log's bytes: `import` then `pdr::run` with the default
