@@ -453,6 +453,11 @@ fn parse_line(bytes: &[u8]) -> Result<Parsed<'_>, SentenceError> {
             )
         }
     };
+    // Comma positions are kept as u32 (see `BodyScan`): a body of 4 GiB or more is not
+    // a sentence (NMEA allows 82 characters), and the readers cut lines at 4 KiB.
+    if u32::try_from(body.len()).is_err() {
+        return Err(SentenceError::NotASentence);
+    }
     let scan = BodyScan::of(body);
     if let Some(found) = found {
         if found != scan.xor {
@@ -522,11 +527,13 @@ const MAX_COMMAS: usize = 16;
 /// One pass over a sentence body, eight bytes at a time: the checksum (the XOR of all
 /// bytes; XOR is associative, so the lanes of the wide XOR fold down to it) and where
 /// the first [`MAX_COMMAS`] commas are. One pass instead of one for the checksum and
-/// one byte by byte per field.
+/// one byte by byte per field. The positions are u32 (the caller refuses longer bodies)
+/// so that the scan is small enough to stay in registers and on the stack: with `usize`
+/// positions it was 144 bytes, and returning it was a `memcpy` call on every line.
 struct BodyScan {
     xor: u8,
     n_commas: usize,
-    comma_idx: [usize; MAX_COMMAS],
+    comma_idx: [u32; MAX_COMMAS],
 }
 
 impl BodyScan {
@@ -591,7 +598,8 @@ impl BodyScan {
             let Some(slot) = self.comma_idx.get_mut(self.n_commas) else {
                 return;
             };
-            *slot = word_start + (comma_bits.trailing_zeros() / 8) as usize;
+            // The body is shorter than 4 GiB (checked by the caller), so this fits.
+            *slot = (word_start + (comma_bits.trailing_zeros() / 8) as usize) as u32;
             self.n_commas += 1;
             comma_bits &= comma_bits - 1;
         }
@@ -614,8 +622,7 @@ impl<'a> Fields<'a, '_> {
                 .scan
                 .comma_idx
                 .first()
-                .copied()
-                .unwrap_or(self.body.len()),
+                .map_or(self.body.len(), |&idx| idx as usize),
         };
         self.body.get(..end).unwrap_or_default()
     }
@@ -637,9 +644,12 @@ impl<'a> Fields<'a, '_> {
             };
             let end = commas
                 .get(field_idx + 1)
-                .copied()
-                .unwrap_or(self.body.len());
-            *slot = trim_field(self.body.get(comma_idx + 1..end).unwrap_or_default());
+                .map_or(self.body.len(), |&idx| idx as usize);
+            *slot = trim_field(
+                self.body
+                    .get(comma_idx as usize + 1..end)
+                    .unwrap_or_default(),
+            );
         }
         taken
     }
