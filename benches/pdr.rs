@@ -136,7 +136,10 @@ mod native {
             "EKF, {} steps, median of {runs}: {:.2} M steps/s of wall time, {} of CPU time",
             inputs.len(),
             wall_rate / 1e6,
-            cpu_rate.map_or("unknown".to_string(), |rate| format!("{:.2} M steps/s", rate / 1e6))
+            cpu_rate.map_or("unknown".to_string(), |rate| format!(
+                "{:.2} M steps/s",
+                rate / 1e6
+            ))
         );
         json!({ "runs": runs, "steps_per_wall_s": wall_rate, "steps_per_cpu_s": cpu_rate })
     }
@@ -191,10 +194,7 @@ mod native {
             times_s.push(start.elapsed().as_secs_f64());
             value = Some(result);
         }
-        (
-            median_s(times_s),
-            value.expect("STAGE_RUNS is positive"),
-        )
+        (median_s(times_s), value.expect("STAGE_RUNS is positive"))
     }
 
     /// Times the pipeline's stages one by one, as `pdr::run` chains them (on a log
@@ -203,7 +203,8 @@ mod native {
     /// timed stages (step headings, local frame, step model training, metrics, copies).
     fn stage_profile(name: &str, bytes: &[u8]) -> serde_json::Value {
         let options = PdrOptions::default();
-        let (import_s, report) = time_stage(|| import(name, bytes).expect("the simulated log imports"));
+        let (import_s, report) =
+            time_stage(|| import(name, bytes).expect("the simulated log imports"));
         let mut heading_options: HeadingOptions = options.heading_options.clone();
         heading_options.calibration.reference.choice = ReferenceChoice::Gps;
         let (calibrate_s, calibration) = time_stage(|| {
@@ -320,7 +321,8 @@ mod native {
                 "hour_duration_s": walk_s,
                 "hour_rate_hz": 100.0,
             });
-            let native = json!({ "checkpoints": checkpoints, "ekf_rates": rates, "pipeline": profile });
+            let native =
+                json!({ "checkpoints": checkpoints, "ekf_rates": rates, "pipeline": profile });
             let pretty = |value: &serde_json::Value| {
                 serde_json::to_string_pretty(value).expect("JSON of numbers") + "\n"
             };
