@@ -27,9 +27,12 @@
 //! bits every time.
 
 use std::ops::Range;
+use std::sync::Arc;
 
 use super::activation::Activation;
-use super::kernels::{self, PartInput, Scratch, PAIR};
+#[cfg(target_arch = "wasm32")]
+use super::kernels::PartInput;
+use super::kernels::{self, Scratch, PAIR};
 
 /// Samples per part: a multiple of the kernels' chunk. 10,000 samples make 10 parts,
 /// which two cores share evenly.
@@ -91,24 +94,33 @@ impl Shape {
     }
 }
 
-/// Normalised samples in column-major order with the scratch space of an evaluation.
+/// The normalised samples, column-major and padded with zeros to whole pairs of vectors.
+#[derive(Clone)]
+pub(crate) struct Samples {
+    /// `inputs[i·stride + s]`: input `i` of sample `s` (zero past the last sample).
+    pub inputs: Vec<f64>,
+    /// `targets[k·stride + s]`: target `k` of sample `s` (zero past the last sample).
+    pub targets: Vec<f64>,
+    /// Length of a column: the number of samples rounded up to a whole pair of vectors,
+    /// plus one pair (a range that starts anywhere reads at most that far).
+    pub stride: usize,
+}
+
+/// Normalised samples with the scratch space of an evaluation.
 pub(crate) struct Batch {
     shape: Shape,
+    #[cfg(target_arch = "wasm32")]
     activation: Activation,
     n_samples: usize,
-    /// Length of a column: `n_samples` rounded up to a whole pair of vectors, plus one
-    /// pair (a range that starts anywhere reads at most that far).
-    stride: usize,
-    /// `inputs[i·stride + s]`: input `i` of sample `s` (zero past `n_samples`).
-    inputs: Vec<f64>,
-    /// `targets[k·stride + s]`: target `k` of sample `s` (zero past `n_samples`).
-    targets: Vec<f64>,
-    /// One scratch space per thread that may evaluate parts.
-    scratch: Vec<Scratch>,
+    /// Shared with the helper threads while they evaluate.
+    samples: Arc<Samples>,
+    scratch: Scratch,
     /// Each part's sums: `n_outputs` sums of squared residuals, then the gradient.
     part_sums: Vec<f64>,
     /// Sum of squared residuals per output over the last evaluation.
     sum_squared_residuals: Vec<f64>,
+    #[cfg(not(target_arch = "wasm32"))]
+    workers: super::workers::Workers,
 }
 
 impl Batch {
@@ -138,24 +150,24 @@ impl Batch {
                     normalise_target(output_idx, *value);
             }
         }
-        let n_threads = if n_samples >= PARALLEL_MIN_SAMPLES {
-            n_threads().min(n_samples.div_ceil(PART))
-        } else {
-            1
-        };
         Batch {
             shape,
+            #[cfg(target_arch = "wasm32")]
             activation,
             n_samples,
-            stride,
-            inputs: columns,
-            targets: target_columns,
-            scratch: (0..n_threads).map(|_| Scratch::new(shape)).collect(),
+            samples: Arc::new(Samples {
+                inputs: columns,
+                targets: target_columns,
+                stride,
+            }),
+            scratch: Scratch::new(shape),
             part_sums: vec![
                 0.0;
                 n_samples.div_ceil(PART).max(1) * (shape.n_outputs + shape.n_params())
             ],
             sum_squared_residuals: vec![0.0; shape.n_outputs],
+            #[cfg(not(target_arch = "wasm32"))]
+            workers: super::workers::Workers::new(shape, activation),
         }
     }
 
@@ -171,9 +183,12 @@ impl Batch {
     /// Reorders the samples: sample `s` becomes the old sample `order[s]`. `scratch` is
     /// reused between calls. `order` must be a permutation of `0..n_samples`.
     pub fn permute(&mut self, order: &[usize], scratch: &mut Vec<f64>) {
-        for data in [&mut self.inputs, &mut self.targets] {
+        // The helpers hold no reference between evaluations, so this does not copy.
+        let samples = Arc::make_mut(&mut self.samples);
+        let stride = samples.stride;
+        for data in [&mut samples.inputs, &mut samples.targets] {
             scratch.clear();
-            for column in data.chunks_exact(self.stride) {
+            for column in data.chunks_exact(stride) {
                 scratch.extend(order.iter().map(|&old| column[old]));
                 scratch.extend_from_slice(&column[order.len()..]);
             }
@@ -200,53 +215,39 @@ impl Batch {
                 0
             };
         let n_parts = range.len().div_ceil(PART);
-        let input = PartInput {
-            shape,
-            activation: self.activation,
-            params,
-            inputs: &self.inputs,
-            targets: &self.targets,
-            stride: self.stride,
-        };
-        let part_range = |part_idx: usize| {
-            let start = range.start + part_idx * PART;
-            start..(start + PART).min(range.end)
-        };
-        // The part sums of `part_indices`, written to their places in `part_sums`.
-        let run = |part_indices: Range<usize>, scratch: &mut Scratch, part_sums: &mut [f64]| {
-            for (part_idx, sums) in part_indices.zip(part_sums.chunks_exact_mut(sums_len)) {
-                kernels::evaluate_part(&input, part_range(part_idx), scratch, sums);
-            }
-        };
         let part_sums = &mut self.part_sums[..n_parts * sums_len];
-        let n_threads = self.scratch.len().min(n_parts);
-        if n_threads > 1 && range.len() >= PARALLEL_MIN_SAMPLES {
-            // Contiguous runs of parts, as even as the parts allow; the first thread is
-            // this one.
-            std::thread::scope(|scope| {
-                let mut rest = &mut part_sums[..];
-                let mut first_part = 0;
-                let mut own = None;
-                for (thread_idx, scratch) in self.scratch[..n_threads].iter_mut().enumerate() {
-                    let end_part = n_parts * (thread_idx + 1) / n_threads;
-                    let (mine, others) =
-                        std::mem::take(&mut rest).split_at_mut((end_part - first_part) * sums_len);
-                    rest = others;
-                    let parts = first_part..end_part;
-                    first_part = end_part;
-                    if thread_idx == 0 {
-                        own = Some((parts, scratch, mine));
-                    } else {
-                        let run = &run;
-                        scope.spawn(move || run(parts, scratch, mine));
-                    }
-                }
-                if let Some((parts, scratch, mine)) = own {
-                    run(parts, scratch, mine);
-                }
-            });
-        } else if let Some(scratch) = self.scratch.first_mut() {
-            run(0..n_parts, scratch, part_sums);
+        let n_threads = if range.len() >= PARALLEL_MIN_SAMPLES {
+            n_threads()
+        } else {
+            1
+        };
+        #[cfg(not(target_arch = "wasm32"))]
+        self.workers.evaluate(
+            &self.samples,
+            params,
+            range.clone(),
+            PART,
+            n_threads,
+            &mut self.scratch,
+            part_sums,
+            sums_len,
+        );
+        #[cfg(target_arch = "wasm32")]
+        {
+            let _ = n_threads;
+            let input = PartInput {
+                shape,
+                activation: self.activation,
+                params,
+                inputs: &self.samples.inputs,
+                targets: &self.samples.targets,
+                stride: self.samples.stride,
+            };
+            for (part_idx, sums) in part_sums.chunks_exact_mut(sums_len).enumerate() {
+                let start = range.start + part_idx * PART;
+                let part = start..(start + PART).min(range.end);
+                kernels::evaluate_part(&input, part, &mut self.scratch, sums);
+            }
         }
 
         // The parts' sums in the order of the parts.
@@ -392,5 +393,60 @@ mod tests {
         for (a, b) in gradient.iter().zip(&sub_gradient) {
             assert!((a - b).abs() < 1e-12);
         }
+    }
+
+    #[test]
+    fn a_large_batch_gives_the_same_bits_on_any_number_of_threads() {
+        let shape = Shape {
+            n_inputs: 5,
+            n_hidden: 7,
+            n_outputs: 2,
+        };
+        let n = PARALLEL_MIN_SAMPLES + 1000;
+        let (mut batch, params) = random_case(shape, Activation::Logistic, n, 11);
+        let mut gradient = vec![0.0; shape.n_params()];
+        let value = batch.evaluate(&params, 0..n, 0.01, Some(&mut gradient));
+        // The same parts, one after the other on this thread, added in order.
+        let input = kernels::PartInput {
+            shape,
+            activation: Activation::Logistic,
+            params: &params,
+            inputs: &batch.samples.inputs,
+            targets: &batch.samples.targets,
+            stride: batch.samples.stride,
+        };
+        let mut scratch = Scratch::new(shape);
+        let mut totals = vec![0.0; shape.n_outputs + shape.n_params()];
+        let mut sums = totals.clone();
+        for start in (0..n).step_by(PART) {
+            kernels::evaluate_part(
+                &input,
+                start..(start + PART).min(n),
+                &mut scratch,
+                &mut sums,
+            );
+            for (total, sum) in totals.iter_mut().zip(&sums) {
+                *total += sum;
+            }
+        }
+        let m = n as f64;
+        let blocks = shape.split(&params);
+        let penalty = dot(blocks.hidden_weights, blocks.hidden_weights)
+            + dot(blocks.output_weights, blocks.output_weights);
+        let expected = totals[..2].iter().sum::<f64>() / (2.0 * m) + 0.01 * penalty / (2.0 * m);
+        assert_eq!(value.to_bits(), expected.to_bits());
+        assert_eq!(totals[2] / m + 0.01 * params[0] / m, gradient[0]);
+        assert_eq!(
+            totals[2 + shape.n_params() - 1] / m,
+            gradient[shape.n_params() - 1]
+        );
+        let mut again = vec![0.0; shape.n_params()];
+        assert_eq!(
+            batch
+                .evaluate(&params, 0..n, 0.01, Some(&mut again))
+                .to_bits(),
+            value.to_bits()
+        );
+        assert_eq!(again, gradient);
     }
 }
