@@ -43,6 +43,15 @@ const MAX_GROUP: usize = 6;
 /// where said; `min` and `max` follow x86's `minpd`/`maxpd` (the second operand when
 /// either is NaN).
 pub(crate) trait Lanes: Copy {
+    /// Samples per value (4, or 8 for a [`Pair`]).
+    const WIDTH: usize;
+    /// The most inputs one backward pass keeps accumulators for: as many as the
+    /// registers hold. The grouping does not change any sum, only how many passes there
+    /// are.
+    const MAX_GROUP: usize;
+    /// Whether the hidden layer runs on [`Pair`]s (which does not change any value).
+    const PAIRED: bool;
+
     fn splat(value: f64) -> Self;
     /// The four values at `values[start..start + 4]`.
     fn load(values: &[f64], start: usize) -> Self;
@@ -62,6 +71,12 @@ pub(crate) trait Lanes: Copy {
     fn keep_first(self, count: usize) -> Self;
     /// `(l₀ + l₁) + (l₂ + l₃)`.
     fn reduce(self) -> f64;
+
+    /// [`super::activation::exp`] of each lane, with its bits.
+    #[inline(always)]
+    fn exp(self) -> Self {
+        exp_lanes(self)
+    }
 }
 
 /// Four lanes in an array: the reference, and the code every target without AVX2 runs.
@@ -77,6 +92,21 @@ impl Portable {
 }
 
 impl Lanes for Portable {
+    const WIDTH: usize = LANES;
+    // Without SIMD registers (wasm), a lane is a scalar register: four lanes of six
+    // accumulators would not fit.
+    const MAX_GROUP: usize = 1;
+    const PAIRED: bool = false;
+
+    /// One lane after the other: the four lanes' temporaries would not fit in scalar
+    /// registers at once.
+    #[inline(always)]
+    fn exp(self) -> Self {
+        let exp = super::activation::exp;
+        let a = self.0;
+        Portable([exp(a[0]), exp(a[1]), exp(a[2]), exp(a[3])])
+    }
+
     #[inline(always)]
     fn splat(value: f64) -> Self {
         Portable([value; 4])
@@ -159,6 +189,10 @@ impl Lanes for Portable {
 struct Pair<V>(V, V);
 
 impl<V: Lanes> Lanes for Pair<V> {
+    const WIDTH: usize = 2 * V::WIDTH;
+    const MAX_GROUP: usize = V::MAX_GROUP;
+    const PAIRED: bool = true;
+
     #[inline(always)]
     fn splat(value: f64) -> Self {
         Pair(V::splat(value), V::splat(value))
@@ -236,7 +270,7 @@ impl<V: Lanes> Lanes for Pair<V> {
 
 /// `activation::exp`, operation for operation, on four lanes.
 #[inline(always)]
-fn exp<V: Lanes>(x: V) -> V {
+fn exp_lanes<V: Lanes>(x: V) -> V {
     let x = x.min(V::splat(EXP_LIMIT)).max(V::splat(-EXP_LIMIT));
     let shifted = x
         .mul(V::splat(std::f64::consts::LOG2_E))
@@ -261,10 +295,10 @@ fn exp<V: Lanes>(x: V) -> V {
 fn activate<V: Lanes>(activation: Activation, z: V) -> V {
     let one = V::splat(1.0);
     match activation {
-        Activation::Logistic => one.div(one.add(exp(z.neg()))),
+        Activation::Logistic => one.div(one.add(z.neg().exp())),
         Activation::Tanh => {
             let two = V::splat(2.0);
-            one.sub(two.div(exp(two.mul(z)).add(one)))
+            one.sub(two.div(two.mul(z).exp().add(one)))
         }
     }
 }
@@ -419,23 +453,12 @@ fn part<V: Lanes>(
     while chunk_start < range.end {
         let chunk_len = CHUNK.min(range.end - chunk_start);
         let n_vectors = chunk_len.div_ceil(LANES);
-        let n_pairs = chunk_len.div_ceil(PAIR);
 
         // Hidden layer: h = f(b₁ + W₁·x), one neuron (a row of the chunk) at a time.
-        for ((row, weights), bias) in hidden
-            .chunks_exact_mut(CHUNK)
-            .zip(params.hidden_weights.chunks_exact(n_inputs))
-            .zip(params.hidden_biases)
-        {
-            for pair_idx in 0..n_pairs {
-                let sample = chunk_start + PAIR * pair_idx;
-                let mut z = Pair::<V>::splat(*bias);
-                for (input_idx, weight) in weights.iter().enumerate() {
-                    let x = Pair::<V>::load(input.inputs, input_idx * stride + sample);
-                    z = z.add(Pair::splat(*weight).mul(x));
-                }
-                activate(input.activation, z).store(row, PAIR * pair_idx);
-            }
+        if V::PAIRED {
+            hidden_layer::<Pair<V>>(input, &params, chunk_start, chunk_len, hidden);
+        } else {
+            hidden_layer::<V>(input, &params, chunk_start, chunk_len, hidden);
         }
 
         // Output layer and residuals: r = b₂ + W₂·h − t, and Σ r².
@@ -447,20 +470,19 @@ fn part<V: Lanes>(
         {
             let mut sum_squares = V::load(lanes, LANES * output_idx);
             let residual_row = &mut residuals[output_idx * CHUNK..][..CHUNK];
-            for pair_idx in 0..n_pairs {
-                let sample = chunk_start + PAIR * pair_idx;
-                let mut r = Pair::<V>::splat(*bias);
+            for vector_idx in 0..n_vectors {
+                let sample = chunk_start + LANES * vector_idx;
+                let mut r = V::splat(*bias);
                 for (neuron_idx, weight) in weights.iter().enumerate() {
-                    let h = Pair::<V>::load(hidden, neuron_idx * CHUNK + PAIR * pair_idx);
-                    r = r.add(Pair::splat(*weight).mul(h));
+                    let h = V::load(hidden, neuron_idx * CHUNK + LANES * vector_idx);
+                    r = r.add(V::splat(*weight).mul(h));
                 }
-                r = r.sub(Pair::load(input.targets, output_idx * stride + sample));
-                if sample + PAIR > range.end {
+                r = r.sub(V::load(input.targets, output_idx * stride + sample));
+                if sample + LANES > range.end {
                     r = r.keep_first(range.end - sample);
                 }
-                r.store(residual_row, PAIR * pair_idx);
-                // The two vectors one after the other, as in the backward pass.
-                sum_squares = sum_squares.add(r.0.mul(r.0)).add(r.1.mul(r.1));
+                r.store(residual_row, LANES * vector_idx);
+                sum_squares = sum_squares.add(r.mul(r));
             }
             sum_squares.store(lanes, LANES * output_idx);
         }
@@ -501,7 +523,7 @@ fn part<V: Lanes>(
                 output_weights: params.output_weights,
                 n_outputs,
             };
-            let first = n_inputs.min(MAX_GROUP);
+            let first = n_inputs.min(V::MAX_GROUP);
             let pass = Pass {
                 inputs: input.inputs,
                 stride,
@@ -528,7 +550,7 @@ fn part<V: Lanes>(
             }
             let mut group_start = first;
             while group_start < n_inputs {
-                let group = (n_inputs - group_start).min(MAX_GROUP);
+                let group = (n_inputs - group_start).min(V::MAX_GROUP);
                 let pass = Pass {
                     first_input: group_start,
                     ..pass
@@ -552,6 +574,34 @@ fn part<V: Lanes>(
         .zip(lanes.chunks_exact(LANES))
     {
         *sum = V::load(lane_sums, 0).reduce();
+    }
+}
+
+/// `h = f(b₁ + W₁·x)` of every neuron for the chunk's samples, `W::WIDTH` at a time,
+/// into `hidden[j·CHUNK + s]`.
+#[inline(always)]
+fn hidden_layer<W: Lanes>(
+    input: &PartInput,
+    params: &super::loss::Blocks<&[f64]>,
+    chunk_start: usize,
+    chunk_len: usize,
+    hidden: &mut [f64],
+) {
+    let n_values = chunk_len.div_ceil(W::WIDTH);
+    for ((row, weights), bias) in hidden
+        .chunks_exact_mut(CHUNK)
+        .zip(params.hidden_weights.chunks_exact(input.shape.n_inputs))
+        .zip(params.hidden_biases)
+    {
+        for value_idx in 0..n_values {
+            let at = W::WIDTH * value_idx;
+            let mut z = W::splat(*bias);
+            for (input_idx, weight) in weights.iter().enumerate() {
+                let x = W::load(input.inputs, input_idx * input.stride + chunk_start + at);
+                z = z.add(W::splat(*weight).mul(x));
+            }
+            activate(input.activation, z).store(row, at);
+        }
     }
 }
 
@@ -676,6 +726,10 @@ mod avx2 {
     // `evaluate_part`, which its caller runs only after checking that the processor has
     // AVX2; loads and stores go through a bounds-checked slice of four values.
     impl Lanes for Avx2 {
+        const WIDTH: usize = super::LANES;
+        const MAX_GROUP: usize = super::MAX_GROUP;
+        const PAIRED: bool = true;
+
         #[inline(always)]
         fn splat(value: f64) -> Self {
             Avx2(unsafe { _mm256_set1_pd(value) })
@@ -777,7 +831,7 @@ mod tests {
         let mut rng = SplitMix64::new(1);
         for _ in 0..2000 {
             let values: [f64; 4] = std::array::from_fn(|_| 30.0 * rng.gaussian());
-            let lanes = exp(Portable(values));
+            let lanes = exp_lanes(Portable(values));
             for (lane, value) in lanes.0.iter().zip(values) {
                 assert_eq!(
                     lane.to_bits(),
