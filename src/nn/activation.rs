@@ -38,8 +38,9 @@ impl Activation {
         }
     }
 
-    /// The derivative `f'(z)` written in terms of the activation `output = f(z)`.
-    #[inline]
+    /// The derivative `f'(z)` written in terms of the activation `output = f(z)` (the
+    /// reference for the kernels' four-lane version).
+    #[cfg(test)]
     pub(crate) fn derivative(self, output: f64) -> f64 {
         match self {
             Activation::Logistic => output * (1.0 - output),

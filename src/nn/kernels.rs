@@ -1,268 +1,823 @@
-//! The inner loops of a batch evaluation, two samples at a time in SSE2 registers on
-//! x86-64 and one at a time elsewhere (wasm32 here has no SIMD enabled).
+//! The inner loops of a batch evaluation: the forward pass, the residuals and the
+//! gradient of one *part* of the samples, four samples at a time.
 //!
-//! The release profile optimises for size, under which the compiler does not vectorise
-//! loops by itself (the same reason `calib/ellipsoid.rs` has its SSE2 sums), so the
-//! two-lane code is written out. Each lane does exactly the scalar code's operations in
-//! the same order (SSE2 has no fused multiply-add, and a dot product keeps the scalar
-//! code's four partial sums, two per register), so both give the same bits: a network
-//! trained natively and in the browser is the same network. A test checks it.
+//! The kernel is written once, generic over [`Lanes`] (four `f64` lanes with the few
+//! operations it needs), and compiled twice: with [`Portable`] (`[f64; 4]`, plain
+//! scalar operations, the code wasm runs) and, on x86-64 when the processor has AVX2
+//! (checked at run time), with `Avx2` (one 256-bit register). Each lane does exactly the
+//! portable code's IEEE operations in the same order (no fused multiply-add, which wasm
+//! lacks; on AMD Zen the separate multiply and add pipes give the same throughput), and
+//! the reduction of the lanes is the same, so both give the same bits: a network trained
+//! natively and in the browser is the same network. A test checks it.
+//!
+//! The release profile optimises for size, under which the compiler neither vectorises
+//! nor unrolls loops by itself, so the lanes are explicit and the loops over a group of
+//! inputs, whose accumulators must stay in registers, are unrolled by a macro for each
+//! group size.
+//!
+//! Order of the sums (which fixes the bits): per part, each accumulated quantity has
+//! four lane sums; lane `l` adds the samples `part_start + 4v + l` for `v = 0, 1, …` in
+//! order. At the end of the part the lanes are reduced as `(l₀ + l₁) + (l₂ + l₃)`.
+//! Samples past the end of the range (the last vector's spare lanes) get a residual of
+//! exactly `+0`, so they add `±0` to every sum.
 
-use super::activation::Activation;
+use super::activation::{Activation, EXP_COEFFICIENTS, EXP_LIMIT, LN2_HI, LN2_LO, ROUND};
+use super::loss::Shape;
 
-/// `out[s] = bias + Σᵢ weights[i]·base[i·stride + s]`, the sum taken in the order of `i`.
-pub(crate) fn affine_rows(
-    bias: f64,
-    weights: &[f64],
-    base: &[f64],
-    stride: usize,
-    out: &mut [f64],
+/// Lanes per vector.
+pub(crate) const LANES: usize = 4;
+
+/// Samples in a [`Pair`] of vectors.
+pub(crate) const PAIR: usize = 2 * LANES;
+
+/// Samples per chunk: the chunk's hidden activations (16 × 128 × 8 bytes = 16 KiB) stay
+/// in the L1 cache between the forward and the backward pass. A multiple of [`PAIR`].
+pub(crate) const CHUNK: usize = 128;
+
+/// The most inputs whose weight-gradient accumulators are kept in registers at once
+/// (with the neuron's bias and output-weight accumulators and the temporaries, this
+/// fills AVX2's 16 registers).
+const MAX_GROUP: usize = 6;
+
+/// Four `f64` lanes. Every operation acts lane by lane with IEEE double rounding, except
+/// where said; `min` and `max` follow x86's `minpd`/`maxpd` (the second operand when
+/// either is NaN).
+pub(crate) trait Lanes: Copy {
+    /// Samples per value (4, or 8 for a [`Pair`]).
+    const WIDTH: usize;
+    /// The most inputs one backward pass keeps accumulators for: as many as the
+    /// registers hold. The grouping does not change any sum, only how many passes there
+    /// are.
+    const MAX_GROUP: usize;
+    /// Whether the hidden layer runs on [`Pair`]s (which does not change any value).
+    const PAIRED: bool;
+
+    fn splat(value: f64) -> Self;
+    /// The four values at `values[start..start + 4]`.
+    fn load(values: &[f64], start: usize) -> Self;
+    /// Writes the lanes to `values[start..start + 4]`.
+    fn store(self, values: &mut [f64], start: usize);
+    fn add(self, other: Self) -> Self;
+    fn sub(self, other: Self) -> Self;
+    fn mul(self, other: Self) -> Self;
+    fn div(self, other: Self) -> Self;
+    fn min(self, other: Self) -> Self;
+    fn max(self, other: Self) -> Self;
+    fn neg(self) -> Self;
+    /// `f64::from_bits((shifted.to_bits() + 1023) << 52)` (wrapping), lane by lane: 2ⁿ
+    /// for the integer `n` that adding [`ROUND`] left in the low bits of `shifted`.
+    fn two_to_the_rounded(shifted: Self) -> Self;
+    /// The first `count` lanes (0 to 3) kept, the others `+0`.
+    fn keep_first(self, count: usize) -> Self;
+    /// `(l₀ + l₁) + (l₂ + l₃)`.
+    fn reduce(self) -> f64;
+
+    /// [`super::activation::exp`] of each lane, with its bits.
+    #[inline(always)]
+    fn exp(self) -> Self {
+        exp_lanes(self)
+    }
+}
+
+/// Four lanes in an array: the reference, and the code every target without AVX2 runs.
+#[derive(Clone, Copy)]
+pub(crate) struct Portable([f64; 4]);
+
+impl Portable {
+    #[inline(always)]
+    fn map2(self, other: Self, f: impl Fn(f64, f64) -> f64) -> Self {
+        let (a, b) = (self.0, other.0);
+        Portable([f(a[0], b[0]), f(a[1], b[1]), f(a[2], b[2]), f(a[3], b[3])])
+    }
+}
+
+impl Lanes for Portable {
+    const WIDTH: usize = LANES;
+    // Without SIMD registers (wasm), a lane is a scalar register: four lanes of six
+    // accumulators would not fit.
+    const MAX_GROUP: usize = 1;
+    const PAIRED: bool = false;
+
+    /// One lane after the other: the four lanes' temporaries would not fit in scalar
+    /// registers at once.
+    #[inline(always)]
+    fn exp(self) -> Self {
+        let exp = super::activation::exp;
+        let a = self.0;
+        Portable([exp(a[0]), exp(a[1]), exp(a[2]), exp(a[3])])
+    }
+
+    #[inline(always)]
+    fn splat(value: f64) -> Self {
+        Portable([value; 4])
+    }
+
+    #[inline(always)]
+    fn load(values: &[f64], start: usize) -> Self {
+        let v = &values[start..start + 4];
+        Portable([v[0], v[1], v[2], v[3]])
+    }
+
+    #[inline(always)]
+    fn store(self, values: &mut [f64], start: usize) {
+        values[start..start + 4].copy_from_slice(&self.0);
+    }
+
+    #[inline(always)]
+    fn add(self, other: Self) -> Self {
+        self.map2(other, |a, b| a + b)
+    }
+
+    #[inline(always)]
+    fn sub(self, other: Self) -> Self {
+        self.map2(other, |a, b| a - b)
+    }
+
+    #[inline(always)]
+    fn mul(self, other: Self) -> Self {
+        self.map2(other, |a, b| a * b)
+    }
+
+    #[inline(always)]
+    fn div(self, other: Self) -> Self {
+        self.map2(other, |a, b| a / b)
+    }
+
+    #[inline(always)]
+    fn min(self, other: Self) -> Self {
+        self.map2(other, |a, b| if a < b { a } else { b })
+    }
+
+    #[inline(always)]
+    fn max(self, other: Self) -> Self {
+        self.map2(other, |a, b| if a > b { a } else { b })
+    }
+
+    #[inline(always)]
+    fn neg(self) -> Self {
+        let a = self.0;
+        Portable([-a[0], -a[1], -a[2], -a[3]])
+    }
+
+    #[inline(always)]
+    fn two_to_the_rounded(shifted: Self) -> Self {
+        let scale = |x: f64| f64::from_bits(x.to_bits().wrapping_add(1023) << 52);
+        let a = shifted.0;
+        Portable([scale(a[0]), scale(a[1]), scale(a[2]), scale(a[3])])
+    }
+
+    #[inline(always)]
+    fn keep_first(self, count: usize) -> Self {
+        let mut kept = self.0;
+        for lane in kept.iter_mut().skip(count) {
+            *lane = 0.0;
+        }
+        Portable(kept)
+    }
+
+    #[inline(always)]
+    fn reduce(self) -> f64 {
+        let a = self.0;
+        (a[0] + a[1]) + (a[2] + a[3])
+    }
+}
+
+/// Two vectors side by side (eight samples): the forward pass runs on pairs so that two
+/// independent chains of the long `exp` computation overlap. Each half does exactly
+/// what it would do alone.
+#[derive(Clone, Copy)]
+struct Pair<V>(V, V);
+
+impl<V: Lanes> Lanes for Pair<V> {
+    const WIDTH: usize = 2 * V::WIDTH;
+    const MAX_GROUP: usize = V::MAX_GROUP;
+    const PAIRED: bool = true;
+
+    #[inline(always)]
+    fn splat(value: f64) -> Self {
+        Pair(V::splat(value), V::splat(value))
+    }
+
+    #[inline(always)]
+    fn load(values: &[f64], start: usize) -> Self {
+        Pair(V::load(values, start), V::load(values, start + LANES))
+    }
+
+    #[inline(always)]
+    fn store(self, values: &mut [f64], start: usize) {
+        self.0.store(values, start);
+        self.1.store(values, start + LANES);
+    }
+
+    #[inline(always)]
+    fn add(self, other: Self) -> Self {
+        Pair(self.0.add(other.0), self.1.add(other.1))
+    }
+
+    #[inline(always)]
+    fn sub(self, other: Self) -> Self {
+        Pair(self.0.sub(other.0), self.1.sub(other.1))
+    }
+
+    #[inline(always)]
+    fn mul(self, other: Self) -> Self {
+        Pair(self.0.mul(other.0), self.1.mul(other.1))
+    }
+
+    #[inline(always)]
+    fn div(self, other: Self) -> Self {
+        Pair(self.0.div(other.0), self.1.div(other.1))
+    }
+
+    #[inline(always)]
+    fn min(self, other: Self) -> Self {
+        Pair(self.0.min(other.0), self.1.min(other.1))
+    }
+
+    #[inline(always)]
+    fn max(self, other: Self) -> Self {
+        Pair(self.0.max(other.0), self.1.max(other.1))
+    }
+
+    #[inline(always)]
+    fn neg(self) -> Self {
+        Pair(self.0.neg(), self.1.neg())
+    }
+
+    #[inline(always)]
+    fn two_to_the_rounded(shifted: Self) -> Self {
+        Pair(
+            V::two_to_the_rounded(shifted.0),
+            V::two_to_the_rounded(shifted.1),
+        )
+    }
+
+    /// Here `count` is 0 to 7.
+    #[inline(always)]
+    fn keep_first(self, count: usize) -> Self {
+        if count >= LANES {
+            Pair(self.0, self.1.keep_first(count - LANES))
+        } else {
+            Pair(self.0.keep_first(count), self.1.keep_first(0))
+        }
+    }
+
+    #[inline(always)]
+    fn reduce(self) -> f64 {
+        self.0.reduce() + self.1.reduce()
+    }
+}
+
+/// `activation::exp`, operation for operation, on four lanes.
+#[inline(always)]
+fn exp_lanes<V: Lanes>(x: V) -> V {
+    let x = x.min(V::splat(EXP_LIMIT)).max(V::splat(-EXP_LIMIT));
+    let shifted = x
+        .mul(V::splat(std::f64::consts::LOG2_E))
+        .add(V::splat(ROUND));
+    let n = shifted.sub(V::splat(ROUND));
+    let r = x.sub(n.mul(V::splat(LN2_HI))).sub(n.mul(V::splat(LN2_LO)));
+    let c = |k: usize| V::splat(EXP_COEFFICIENTS[k]);
+    let r2 = r.mul(r);
+    let r4 = r2.mul(r2);
+    let r8 = r4.mul(r4);
+    let pair = |k: usize| c(k).add(c(k + 1).mul(r));
+    let s0 = pair(0).add(pair(2).mul(r2));
+    let s1 = pair(4).add(pair(6).mul(r2));
+    let s2 = pair(8).add(pair(10).mul(r2));
+    let s3 = pair(12);
+    let p = s0.add(s1.mul(r4)).add(s2.add(s3.mul(r4)).mul(r8));
+    p.mul(V::two_to_the_rounded(shifted))
+}
+
+/// [`Activation::apply`] on four lanes, with its bits.
+#[inline(always)]
+fn activate<V: Lanes>(activation: Activation, z: V) -> V {
+    let one = V::splat(1.0);
+    match activation {
+        Activation::Logistic => one.div(one.add(z.neg().exp())),
+        Activation::Tanh => {
+            let two = V::splat(2.0);
+            one.sub(two.div(two.mul(z).exp().add(one)))
+        }
+    }
+}
+
+/// [`Activation::derivative`] on four lanes, with its bits.
+#[inline(always)]
+fn derivative<V: Lanes>(activation: Activation, h: V) -> V {
+    let one = V::splat(1.0);
+    match activation {
+        Activation::Logistic => h.mul(one.sub(h)),
+        Activation::Tanh => one.sub(h.mul(h)),
+    }
+}
+
+/// The network and the samples one part is evaluated on.
+pub(crate) struct PartInput<'a> {
+    pub shape: Shape,
+    pub activation: Activation,
+    /// `[W₁ | b₁ | W₂ | b₂]` as in [`Shape::split`].
+    pub params: &'a [f64],
+    /// `inputs[i·stride + s]`: input `i` of sample `s`; readable up to the end of the
+    /// range rounded up to a whole [`PAIR`].
+    pub inputs: &'a [f64],
+    /// `targets[k·stride + s]`, likewise.
+    pub targets: &'a [f64],
+    pub stride: usize,
+}
+
+/// One part's scratch space, allocated once per batch (and thread).
+pub(crate) struct Scratch {
+    /// Activations of one chunk, `hidden[j·CHUNK + s]`; then their deltas.
+    hidden: Vec<f64>,
+    /// Residuals of one chunk, `residuals[k·CHUNK + s]`.
+    residuals: Vec<f64>,
+    /// Four lane sums per quantity of [`evaluate_part`]'s `sums`.
+    lanes: Vec<f64>,
+}
+
+impl Scratch {
+    pub fn new(shape: Shape) -> Self {
+        Scratch {
+            hidden: vec![0.0; shape.n_hidden * CHUNK],
+            residuals: vec![0.0; shape.n_outputs * CHUNK],
+            lanes: vec![0.0; LANES * (shape.n_outputs + shape.n_params())],
+        }
+    }
+}
+
+/// Evaluates the samples `range` (a part): writes to `sums[k]` the sum of squared
+/// residuals of output `k` and, when `sums` is longer, to `sums[n_outputs + p]` the sum
+/// over the samples of the derivative of `|r|²/2` by parameter `p` (no penalty, not
+/// divided by the number of samples).
+pub(crate) fn evaluate_part(
+    input: &PartInput,
+    range: std::ops::Range<usize>,
+    scratch: &mut Scratch,
+    sums: &mut [f64],
 ) {
-    #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
-    // SAFETY: `sse2::affine_rows` needs only the SSE2 target feature, which the `cfg`
-    // above guarantees for the whole build.
-    unsafe {
-        sse2::affine_rows(bias, weights, base, stride, out)
+    #[cfg(target_arch = "x86_64")]
+    if avx2::is_available() {
+        // SAFETY: the processor has AVX2 (checked just above).
+        unsafe { avx2::evaluate_part(input, range, scratch, sums) };
+        return;
     }
-    #[cfg(not(all(target_arch = "x86_64", target_feature = "sse2")))]
-    scalar::affine_rows(bias, weights, base, stride, out)
+    part::<Portable>(input, range, scratch, sums);
 }
 
-/// Replaces each pre-activation by its activation ([`Activation::apply`]).
-pub(crate) fn activate(activation: Activation, values: &mut [f64]) {
-    #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
-    // SAFETY: as in `affine_rows`.
-    unsafe {
-        sse2::activate(activation, values)
-    }
-    #[cfg(not(all(target_arch = "x86_64", target_feature = "sse2")))]
-    activation.apply(values)
+/// [`evaluate_part`] in the portable lanes, whatever the processor (for tests).
+#[cfg(test)]
+pub(crate) fn evaluate_part_portable(
+    input: &PartInput,
+    range: std::ops::Range<usize>,
+    scratch: &mut Scratch,
+    sums: &mut [f64],
+) {
+    part::<Portable>(input, range, scratch, sums);
 }
 
-/// `hidden[s] = back[s] · f'(hidden[s])`, the derivative written in terms of the
-/// activation ([`Activation::derivative`]).
-pub(crate) fn back_propagate(activation: Activation, back: &[f64], hidden: &mut [f64]) {
-    #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
-    // SAFETY: as in `affine_rows`.
-    unsafe {
-        sse2::back_propagate(activation, back, hidden)
-    }
-    #[cfg(not(all(target_arch = "x86_64", target_feature = "sse2")))]
-    scalar::back_propagate(activation, back, hidden)
-}
-
-/// `Σ xᵢ·yᵢ` with four partial sums (elements `4k + p` go to sum `p`), then
-/// `(s₀ + s₁) + (s₂ + s₃)` plus the tail in order.
-pub(crate) fn dot(x: &[f64], y: &[f64]) -> f64 {
-    #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
-    // SAFETY: as in `affine_rows`.
-    unsafe {
-        sse2::dot(x, y)
-    }
-    #[cfg(not(all(target_arch = "x86_64", target_feature = "sse2")))]
-    scalar::dot(x, y)
-}
-
-/// The scalar reference of every kernel (and the code wasm runs).
-#[cfg_attr(all(target_arch = "x86_64", target_feature = "sse2"), allow(dead_code))]
-mod scalar {
-    use super::Activation;
-
-    /// [`Activation::derivative`], in place.
-    pub(super) fn back_propagate(activation: Activation, back: &[f64], hidden: &mut [f64]) {
-        for (h, delta) in hidden.iter_mut().zip(back) {
-            *h = delta * activation.derivative(*h);
+/// Runs `$body` with `$i` bound to each constant `0..$n` (`$n` ≤ 8, a constant), so that
+/// arrays indexed by `$i` live in registers even where the compiler does not unroll.
+macro_rules! unrolled {
+    ($n:expr, |$i:ident| $body:block) => {{
+        unrolled!(@one $n, 0, $i, $body);
+        unrolled!(@one $n, 1, $i, $body);
+        unrolled!(@one $n, 2, $i, $body);
+        unrolled!(@one $n, 3, $i, $body);
+        unrolled!(@one $n, 4, $i, $body);
+        unrolled!(@one $n, 5, $i, $body);
+        unrolled!(@one $n, 6, $i, $body);
+        unrolled!(@one $n, 7, $i, $body);
+    }};
+    (@one $n:expr, $k:expr, $i:ident, $body:block) => {
+        if $k < $n {
+            let $i: usize = $k;
+            $body
         }
-    }
-
-    pub(super) fn affine_rows(
-        bias: f64,
-        weights: &[f64],
-        base: &[f64],
-        stride: usize,
-        out: &mut [f64],
-    ) {
-        out.fill(bias);
-        let m = out.len();
-        for (row_idx, weight) in weights.iter().enumerate() {
-            let row = &base[row_idx * stride..][..m];
-            for (out, value) in out.iter_mut().zip(row) {
-                *out += weight * value;
-            }
-        }
-    }
-
-    pub(super) fn dot(x: &[f64], y: &[f64]) -> f64 {
-        let mut partial = [0.0; 4];
-        let x_chunks = x.chunks_exact(4);
-        let y_chunks = y.chunks_exact(4);
-        let tail = x_chunks.remainder().iter().zip(y_chunks.remainder());
-        for (x, y) in x_chunks.clone().zip(y_chunks.clone()) {
-            partial[0] += x[0] * y[0];
-            partial[1] += x[1] * y[1];
-            partial[2] += x[2] * y[2];
-            partial[3] += x[3] * y[3];
-        }
-        let mut total = (partial[0] + partial[1]) + (partial[2] + partial[3]);
-        for (x, y) in tail {
-            total += x * y;
-        }
-        total
-    }
-}
-
-#[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
-mod sse2 {
-    use std::arch::x86_64::{
-        __m128d, _mm_add_epi64, _mm_add_pd, _mm_castpd_si128, _mm_castsi128_pd, _mm_cvtsd_f64,
-        _mm_div_pd, _mm_max_pd, _mm_min_pd, _mm_mul_pd, _mm_set1_epi64x, _mm_set1_pd, _mm_set_pd,
-        _mm_slli_epi64, _mm_sub_pd, _mm_unpackhi_pd,
     };
+}
 
-    use super::super::activation::{
-        Activation, EXP_COEFFICIENTS, EXP_LIMIT, LN2_HI, LN2_LO, ROUND,
+/// Where a neuron's quantities lie in the flat parameter vector (offset by the outputs'
+/// sums of squares in `sums` and in the lanes).
+struct Offsets {
+    hidden_weights: usize,
+    hidden_biases: usize,
+    output_weights: usize,
+    output_biases: usize,
+}
+
+impl Offsets {
+    fn of(shape: Shape) -> Self {
+        let hidden_weights = shape.n_outputs;
+        let hidden_biases = hidden_weights + shape.n_inputs * shape.n_hidden;
+        let output_weights = hidden_biases + shape.n_hidden;
+        let output_biases = output_weights + shape.n_hidden * shape.n_outputs;
+        Offsets {
+            hidden_weights,
+            hidden_biases,
+            output_weights,
+            output_biases,
+        }
+    }
+}
+
+/// The kernel; see the module documentation.
+#[inline(always)]
+fn part<V: Lanes>(
+    input: &PartInput,
+    range: std::ops::Range<usize>,
+    scratch: &mut Scratch,
+    sums: &mut [f64],
+) {
+    let shape = input.shape;
+    let (n_inputs, n_hidden, n_outputs) = (shape.n_inputs, shape.n_hidden, shape.n_outputs);
+    let params = shape.split(input.params);
+    let with_gradient = sums.len() > n_outputs;
+    let n_quantities = if with_gradient {
+        n_outputs + shape.n_params()
+    } else {
+        n_outputs
     };
+    let offsets = Offsets::of(shape);
+    let stride = input.stride;
+    let Scratch {
+        hidden,
+        residuals,
+        lanes,
+    } = scratch;
+    let lanes = &mut lanes[..LANES * n_quantities];
+    lanes.fill(0.0);
 
-    #[inline]
-    #[target_feature(enable = "sse2")]
-    fn load(pair: &[f64]) -> __m128d {
-        match pair {
-            [a, b, ..] => _mm_set_pd(*b, *a),
-            _ => _mm_set1_pd(0.0),
+    let mut chunk_start = range.start;
+    while chunk_start < range.end {
+        let chunk_len = CHUNK.min(range.end - chunk_start);
+        let n_vectors = chunk_len.div_ceil(LANES);
+
+        // Hidden layer: h = f(b₁ + W₁·x), one neuron (a row of the chunk) at a time.
+        if V::PAIRED {
+            hidden_layer::<Pair<V>>(input, &params, chunk_start, chunk_len, hidden);
+        } else {
+            hidden_layer::<V>(input, &params, chunk_start, chunk_len, hidden);
         }
-    }
 
-    #[inline]
-    #[target_feature(enable = "sse2")]
-    fn store(v: __m128d, pair: &mut [f64]) {
-        if let [a, b, ..] = pair {
-            *a = _mm_cvtsd_f64(v);
-            *b = _mm_cvtsd_f64(_mm_unpackhi_pd(v, v));
-        }
-    }
-
-    /// Row by row (`out += wᵢ·rowᵢ`), so that consecutive pairs do not wait for each
-    /// other; each element still sums in the order of `i`.
-    #[target_feature(enable = "sse2")]
-    pub(super) fn affine_rows(
-        bias: f64,
-        weights: &[f64],
-        base: &[f64],
-        stride: usize,
-        out: &mut [f64],
-    ) {
-        let m = out.len();
-        out.fill(bias);
-        for (row_idx, weight) in weights.iter().enumerate() {
-            let row = &base[row_idx * stride..][..m];
-            let weight_pair = _mm_set1_pd(*weight);
-            let mut out_pairs = out.chunks_exact_mut(2);
-            let mut row_pairs = row.chunks_exact(2);
-            for (out_pair, row_pair) in out_pairs.by_ref().zip(row_pairs.by_ref()) {
-                store(
-                    _mm_add_pd(load(out_pair), _mm_mul_pd(weight_pair, load(row_pair))),
-                    out_pair,
-                );
-            }
-            if let ([last], [value]) = (out_pairs.into_remainder(), row_pairs.remainder()) {
-                *last += weight * value;
-            }
-        }
-    }
-
-    /// Two lanes of `activation::exp`, operation for operation.
-    /// (A macro, not a function: a `target_feature` function cannot be forced inline,
-    /// and a call per pair costs more than the arithmetic.)
-    macro_rules! exp {
-        ($x:expr) => {{
-            let x: __m128d = $x;
-            let x = _mm_max_pd(
-                _mm_min_pd(x, _mm_set1_pd(EXP_LIMIT)),
-                _mm_set1_pd(-EXP_LIMIT),
-            );
-            let shifted = _mm_add_pd(
-                _mm_mul_pd(x, _mm_set1_pd(std::f64::consts::LOG2_E)),
-                _mm_set1_pd(ROUND),
-            );
-            let n = _mm_sub_pd(shifted, _mm_set1_pd(ROUND));
-            let r = _mm_sub_pd(
-                _mm_sub_pd(x, _mm_mul_pd(n, _mm_set1_pd(LN2_HI))),
-                _mm_mul_pd(n, _mm_set1_pd(LN2_LO)),
-            );
-            // Estrin's scheme, as in `activation::exp`.
-            let c = |k: usize| _mm_set1_pd(EXP_COEFFICIENTS[k]);
-            let add = _mm_add_pd;
-            let mul = _mm_mul_pd;
-            let r2 = mul(r, r);
-            let r4 = mul(r2, r2);
-            let r8 = mul(r4, r4);
-            let s0 = add(add(c(0), mul(c(1), r)), mul(add(c(2), mul(c(3), r)), r2));
-            let s1 = add(add(c(4), mul(c(5), r)), mul(add(c(6), mul(c(7), r)), r2));
-            let s2 = add(add(c(8), mul(c(9), r)), mul(add(c(10), mul(c(11), r)), r2));
-            let s3 = add(c(12), mul(c(13), r));
-            let p = add(add(s0, mul(s1, r4)), mul(add(s2, mul(s3, r4)), r8));
-            let bits = _mm_slli_epi64::<52>(_mm_add_epi64(
-                _mm_castpd_si128(shifted),
-                _mm_set1_epi64x(1023),
-            ));
-            _mm_mul_pd(p, _mm_castsi128_pd(bits))
-        }};
-    }
-
-    #[target_feature(enable = "sse2")]
-    pub(super) fn activate(activation: Activation, values: &mut [f64]) {
-        let one = _mm_set1_pd(1.0);
-        let two = _mm_set1_pd(2.0);
-        let mut pairs = values.chunks_exact_mut(2);
-        for pair in pairs.by_ref() {
-            let z = load(pair);
-            let activated = match activation {
-                Activation::Logistic => {
-                    _mm_div_pd(one, _mm_add_pd(one, exp!(_mm_mul_pd(_mm_set1_pd(-1.0), z))))
+        // Output layer and residuals: r = b₂ + W₂·h − t, and Σ r².
+        for (output_idx, (weights, bias)) in params
+            .output_weights
+            .chunks_exact(n_hidden)
+            .zip(params.output_biases)
+            .enumerate()
+        {
+            let mut sum_squares = V::load(lanes, LANES * output_idx);
+            let residual_row = &mut residuals[output_idx * CHUNK..][..CHUNK];
+            for vector_idx in 0..n_vectors {
+                let sample = chunk_start + LANES * vector_idx;
+                let mut r = V::splat(*bias);
+                for (neuron_idx, weight) in weights.iter().enumerate() {
+                    let h = V::load(hidden, neuron_idx * CHUNK + LANES * vector_idx);
+                    r = r.add(V::splat(*weight).mul(h));
                 }
-                Activation::Tanh => _mm_sub_pd(
-                    one,
-                    _mm_div_pd(two, _mm_add_pd(exp!(_mm_mul_pd(two, z)), one)),
-                ),
-            };
-            store(activated, pair);
+                r = r.sub(V::load(input.targets, output_idx * stride + sample));
+                if sample + LANES > range.end {
+                    r = r.keep_first(range.end - sample);
+                }
+                r.store(residual_row, LANES * vector_idx);
+                sum_squares = sum_squares.add(r.mul(r));
+            }
+            sum_squares.store(lanes, LANES * output_idx);
         }
-        activation.apply(pairs.into_remainder());
+        if !with_gradient {
+            chunk_start += CHUNK;
+            continue;
+        }
+
+        // Output biases: Σ r.
+        for output_idx in 0..n_outputs {
+            let at = LANES * (offsets.output_biases + output_idx);
+            let mut sum = V::load(lanes, at);
+            for vector_idx in 0..n_vectors {
+                sum = sum.add(V::load(residuals, output_idx * CHUNK + LANES * vector_idx));
+            }
+            sum.store(lanes, at);
+        }
+
+        for neuron_idx in 0..n_hidden {
+            let row = &mut hidden[neuron_idx * CHUNK..][..CHUNK];
+            // Output weights of the second and later outputs: Σ rₖ·hⱼ (the first
+            // output's is taken in the pass below, before hⱼ becomes δⱼ).
+            for output_idx in 1..n_outputs {
+                let at = LANES * (offsets.output_weights + output_idx * n_hidden + neuron_idx);
+                let mut sum = V::load(lanes, at);
+                for vector_idx in 0..n_vectors {
+                    let r = V::load(residuals, output_idx * CHUNK + LANES * vector_idx);
+                    sum = sum.add(r.mul(V::load(row, LANES * vector_idx)));
+                }
+                sum.store(lanes, at);
+            }
+            // δⱼ = (Σₖ W₂ₖⱼ·rₖ)·f'(hⱼ) written over hⱼ, with Σ r₀·hⱼ, Σ δⱼ and Σ δⱼ·xᵢ
+            // for the first group of inputs; then the other groups from the stored δⱼ.
+            let neuron = Neuron {
+                activation: input.activation,
+                idx: neuron_idx,
+                n_hidden,
+                output_weights: params.output_weights,
+                n_outputs,
+            };
+            let first = n_inputs.min(V::MAX_GROUP);
+            let pass = Pass {
+                inputs: input.inputs,
+                stride,
+                chunk_start,
+                n_vectors,
+                first_input: 0,
+                weight_lanes: LANES * (offsets.hidden_weights + neuron_idx * n_inputs),
+            };
+            let bias_lanes = LANES * (offsets.hidden_biases + neuron_idx);
+            let output_weight_lanes = LANES * (offsets.output_weights + neuron_idx);
+            let deltas = Deltas {
+                neuron: &neuron,
+                residuals,
+                bias_lanes,
+                output_weight_lanes,
+            };
+            match first {
+                1 => delta_pass::<V, 1>(&pass, &deltas, row, lanes),
+                2 => delta_pass::<V, 2>(&pass, &deltas, row, lanes),
+                3 => delta_pass::<V, 3>(&pass, &deltas, row, lanes),
+                4 => delta_pass::<V, 4>(&pass, &deltas, row, lanes),
+                5 => delta_pass::<V, 5>(&pass, &deltas, row, lanes),
+                _ => delta_pass::<V, MAX_GROUP>(&pass, &deltas, row, lanes),
+            }
+            let mut group_start = first;
+            while group_start < n_inputs {
+                let group = (n_inputs - group_start).min(V::MAX_GROUP);
+                let pass = Pass {
+                    first_input: group_start,
+                    ..pass
+                };
+                match group {
+                    1 => input_pass::<V, 1>(&pass, row, lanes),
+                    2 => input_pass::<V, 2>(&pass, row, lanes),
+                    3 => input_pass::<V, 3>(&pass, row, lanes),
+                    4 => input_pass::<V, 4>(&pass, row, lanes),
+                    5 => input_pass::<V, 5>(&pass, row, lanes),
+                    _ => input_pass::<V, MAX_GROUP>(&pass, row, lanes),
+                }
+                group_start += group;
+            }
+        }
+        chunk_start += CHUNK;
     }
 
-    #[target_feature(enable = "sse2")]
-    pub(super) fn back_propagate(activation: Activation, back: &[f64], hidden: &mut [f64]) {
-        let one = _mm_set1_pd(1.0);
-        let mut pairs = hidden.chunks_exact_mut(2);
-        let mut back_pairs = back.chunks_exact(2);
-        for (pair, back_pair) in pairs.by_ref().zip(back_pairs.by_ref()) {
-            let h = load(pair);
-            let derivative = match activation {
-                Activation::Logistic => _mm_mul_pd(h, _mm_sub_pd(one, h)),
-                Activation::Tanh => _mm_sub_pd(one, _mm_mul_pd(h, h)),
-            };
-            store(_mm_mul_pd(load(back_pair), derivative), pair);
+    for (sum, lane_sums) in sums[..n_quantities]
+        .iter_mut()
+        .zip(lanes.chunks_exact(LANES))
+    {
+        *sum = V::load(lane_sums, 0).reduce();
+    }
+}
+
+/// `h = f(b₁ + W₁·x)` of every neuron for the chunk's samples, `W::WIDTH` at a time,
+/// into `hidden[j·CHUNK + s]`.
+#[inline(always)]
+fn hidden_layer<W: Lanes>(
+    input: &PartInput,
+    params: &super::loss::Blocks<&[f64]>,
+    chunk_start: usize,
+    chunk_len: usize,
+    hidden: &mut [f64],
+) {
+    let n_values = chunk_len.div_ceil(W::WIDTH);
+    for ((row, weights), bias) in hidden
+        .chunks_exact_mut(CHUNK)
+        .zip(params.hidden_weights.chunks_exact(input.shape.n_inputs))
+        .zip(params.hidden_biases)
+    {
+        for value_idx in 0..n_values {
+            let at = W::WIDTH * value_idx;
+            let mut z = W::splat(*bias);
+            for (input_idx, weight) in weights.iter().enumerate() {
+                let x = W::load(input.inputs, input_idx * input.stride + chunk_start + at);
+                z = z.add(W::splat(*weight).mul(x));
+            }
+            activate(input.activation, z).store(row, at);
         }
-        super::scalar::back_propagate(activation, back_pairs.remainder(), pairs.into_remainder());
+    }
+}
+
+/// One hidden neuron's view of the output layer.
+struct Neuron<'a> {
+    activation: Activation,
+    idx: usize,
+    n_hidden: usize,
+    /// `W₂` (outputs × hidden, row-major).
+    output_weights: &'a [f64],
+    n_outputs: usize,
+}
+
+/// A pass over one chunk for one neuron and a group of inputs.
+#[derive(Clone, Copy)]
+struct Pass<'a> {
+    inputs: &'a [f64],
+    stride: usize,
+    chunk_start: usize,
+    n_vectors: usize,
+    first_input: usize,
+    /// Where the lanes of the neuron's first input weight lie.
+    weight_lanes: usize,
+}
+
+/// What the delta pass needs beyond [`Pass`].
+struct Deltas<'a> {
+    neuron: &'a Neuron<'a>,
+    residuals: &'a [f64],
+    bias_lanes: usize,
+    output_weight_lanes: usize,
+}
+
+/// `δ = (Σₖ W₂ₖⱼ·rₖ)·f'(h)` over `row` (which holds `h`), accumulating `Σ r₀·h`, `Σ δ`
+/// and `Σ δ·xᵢ` for the `G` inputs from `pass.first_input`.
+#[inline(always)]
+fn delta_pass<V: Lanes, const G: usize>(
+    pass: &Pass,
+    deltas: &Deltas,
+    row: &mut [f64],
+    lanes: &mut [f64],
+) {
+    let neuron = deltas.neuron;
+    let first_weight = V::splat(neuron.output_weights[neuron.idx]);
+    let mut output_weight_sum = V::load(lanes, deltas.output_weight_lanes);
+    let mut bias_sum = V::load(lanes, deltas.bias_lanes);
+    let mut weight_sums = [V::splat(0.0); G];
+    unrolled!(G, |i| {
+        weight_sums[i] = V::load(lanes, pass.weight_lanes + LANES * (pass.first_input + i));
+    });
+    let input_rows = pass.first_input * pass.stride + pass.chunk_start;
+    for vector_idx in 0..pass.n_vectors {
+        let at = LANES * vector_idx;
+        let h = V::load(row, at);
+        let r = V::load(deltas.residuals, at);
+        output_weight_sum = output_weight_sum.add(r.mul(h));
+        let mut back = first_weight.mul(r);
+        for output_idx in 1..neuron.n_outputs {
+            let weight = neuron.output_weights[output_idx * neuron.n_hidden + neuron.idx];
+            let r = V::load(deltas.residuals, output_idx * CHUNK + at);
+            back = back.add(V::splat(weight).mul(r));
+        }
+        let delta = back.mul(derivative(neuron.activation, h));
+        delta.store(row, at);
+        bias_sum = bias_sum.add(delta);
+        unrolled!(G, |i| {
+            let x = V::load(pass.inputs, input_rows + i * pass.stride + at);
+            weight_sums[i] = weight_sums[i].add(delta.mul(x));
+        });
+    }
+    output_weight_sum.store(lanes, deltas.output_weight_lanes);
+    bias_sum.store(lanes, deltas.bias_lanes);
+    unrolled!(G, |i| {
+        weight_sums[i].store(lanes, pass.weight_lanes + LANES * (pass.first_input + i));
+    });
+}
+
+/// `Σ δ·xᵢ` for the `G` inputs from `pass.first_input`, `row` holding `δ`.
+#[inline(always)]
+fn input_pass<V: Lanes, const G: usize>(pass: &Pass, row: &[f64], lanes: &mut [f64]) {
+    let mut weight_sums = [V::splat(0.0); G];
+    unrolled!(G, |i| {
+        weight_sums[i] = V::load(lanes, pass.weight_lanes + LANES * (pass.first_input + i));
+    });
+    let input_rows = pass.first_input * pass.stride + pass.chunk_start;
+    for vector_idx in 0..pass.n_vectors {
+        let at = LANES * vector_idx;
+        let delta = V::load(row, at);
+        unrolled!(G, |i| {
+            let x = V::load(pass.inputs, input_rows + i * pass.stride + at);
+            weight_sums[i] = weight_sums[i].add(delta.mul(x));
+        });
+    }
+    unrolled!(G, |i| {
+        weight_sums[i].store(lanes, pass.weight_lanes + LANES * (pass.first_input + i));
+    });
+}
+
+#[cfg(target_arch = "x86_64")]
+mod avx2 {
+    use std::arch::x86_64::{
+        __m256d, _mm256_add_epi64, _mm256_add_pd, _mm256_and_pd, _mm256_castpd_si256,
+        _mm256_castsi256_pd, _mm256_div_pd, _mm256_loadu_pd, _mm256_max_pd, _mm256_min_pd,
+        _mm256_mul_pd, _mm256_set1_epi64x, _mm256_set1_pd, _mm256_slli_epi64, _mm256_storeu_pd,
+        _mm256_sub_pd, _mm256_xor_pd,
+    };
+
+    use super::{Lanes, PartInput, Scratch};
+
+    /// Whether the processor has AVX2 (the standard library caches the answer).
+    pub(super) fn is_available() -> bool {
+        std::arch::is_x86_feature_detected!("avx2")
     }
 
-    #[target_feature(enable = "sse2")]
-    pub(super) fn dot(x: &[f64], y: &[f64]) -> f64 {
-        let mut low = _mm_set1_pd(0.0);
-        let mut high = _mm_set1_pd(0.0);
-        let x_chunks = x.chunks_exact(4);
-        let y_chunks = y.chunks_exact(4);
-        let tail = x_chunks.remainder().iter().zip(y_chunks.remainder());
-        for (x, y) in x_chunks.clone().zip(y_chunks.clone()) {
-            low = _mm_add_pd(low, _mm_mul_pd(load(x), load(y)));
-            high = _mm_add_pd(high, _mm_mul_pd(load(&x[2..]), load(&y[2..])));
+    /// Four lanes in one AVX register. A value exists only inside [`evaluate_part`],
+    /// which runs only when the processor has AVX2: that is what makes the intrinsics
+    /// below sound.
+    #[derive(Clone, Copy)]
+    pub(super) struct Avx2(__m256d);
+
+    // SAFETY (every `unsafe` block in this impl): an `Avx2` value exists only inside
+    // `evaluate_part`, which its caller runs only after checking that the processor has
+    // AVX2; loads and stores go through a bounds-checked slice of four values.
+    impl Lanes for Avx2 {
+        const WIDTH: usize = super::LANES;
+        const MAX_GROUP: usize = super::MAX_GROUP;
+        const PAIRED: bool = true;
+
+        #[inline(always)]
+        fn splat(value: f64) -> Self {
+            Avx2(unsafe { _mm256_set1_pd(value) })
         }
-        let lanes = |v: __m128d| _mm_cvtsd_f64(v) + _mm_cvtsd_f64(_mm_unpackhi_pd(v, v));
-        let mut total = lanes(low) + lanes(high);
-        for (x, y) in tail {
-            total += x * y;
+
+        #[inline(always)]
+        fn load(values: &[f64], start: usize) -> Self {
+            let four = &values[start..start + 4];
+            Avx2(unsafe { _mm256_loadu_pd(four.as_ptr()) })
         }
-        total
+
+        #[inline(always)]
+        fn store(self, values: &mut [f64], start: usize) {
+            let four = &mut values[start..start + 4];
+            unsafe { _mm256_storeu_pd(four.as_mut_ptr(), self.0) }
+        }
+
+        #[inline(always)]
+        fn add(self, other: Self) -> Self {
+            Avx2(unsafe { _mm256_add_pd(self.0, other.0) })
+        }
+
+        #[inline(always)]
+        fn sub(self, other: Self) -> Self {
+            Avx2(unsafe { _mm256_sub_pd(self.0, other.0) })
+        }
+
+        #[inline(always)]
+        fn mul(self, other: Self) -> Self {
+            Avx2(unsafe { _mm256_mul_pd(self.0, other.0) })
+        }
+
+        #[inline(always)]
+        fn div(self, other: Self) -> Self {
+            Avx2(unsafe { _mm256_div_pd(self.0, other.0) })
+        }
+
+        #[inline(always)]
+        fn min(self, other: Self) -> Self {
+            Avx2(unsafe { _mm256_min_pd(self.0, other.0) })
+        }
+
+        #[inline(always)]
+        fn max(self, other: Self) -> Self {
+            Avx2(unsafe { _mm256_max_pd(self.0, other.0) })
+        }
+
+        #[inline(always)]
+        fn neg(self) -> Self {
+            Avx2(unsafe { _mm256_xor_pd(self.0, _mm256_set1_pd(-0.0)) })
+        }
+
+        #[inline(always)]
+        fn two_to_the_rounded(shifted: Self) -> Self {
+            Avx2(unsafe {
+                _mm256_castsi256_pd(_mm256_slli_epi64::<52>(_mm256_add_epi64(
+                    _mm256_castpd_si256(shifted.0),
+                    _mm256_set1_epi64x(1023),
+                )))
+            })
+        }
+
+        #[inline(always)]
+        fn keep_first(self, count: usize) -> Self {
+            let mut mask = [0.0; 4];
+            for lane in mask.iter_mut().take(count) {
+                *lane = f64::from_bits(u64::MAX);
+            }
+            Avx2(unsafe { _mm256_and_pd(self.0, _mm256_loadu_pd(mask.as_ptr())) })
+        }
+
+        #[inline(always)]
+        fn reduce(self) -> f64 {
+            let mut four = [0.0; 4];
+            self.store(&mut four, 0);
+            (four[0] + four[1]) + (four[2] + four[3])
+        }
+    }
+
+    /// [`super::evaluate_part`] in AVX2 registers.
+    #[target_feature(enable = "avx2")]
+    pub(super) fn evaluate_part(
+        input: &PartInput,
+        range: std::ops::Range<usize>,
+        scratch: &mut Scratch,
+        sums: &mut [f64],
+    ) {
+        super::part::<Avx2>(input, range, scratch, sums);
     }
 }
 
@@ -272,35 +827,80 @@ mod tests {
     use crate::sim::rng::SplitMix64;
 
     #[test]
-    fn the_kernels_give_the_scalar_code_s_bits() {
+    fn exp_on_lanes_gives_the_scalar_bits() {
         let mut rng = SplitMix64::new(1);
-        for m in [0, 1, 2, 5, 127, 128] {
-            let base: Vec<f64> = (0..3 * 130).map(|_| 10.0 * rng.gaussian()).collect();
-            let weights = [0.3, -1.7, 2.2];
-            let mut fast = vec![0.0; m];
-            let mut reference = vec![0.0; m];
-            affine_rows(0.25, &weights, &base, 130, &mut fast);
-            scalar::affine_rows(0.25, &weights, &base, 130, &mut reference);
-            assert_eq!(fast, reference);
-            for activation in [Activation::Logistic, Activation::Tanh] {
-                let mut fast_activated = fast.clone();
-                activate(activation, &mut fast_activated);
-                let mut reference_activated = reference.clone();
-                activation.apply(&mut reference_activated);
-                assert_eq!(fast_activated, reference_activated);
+        for _ in 0..2000 {
+            let values: [f64; 4] = std::array::from_fn(|_| 30.0 * rng.gaussian());
+            let lanes = exp_lanes(Portable(values));
+            for (lane, value) in lanes.0.iter().zip(values) {
+                assert_eq!(
+                    lane.to_bits(),
+                    super::super::activation::exp(value).to_bits()
+                );
             }
-            for activation in [Activation::Logistic, Activation::Tanh] {
-                let mut hidden = fast.clone();
-                activate(activation, &mut hidden);
-                let mut reference_hidden = hidden.clone();
-                back_propagate(activation, &base[260..260 + m], &mut hidden);
-                scalar::back_propagate(activation, &base[260..260 + m], &mut reference_hidden);
-                assert_eq!(hidden, reference_hidden);
+        }
+    }
+
+    /// Random normalised data, `stride` long columns padded with zeros.
+    fn case(shape: Shape, n: usize, seed: u64) -> (Vec<f64>, Vec<f64>, Vec<f64>, usize) {
+        let mut rng = SplitMix64::new(seed);
+        let stride = n + 8;
+        let mut inputs = vec![0.0; shape.n_inputs * stride];
+        let mut targets = vec![0.0; shape.n_outputs * stride];
+        for column in inputs.chunks_exact_mut(stride) {
+            for value in &mut column[..n] {
+                *value = 2.0 * rng.gaussian();
             }
-            assert_eq!(
-                dot(&base[..m], &base[130..130 + m]).to_bits(),
-                scalar::dot(&base[..m], &base[130..130 + m]).to_bits()
-            );
+        }
+        for column in targets.chunks_exact_mut(stride) {
+            for value in &mut column[..n] {
+                *value = rng.gaussian();
+            }
+        }
+        let params = (0..shape.n_params())
+            .map(|_| rng.uniform_in(-1.5, 1.5))
+            .collect();
+        (inputs, targets, params, stride)
+    }
+
+    #[test]
+    fn the_fast_kernel_gives_the_portable_bits() {
+        for (n_inputs, n_hidden, n_outputs) in [(5, 15, 1), (1, 3, 1), (9, 4, 2), (13, 2, 3)] {
+            let shape = Shape {
+                n_inputs,
+                n_hidden,
+                n_outputs,
+            };
+            let (inputs, targets, params, stride) = case(shape, 300, 2);
+            for activation in [Activation::Logistic, Activation::Tanh] {
+                let input = PartInput {
+                    shape,
+                    activation,
+                    params: &params,
+                    inputs: &inputs,
+                    targets: &targets,
+                    stride,
+                };
+                for range in [0..300, 3..4, 17..290, 0..128, 1..130] {
+                    for with_gradient in [false, true] {
+                        let len = n_outputs + if with_gradient { shape.n_params() } else { 0 };
+                        let mut fast = vec![f64::NAN; len];
+                        let mut portable = vec![f64::NAN; len];
+                        evaluate_part(&input, range.clone(), &mut Scratch::new(shape), &mut fast);
+                        evaluate_part_portable(
+                            &input,
+                            range.clone(),
+                            &mut Scratch::new(shape),
+                            &mut portable,
+                        );
+                        let bits = |values: &[f64]| -> Vec<u64> {
+                            values.iter().map(|value| value.to_bits()).collect()
+                        };
+                        assert_eq!(bits(&fast), bits(&portable), "{shape:?} {range:?}");
+                        assert!(portable.iter().all(|value| value.is_finite()));
+                    }
+                }
+            }
         }
     }
 }

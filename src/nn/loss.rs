@@ -15,21 +15,32 @@
 //! exactly scikit-learn's `MLPRegressor` objective (`squared_loss / 2` plus
 //! `alpha · ‖W‖² / (2 n_samples)`; biases are not penalised).
 //!
-//! The samples are stored column-major (one contiguous vector per input) and processed
-//! in chunks of [`CHUNK`] samples: for each chunk the hidden activations of all its
-//! samples are computed in one pass (the inner loops run over samples, so they are SIMD
-//! loops), then the residuals, then the gradient. Every buffer is allocated once, when
-//! the batch is built; an evaluation allocates nothing. The order of every sum is fixed,
-//! so an evaluation gives the same bits every time.
+//! The samples are stored column-major (one contiguous vector per input, padded with
+//! zeros to whole vectors) and the batch is cut into *parts* of [`PART`] samples whose
+//! sums are formed separately (`kernels.rs`: the forward pass, the residuals and the
+//! gradient, four samples at a time, in chunks that stay in the L1 cache) and then added
+//! in the order of the parts. The parts do not depend on the number of threads: on native
+//! builds a large batch spreads its parts over the cores and gives the same bits as one
+//! thread (and as wasm, which runs them one after the other). Every buffer is allocated
+//! when the batch is built; an evaluation allocates nothing (a multi-threaded one
+//! starts its threads). The order of every sum is fixed, so an evaluation gives the same
+//! bits every time.
 
 use std::ops::Range;
+use std::sync::Arc;
 
 use super::activation::Activation;
-use super::kernels;
+#[cfg(target_arch = "wasm32")]
+use super::kernels::PartInput;
+use super::kernels::{self, Scratch, PAIR};
 
-/// Samples per chunk: the chunk's hidden activations (16 × 128 × 8 bytes = 16 KiB)
-/// stay in the L1 cache while its gradient is accumulated.
-const CHUNK: usize = 128;
+/// Samples per part: a multiple of the kernels' chunk. 10,000 samples make 10 parts,
+/// which two cores share evenly.
+const PART: usize = 8 * kernels::CHUNK;
+
+/// Batches of at least this many samples are evaluated on several threads (native
+/// builds): below it, starting a thread costs more than it saves.
+const PARALLEL_MIN_SAMPLES: usize = 4 * PART;
 
 /// Normalised inputs further than this many standard deviations from the training mean
 /// are clamped to it: the hidden layer is saturated long before, and the clamp keeps
@@ -83,23 +94,33 @@ impl Shape {
     }
 }
 
-/// Normalised samples in column-major order with the scratch space of an evaluation.
+/// The normalised samples, column-major and padded with zeros to whole pairs of vectors.
+#[derive(Clone)]
+pub(crate) struct Samples {
+    /// `inputs[i·stride + s]`: input `i` of sample `s` (zero past the last sample).
+    pub inputs: Vec<f64>,
+    /// `targets[k·stride + s]`: target `k` of sample `s` (zero past the last sample).
+    pub targets: Vec<f64>,
+    /// Length of a column: the number of samples rounded up to a whole pair of vectors,
+    /// plus one pair (a range that starts anywhere reads at most that far).
+    pub stride: usize,
+}
+
+/// Normalised samples with the scratch space of an evaluation.
 pub(crate) struct Batch {
     shape: Shape,
+    #[cfg(target_arch = "wasm32")]
     activation: Activation,
     n_samples: usize,
-    /// `inputs[i·n_samples + s]`: input `i` of sample `s`.
-    inputs: Vec<f64>,
-    /// `targets[k·n_samples + s]`: target `k` of sample `s`.
-    targets: Vec<f64>,
-    /// Hidden activations of one chunk, `hidden[j·CHUNK + s]`; then their deltas.
-    hidden: Vec<f64>,
-    /// Residuals of one chunk, `residuals[k·CHUNK + s]`.
-    residuals: Vec<f64>,
+    /// Shared with the helper threads while they evaluate.
+    samples: Arc<Samples>,
+    scratch: Scratch,
+    /// Each part's sums: `n_outputs` sums of squared residuals, then the gradient.
+    part_sums: Vec<f64>,
     /// Sum of squared residuals per output over the last evaluation.
     sum_squared_residuals: Vec<f64>,
-    /// `W₂ᵀ` (hidden × outputs) of the current evaluation.
-    output_weights_by_neuron: Vec<f64>,
+    #[cfg(not(target_arch = "wasm32"))]
+    workers: super::workers::Workers,
 }
 
 impl Batch {
@@ -114,30 +135,39 @@ impl Batch {
         normalise_target: impl Fn(usize, f64) -> f64,
     ) -> Self {
         let n_samples = inputs.len() / shape.n_inputs;
-        let mut columns = vec![0.0; n_samples * shape.n_inputs];
+        let stride = n_samples.div_ceil(PAIR) * PAIR + PAIR;
+        let mut columns = vec![0.0; stride * shape.n_inputs];
         for (sample_idx, row) in inputs.chunks_exact(shape.n_inputs).enumerate() {
             for (input_idx, value) in row.iter().enumerate() {
-                columns[input_idx * n_samples + sample_idx] =
+                columns[input_idx * stride + sample_idx] =
                     normalise_input(input_idx, *value).clamp(-INPUT_CLAMP, INPUT_CLAMP);
             }
         }
-        let mut target_columns = vec![0.0; n_samples * shape.n_outputs];
+        let mut target_columns = vec![0.0; stride * shape.n_outputs];
         for (sample_idx, row) in targets.chunks_exact(shape.n_outputs).enumerate() {
             for (output_idx, value) in row.iter().enumerate() {
-                target_columns[output_idx * n_samples + sample_idx] =
+                target_columns[output_idx * stride + sample_idx] =
                     normalise_target(output_idx, *value);
             }
         }
         Batch {
             shape,
+            #[cfg(target_arch = "wasm32")]
             activation,
             n_samples,
-            inputs: columns,
-            targets: target_columns,
-            hidden: vec![0.0; shape.n_hidden * CHUNK],
-            residuals: vec![0.0; shape.n_outputs * CHUNK],
+            samples: Arc::new(Samples {
+                inputs: columns,
+                targets: target_columns,
+                stride,
+            }),
+            scratch: Scratch::new(shape),
+            part_sums: vec![
+                0.0;
+                n_samples.div_ceil(PART).max(1) * (shape.n_outputs + shape.n_params())
+            ],
             sum_squared_residuals: vec![0.0; shape.n_outputs],
-            output_weights_by_neuron: vec![0.0; shape.n_hidden * shape.n_outputs],
+            #[cfg(not(target_arch = "wasm32"))]
+            workers: super::workers::Workers::new(shape, activation),
         }
     }
 
@@ -153,10 +183,14 @@ impl Batch {
     /// Reorders the samples: sample `s` becomes the old sample `order[s]`. `scratch` is
     /// reused between calls. `order` must be a permutation of `0..n_samples`.
     pub fn permute(&mut self, order: &[usize], scratch: &mut Vec<f64>) {
-        for data in [&mut self.inputs, &mut self.targets] {
+        // The helpers hold no reference between evaluations, so this does not copy.
+        let samples = Arc::make_mut(&mut self.samples);
+        let stride = samples.stride;
+        for data in [&mut samples.inputs, &mut samples.targets] {
             scratch.clear();
-            for column in data.chunks_exact(self.n_samples) {
+            for column in data.chunks_exact(stride) {
                 scratch.extend(order.iter().map(|&old| column[old]));
+                scratch.extend_from_slice(&column[order.len()..]);
             }
             std::mem::swap(data, scratch);
         }
@@ -170,102 +204,74 @@ impl Batch {
         params: &[f64],
         range: Range<usize>,
         l2_penalty: f64,
-        mut gradient: Option<&mut [f64]>,
+        gradient: Option<&mut [f64]>,
     ) -> f64 {
         let shape = self.shape;
-        let n = self.n_samples;
-        let params = shape.split(params);
+        let n_outputs = shape.n_outputs;
+        let sums_len = n_outputs
+            + if gradient.is_some() {
+                shape.n_params()
+            } else {
+                0
+            };
+        let n_parts = range.len().div_ceil(PART);
+        let part_sums = &mut self.part_sums[..n_parts * sums_len];
+        let n_threads = if range.len() >= PARALLEL_MIN_SAMPLES {
+            n_threads()
+        } else {
+            1
+        };
+        #[cfg(not(target_arch = "wasm32"))]
+        self.workers.evaluate(
+            &self.samples,
+            params,
+            range.clone(),
+            PART,
+            n_threads,
+            &mut self.scratch,
+            part_sums,
+            sums_len,
+        );
+        #[cfg(target_arch = "wasm32")]
+        {
+            let _ = n_threads;
+            let input = PartInput {
+                shape,
+                activation: self.activation,
+                params,
+                inputs: &self.samples.inputs,
+                targets: &self.samples.targets,
+                stride: self.samples.stride,
+            };
+            for (part_idx, sums) in part_sums.chunks_exact_mut(sums_len).enumerate() {
+                let start = range.start + part_idx * PART;
+                let part = start..(start + PART).min(range.end);
+                kernels::evaluate_part(&input, part, &mut self.scratch, sums);
+            }
+        }
+
+        // The parts' sums in the order of the parts.
         self.sum_squared_residuals.fill(0.0);
+        let mut gradient = gradient;
         if let Some(gradient) = gradient.as_deref_mut() {
             gradient.fill(0.0);
         }
-        // W₂ᵀ, so that the weights from one hidden neuron to every output are contiguous.
-        for (output_idx, row) in params
-            .output_weights
-            .chunks_exact(shape.n_hidden)
-            .enumerate()
-        {
-            for (neuron_idx, weight) in row.iter().enumerate() {
-                self.output_weights_by_neuron[neuron_idx * shape.n_outputs + output_idx] = *weight;
+        for sums in part_sums.chunks_exact(sums_len) {
+            let (squares, gradient_sums) = sums.split_at(n_outputs);
+            for (total, part) in self.sum_squared_residuals.iter_mut().zip(squares) {
+                *total += part;
             }
-        }
-        let mut chunk_start = range.start;
-        while chunk_start < range.end {
-            let chunk_end = (chunk_start + CHUNK).min(range.end);
-            let m = chunk_end - chunk_start;
-            let inputs = &self.inputs[chunk_start..];
-
-            // Hidden layer: h = f(b₁ + W₁·x), one hidden neuron (a row of samples) at a time.
-            for ((hidden, weights), bias) in self
-                .hidden
-                .chunks_exact_mut(CHUNK)
-                .zip(params.hidden_weights.chunks_exact(shape.n_inputs))
-                .zip(params.hidden_biases)
-            {
-                let hidden = &mut hidden[..m];
-                kernels::affine_rows(*bias, weights, inputs, n, hidden);
-                kernels::activate(self.activation, hidden);
-            }
-
-            // Output layer and residuals: r = b₂ + W₂·h − t.
-            for (output_idx, ((residual, weights), bias)) in self
-                .residuals
-                .chunks_exact_mut(CHUNK)
-                .zip(params.output_weights.chunks_exact(shape.n_hidden))
-                .zip(params.output_biases)
-                .enumerate()
-            {
-                let residual = &mut residual[..m];
-                kernels::affine_rows(*bias, weights, &self.hidden, CHUNK, residual);
-                let target = &self.targets[output_idx * n + chunk_start..][..m];
-                for (r, t) in residual.iter_mut().zip(target) {
-                    *r -= t;
-                }
-                self.sum_squared_residuals[output_idx] += kernels::dot(residual, residual);
-            }
-
             if let Some(gradient) = gradient.as_deref_mut() {
-                let gradient = shape.split_mut(gradient);
-                // Output layer: Σ r·hᵀ and Σ r.
-                for ((residual, row), bias_gradient) in self
-                    .residuals
-                    .chunks_exact(CHUNK)
-                    .zip(gradient.output_weights.chunks_exact_mut(shape.n_hidden))
-                    .zip(gradient.output_biases.iter_mut())
-                {
-                    let residual = &residual[..m];
-                    *bias_gradient += sum(residual);
-                    for (weight_gradient, hidden) in
-                        row.iter_mut().zip(self.hidden.chunks_exact(CHUNK))
-                    {
-                        *weight_gradient += kernels::dot(residual, &hidden[..m]);
-                    }
-                }
-                // Hidden layer: δ = (W₂ᵀ·r) ⊙ f'(h), written over h, then Σ δ·xᵀ and Σ δ.
-                let mut back = [0.0; CHUNK];
-                let back = &mut back[..m];
-                for (((hidden, weights_to_outputs), row), bias_gradient) in self
-                    .hidden
-                    .chunks_exact_mut(CHUNK)
-                    .zip(self.output_weights_by_neuron.chunks_exact(shape.n_outputs))
-                    .zip(gradient.hidden_weights.chunks_exact_mut(shape.n_inputs))
-                    .zip(gradient.hidden_biases.iter_mut())
-                {
-                    let hidden = &mut hidden[..m];
-                    kernels::affine_rows(0.0, weights_to_outputs, &self.residuals, CHUNK, back);
-                    kernels::back_propagate(self.activation, back, hidden);
-                    *bias_gradient += sum(hidden);
-                    for (input_idx, weight_gradient) in row.iter_mut().enumerate() {
-                        *weight_gradient += kernels::dot(hidden, &inputs[input_idx * n..][..m]);
-                    }
+                for (total, part) in gradient.iter_mut().zip(gradient_sums) {
+                    *total += part;
                 }
             }
-            chunk_start = chunk_end;
         }
 
+        let params = shape.split(params);
         let m = range.len().max(1) as f64;
-        let penalty = kernels::dot(params.hidden_weights, params.hidden_weights)
-            + kernels::dot(params.output_weights, params.output_weights);
+        let penalty = dot(params.hidden_weights, params.hidden_weights)
+            + dot(params.output_weights, params.output_weights);
         if let Some(gradient) = gradient {
             for value in gradient.iter_mut() {
                 *value /= m;
@@ -285,19 +291,22 @@ impl Batch {
     }
 }
 
-/// `Σ xᵢ` with four partial sums.
-#[inline]
-fn sum(x: &[f64]) -> f64 {
-    let mut partial = [0.0; 4];
-    let chunks = x.chunks_exact(4);
-    let tail: f64 = chunks.remainder().iter().sum();
-    for x in chunks {
-        partial[0] += x[0];
-        partial[1] += x[1];
-        partial[2] += x[2];
-        partial[3] += x[3];
+/// The threads a large batch may use: the cores available natively, one in wasm.
+fn n_threads() -> usize {
+    #[cfg(not(target_arch = "wasm32"))]
+    {
+        static THREADS: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
+        *THREADS.get_or_init(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
     }
-    (partial[0] + partial[1]) + (partial[2] + partial[3]) + tail
+    #[cfg(target_arch = "wasm32")]
+    {
+        1
+    }
+}
+
+/// `Σ xᵢ·yᵢ` in order.
+fn dot(x: &[f64], y: &[f64]) -> f64 {
+    x.iter().zip(y).map(|(x, y)| x * y).sum()
 }
 
 #[cfg(test)]
@@ -384,5 +393,60 @@ mod tests {
         for (a, b) in gradient.iter().zip(&sub_gradient) {
             assert!((a - b).abs() < 1e-12);
         }
+    }
+
+    #[test]
+    fn a_large_batch_gives_the_same_bits_on_any_number_of_threads() {
+        let shape = Shape {
+            n_inputs: 5,
+            n_hidden: 7,
+            n_outputs: 2,
+        };
+        let n = PARALLEL_MIN_SAMPLES + 1000;
+        let (mut batch, params) = random_case(shape, Activation::Logistic, n, 11);
+        let mut gradient = vec![0.0; shape.n_params()];
+        let value = batch.evaluate(&params, 0..n, 0.01, Some(&mut gradient));
+        // The same parts, one after the other on this thread, added in order.
+        let input = kernels::PartInput {
+            shape,
+            activation: Activation::Logistic,
+            params: &params,
+            inputs: &batch.samples.inputs,
+            targets: &batch.samples.targets,
+            stride: batch.samples.stride,
+        };
+        let mut scratch = Scratch::new(shape);
+        let mut totals = vec![0.0; shape.n_outputs + shape.n_params()];
+        let mut sums = totals.clone();
+        for start in (0..n).step_by(PART) {
+            kernels::evaluate_part(
+                &input,
+                start..(start + PART).min(n),
+                &mut scratch,
+                &mut sums,
+            );
+            for (total, sum) in totals.iter_mut().zip(&sums) {
+                *total += sum;
+            }
+        }
+        let m = n as f64;
+        let blocks = shape.split(&params);
+        let penalty = dot(blocks.hidden_weights, blocks.hidden_weights)
+            + dot(blocks.output_weights, blocks.output_weights);
+        let expected = totals[..2].iter().sum::<f64>() / (2.0 * m) + 0.01 * penalty / (2.0 * m);
+        assert_eq!(value.to_bits(), expected.to_bits());
+        assert_eq!(totals[2] / m + 0.01 * params[0] / m, gradient[0]);
+        assert_eq!(
+            totals[2 + shape.n_params() - 1] / m,
+            gradient[shape.n_params() - 1]
+        );
+        let mut again = vec![0.0; shape.n_params()];
+        assert_eq!(
+            batch
+                .evaluate(&params, 0..n, 0.01, Some(&mut again))
+                .to_bits(),
+            value.to_bits()
+        );
+        assert_eq!(again, gradient);
     }
 }

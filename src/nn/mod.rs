@@ -16,7 +16,10 @@
 //!   `exp`, so native and wasm builds give the same bits).
 //! - `mlp.rs`: [`Mlp`], the trained model (weights and normalisation, serde), `predict`.
 //! - `loss.rs`: the mean-squared error with its L2 penalty and its analytic gradient over
-//!   a whole batch (chunked, column-major, no allocation per sample).
+//!   a whole batch (column-major, in parts of fixed size added in a fixed order).
+//! - `kernels.rs`: one part's forward pass and gradient, four samples at a time (portable
+//!   lanes, or AVX2 when the processor has it, with the same bits).
+//! - `workers.rs`: helper threads that evaluate a large batch's parts (native builds).
 //! - `lbfgs.rs`: L-BFGS with a strong-Wolfe line search, for any smooth objective.
 //! - `train.rs`: [`train`]: splitting, initialisation, the two optimisers (L-BFGS and
 //!   back-propagation with momentum), early stopping and the [`TrainingReport`].
@@ -36,6 +39,8 @@ mod loss;
 mod mlp;
 mod normalise;
 mod train;
+#[cfg(not(target_arch = "wasm32"))]
+mod workers;
 
 pub use activation::Activation;
 pub use correlation::{correlation_matrix, CorrelationMatrix};
