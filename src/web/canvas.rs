@@ -6,9 +6,11 @@ use web_sys::HtmlCanvasElement;
 
 use crate::calibration::CalibrationAnalysis;
 use crate::deviation::HeadingAnalysis;
+use crate::pdr::PdrAnalysis;
 use crate::plot::deviation::{
     draw_deviation_curve, draw_online_convergence, draw_residual_histogram,
 };
+use crate::plot::pdr::{draw_position_error, draw_step_lengths, draw_trajectory};
 use crate::plot::{draw_circle_fit, draw_field_magnitude_of, draw_heading_error, PlotError};
 
 /// Which plot goes on a canvas.
@@ -61,6 +63,26 @@ pub fn draw_heading(
         HeadingPlot::DeviationCurve => draw_deviation_curve(area, analysis),
         HeadingPlot::ResidualHistogram => draw_residual_histogram(area, analysis),
         HeadingPlot::OnlineConvergence => draw_online_convergence(area, analysis),
+    })
+}
+
+/// Which dead-reckoning plot goes on a canvas.
+#[derive(Debug, Clone, Copy)]
+pub enum PdrPlot {
+    Trajectory,
+    StepLengths,
+    PositionError,
+}
+
+pub fn draw_pdr(
+    canvas: &HtmlCanvasElement,
+    plot: PdrPlot,
+    analysis: &PdrAnalysis,
+) -> Result<(), String> {
+    draw_with(canvas, |area| match plot {
+        PdrPlot::Trajectory => draw_trajectory(area, analysis),
+        PdrPlot::StepLengths => draw_step_lengths(area, analysis),
+        PdrPlot::PositionError => draw_position_error(area, analysis),
     })
 }
 

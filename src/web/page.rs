@@ -12,14 +12,16 @@ use wasm_bindgen::JsCast;
 use wasm_bindgen_futures::{spawn_local, JsFuture};
 use web_sys::{Document, DragEvent, Element, HtmlCanvasElement, HtmlElement, HtmlInputElement};
 
-use super::canvas::{self, HeadingPlot, Plot};
+use super::canvas::{self, HeadingPlot, PdrPlot, Plot};
 use super::mapping;
-use crate::analysis::{analyse_files, AnalysisError};
+use crate::analysis::AnalysisError;
 use crate::calibration::{calibrate, CalibrationAnalysis, CalibrationOptions, CalibrationReport};
 use crate::deviation::{compare, HeadingOptions, HeadingReport};
 use crate::io::delimited::{preview, ColumnMapping, Preview};
+use crate::io::import::import_files;
 use crate::io::import::{header_signature, merge, ChunkedImport, FileImport};
-use crate::io::ImportError;
+use crate::io::{ImportError, ImportReport};
+use crate::pdr::{self, PdrAnalysis, PdrError, PdrOptions};
 
 /// The ids of the elements the page must have (see `www/index.html`).
 const STATUS_ID: &str = "status";
@@ -31,6 +33,9 @@ const FIELD_CANVAS_ID: &str = "plot-field";
 const DEVIATION_CANVAS_ID: &str = "plot-deviation";
 const RESIDUALS_CANVAS_ID: &str = "plot-residuals";
 const ONLINE_CANVAS_ID: &str = "plot-online";
+const TRAJECTORY_CANVAS_ID: &str = "plot-trajectory";
+const STEPS_CANVAS_ID: &str = "plot-steps";
+const POSITION_ERROR_CANVAS_ID: &str = "plot-position-error";
 const PROGRESS_ID: &str = "progress";
 
 /// Bytes read from a file at a time: small enough that the page answers between
@@ -74,6 +79,9 @@ pub struct Page {
     deviation_canvas: HtmlCanvasElement,
     residuals_canvas: HtmlCanvasElement,
     online_canvas: HtmlCanvasElement,
+    trajectory_canvas: HtmlCanvasElement,
+    steps_canvas: HtmlCanvasElement,
+    position_error_canvas: HtmlCanvasElement,
 }
 
 impl Page {
@@ -105,6 +113,9 @@ impl Page {
             deviation_canvas: canvas(DEVIATION_CANVAS_ID)?,
             residuals_canvas: canvas(RESIDUALS_CANVAS_ID)?,
             online_canvas: canvas(ONLINE_CANVAS_ID)?,
+            trajectory_canvas: canvas(TRAJECTORY_CANVAS_ID)?,
+            steps_canvas: canvas(STEPS_CANVAS_ID)?,
+            position_error_canvas: canvas(POSITION_ERROR_CANVAS_ID)?,
             body,
             document,
         }))
@@ -233,9 +244,10 @@ impl Page {
             }
             page.hide_progress();
             page.set_state("loading", &format!("Analysing {}…", names.join(", ")));
-            let result = merge(results)
-                .map_err(AnalysisError::from)
-                .and_then(|report| calibrate(report, &CalibrationOptions::default()));
+            let merged = merge(results).map_err(AnalysisError::from);
+            let for_pdr = merged.as_ref().ok().and_then(copy_for_pdr);
+            let result =
+                merged.and_then(|report| calibrate(report, &CalibrationOptions::default()));
             // A single delimited file whose columns were not understood: ask the user.
             let unreadable_header = matches!(
                 result,
@@ -262,7 +274,7 @@ impl Page {
                     return;
                 }
             }
-            page.show_result(result).await;
+            page.show_result(result, for_pdr).await;
             if !remembered_for.is_empty() {
                 let status = page.status.text_content().unwrap_or_default();
                 page.status.set_text_content(Some(&format!(
@@ -341,12 +353,20 @@ impl Page {
 
     /// Shows the calibration, lets the browser breathe (paint, answer input), then
     /// learns and shows the heading models: two shorter blocks instead of one long one.
-    async fn show_result(&self, result: Result<CalibrationAnalysis, AnalysisError>) {
+    /// Then, with the log's own import, dead-reckons the walk.
+    async fn show_result(
+        &self,
+        result: Result<CalibrationAnalysis, AnalysisError>,
+        for_pdr: Option<ImportReport>,
+    ) {
         match result {
             Ok(analysis) => {
                 self.show_calibration(&analysis);
                 yield_to_browser().await;
-                self.show_heading_models(&analysis);
+                let summary = self.show_heading_models(&analysis);
+                yield_to_browser().await;
+                let pdr_summary = self.show_dead_reckoning(for_pdr);
+                self.set_state("ready", &format!("{summary}{pdr_summary}"));
             }
             Err(error) => self.show_error(&error.to_string()),
         }
@@ -370,15 +390,19 @@ impl Page {
     }
 
     async fn analyse_and_show(&self, files: &[(&str, &[u8])]) {
-        self.show_result(analyse_files(files, &CalibrationOptions::default()))
-            .await;
+        let imported = import_files(files).map_err(AnalysisError::from);
+        let for_pdr = imported.as_ref().ok().and_then(copy_for_pdr);
+        let result = imported.and_then(|report| calibrate(report, &CalibrationOptions::default()));
+        self.show_result(result, for_pdr).await;
     }
 
     /// The whole analysis at once (the browser tests use it).
     #[cfg(test)]
-    pub fn show_analysis(&self, analysis: &CalibrationAnalysis) {
+    pub fn show_analysis(&self, analysis: &CalibrationAnalysis, for_pdr: Option<ImportReport>) {
         self.show_calibration(analysis);
-        self.show_heading_models(analysis);
+        let summary = self.show_heading_models(analysis);
+        let pdr_summary = self.show_dead_reckoning(for_pdr);
+        self.set_state("ready", &format!("{summary}{pdr_summary}"));
     }
 
     /// The calibration's context, device calibration, notes, diagnostics and plots.
@@ -415,8 +439,8 @@ impl Page {
     }
 
     /// The heading models on top of the calibration: every method and every stack on
-    /// the same split, the deviation curve and the residuals; then the page is ready.
-    fn show_heading_models(&self, analysis: &CalibrationAnalysis) {
+    /// the same split, the deviation curve and the residuals. Returns the status line.
+    fn show_heading_models(&self, analysis: &CalibrationAnalysis) -> String {
         let report = &analysis.report;
         let headings = compare(analysis, &HeadingOptions::default());
         self.show_methods(&headings.report);
@@ -445,12 +469,57 @@ impl Page {
             .and_then(|best| headings.report.rows.iter().find(|row| &row.key == best))
             .map_or(String::new(), |row| format!(" Best: {}.", row.label));
         self.set_state(
-            "ready",
-            &format!(
-                "Analysed {}: {} magnetometer samples.{best}{problems}",
-                report.file_name, report.n_samples_used
-            ),
+            "loading",
+            &format!("Calibrated {}; dead-reckoning the walk…", report.file_name),
         );
+        format!(
+            "Analysed {}: {} magnetometer samples.{best}{problems}",
+            report.file_name, report.n_samples_used
+        )
+    }
+
+    /// Dead-reckons the walk (steps, step model, the EKF) and shows its summary and
+    /// plots; a log that cannot be dead-reckoned says why in their place. Returns a
+    /// sentence for the status line.
+    fn show_dead_reckoning(&self, report: Option<ImportReport>) -> String {
+        let result = report
+            .ok_or_else(|| "the log has no accelerometer, so no steps can be detected".to_string())
+            .and_then(|report| {
+                pdr::run(report, &PdrOptions::default()).map_err(|error| match error {
+                    PdrError::Analysis(error) => error.to_string(),
+                    other => other.to_string(),
+                })
+            });
+        let canvases = [
+            (&self.trajectory_canvas, PdrPlot::Trajectory),
+            (&self.steps_canvas, PdrPlot::StepLengths),
+            (&self.position_error_canvas, PdrPlot::PositionError),
+        ];
+        match result {
+            Ok(analysis) => {
+                self.fill_list("pdr-summary", pdr_summary(&analysis).into_iter());
+                for (canvas, plot) in canvases {
+                    if let Err(message) = canvas::draw_pdr(canvas, plot, &analysis) {
+                        let _ = canvas::draw_message(
+                            canvas,
+                            &format!("This plot could not be drawn: {message}"),
+                        );
+                    }
+                }
+                format!(
+                    " {} steps dead-reckoned over {:.0} m.",
+                    analysis.report.n_steps, analysis.report.pdr_distance_m
+                )
+            }
+            Err(message) => {
+                let message = format!("No dead reckoning: {message}.");
+                self.fill_list("pdr-summary", std::iter::once(message.clone()));
+                for (canvas, _) in canvases {
+                    let _ = canvas::draw_message(canvas, &message);
+                }
+                String::new()
+            }
+        }
     }
 
     /// Shows an error in the status area and on the canvases, and clears the figures of
@@ -462,6 +531,7 @@ impl Page {
             "context",
             "methods-body",
             "deviation-model",
+            "pdr-summary",
             "calibration",
             "notes",
             "diagnostics",
@@ -475,6 +545,9 @@ impl Page {
             &self.deviation_canvas,
             &self.residuals_canvas,
             &self.online_canvas,
+            &self.trajectory_canvas,
+            &self.steps_canvas,
+            &self.position_error_canvas,
         ] {
             let _ = canvas::draw_message(canvas, &format!("No plot: {message}"));
         }
@@ -711,6 +784,67 @@ impl Page {
 
 /// The items, or a single "None." when there are none, so that an empty list reads as
 /// checked rather than missing.
+/// A copy of the import for dead reckoning, when the log has an accelerometer to
+/// detect steps in (the calibration consumes the original).
+fn copy_for_pdr(report: &ImportReport) -> Option<ImportReport> {
+    (!report.recording.acc_in_body_mps2.is_empty()).then(|| report.clone())
+}
+
+/// The dead reckoning as the paper reports it, a line each.
+fn pdr_summary(analysis: &PdrAnalysis) -> Vec<String> {
+    use crate::pdr::step_length::StepLengthModel;
+    let report = &analysis.report;
+    let mut lines = vec![format!(
+        "{} steps in {} bouts{}; {:.1} m dead-reckoned over {:.0} s.",
+        report.n_steps,
+        report.n_bouts,
+        report
+            .mean_step_frequency_hz
+            .map_or(String::new(), |hz| format!(" at {hz:.2} steps/s")),
+        report.pdr_distance_m,
+        report.duration_s
+    )];
+    let model = match &report.step_model.model {
+        StepLengthModel::Linear {
+            a_m,
+            b_m_per_hz,
+            c_m_per_var,
+        } => format!("linear, SL = {a_m:.3} + {b_m_per_hz:.3}·SF + {c_m_per_var:.4}·SV"),
+        StepLengthModel::Weinberg { k } => format!("Weinberg, SL = {k:.3}·(Amax − Amin)^¼"),
+        StepLengthModel::Neural { .. } => "neural network, 16 tanh neurons".to_string(),
+    };
+    let trained = match report.step_model.trained_on {
+        "default" => "not trained (no usable GNSS; the CLI also takes a known distance)",
+        "known_distance" => "fitted to the known distance",
+        "gnss_speed" => "trained on the GNSS speed",
+        "gnss_positions" => "trained on GNSS fixes on straight stretches",
+        "reference_positions" => "trained on the reference positions",
+        _ => "given",
+    };
+    lines.push(format!("Step model: {model}, {trained}."));
+    lines.push(format!("Heading: {}.", report.heading_label));
+    if let Some(errors) = &report.position_error {
+        lines.push(format!(
+            "Position error at {} reference points: RMS {:.2} m ({:.2} % of {:.0} m), max {:.2} m; distance error {:+.1} %.",
+            errors.n_points, errors.rms_m, errors.rms_pct, errors.distance_m, errors.max_m, errors.distance_error_pct
+        ));
+    }
+    if let Some(error) = &report.step_length_error_m {
+        lines.push(format!(
+            "Step length error: {:+.3} ± {:.3} m over {} steps.",
+            error.mean, error.std, error.n
+        ));
+    }
+    if let Some(error) = &report.heading_error_deg {
+        lines.push(format!(
+            "Heading error: {:+.2} ± {:.2}° over {} steps.",
+            error.mean, error.std, error.n
+        ));
+    }
+    lines.extend(report.notes.iter().cloned());
+    lines
+}
+
 fn or_none(items: impl Iterator<Item = String>) -> impl Iterator<Item = String> {
     let mut items = items.peekable();
     let none = items.peek().is_none().then(|| "None.".to_string());

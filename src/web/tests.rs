@@ -125,7 +125,9 @@ fn add_page_skeleton() {
            <ul id="calibration"></ul><ul id="notes"></ul><ul id="diagnostics"></ul>
            <canvas id="plot-circle" width="320" height="240"></canvas><canvas id="plot-heading" width="320" height="240"></canvas>
            <canvas id="plot-field" width="320" height="240"></canvas><ul id="deviation-model"></ul>
-           <canvas id="plot-deviation" width="320" height="240"></canvas><canvas id="plot-residuals" width="320" height="240"></canvas><canvas id="plot-online" width="320" height="240"></canvas>"#,
+           <canvas id="plot-deviation" width="320" height="240"></canvas><canvas id="plot-residuals" width="320" height="240"></canvas><canvas id="plot-online" width="320" height="240"></canvas>
+           <ul id="pdr-summary"></ul><canvas id="plot-trajectory" width="320" height="240"></canvas>
+           <canvas id="plot-steps" width="320" height="240"></canvas><canvas id="plot-position-error" width="320" height="240"></canvas>"#,
     );
     document
         .body()
@@ -150,7 +152,8 @@ fn the_page_shows_an_analysis_then_an_error() {
 
     let analysis = analyse_log("walk.csv", &simulated_csv(), &CalibrationOptions::default())
         .expect("analysable");
-    page.show_analysis(&analysis);
+    let import = crate::io::import::import("walk.csv", &simulated_csv()).expect("readable");
+    page.show_analysis(&analysis, Some(import));
     let min_max = analysis
         .report
         .methods
@@ -168,6 +171,18 @@ fn the_page_shows_an_analysis_then_an_error() {
     assert!(text("stat-min_max-fourier-check-rms").ends_with('°'));
     assert!(text("deviation-model").contains("min/max: A "));
     assert!(text("status").starts_with("Analysed walk.csv"));
+    // The walk is dead-reckoned too: its steps, and the error against its positions.
+    assert!(
+        text("pdr-summary").contains(" steps in "),
+        "{}",
+        text("pdr-summary")
+    );
+    assert!(text("pdr-summary").contains("Position error at "));
+    assert!(
+        text("status").contains("steps dead-reckoned"),
+        "{}",
+        text("status")
+    );
 
     page.show_error("bad.csv is empty. Choose a log with a header line and samples.");
     let body = document.body().expect("a body");

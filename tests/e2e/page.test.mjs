@@ -80,7 +80,8 @@ async function assertStatsMatch(page, expected) {
 const checkRms = (report, key) => report.rows.find((row) => row.key === key)?.check?.rms_deg;
 
 async function assertPlotsDrawn(page) {
-  for (const id of ['plot-circle', 'plot-heading', 'plot-field', 'plot-deviation', 'plot-residuals', 'plot-online']) {
+  for (const id of ['plot-circle', 'plot-heading', 'plot-field', 'plot-deviation', 'plot-residuals', 'plot-online',
+                    'plot-trajectory', 'plot-steps', 'plot-position-error']) {
     const n = await drawnPixels(page, id);
     assert.ok(n > 10_000, `#${id} has ${n} drawn pixels`);
   }
@@ -112,6 +113,13 @@ test('the demo is analysed and drawn on load, with the CLI\'s figures', async ()
   assert.ok(checkRms(expected, 'min_max') < 3, 'small error after min/max');
   await assertPlotsDrawn(page);
   assert.match(await text(page, 'status'), /Analysed demo-walk\.csv: 9000 magnetometer samples\./);
+  // The dead reckoning agrees with `compass-pdr pdr --json`: steps, distance, error.
+  const pdr = JSON.parse(readFileSync(join(out, 'demo-walk-pdr.json'), 'utf8'));
+  const summary = await text(page, 'pdr-summary');
+  assert.ok(summary.includes(`${pdr.n_steps} steps in ${pdr.n_bouts} bouts`), summary);
+  assert.ok(summary.includes(`${pdr.pdr_distance_m.toFixed(1)} m dead-reckoned`), summary);
+  assert.ok(summary.includes(`RMS ${pdr.position_error.rms_m.toFixed(2)} m`), summary);
+  assert.match(await text(page, 'status'), new RegExp(`${pdr.n_steps} steps dead-reckoned`));
   assert.equal(await statusBackground(page), 'rgb(244, 246, 249)', 'a good result is not styled as an error');
   assert.match(await text(page, 'context'), /Reference heading: the log's reference-heading column/);
   assert.match(await text(page, 'calibration'), /Hard iron \(/);
@@ -153,6 +161,9 @@ test('phyphox files dropped together are merged into one recording', async (t) =
   // No reference heading in a phyphox walk: the figures say so instead of inventing one.
   assert.equal(await text(page, 'stat-min_max-check-rms'), '—');
   assert.match(await text(page, 'notes'), /no reference heading/);
+  // The loop's 168 steps (169 detected), dead-reckoned without GNSS (indoor fixes refused).
+  assert.match(await text(page, 'pdr-summary'), /169 steps in 1 bouts/);
+  assert.match(await text(page, 'pdr-summary'), /GNSS fixes reported an accuracy within 15 m/);
   await assertPlotsDrawn(page);
   await page.screenshot({ path: join(out, 'phyphox.png'), fullPage: true });
   assert.deepEqual(problems, []);
