@@ -41,7 +41,7 @@ mod native {
     use compass_pdr::pdr::{run, PdrOptions};
     use compass_pdr::reference::ReferenceChoice;
     use compass_pdr::sim::rng::SplitMix64;
-    use compass_pdr::sim::walk::{simulate, GnssSim, WalkConfig};
+    use compass_pdr::sim::walk::{simulate, WalkConfig};
     use criterion::{Criterion, SamplingMode, Throughput};
     use serde_json::json;
 
@@ -148,14 +148,10 @@ mod native {
         json!({ "x": ekf.x, "p": ekf.p })
     }
 
-    /// The simulated walk: `duration_s` at 100 Hz with a GNSS receiver, as canonical CSV.
+    /// The simulated walk: issue 6's PDR scenario (varied gait, the unified heading
+    /// error, 3 m GNSS) for `duration_s` at 100 Hz, as canonical CSV.
     fn walk_csv(duration_s: f64) -> Vec<u8> {
-        let config = WalkConfig {
-            sample_rate_hz: 100.0,
-            gnss: Some(GnssSim::default()),
-            ..WalkConfig::from_seed(SEED, duration_s)
-        };
-        canonical_csv::write(&simulate(&config)).into_bytes()
+        canonical_csv::write(&simulate(&WalkConfig::pdr_walk(SEED, duration_s, 100.0))).into_bytes()
     }
 
     /// Writes `bytes` to `name` under `target/bench-data/` unless the file already holds
