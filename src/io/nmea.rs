@@ -1469,6 +1469,32 @@ impl NmeaReader {
         self.n_data_lines += 1;
     }
 
+    /// Reserves room in each stream for the whole input, extrapolated from what the
+    /// first `bytes_read` of its `bytes_total` bytes gave, so that the streams of a large
+    /// file are not copied as they grow. Only the capacity changes, never the samples.
+    #[cfg(not(target_arch = "wasm32"))]
+    fn reserve_for(&mut self, bytes_read: usize, bytes_total: usize) {
+        if bytes_read == 0 || bytes_total <= bytes_read {
+            return;
+        }
+        // A little more than the extrapolation, so that a slightly denser rest does not
+        // need one more (doubling) copy.
+        let expected = |len: usize| {
+            let estimate = len as f64 * bytes_total as f64 / bytes_read as f64 * 1.05;
+            (estimate as usize).saturating_sub(len)
+        };
+        let recording = &mut self.recording;
+        let gnss_more = expected(recording.gnss.len());
+        recording.gnss.t_s.reserve(gnss_more);
+        recording.gnss.values.reserve(gnss_more);
+        let heading_more = expected(recording.device_heading.len());
+        recording.device_heading.t_s.reserve(heading_more);
+        recording.device_heading.values.reserve(heading_more);
+        let attitude_more = expected(recording.attitude.len());
+        recording.attitude.t_s.reserve(attitude_more);
+        recording.attitude.values.reserve(attitude_more);
+    }
+
     fn count_unknown(&mut self, line_number: usize, address: &str) {
         self.n_unknown += 1;
         self.first_unknown_line.get_or_insert(line_number);

@@ -166,6 +166,10 @@ pub(super) fn read_in_batches(
                 reader.apply(lines_before + line_number, event);
             }
             lines_before += parsed.n_lines;
+            if next_idx == 0 {
+                let first_len = batches.first().map_or(0, |batch| batch.len());
+                reader.reserve_for(first_len, bytes.len());
+            }
             if let Ok(mut spare) = spare_events.lock() {
                 spare.push(events);
             }
