@@ -6,7 +6,7 @@
 
 mod common;
 
-use compass_pdr::calibration::CalibrationOptions;
+use compass_pdr::calibration::{CalibrationOptions, DeclinationChoice};
 use compass_pdr::deviation::HeadingOptions;
 use compass_pdr::io::import::import_files;
 use compass_pdr::pdr::step_length::StepLengthModel;
@@ -61,7 +61,13 @@ fn hallway_loop_has_its_168_steps_and_closes_within_3_percent() {
 
 /// The indoor walks: the phone held flat, no GNSS; the walk starts at the first
 /// waypoint, and no later waypoint trains anything.
-fn indoor_walk(data: &std::path::Path, floor: &str, heading: &str, k: Option<f64>) -> PdrAnalysis {
+fn indoor_walk(
+    data: &std::path::Path,
+    floor: &str,
+    heading: &str,
+    k: Option<f64>,
+    declination: DeclinationChoice,
+) -> PdrAnalysis {
     let paths = common::files_in(&data.join("msft-indoor-2020/site1").join(floor), "txt");
     dead_reckon(
         &paths,
@@ -71,6 +77,7 @@ fn indoor_walk(data: &std::path::Path, floor: &str, heading: &str, k: Option<f64
             heading_options: HeadingOptions {
                 calibration: CalibrationOptions {
                     position_deg: Some((30.3, 120.1)),
+                    declination,
                     ..CalibrationOptions::default()
                 },
                 ..HeadingOptions::default()
@@ -89,7 +96,7 @@ fn indoor_walks_at_the_waypoints() {
     // Here each walk's K is fitted to its own waypoint path (the steps between its first
     // and last waypoint) and given to the other walk.
     let fitted_k = |floor: &str| {
-        let analysis = indoor_walk(&data, floor, "device", None);
+        let analysis = indoor_walk(&data, floor, "device", None, DeclinationChoice::Auto);
         let errors = analysis
             .report
             .position_error
@@ -105,20 +112,25 @@ fn indoor_walks_at_the_waypoints() {
     };
     let (k_f1, k_f4) = (fitted_k("F1"), fitted_k("F4"));
     eprintln!("Weinberg K fitted to the waypoint path: F1 {k_f1:.4}, F4 {k_f4:.4}");
-    eprintln!("| walk | heading | step model | steps | path (m) | RMS (m) | RMS (%) | max (m) | distance error (%) |");
+    eprintln!("| walk | heading | north | step model | steps | path (m) | RMS (m) | RMS (%) | max (m) | distance error (%) |");
     let mut best = std::collections::HashMap::new();
+    let mut chosen = std::collections::HashMap::new();
     for (floor, other_k) in [("F1", k_f4), ("F4", k_f1)] {
         for heading in ["auto", "device", "gyro+device"] {
             for (k_label, k) in [("default K", None), ("K of the other walk", Some(other_k))] {
-                let analysis = indoor_walk(&data, floor, heading, k);
-                let report = &analysis.report;
-                let errors = report.position_error.expect("waypoints score the walk");
-                let k_value = match report.step_model.model {
-                    StepLengthModel::Weinberg { k } => k,
-                    _ => f64::NAN,
-                };
-                eprintln!(
-                    "| {floor} | {} | Weinberg, {k_label} ({k_value:.3}) | {} | {:.1} | {:.2} | {:.2} | {:.2} | {:+.1} |",
+                for (north, declination) in [
+                    ("true (WMM −5.7°)", DeclinationChoice::Auto),
+                    ("magnetic", DeclinationChoice::Degrees(0.0)),
+                ] {
+                    let analysis = indoor_walk(&data, floor, heading, k, declination);
+                    let report = &analysis.report;
+                    let errors = report.position_error.expect("waypoints score the walk");
+                    let k_value = match report.step_model.model {
+                        StepLengthModel::Weinberg { k } => k,
+                        _ => f64::NAN,
+                    };
+                    eprintln!(
+                    "| {floor} | {} | {north} | Weinberg, {k_label} ({k_value:.3}) | {} | {:.1} | {:.2} | {:.2} | {:.2} | {:+.1} |",
                     report.heading_key,
                     report.n_steps,
                     errors.distance_m,
@@ -127,15 +139,23 @@ fn indoor_walks_at_the_waypoints() {
                     errors.max_m,
                     errors.distance_error_pct
                 );
-                let entry = best.entry(floor).or_insert(f64::INFINITY);
-                *entry = f64::min(*entry, errors.rms_pct);
+                    let entry = best.entry(floor).or_insert(f64::INFINITY);
+                    *entry = f64::min(*entry, errors.rms_pct);
+                    if heading == "gyro+device"
+                        && k.is_some()
+                        && matches!(declination, DeclinationChoice::Degrees(_))
+                    {
+                        chosen.insert(floor, errors.rms_pct);
+                    }
+                }
             }
         }
     }
-    eprintln!("best RMS: {best:?}");
-    // Issue 6 asks for under 3 % of the path: F4 meets it, F1 does not (3.3 %); the
-    // README has the table and why. These bounds hold what the best configuration
-    // reaches today, so that a change that loses accuracy fails here.
-    assert!(best["F1"] < 3.5, "{best:?}");
-    assert!(best["F4"] < 2.5, "{best:?}");
+    eprintln!("best RMS: {best:?}; gyro+device, K of the other walk, magnetic north: {chosen:?}");
+    // Issue 6: under 3 % of the path. One configuration does it on both walks: the gyro
+    // aligned to the phone's yaw, K from the other walk, and the plan's north taken as
+    // magnetic (the README says why). The bounds hold what it reaches today.
+    assert!(chosen["F1"] < 2.7, "{chosen:?}");
+    assert!(chosen["F4"] < 2.5, "{chosen:?}");
+    assert!(best["F1"] < 2.7 && best["F4"] < 2.5, "{best:?}");
 }
