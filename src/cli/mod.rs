@@ -17,7 +17,7 @@ use compass_pdr::io::import::{header_signature, merge, ChunkedImport, Inspection
 use compass_pdr::io::{Diagnostics, ImportReport};
 use compass_pdr::pdr::export::{track_text, TrackFormat};
 use compass_pdr::pdr::fusion::{GnssPolicy, Outage};
-use compass_pdr::pdr::step_length::{StepLengthModel, StepModelKind};
+use compass_pdr::pdr::step_length::StepModelKind;
 use compass_pdr::pdr::{self, HeadingChoice, PdrOptions, PdrReport};
 use compass_pdr::plot::{draw_calibration_figure, draw_deviation_figure, draw_pdr_figure};
 use compass_pdr::reference::{ReferenceChoice, ReferenceOptions};
@@ -735,37 +735,7 @@ fn pdr_text(report: &PdrReport) -> String {
             .map_or(String::new(), |hz| format!(" ({hz:.2} steps/s)")),
         report.pdr_distance_m
     );
-    let model = match &report.step_model.model {
-        StepLengthModel::Linear {
-            a_m,
-            b_m_per_hz,
-            c_m_per_var,
-        } => format!("linear SL = {a_m:.3} + {b_m_per_hz:.3}·SF + {c_m_per_var:.4}·SV"),
-        StepLengthModel::Weinberg { k } => format!("Weinberg SL = {k:.4}·(Amax − Amin)^¼"),
-        StepLengthModel::Neural { .. } => "neural network, 16 tanh neurons".to_string(),
-    };
-    let trained = match report.step_model.trained_on {
-        "gnss_speed" => format!(
-            "trained on the GNSS speed of {} steps{}",
-            report.step_model.n_references,
-            report
-                .step_model
-                .train_rms_m
-                .map_or(String::new(), |rms| format!(", RMS {rms:.3} m"))
-        ),
-        "known_distance" => "fitted to the known distance".to_string(),
-        "given_k" => "K given with --weinberg-k".to_string(),
-        "reference_positions" => format!(
-            "trained on {} straight stretches between reference positions",
-            report.step_model.n_references
-        ),
-        "gnss_positions" => format!(
-            "trained on {} straight stretches between GNSS fixes",
-            report.step_model.n_references
-        ),
-        _ => "not trained (default)".to_string(),
-    };
-    let _ = writeln!(text, "  step model: {model}, {trained}");
+    let _ = writeln!(text, "  step model: {}", report.step_model.describe());
     let _ = writeln!(
         text,
         "  heading: {} ({})",

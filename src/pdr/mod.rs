@@ -161,6 +161,39 @@ pub struct StepModelReport {
     pub train_rms_m: Option<f64>,
 }
 
+impl StepModelReport {
+    /// The model and how it was trained, in words (`Weinberg, SL = 0.481·(Amax −
+    /// Amin)^¼, fitted to the known distance`), as the CLI and the page show it.
+    pub fn describe(&self) -> String {
+        let model = match &self.model {
+            StepLengthModel::Linear {
+                a_m,
+                b_m_per_hz,
+                c_m_per_var,
+            } => format!("linear, SL = {a_m:.3} + {b_m_per_hz:.3}·SF + {c_m_per_var:.4}·SV"),
+            StepLengthModel::Weinberg { k } => format!("Weinberg, SL = {k:.4}·(Amax − Amin)^¼"),
+            StepLengthModel::Neural { .. } => "neural network, 16 tanh neurons".to_string(),
+        };
+        let n = self.n_references;
+        let rms = self
+            .train_rms_m
+            .map_or(String::new(), |rms| format!(", RMS {rms:.3} m"));
+        let trained = match self.trained_on {
+            "known_distance" => "fitted to the known distance".to_string(),
+            "reference_positions" => {
+                format!("trained on {n} straight stretches between reference positions{rms}")
+            }
+            "gnss_speed" => format!("trained on the GNSS speed of {n} steps{rms}"),
+            "gnss_positions" => {
+                format!("trained on {n} straight stretches between GNSS fixes{rms}")
+            }
+            "given_k" => "K given from an earlier walk".to_string(),
+            _ => "not trained (no usable GNSS and no known distance: the default K)".to_string(),
+        };
+        format!("{model}, {trained}")
+    }
+}
+
 /// What became of the GNSS fixes.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
 pub struct FixCounts {

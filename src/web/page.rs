@@ -792,7 +792,6 @@ fn copy_for_pdr(report: &ImportReport) -> Option<ImportReport> {
 
 /// The dead reckoning as the paper reports it, a line each.
 fn pdr_summary(analysis: &PdrAnalysis) -> Vec<String> {
-    use crate::pdr::step_length::StepLengthModel;
     let report = &analysis.report;
     let mut lines = vec![format!(
         "{} steps in {} bouts{}; {:.1} m dead-reckoned over {:.0} s.",
@@ -804,24 +803,7 @@ fn pdr_summary(analysis: &PdrAnalysis) -> Vec<String> {
         report.pdr_distance_m,
         report.duration_s
     )];
-    let model = match &report.step_model.model {
-        StepLengthModel::Linear {
-            a_m,
-            b_m_per_hz,
-            c_m_per_var,
-        } => format!("linear, SL = {a_m:.3} + {b_m_per_hz:.3}·SF + {c_m_per_var:.4}·SV"),
-        StepLengthModel::Weinberg { k } => format!("Weinberg, SL = {k:.3}·(Amax − Amin)^¼"),
-        StepLengthModel::Neural { .. } => "neural network, 16 tanh neurons".to_string(),
-    };
-    let trained = match report.step_model.trained_on {
-        "default" => "not trained (no usable GNSS; the CLI also takes a known distance)",
-        "known_distance" => "fitted to the known distance",
-        "gnss_speed" => "trained on the GNSS speed",
-        "gnss_positions" => "trained on GNSS fixes on straight stretches",
-        "reference_positions" => "trained on the reference positions",
-        _ => "given",
-    };
-    lines.push(format!("Step model: {model}, {trained}."));
+    lines.push(format!("Step model: {}.", report.step_model.describe()));
     lines.push(format!("Heading: {}.", report.heading_label));
     if let Some(errors) = &report.position_error {
         lines.push(format!(
