@@ -533,9 +533,7 @@ fn run_inspect(input: &ImportArgs, json: bool) -> Result<(), String> {
     let inspection = Inspection::of(&report);
     print_import_diagnostics(&inspection.file_name, &inspection.diagnostics);
     if json {
-        let text = serde_json::to_string_pretty(&inspection)
-            .map_err(|error| format!("cannot encode the result: {error}"))?;
-        return print_out(&(text + "\n"));
+        return print_report(&inspection, true, |_| String::new());
     }
     use std::fmt::Write as _;
     let mut text = String::new();
@@ -653,13 +651,7 @@ fn run_calibrate(
                 .map_err(|error| format!("cannot write {}: {error}", path.display()))?;
         }
     }
-    if outputs.json {
-        let text = serde_json::to_string_pretty(report)
-            .map_err(|error| format!("cannot encode the result: {error}"))?;
-        print_out(&(text + "\n"))
-    } else {
-        print_out(&calibration_text(report))
-    }
+    print_report(report, outputs.json, calibration_text)
 }
 
 fn run_heading(
@@ -677,12 +669,21 @@ fn run_heading(
         draw_deviation_figure(&root, &analysis)
             .map_err(|error| format!("{error} ({})", plot.display()))?;
     }
+    print_report(report, json, heading_text)
+}
+
+/// Prints a report as pretty JSON, or as the text `text` makes of it.
+fn print_report<T: serde::Serialize>(
+    report: &T,
+    json: bool,
+    text: impl FnOnce(&T) -> String,
+) -> Result<(), String> {
     if json {
-        let text = serde_json::to_string_pretty(report)
+        let encoded = serde_json::to_string_pretty(report)
             .map_err(|error| format!("cannot encode the result: {error}"))?;
-        print_out(&(text + "\n"))
+        print_out(&(encoded + "\n"))
     } else {
-        print_out(&heading_text(report))
+        print_out(&text(report))
     }
 }
 
@@ -710,13 +711,7 @@ fn run_pdr(
         draw_pdr_figure(&root, &analysis)
             .map_err(|error| format!("{error} ({})", plot.display()))?;
     }
-    if json {
-        let text = serde_json::to_string_pretty(&analysis.report)
-            .map_err(|error| format!("cannot encode the result: {error}"))?;
-        print_out(&(text + "\n"))
-    } else {
-        print_out(&pdr_text(&analysis.report))
-    }
+    print_report(&analysis.report, json, pdr_text)
 }
 
 /// The PDR result as the paper's tables: steps, the step model, and the errors.
