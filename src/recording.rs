@@ -130,6 +130,14 @@ impl Stream<f64> {
     }
 }
 
+impl Stream<Vector2<f64>> {
+    /// Component-wise linear interpolation at `t_s` (positions in a plane).
+    pub fn interpolate_at(&self, t_s: f64, max_gap_s: f64) -> Option<Vector2<f64>> {
+        let (before, after, fraction) = self.bracket(t_s, max_gap_s)?;
+        Some(before + (after - before) * fraction)
+    }
+}
+
 impl Stream<Vector3<f64>> {
     /// Component-wise linear interpolation at `t_s`.
     pub fn interpolate_at(&self, t_s: f64, max_gap_s: f64) -> Option<Vector3<f64>> {

@@ -75,10 +75,15 @@ impl GnssPolicy {
     /// Whether a fix is usable before the filter sees it: outside outages, accurate
     /// enough. Returns its σ (m).
     pub fn admissible(&self, fix: &FixInput) -> Result<f64, FixUse> {
-        if self.in_outage(fix.t_s) {
+        self.admits(fix.t_s, fix.hacc_m)
+    }
+
+    /// [`GnssPolicy::admissible`] for a fix at `t_s` reporting `hacc_m`, wherever it is.
+    pub fn admits(&self, t_s: f64, hacc_m: Option<f64>) -> Result<f64, FixUse> {
+        if self.in_outage(t_s) {
             return Err(FixUse::InOutage);
         }
-        match fix.hacc_m {
+        match hacc_m {
             Some(hacc_m) if hacc_m <= self.max_hacc_m => Ok(hacc_m.max(self.min_sigma_m)),
             Some(_) => Err(FixUse::PoorAccuracy),
             None => Ok(self.default_sigma_m),
@@ -117,6 +122,8 @@ pub enum FixUse {
     Rejected,
     /// Before the first step: the start position comes from it or its like.
     BeforeWalk,
+    /// After the last step: nothing is dead-reckoned after it.
+    AfterWalk,
 }
 
 /// The filter's estimate after one step.
@@ -228,14 +235,7 @@ pub fn fuse(
         gnss_used = false;
     }
     // Fixes after the last step change nothing that was dead-reckoned.
-    while fix_use.len() < fixes.len() {
-        let t_s = fixes.get(fix_use.len()).map_or(f64::NAN, |fix| fix.t_s);
-        fix_use.push(if policy.in_outage(t_s) {
-            FixUse::InOutage
-        } else {
-            FixUse::Rejected
-        });
-    }
+    fix_use.resize(fixes.len(), FixUse::AfterWalk);
     Fused { track, fix_use }
 }
 

@@ -202,7 +202,8 @@ pub struct FixCounts {
     pub in_outage: usize,
     pub poor_accuracy: usize,
     pub rejected: usize,
-    pub before_walk: usize,
+    /// Before the first step or after the last.
+    pub outside_walk: usize,
 }
 
 /// What `compass-pdr pdr --json` prints.
@@ -511,7 +512,7 @@ pub fn run(report: ImportReport, options: &PdrOptions) -> Result<PdrAnalysis, Pd
             FixUse::InOutage => &mut fix_counts.in_outage,
             FixUse::PoorAccuracy => &mut fix_counts.poor_accuracy,
             FixUse::Rejected => &mut fix_counts.rejected,
-            FixUse::BeforeWalk => &mut fix_counts.before_walk,
+            FixUse::BeforeWalk | FixUse::AfterWalk => &mut fix_counts.outside_walk,
         };
         *counter += 1;
     }
@@ -700,12 +701,7 @@ fn first_good_fix(recording: &Recording, policy: &GnssPolicy) -> Option<Geodetic
         .iter()
         .zip(&recording.gnss.values)
         .find_map(|(&t_s, fix)| {
-            let input = FixInput {
-                t_s,
-                en_m: [0.0, 0.0],
-                hacc_m: fix.hacc_m,
-            };
-            policy.admissible(&input).ok()?;
+            policy.admits(t_s, fix.hacc_m).ok()?;
             Some(Geodetic {
                 lat_deg: fix.lat_deg?,
                 lon_deg: fix.lon_deg?,
@@ -743,19 +739,11 @@ fn reference_positions(
     if metric.is_empty() {
         return out;
     }
-    let metric_3d = Stream {
-        t_s: metric.t_s.clone(),
-        values: metric
-            .values
-            .iter()
-            .map(|en| nalgebra::Vector3::new(en.x, en.y, 0.0))
-            .collect(),
-    };
     let mut shift = [0.0, 0.0];
     if frame.is_some() {
         let mut n = 0usize;
         for fix in fixes.iter().filter(|fix| policy.admissible(fix).is_ok()) {
-            if let Some(reference) = metric_3d.interpolate_at(fix.t_s, 1.0) {
+            if let Some(reference) = metric.interpolate_at(fix.t_s, 1.0) {
                 shift[0] += fix.en_m[0] - reference.x;
                 shift[1] += fix.en_m[1] - reference.y;
                 n += 1;
@@ -792,12 +780,7 @@ fn gnss_step_references(
 ) -> Vec<StepReference> {
     let mut speed = Stream::default();
     for (&t_s, fix) in recording.gnss.t_s.iter().zip(&recording.gnss.values) {
-        let input = FixInput {
-            t_s,
-            en_m: [0.0, 0.0],
-            hacc_m: fix.hacc_m,
-        };
-        if let (Some(speed_mps), Ok(_)) = (fix.speed_mps, policy.admissible(&input)) {
+        if let (Some(speed_mps), Ok(_)) = (fix.speed_mps, policy.admits(t_s, fix.hacc_m)) {
             if speed_mps.is_finite() && speed_mps >= 0.0 {
                 speed.push(t_s, speed_mps);
             }
@@ -1052,7 +1035,7 @@ fn step_reference_lengths(
             t_s: reference_en_m.iter().map(|(t, _)| *t).collect(),
             values: reference_en_m
                 .iter()
-                .map(|(_, en)| nalgebra::Vector3::new(en[0], en[1], 0.0))
+                .map(|(_, en)| nalgebra::Vector2::new(en[0], en[1]))
                 .collect(),
         };
         return steps
