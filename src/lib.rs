@@ -62,6 +62,7 @@ pub mod civil;
 pub mod deviation;
 pub mod geo;
 pub mod io;
+pub mod live;
 pub mod nn;
 pub mod pdr;
 pub mod plot;

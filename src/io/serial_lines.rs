@@ -495,6 +495,24 @@ impl SerialReader {
         &self.echoes
     }
 
+    /// The lines skipped so far, with their line numbers and reasons.
+    pub fn diagnostics(&self) -> &Diagnostics {
+        &self.diagnostics
+    }
+
+    /// The line format read most often so far (echo lines aside), for telling the user
+    /// what the stream was taken for; `None` before the first reading.
+    pub fn main_format(&self) -> Option<LineFormat> {
+        LineFormat::ALL
+            .iter()
+            .copied()
+            .filter(|format| *format != LineFormat::CalibrationEcho)
+            .map(|format| (format, self.lines_per_format[format.index()]))
+            .filter(|(_, n_lines)| *n_lines > 0)
+            .max_by_key(|(_, n_lines)| *n_lines)
+            .map(|(format, _)| format)
+    }
+
     /// The report. Fails when no line held a sensor reading.
     pub fn finish(self, file_name: &str) -> Result<ImportReport, ImportError> {
         self.into_report(file_name, true).map(|(report, _)| report)
