@@ -324,7 +324,7 @@ impl LiveSession {
         for &v_in_body in new {
             let v_in_sensor = sensor_to_body(v_in_body);
             self.accumulator.add(v_in_sensor);
-            if self.n_mag_used % self.kept_stride == 0 {
+            if self.n_mag_used.is_multiple_of(self.kept_stride) {
                 self.kept_ut.push(v_in_sensor);
                 if self.kept_ut.len() >= MAX_KEPT_SAMPLES {
                     // Keep every second one; later samples are kept at the new stride,
@@ -429,7 +429,8 @@ fn verdict(
             coverage.gap_pct
         ));
     }
-    if !(field_spread_pct < GOOD_MAX_SPREAD_PCT) {
+    // NaN (no spread measured) is not good enough either.
+    if field_spread_pct.is_nan() || field_spread_pct >= GOOD_MAX_SPREAD_PCT {
         reasons.push(format!(
             "the corrected field still varies by {field_spread_pct:.1} % (under {GOOD_MAX_SPREAD_PCT:.0} % is needed): \
              move away from metal and magnets, and turn the device slowly"
@@ -437,7 +438,7 @@ fn verdict(
     }
     if let Some(expected_ut) = expected_field_ut {
         let difference_pct = 100.0 * (field_ut - expected_ut) / expected_ut;
-        if !(difference_pct.abs() < GOOD_MAX_FIELD_DIFFERENCE_PCT) {
+        if difference_pct.is_nan() || difference_pct.abs() >= GOOD_MAX_FIELD_DIFFERENCE_PCT {
             reasons.push(format!(
                 "the fitted field is {field_ut:.1} µT, {difference_pct:+.0} % from the {expected_ut:.1} µT the World \
                  Magnetic Model gives here: check the sensor's range and units, and move away from magnetic objects"

@@ -63,6 +63,39 @@ pub struct SphereCoverage {
     /// The largest group of adjacent empty regions; `None` when nothing or everything
     /// is covered.
     pub largest_gap: Option<SphereGap>,
+    /// Directions counted in each region, in MotionCal's numbering (for a map).
+    pub counts_per_region: Vec<usize>,
+}
+
+/// Where a region lies on the sphere: a longitude range and a band of latitude, given
+/// as the sine of the elevation (so that, drawn on those axes, every region has the
+/// same area: Lambert's cylindrical equal-area projection).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RegionBounds {
+    /// `atan2(y, x)` in degrees, from −180 (inclusive) to 180.
+    pub azimuth_start_deg: f64,
+    pub azimuth_end_deg: f64,
+    /// Sine of the elevation (positive towards body −z) at the region's lower and upper
+    /// edges.
+    pub sin_elevation_low: f64,
+    pub sin_elevation_high: f64,
+}
+
+/// The bounds of region `region_idx` (0-99), for drawing the coverage map.
+pub fn region_bounds(region_idx: usize) -> RegionBounds {
+    let (zone_idx, sector_idx, n_in_zone) = zone_of(region_idx);
+    let floor_sin = ZONES.get(zone_idx).map_or(-1.0, |zone| zone.0);
+    let ceiling_sin = match zone_idx.checked_sub(1).and_then(|idx| ZONES.get(idx)) {
+        Some(zone_above) => zone_above.0,
+        None => 1.0,
+    };
+    let width_deg = 360.0 / n_in_zone as f64;
+    RegionBounds {
+        azimuth_start_deg: sector_idx as f64 * width_deg - 180.0,
+        azimuth_end_deg: (sector_idx + 1) as f64 * width_deg - 180.0,
+        sin_elevation_low: floor_sin,
+        sin_elevation_high: ceiling_sin,
+    }
 }
 
 /// A group of adjacent empty regions and the direction of its centre.
@@ -209,6 +242,7 @@ pub fn sphere_coverage(directions: impl Iterator<Item = Vector3<f64>>) -> Sphere
         n_samples,
         gap_pct,
         largest_gap,
+        counts_per_region: counts.to_vec(),
     }
 }
 
@@ -277,6 +311,30 @@ fn nearest_signed_axis(direction: &Vector3<f64>) -> &'static str {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn region_bounds_hold_their_regions_centres_and_have_equal_areas() {
+        for region_idx in 0..N_REGIONS {
+            let bounds = region_bounds(region_idx);
+            let area = (bounds.azimuth_end_deg - bounds.azimuth_start_deg).to_radians()
+                * (bounds.sin_elevation_high - bounds.sin_elevation_low);
+            assert!((area - 4.0 * PI / N_REGIONS as f64).abs() < 1e-12, "{region_idx}");
+            let centre = region_centre(region_idx);
+            let azimuth_deg = centre.y.atan2(centre.x).to_degrees();
+            let sin_elevation = -centre.z;
+            assert!(
+                (bounds.sin_elevation_low..=bounds.sin_elevation_high).contains(&sin_elevation),
+                "{region_idx}"
+            );
+            if bounds.azimuth_end_deg - bounds.azimuth_start_deg < 360.0 {
+                assert!(
+                    (bounds.azimuth_start_deg..bounds.azimuth_end_deg).contains(&azimuth_deg),
+                    "{region_idx}: {azimuth_deg} {bounds:?}"
+                );
+            }
+            assert_eq!(sphere_region(&centre), Some(region_idx));
+        }
+    }
     use crate::sim::rng::SplitMix64;
 
     fn random_directions(n: usize, seed: u64) -> Vec<Vector3<f64>> {

@@ -112,7 +112,7 @@ pub fn draw_circle_fit<DB: DrawingBackend>(
 
 /// Widens one of the two ranges so that a unit on x is as long as a unit on y in the
 /// plotting area (the area less caption, margins and label areas as configured above).
-fn equal_scale_ranges<DB: DrawingBackend>(
+pub(super) fn equal_scale_ranges<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
     (min_x, max_x): (f64, f64),
     (min_y, max_y): (f64, f64),

@@ -8,6 +8,7 @@ pub mod circle_fit;
 pub mod deviation;
 pub mod field_magnitude;
 pub mod heading_error;
+pub mod live;
 pub mod pdr;
 
 use plotters::coord::types::RangedCoordf64;
