@@ -187,6 +187,16 @@ impl LiveSession {
         self.take_new_samples();
     }
 
+    /// The port closed: a last line without its ending is read as it is, and the next
+    /// port's first line starts a line of its own (the raw recording is left as
+    /// received).
+    pub fn port_closed(&mut self) {
+        let reader = &mut self.reader;
+        self.decoder.finish(|line| reader.read_line(line.number, &line.text, None));
+        self.decoder = LineDecoder::continuing(MAX_LINE_BYTES, self.decoder.n_lines());
+        self.take_new_samples();
+    }
+
     /// Every byte received, in order: the raw recording.
     pub fn raw(&self) -> &[u8] {
         &self.raw
@@ -664,6 +674,24 @@ mod tests {
             Confirmation::Differs { what, .. } => assert!(what.contains("hard iron x"), "{what}"),
             other => panic!("{other:?}"),
         }
+    }
+
+    #[test]
+    fn a_line_cut_by_an_unplug_does_not_join_the_next_port_s_first_line() {
+        let mut session = LiveSession::new();
+        let (first_port, second_port): (&[u8], &[u8]) = (
+            b"Raw:0,0,8192,0,0,0,100,200,300\nRaw:0,0,81",
+            b"Raw:0,0,8192,0,0,0,1,2,3\nRaw:0,0,8192,0,0,0,4,5,6\n",
+        );
+        session.feed(first_port, 0.0);
+        session.port_closed();
+        session.feed(second_port, 1.0);
+        let counts = session.counts();
+        assert_eq!(counts.n_lines, 4);
+        assert_eq!(counts.n_skipped_lines, 1);
+        assert_eq!(counts.n_mag_samples, 2);
+        assert_eq!(session.diagnostics().kept.first().and_then(|d| d.line), Some(2));
+        assert_eq!(session.raw(), [first_port, second_port].concat().as_slice());
     }
 
     #[test]

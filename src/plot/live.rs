@@ -21,7 +21,7 @@ pub const FIT_COLOR: RGBColor = RGBColor(30, 100, 200);
 const EMPTY_COLOR: RGBColor = RGBColor(235, 225, 215);
 const MISSING_EDGE_COLOR: RGBColor = RGBColor(200, 60, 40);
 
-/// Points per panel at most (the newest kept samples are drawn last, on top).
+/// Points per panel at most, thinned evenly over the session.
 const MAX_POINTS_PER_PANEL: usize = 3000;
 const N_CURVE_POINTS: usize = 180;
 
@@ -70,12 +70,10 @@ pub fn draw_live_clouds<DB: DrawingBackend>(
             &format!("{} (µT)", axis(*second)),
         )
         .map_err(&error)?;
-        let start = samples_ut.len().saturating_sub(MAX_POINTS_PER_PANEL);
-        let recent = samples_ut.get(start..).unwrap_or_default();
         chart
             .draw_series(
-                thinned_indices(recent.len(), MAX_POINTS_PER_PANEL)
-                    .filter_map(|idx| recent.get(idx))
+                thinned_indices(samples_ut.len(), MAX_POINTS_PER_PANEL)
+                    .filter_map(|idx| samples_ut.get(idx))
                     .map(|sample| {
                         Circle::new(
                             (sample[*first], sample[*second]),

@@ -6,6 +6,7 @@
 //! same analysis for scripts, returning the summary as a plain object.
 
 mod canvas;
+mod live;
 mod mapping;
 mod nn_bench;
 mod page;
@@ -27,7 +28,10 @@ use crate::calibration::CalibrationOptions;
 pub fn run_page() -> Result<(), JsError> {
     install_panic_hook();
     let page = page::Page::from_document().map_err(|message| JsError::new(&message))?;
+    let live = live::LivePanel::from_document(&page.document)
+        .map_err(|message| JsError::new(&message))?;
     page.start();
+    live.start();
     Ok(())
 }
 

@@ -880,10 +880,13 @@ async fn fetch_bytes(url: &str) -> Result<Vec<u8>, String> {
     Ok(js_sys::Uint8Array::new(&buffer).to_vec())
 }
 
-fn describe_js_error(value: wasm_bindgen::JsValue) -> String {
-    value
+/// The message of a JavaScript error, without a final full stop (the page's sentences
+/// go on after it).
+pub(super) fn describe_js_error(value: wasm_bindgen::JsValue) -> String {
+    let message = value
         .dyn_ref::<js_sys::Error>()
         .map(|error| String::from(error.message()))
         .or_else(|| value.as_string())
-        .unwrap_or_else(|| "unknown error".to_string())
+        .unwrap_or_else(|| "unknown error".to_string());
+    message.trim_end().trim_end_matches('.').to_string()
 }

@@ -1,58 +1,12 @@
 // End-to-end tests of the page as a person uses it: load, see the demo analysed, drop
 // a log, choose a bad file. playwright-core drives Debian's Chromium; ./test serves
 // www/ and writes the expected figures (from the CLI) into E2E_OUT.
-import { test, before, after } from 'node:test';
+import { test } from 'node:test';
 import assert from 'node:assert/strict';
 import { existsSync, readFileSync } from 'node:fs';
 import { join } from 'node:path';
-import { chromium } from 'playwright-core';
+import { drawnPixels, openPage, out, text, waitForState } from './common.mjs';
 
-const baseUrl = process.env.E2E_BASE_URL;
-const out = process.env.E2E_OUT;
-if (!baseUrl || !out) {
-  throw new Error('E2E_BASE_URL and E2E_OUT must be set: run the end-to-end tests through ./test');
-}
-
-let browser;
-before(async () => {
-  browser = await chromium.launch({
-    executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
-    args: ['--no-sandbox', '--disable-gpu', '--disable-dev-shm-usage', '--disable-quic', '--no-first-run',
-           '--disable-background-networking', '--disable-component-update', '--disable-sync'],
-  });
-});
-after(async () => { await browser?.close(); });
-
-/** A fresh page at the site, with console errors and page errors collected. */
-async function openPage() {
-  const context = await browser.newContext({ viewport: { width: 1360, height: 1000 } });
-  const page = await context.newPage();
-  const problems = [];
-  page.on('pageerror', (error) => problems.push(`page error: ${error.message}`));
-  page.on('console', (message) => { if (message.type() === 'error') problems.push(`console: ${message.text()}`); });
-  await page.goto(baseUrl);
-  return { page, problems, close: () => context.close() };
-}
-
-async function waitForState(page, state, fileName) {
-  const selector = fileName ? `body[data-state="${state}"][data-file="${fileName}"]` : `body[data-state="${state}"]`;
-  await page.waitForSelector(selector, { timeout: 15_000 });
-}
-
-/** Pixels of a canvas that are not white. */
-function drawnPixels(page, id) {
-  return page.evaluate((canvasId) => {
-    const canvas = document.getElementById(canvasId);
-    const data = canvas.getContext('2d').getImageData(0, 0, canvas.width, canvas.height).data;
-    let n = 0;
-    for (let i = 0; i < data.length; i += 4) {
-      if (data[i] < 250 || data[i + 1] < 250 || data[i + 2] < 250) n += 1;
-    }
-    return n;
-  }, id);
-}
-
-const text = (page, id) => page.textContent(`#${id}`);
 const statusBackground = (page) => page.$eval('#status', (status) => getComputedStyle(status).backgroundColor);
 
 /** The page shows the same statistics as `compass-pdr heading --json`, row by row: every

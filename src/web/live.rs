@@ -1,0 +1,627 @@
+//! The live calibration panel: a serial port read through Web Serial into the core's
+//! [`LiveSession`], with its figures, plots and buttons.
+//!
+//! The read loop hands every chunk to the session as it arrives (nothing is parsed
+//! here), refits twice a second and redraws four times a second, so the page keeps
+//! answering at any line rate the port can carry. When the port fails or the board is
+//! unplugged, the loop ends with everything received still in the session: the
+//! recording downloads whole, and "Connect" continues the same session on a new port.
+//! Web Serial is feature-detected; a browser without it gets a message, not an error.
+//!
+//! Serial objects are typed with web-sys's bindings but taken with `unchecked_into`, so
+//! any object with the Web Serial shape works (the end-to-end tests' fake port).
+
+use std::cell::{Cell, RefCell};
+use std::rc::Rc;
+
+use gloo::events::EventListener;
+use js_sys::Uint8Array;
+use wasm_bindgen::closure::Closure;
+use wasm_bindgen::{JsCast, JsValue};
+use wasm_bindgen_futures::{spawn_local, JsFuture};
+use web_sys::{
+    Document, Element, HtmlButtonElement, HtmlCanvasElement, HtmlInputElement, HtmlSelectElement,
+    ReadableStreamDefaultReader, Serial, SerialOptions, SerialPort,
+};
+
+use super::canvas;
+use super::page::describe_js_error;
+use crate::calib::export::{c_snippet, calibration_export};
+use crate::calib::wmm::{date_of_unix_s, expected_field};
+use crate::live::{Confirmation, LiveSession, MIN_FIT_SAMPLES};
+
+/// Refits this often while samples arrive (ms).
+const REFIT_EVERY_MS: f64 = 500.0;
+/// Redraws the plots and figures this often (ms).
+const DRAW_EVERY_MS: f64 = 250.0;
+/// Skipped lines listed at most (all are counted).
+const MAX_SKIPPED_SHOWN: usize = 20;
+
+/// An interval timer's handle and the callback it calls (dropped when it is cleared).
+type Ticker = (i32, Closure<dyn FnMut()>);
+
+pub struct LivePanel {
+    document: Document,
+    section: Element,
+    connect: HtmlButtonElement,
+    disconnect: HtmlButtonElement,
+    send: HtmlButtonElement,
+    download: HtmlButtonElement,
+    download_calibration: HtmlButtonElement,
+    download_snippet: HtmlButtonElement,
+    reset: HtmlButtonElement,
+    baud: HtmlSelectElement,
+    lat: HtmlInputElement,
+    lon: HtmlInputElement,
+    clouds: HtmlCanvasElement,
+    coverage: HtmlCanvasElement,
+    dial: HtmlCanvasElement,
+    session: RefCell<LiveSession>,
+    port: RefCell<Option<SerialPort>>,
+    reader: RefCell<Option<ReadableStreamDefaultReader>>,
+    /// Whether a read loop is running.
+    reading: Cell<bool>,
+    last_refit_ms: Cell<f64>,
+    /// New bytes since the last redraw.
+    dirty: Cell<bool>,
+    /// While connected: the interval timer that refits and redraws, and its callback.
+    ticker: RefCell<Option<Ticker>>,
+    /// Why the last refit gave no fit, for the status line.
+    fit_message: RefCell<Option<String>>,
+}
+
+impl LivePanel {
+    /// Finds the panel's elements; `Err` names the first one missing.
+    pub fn from_document(document: &Document) -> Result<Rc<LivePanel>, String> {
+        let element = |id: &str| {
+            document
+                .get_element_by_id(id)
+                .ok_or(format!("the page has no element #{id}"))
+        };
+        fn cast<T: JsCast>(element: Element, id: &str) -> Result<T, String> {
+            element
+                .dyn_into::<T>()
+                .map_err(|_| format!("#{id} is not the element expected"))
+        }
+        let typed = |id: &str| element(id);
+        Ok(Rc::new(LivePanel {
+            document: document.clone(),
+            section: element("live")?,
+            connect: cast(typed("live-connect")?, "live-connect")?,
+            disconnect: cast(typed("live-disconnect")?, "live-disconnect")?,
+            send: cast(typed("live-send")?, "live-send")?,
+            download: cast(typed("live-download")?, "live-download")?,
+            download_calibration: cast(typed("live-download-calibration")?, "live-download-calibration")?,
+            download_snippet: cast(typed("live-download-snippet")?, "live-download-snippet")?,
+            reset: cast(typed("live-reset")?, "live-reset")?,
+            baud: cast(typed("live-baud")?, "live-baud")?,
+            lat: cast(typed("live-lat")?, "live-lat")?,
+            lon: cast(typed("live-lon")?, "live-lon")?,
+            clouds: cast(typed("live-clouds")?, "live-clouds")?,
+            coverage: cast(typed("live-coverage")?, "live-coverage")?,
+            dial: cast(typed("live-dial")?, "live-dial")?,
+            session: RefCell::new(LiveSession::new()),
+            port: RefCell::new(None),
+            reader: RefCell::new(None),
+            reading: Cell::new(false),
+            last_refit_ms: Cell::new(f64::NEG_INFINITY),
+            dirty: Cell::new(false),
+            ticker: RefCell::new(None),
+            fit_message: RefCell::new(None),
+        }))
+    }
+
+    /// Wires the buttons, or says that this browser has no Web Serial.
+    pub fn start(self: Rc<Self>) {
+        self.update_buttons();
+        self.draw();
+        let Some(_) = serial() else {
+            self.set_state(
+                "unsupported",
+                "This browser has no Web Serial: live calibration needs Chromium, Chrome, Edge or \
+                 Opera on a desktop computer. You can still record the board's output with any serial \
+                 terminal and drop the file above.",
+            );
+            self.connect.set_disabled(true);
+            return;
+        };
+        self.set_state(
+            "idle",
+            "Connect a board that prints magnetometer lines (MotionCal Raw:, Adafruit, Serial Plotter, \
+             CircuitPython or plain numbers), then turn it slowly through every direction.",
+        );
+        let on = |button: &HtmlButtonElement, action: fn(&Rc<LivePanel>)| {
+            let panel = Rc::clone(&self);
+            EventListener::new(button, "click", move |_| action(&panel)).forget();
+        };
+        on(&self.connect, |panel| {
+            let panel = Rc::clone(panel);
+            spawn_local(async move { panel.connect_and_read().await });
+        });
+        on(&self.disconnect, |panel| panel.stop_reading());
+        on(&self.send, |panel| {
+            let panel = Rc::clone(panel);
+            spawn_local(async move { panel.send_to_device().await });
+        });
+        on(&self.download, |panel| panel.download_recording());
+        on(&self.download_calibration, |panel| panel.download_calibration_json());
+        on(&self.download_snippet, |panel| panel.download_c_snippet());
+        on(&self.reset, |panel| panel.new_session());
+        for input in [&self.lat, &self.lon] {
+            let panel = Rc::clone(&self);
+            EventListener::new(input, "change", move |_| {
+                panel.update_expected_field();
+                panel.refit_and_draw();
+            })
+            .forget();
+        }
+    }
+
+    /// Asks for a port, opens it and reads it until it ends.
+    async fn connect_and_read(self: Rc<Self>) {
+        if self.reading.get() {
+            return;
+        }
+        let Some(serial) = serial() else {
+            return;
+        };
+        let baud_rate = self.baud.value().parse::<u32>().unwrap_or(115_200);
+        self.set_state("connecting", "Choose the board's port in the browser's list…");
+        let port = match JsFuture::from(serial.request_port()).await {
+            Ok(port) => port.unchecked_into::<SerialPort>(),
+            Err(error) => {
+                self.set_state(
+                    "idle",
+                    &format!("No port chosen ({}). Click Connect to try again.", describe_js_error(error)),
+                );
+                return;
+            }
+        };
+        let options = SerialOptions::new(baud_rate);
+        if let Err(error) = JsFuture::from(port.open(&options)).await {
+            self.set_state(
+                "error",
+                &format!(
+                    "The port could not be opened at {baud_rate} baud: {}. Close any other program \
+                     using it (the Arduino IDE's monitor, MotionCal) and connect again.",
+                    describe_js_error(error)
+                ),
+            );
+            return;
+        }
+        self.update_expected_field();
+        *self.port.borrow_mut() = Some(port.clone());
+        self.reading.set(true);
+        self.update_buttons();
+        self.set_state(
+            "connected",
+            &format!("Connected at {baud_rate} baud; reading. Turn the board slowly through every direction."),
+        );
+        self.start_ticker();
+        let ending = self.read_until_end(&port).await;
+        self.stop_ticker();
+        self.reading.set(false);
+        self.reader.borrow_mut().take();
+        // Closing may fail on a port that is gone; there is nothing more to do then.
+        let _ = JsFuture::from(port.close()).await;
+        self.port.borrow_mut().take();
+        self.session.borrow_mut().port_closed();
+        self.refit_and_draw();
+        let n_lines = self.session.borrow().counts().n_lines;
+        match ending {
+            Ok(()) => self.set_state(
+                "disconnected",
+                &format!(
+                    "Disconnected. All {n_lines} lines received are kept: download the recording, send \
+                     the calibration, or connect again to continue this session."
+                ),
+            ),
+            Err(message) => self.set_state(
+                "disconnected",
+                &format!(
+                    "The connection ended: {message}. All {n_lines} lines received are kept: download \
+                     the recording, or plug the board back in and connect again to continue."
+                ),
+            ),
+        }
+        self.update_buttons();
+    }
+
+    /// The read loop: `Ok` when the stream ended or was cancelled, `Err` with the
+    /// browser's reason when it failed (an unplug).
+    async fn read_until_end(&self, port: &SerialPort) -> Result<(), String> {
+        let reader = port
+            .readable()
+            .get_reader()
+            .unchecked_into::<ReadableStreamDefaultReader>();
+        *self.reader.borrow_mut() = Some(reader.clone());
+        let result = loop {
+            let chunk = match JsFuture::from(reader.read()).await {
+                Ok(chunk) => chunk,
+                Err(error) => break Err(describe_js_error(error)),
+            };
+            let done = js_sys::Reflect::get(&chunk, &"done".into())
+                .ok()
+                .is_some_and(|done| done.is_truthy());
+            if done {
+                break Ok(());
+            }
+            if let Ok(value) = js_sys::Reflect::get(&chunk, &"value".into()) {
+                if let Some(bytes) = value.dyn_ref::<Uint8Array>() {
+                    self.session.borrow_mut().feed(&bytes.to_vec(), now_ms() / 1e3);
+                    self.dirty.set(true);
+                }
+            }
+        };
+        reader.release_lock();
+        result
+    }
+
+    fn stop_reading(&self) {
+        if let Some(reader) = self.reader.borrow().as_ref() {
+            // The read loop then sees the stream end and closes the port.
+            let _ = reader.cancel();
+        }
+    }
+
+    async fn send_to_device(self: Rc<Self>) {
+        let port = self.port.borrow().clone();
+        let Some(port) = port else {
+            self.set_text(
+                "live-confirmation",
+                "Connect the board first: the calibration is sent over its port.",
+            );
+            return;
+        };
+        let Some(packet) = self.session.borrow_mut().packet_for_device() else {
+            self.set_text("live-confirmation", "No calibration yet: keep turning the board.");
+            return;
+        };
+        let writer = match port.writable().get_writer() {
+            Ok(writer) => writer,
+            Err(error) => {
+                self.set_text(
+                    "live-confirmation",
+                    &format!("The port cannot be written to: {}.", describe_js_error(error)),
+                );
+                return;
+            }
+        };
+        let bytes = Uint8Array::from(packet.as_slice());
+        let written = JsFuture::from(writer.write_with_chunk(&bytes)).await;
+        writer.release_lock();
+        match written {
+            Ok(_) => self.show_confirmation(),
+            Err(error) => self.set_text(
+                "live-confirmation",
+                &format!(
+                    "The calibration could not be sent: {}. Connect again and retry.",
+                    describe_js_error(error)
+                ),
+            ),
+        }
+    }
+
+    fn download_recording(&self) {
+        let session = self.session.borrow();
+        let name = format!("compass-pdr-live-{}.txt", timestamp_for_file_name());
+        download_bytes(&self.document, &name, session.raw(), "text/plain");
+    }
+
+    fn download_calibration_json(&self) {
+        let session = self.session.borrow();
+        let Some(quality) = session.quality() else {
+            return;
+        };
+        let export = calibration_export(&quality.calibration);
+        let serializer = serde_wasm_bindgen::Serializer::json_compatible();
+        let text = serde::Serialize::serialize(&export, &serializer)
+            .ok()
+            .and_then(|value| {
+                js_sys::JSON::stringify_with_replacer_and_space(&value, &JsValue::NULL, &JsValue::from(2)).ok()
+            })
+            .and_then(|text| text.as_string());
+        if let Some(text) = text {
+            download_bytes(&self.document, "compass-pdr-calibration.json", text.as_bytes(), "application/json");
+        }
+    }
+
+    fn download_c_snippet(&self) {
+        let session = self.session.borrow();
+        if let Some(quality) = session.quality() {
+            let text = c_snippet(&quality.calibration);
+            download_bytes(&self.document, "compass-pdr-calibration.h", text.as_bytes(), "text/plain");
+        }
+    }
+
+    fn new_session(&self) {
+        if self.reading.get() {
+            self.set_text(
+                "live-confirmation",
+                "Disconnect first: a new session starts empty.",
+            );
+            return;
+        }
+        *self.session.borrow_mut() = LiveSession::new();
+        self.fit_message.borrow_mut().take();
+        self.set_text("live-confirmation", "");
+        self.refit_and_draw();
+        self.set_state("idle", "New session: connect a board.");
+        self.update_buttons();
+    }
+
+    /// The World Magnetic Model's field at the position typed in, today.
+    fn update_expected_field(&self) {
+        let (lat, lon) = (self.lat.value_as_number(), self.lon.value_as_number());
+        let expected = if lat.is_finite() && lon.is_finite() {
+            date_of_unix_s(js_sys::Date::now() / 1e3)
+                .and_then(|date| expected_field(lat, lon, 0.0, date).ok())
+                .map(|field| field.total_ut)
+        } else {
+            None
+        };
+        self.session.borrow_mut().set_expected_field(expected);
+    }
+
+    /// Refits and redraws on a timer while connected, apart from the read loop, so that
+    /// reading never waits for drawing and the last bytes are always shown.
+    fn start_ticker(self: &Rc<Self>) {
+        let panel = Rc::clone(self);
+        let tick = Closure::<dyn FnMut()>::new(move || panel.tick());
+        let id = web_sys::window().and_then(|window| {
+            window
+                .set_interval_with_callback_and_timeout_and_arguments_0(
+                    tick.as_ref().unchecked_ref(),
+                    DRAW_EVERY_MS as i32,
+                )
+                .ok()
+        });
+        if let Some(id) = id {
+            *self.ticker.borrow_mut() = Some((id, tick));
+        }
+    }
+
+    fn stop_ticker(&self) {
+        if let Some((id, _tick)) = self.ticker.borrow_mut().take() {
+            if let Some(window) = web_sys::window() {
+                window.clear_interval_with_handle(id);
+            }
+        }
+    }
+
+    fn tick(&self) {
+        if !self.dirty.replace(false) {
+            return;
+        }
+        let now = now_ms();
+        if now - self.last_refit_ms.get() >= REFIT_EVERY_MS {
+            self.last_refit_ms.set(now);
+            self.refit();
+        }
+        self.draw();
+    }
+
+    fn refit_and_draw(&self) {
+        self.refit();
+        self.draw();
+    }
+
+    fn refit(&self) {
+        let mut session = self.session.borrow_mut();
+        let message = session.refit().err();
+        *self.fit_message.borrow_mut() = message;
+    }
+
+    /// The figures, the verdict and the plots.
+    fn draw(&self) {
+        let session = self.session.borrow();
+        let counts = session.counts();
+        self.set_text("live-lines", &counts.n_lines.to_string());
+        self.set_text("live-samples", &counts.n_mag_samples.to_string());
+        self.set_text("live-skipped-count", &counts.n_skipped_lines.to_string());
+        self.set_text("live-bytes", &counts.n_bytes.to_string());
+        self.set_text("live-format", counts.format.unwrap_or("not known yet"));
+        let quality = session.quality();
+        match quality {
+            Some(quality) => {
+                let cal = &quality.calibration;
+                self.set_text(
+                    "live-fit",
+                    &format!(
+                        "hard iron ({:.2}, {:.2}, {:.2}) µT, field {:.2} µT, residual RMS {:.2} µT, \
+                         |B| spread {:.2} %, gaps {:.1} % ({} of {} regions covered){}",
+                        cal.hard_iron_ut.x,
+                        cal.hard_iron_ut.y,
+                        cal.hard_iron_ut.z,
+                        cal.field_ut,
+                        quality.residual_rms_ut,
+                        quality.field_spread_pct,
+                        quality.coverage.gap_pct,
+                        quality.coverage.n_covered,
+                        quality.coverage.n_regions,
+                        match (quality.expected_field_ut, quality.field_difference_pct) {
+                            (Some(expected), Some(pct)) =>
+                                format!(", {pct:+.1} % from the WMM's {expected:.1} µT"),
+                            _ => ", no WMM comparison (type your latitude and longitude)".to_string(),
+                        }
+                    ),
+                );
+                let verdict = &quality.verdict;
+                self.section
+                    .set_attribute("data-good-enough", if verdict.good_enough { "yes" } else { "no" })
+                    .ok();
+                self.set_text(
+                    "live-verdict",
+                    if verdict.good_enough {
+                        "Good enough: send it to the board, or download it."
+                    } else {
+                        "Not good enough yet:"
+                    },
+                );
+                self.fill_list("live-reasons", verdict.reasons.iter().cloned());
+            }
+            None => {
+                self.section.set_attribute("data-good-enough", "no").ok();
+                let message = self.fit_message.borrow().clone().unwrap_or_else(|| {
+                    format!("No fit yet: it needs {MIN_FIT_SAMPLES} magnetometer samples.")
+                });
+                self.set_text("live-fit", &message);
+                self.set_text("live-verdict", "");
+                self.fill_list("live-reasons", std::iter::empty());
+            }
+        }
+        let skipped = session.diagnostics();
+        let shown = skipped.kept.iter().take(MAX_SKIPPED_SHOWN).map(|diagnostic| match diagnostic.line {
+            Some(line) => format!("line {line}: {}", diagnostic.message),
+            None => diagnostic.message.clone(),
+        });
+        let more = skipped
+            .total()
+            .checked_sub(MAX_SKIPPED_SHOWN)
+            .filter(|&n| n > 0)
+            .map(|n| format!("… and {n} more (all are in the recording)."));
+        let mut items = shown.chain(more).peekable();
+        let none = items.peek().is_none().then(|| "None.".to_string());
+        self.fill_list("live-skipped", items.chain(none));
+        self.show_confirmation_of(&session.confirmation());
+        let samples = session.kept_samples_ut();
+        let heading = session.latest_heading_rad();
+        drop_errors(&self.clouds, canvas::draw_live_clouds(&self.clouds, samples, quality));
+        drop_errors(
+            &self.coverage,
+            canvas::draw_coverage(&self.coverage, quality.map(|quality| &quality.coverage)),
+        );
+        drop_errors(&self.dial, canvas::draw_dial(&self.dial, heading));
+        drop(session);
+        self.update_buttons();
+    }
+
+    fn show_confirmation(&self) {
+        let confirmation = self.session.borrow().confirmation();
+        self.show_confirmation_of(&confirmation);
+    }
+
+    fn show_confirmation_of(&self, confirmation: &Confirmation) {
+        let (state, text) = match confirmation {
+            Confirmation::NotSent => ("not-sent", String::new()),
+            Confirmation::Waiting => (
+                "waiting",
+                "Sent the 68-byte MotionCal packet; waiting for the board to echo it (Cal1:/Cal2: lines)…"
+                    .to_string(),
+            ),
+            Confirmation::Confirmed { line } => (
+                "confirmed",
+                format!("Confirmed: the board echoed the calibration sent (line {line})."),
+            ),
+            Confirmation::Differs { line, what } => (
+                "differs",
+                format!(
+                    "The board echoed a different calibration (line {line}: {what}). Send it again; if \
+                     it persists, the sketch does not store what it receives."
+                ),
+            ),
+        };
+        self.section.set_attribute("data-confirmation", state).ok();
+        self.set_text("live-confirmation", &text);
+    }
+
+    fn update_buttons(&self) {
+        let session = self.session.borrow();
+        let has_fit = session.quality().is_some();
+        let reading = self.reading.get();
+        self.connect.set_disabled(reading || serial().is_none());
+        self.disconnect.set_disabled(!reading);
+        self.send.set_disabled(!(reading && has_fit));
+        self.download.set_disabled(session.raw().is_empty());
+        self.download_calibration.set_disabled(!has_fit);
+        self.download_snippet.set_disabled(!has_fit);
+        self.reset.set_disabled(reading);
+    }
+
+    fn set_state(&self, state: &str, message: &str) {
+        self.section.set_attribute("data-live-state", state).ok();
+        self.set_text("live-status", message);
+    }
+
+    fn set_text(&self, id: &str, text: &str) {
+        if let Some(element) = self.document.get_element_by_id(id) {
+            element.set_text_content(Some(text));
+        }
+    }
+
+    fn fill_list(&self, id: &str, items: impl Iterator<Item = String>) {
+        let Some(list) = self.document.get_element_by_id(id) else {
+            return;
+        };
+        list.set_text_content(None);
+        for item in items {
+            if let Ok(list_item) = self.document.create_element("li") {
+                list_item.set_text_content(Some(&item));
+                let _ = list.append_child(&list_item);
+            }
+        }
+    }
+}
+
+/// `navigator.serial`, when this browser has Web Serial.
+fn serial() -> Option<Serial> {
+    let navigator = web_sys::window()?.navigator();
+    let serial = js_sys::Reflect::get(&navigator, &"serial".into()).ok()?;
+    (!serial.is_undefined() && !serial.is_null()).then(|| serial.unchecked_into::<Serial>())
+}
+
+fn now_ms() -> f64 {
+    web_sys::window()
+        .and_then(|window| window.performance())
+        .map_or_else(js_sys::Date::now, |performance| performance.now())
+}
+
+/// `2026-11-21T22-05-09`, local time, for file names.
+fn timestamp_for_file_name() -> String {
+    let date = js_sys::Date::new_0();
+    format!(
+        "{:04}-{:02}-{:02}T{:02}-{:02}-{:02}",
+        date.get_full_year(),
+        date.get_month() + 1,
+        date.get_date(),
+        date.get_hours(),
+        date.get_minutes(),
+        date.get_seconds()
+    )
+}
+
+/// Offers `bytes` as a download named `name`.
+pub fn download_bytes(document: &Document, name: &str, bytes: &[u8], mime: &str) {
+    let parts = js_sys::Array::of1(&Uint8Array::from(bytes));
+    let options = web_sys::BlobPropertyBag::new();
+    options.set_type(mime);
+    let Ok(blob) = web_sys::Blob::new_with_u8_array_sequence_and_options(&parts, &options) else {
+        return;
+    };
+    let Ok(url) = web_sys::Url::create_object_url_with_blob(&blob) else {
+        return;
+    };
+    if let Ok(anchor) = document.create_element("a") {
+        let _ = anchor.set_attribute("href", &url);
+        let _ = anchor.set_attribute("download", name);
+        if let Some(anchor) = anchor.dyn_ref::<web_sys::HtmlElement>() {
+            anchor.click();
+        }
+    }
+    // The download starts after this returns: the URL is given back a minute later.
+    let revoke = Closure::once_into_js(move || {
+        let _ = web_sys::Url::revoke_object_url(&url);
+    });
+    if let Some(window) = web_sys::window() {
+        let _ = window.set_timeout_with_callback_and_timeout_and_arguments_0(
+            revoke.unchecked_ref(),
+            60_000,
+        );
+    }
+}
+
+fn drop_errors(canvas_element: &HtmlCanvasElement, result: Result<(), String>) {
+    if let Err(message) = result {
+        let _ = canvas::draw_message(canvas_element, &format!("This plot could not be drawn: {message}"));
+    }
+}

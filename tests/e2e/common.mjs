@@ -1,0 +1,62 @@
+// What every end-to-end test file needs: the browser, a fresh page with its errors
+// collected, and small readers of the page. ./test sets E2E_BASE_URL and E2E_OUT.
+import { before, after } from 'node:test';
+import { chromium } from 'playwright-core';
+
+export const baseUrl = process.env.E2E_BASE_URL;
+export const out = process.env.E2E_OUT;
+if (!baseUrl || !out) {
+  throw new Error('E2E_BASE_URL and E2E_OUT must be set: run the end-to-end tests through ./test');
+}
+
+let browser;
+before(async () => {
+  browser = await chromium.launch({
+    executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
+    args: ['--no-sandbox', '--disable-gpu', '--disable-dev-shm-usage', '--disable-quic', '--no-first-run',
+           '--disable-background-networking', '--disable-component-update', '--disable-sync'],
+  });
+});
+after(async () => { await browser?.close(); });
+
+/** A fresh page at the site, with console errors and page errors collected.
+ * `initScript` (a function and its argument) runs in the page before its own scripts. */
+export async function openPage({ initScript, initArg, acceptDownloads = false } = {}) {
+  const context = await browser.newContext({ viewport: { width: 1360, height: 1000 }, acceptDownloads });
+  const page = await context.newPage();
+  if (initScript) await page.addInitScript(initScript, initArg);
+  const problems = [];
+  page.on('pageerror', (error) => problems.push(`page error: ${error.message}`));
+  page.on('console', (message) => { if (message.type() === 'error') problems.push(`console: ${message.text()}`); });
+  await page.goto(baseUrl);
+  return { page, context, problems, close: () => context.close() };
+}
+
+export async function waitForState(page, state, fileName) {
+  const selector = fileName ? `body[data-state="${state}"][data-file="${fileName}"]` : `body[data-state="${state}"]`;
+  await page.waitForSelector(selector, { timeout: 15_000 });
+}
+
+/** Pixels of a canvas that are not white. */
+export function drawnPixels(page, id) {
+  return page.evaluate((canvasId) => {
+    const canvas = document.getElementById(canvasId);
+    const data = canvas.getContext('2d').getImageData(0, 0, canvas.width, canvas.height).data;
+    let n = 0;
+    for (let i = 0; i < data.length; i += 4) {
+      if (data[i] < 250 || data[i + 1] < 250 || data[i + 2] < 250) n += 1;
+    }
+    return n;
+  }, id);
+}
+
+export const text = (page, id) => page.textContent(`#${id}`);
+
+/** Clicks `selector` and returns the bytes of the download it starts, with its name. */
+export async function download(page, selector) {
+  const [file] = await Promise.all([page.waitForEvent('download'), page.click(selector)]);
+  const stream = await file.createReadStream();
+  const chunks = [];
+  for await (const chunk of stream) chunks.push(chunk);
+  return { name: file.suggestedFilename(), bytes: Buffer.concat(chunks) };
+}

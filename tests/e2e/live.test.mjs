@@ -1,0 +1,272 @@
+// End-to-end tests of live calibration over Web Serial, with a fake `navigator.serial`
+// whose port streams MotionCal `Raw:` lines from a simulated, distorted board turned over
+// the whole sphere, records what the page writes back, and answers a calibration packet
+// with `Cal1:`/`Cal2:` lines as Adafruit's calibration sketch does.
+import { test } from 'node:test';
+import assert from 'node:assert/strict';
+import { join } from 'node:path';
+import { download, drawnPixels, openPage, out, text } from './common.mjs';
+
+/** The simulated board (µT, sensor axes): what the calibration must find. */
+const BOARD = {
+  hardIronUt: [12.0, -7.5, 30.0],
+  // Row by row; symmetric, near the identity.
+  distortion: [[1.08, 0.03, -0.02], [0.03, 0.95, 0.01], [-0.02, 0.01, 1.02]],
+  // The World Magnetic Model's field in Munich (48.14° N, 11.58° E) is about 48.6 µT.
+  fieldUt: 48.6,
+  // One sweep of the sphere takes this many lines (20 s at 1,000 lines/s).
+  sweepLines: 20_000,
+};
+
+/** Runs in the page before its scripts: defines navigator.serial. Everything it sent
+ * and received is in `window.fakeSerial`. */
+function installFakeSerial({ board, linesPerS, totalLines, unplugAfterLines }) {
+  const state = {
+    sentText: '', linesSent: 0, written: [], openedWith: [], finished: false, unplugged: false,
+    maxLagMs: 0,
+  };
+  window.fakeSerial = state;
+  // Event-loop lag while streaming: how late a 50 ms timer fires.
+  let expected = performance.now() + 50;
+  setInterval(() => {
+    const now = performance.now();
+    state.maxLagMs = Math.max(state.maxLagMs, now - expected);
+    expected = now + 50;
+  }, 50);
+
+  // A deterministic generator (SplitMix-like on 32 bits) for noise and chunk cuts.
+  let seed = 12345;
+  const random = () => {
+    seed = (seed + 0x9e3779b9) | 0;
+    let z = seed;
+    z = Math.imul(z ^ (z >>> 16), 0x85ebca6b);
+    z = Math.imul(z ^ (z >>> 13), 0xc2b2ae35);
+    return ((z ^ (z >>> 16)) >>> 0) / 4294967296;
+  };
+  const line = (idx) => {
+    const k = idx % board.sweepLines;
+    const z = 1 - (2 * (k + 0.5)) / board.sweepLines;
+    const r = Math.sqrt(1 - z * z);
+    const azimuth = k * 2.399963;
+    const truth = [r * Math.cos(azimuth), r * Math.sin(azimuth), z].map((v) => v * board.fieldUt);
+    const counts = board.distortion.map((row, i) => {
+      const ut = row[0] * truth[0] + row[1] * truth[1] + row[2] * truth[2] + board.hardIronUt[i] + (random() - 0.5) * 0.4;
+      return Math.round(ut * 10);
+    });
+    return `Raw:0,0,8192,0,0,0,${counts.join(',')}\r\n`;
+  };
+
+  class FakePort {
+    constructor() { this.readable = null; this.writable = null; this.controller = null; this.timer = null; }
+    getInfo() { return { usbVendorId: 0x239a, usbProductId: 0x8014 }; }
+    async open(options) {
+      state.openedWith.push(options);
+      const port = this;
+      const encoder = new TextEncoder();
+      const startedAt = performance.now();
+      const linesBefore = state.linesSent;
+      this.readable = new ReadableStream({
+        start(controller) {
+          port.controller = controller;
+          port.timer = setInterval(() => {
+            const due = Math.min(totalLines, linesBefore + Math.floor(((performance.now() - startedAt) / 1000) * linesPerS));
+            let text = '';
+            while (state.linesSent < due) {
+              if (unplugAfterLines !== undefined && state.linesSent === unplugAfterLines && !state.unplugged) break;
+              text += line(state.linesSent);
+              state.linesSent += 1;
+            }
+            if (unplugAfterLines !== undefined && state.linesSent === unplugAfterLines && !state.unplugged) {
+              // Half a line goes out, then the board is pulled.
+              const half = line(state.linesSent).slice(0, 17);
+              text += half;
+              state.unplugged = true;
+              port.send(text, encoder);
+              clearInterval(port.timer);
+              // An errored stream drops what the reader has not taken yet: the board
+              // goes a moment after its last bytes, as a real one does.
+              setTimeout(() => controller.error(new DOMException('The device has been lost.', 'NetworkError')), 200);
+              return;
+            }
+            if (text) port.send(text, encoder);
+            if (state.linesSent >= totalLines) { state.finished = true; }
+          }, 10);
+        },
+        cancel() { clearInterval(port.timer); },
+      });
+      this.writable = new WritableStream({
+        write(chunk) {
+          state.written.push(...chunk);
+          port.answer(encoder);
+        },
+      });
+    }
+    /** Sends text in up to three chunks cut at arbitrary bytes (a line may straddle two). */
+    send(text, encoder) {
+      state.sentText += text;
+      const bytes = encoder.encode(text);
+      let start = 0;
+      const cuts = [random(), random()].map((f) => Math.floor(f * bytes.length)).sort((a, b) => a - b);
+      for (const end of [...cuts, bytes.length]) {
+        if (end > start) { this.controller.enqueue(bytes.slice(start, end)); start = end; }
+      }
+    }
+    /** The sketch: a whole packet with a good CRC is stored and echoed. */
+    answer(encoder) {
+      const bytes = Uint8Array.from(state.written);
+      if (bytes.length < 68 || bytes[0] !== 117 || bytes[1] !== 84) return;
+      let crc = 0xffff;
+      for (const byte of bytes.subarray(0, 68)) {
+        crc ^= byte;
+        for (let bit = 0; bit < 8; bit += 1) crc = crc & 1 ? (crc >>> 1) ^ 0xa001 : crc >>> 1;
+      }
+      if (crc !== 0) return;
+      const view = new DataView(bytes.buffer, 2, 64);
+      const f = Array.from({ length: 16 }, (_, i) => view.getFloat32(4 * i, true));
+      const soft = [[f[10], f[13], f[14]], [f[13], f[11], f[15]], [f[14], f[15], f[12]]];
+      const text = `Cal1:${[...f.slice(0, 9), f[9]].map((v) => v.toFixed(3)).join(',')}\r\n`
+        + `Cal2:${soft.flat().map((v) => v.toFixed(4)).join(',')}\r\n`;
+      state.echoed = true;
+      this.send(text, encoder);
+    }
+    async close() { clearInterval(this.timer); }
+    addEventListener() {}
+    removeEventListener() {}
+  }
+  const serial = {
+    async requestPort() { return new FakePort(); },
+    async getPorts() { return []; },
+    addEventListener() {},
+    removeEventListener() {},
+  };
+  Object.defineProperty(Navigator.prototype, 'serial', { configurable: true, get: () => serial });
+}
+
+/** MotionCal's 68-byte packet for a calibration JSON, written here independently of the
+ * crate: "uT", 16 little-endian float32 (6 zeros, hard iron, field, soft iron 00 11 22
+ * 01 02 12), CRC-16 (0xA001 reflected, initial 0xFFFF) low byte first. */
+function packetOf(calibration) {
+  const bytes = new Uint8Array(68);
+  bytes[0] = 117;
+  bytes[1] = 84;
+  const s = calibration.soft_iron;
+  const floats = [0, 0, 0, 0, 0, 0, ...calibration.hard_iron_ut, calibration.field_ut,
+    s[0][0], s[1][1], s[2][2], (s[0][1] + s[1][0]) / 2, (s[0][2] + s[2][0]) / 2, (s[1][2] + s[2][1]) / 2];
+  const view = new DataView(bytes.buffer);
+  floats.forEach((value, i) => view.setFloat32(2 + 4 * i, value, true));
+  let crc = 0xffff;
+  for (const byte of bytes.subarray(0, 66)) {
+    crc ^= byte;
+    for (let bit = 0; bit < 8; bit += 1) crc = crc & 1 ? (crc >>> 1) ^ 0xa001 : crc >>> 1;
+  }
+  bytes[66] = crc & 0xff;
+  bytes[67] = crc >>> 8;
+  return bytes;
+}
+
+const liveState = (page) => page.getAttribute('#live', 'data-live-state');
+
+test('a live session at 1,000 lines/s for 30 s converges, loses no line, and the board confirms the packet', async () => {
+  const totalLines = 30_000;
+  const { page, problems, close } = await openPage({
+    initScript: installFakeSerial, initArg: { board: BOARD, linesPerS: 1000, totalLines }, acceptDownloads: true,
+  });
+  await page.waitForSelector('#live[data-live-state="idle"]');
+  assert.equal(await page.$eval('#live-baud', (select) => select.value), '115200');
+  await page.fill('#live-lat', '48.14');
+  await page.fill('#live-lon', '11.58');
+  // The demo's analysis at load is a task of its own: measure the page while streaming.
+  await page.waitForSelector('body[data-state="ready"]');
+  await page.evaluate(() => { window.fakeSerial.maxLagMs = 0; });
+  await page.click('#live-connect');
+  await page.waitForSelector('#live[data-live-state="connected"]');
+  assert.deepEqual(await page.evaluate(() => window.fakeSerial.openedWith), [{ baudRate: 115200 }]);
+  await page.waitForFunction(() => document.getElementById('live-format').textContent === 'MotionCal Raw: counts');
+  await page.screenshot({ path: join(out, 'live-streaming.png'), fullPage: false });
+
+  await page.waitForFunction(() => window.fakeSerial.finished, null, { timeout: 60_000, polling: 200 });
+  await page.waitForFunction((n) => document.getElementById('live-lines').textContent === String(n), totalLines,
+    { timeout: 5_000 });
+  const fake = await page.evaluate(() => ({ linesSent: window.fakeSerial.linesSent, maxLagMs: window.fakeSerial.maxLagMs }));
+  assert.equal(fake.linesSent, totalLines);
+  assert.equal(await text(page, 'live-skipped-count'), '0');
+  console.log(`live: ${totalLines} lines in 30 s, the page's event loop at most ${fake.maxLagMs.toFixed(0)} ms late`);
+  assert.ok(fake.maxLagMs < 250, `the page froze for ${fake.maxLagMs} ms`);
+
+  // The fit converged on the board's distortion, and says so.
+  await page.waitForSelector('#live[data-good-enough="yes"]', { timeout: 5_000 });
+  assert.match(await text(page, 'live-verdict'), /Good enough/);
+  const { bytes: jsonBytes, name: jsonName } = await download(page, '#live-download-calibration');
+  assert.equal(jsonName, 'compass-pdr-calibration.json');
+  const calibration = JSON.parse(jsonBytes.toString('utf8'));
+  calibration.hard_iron_ut.forEach((ut, i) => assert.ok(Math.abs(ut - BOARD.hardIronUt[i]) < 0.3, `hard iron ${i}: ${ut}`));
+  assert.match(await text(page, 'live-fit'), /from the WMM's 4\d\.\d µT/);
+  for (const id of ['live-clouds', 'live-coverage', 'live-dial']) {
+    assert.ok(await drawnPixels(page, id) > 5_000, `#${id} is drawn`);
+  }
+
+  // Send: exactly MotionCal's 68 bytes, and the board's echo confirms them.
+  await page.click('#live-send');
+  await page.waitForSelector('#live[data-confirmation="confirmed"]', { timeout: 10_000 });
+  const written = await page.evaluate(() => window.fakeSerial.written);
+  assert.deepEqual(Uint8Array.from(written), packetOf(calibration));
+  assert.match(await text(page, 'live-confirmation'), /Confirmed: the board echoed the calibration sent/);
+  await page.waitForFunction((n) => document.getElementById('live-lines').textContent === String(n), totalLines + 2);
+
+  // The recording is every byte received, in order.
+  const { bytes: recording, name } = await download(page, '#live-download');
+  assert.match(name, /^compass-pdr-live-\d{4}-\d\d-\d\dT\d\d-\d\d-\d\d\.txt$/);
+  const sentText = await page.evaluate(() => window.fakeSerial.sentText);
+  assert.equal(recording.length, Buffer.byteLength(sentText));
+  assert.ok(recording.equals(Buffer.from(sentText)), 'the recording is the bytes sent');
+  await page.locator('#live').screenshot({ path: join(out, 'live.png') });
+  await page.click('#live-disconnect');
+  await page.waitForSelector('#live[data-live-state="disconnected"]');
+  assert.deepEqual(problems, []);
+  await close();
+});
+
+test('an unplug mid-stream keeps every byte, and connecting again continues the session', async () => {
+  const unplugAfterLines = 4_321;
+  const { page, problems, close } = await openPage({
+    initScript: installFakeSerial,
+    initArg: { board: BOARD, linesPerS: 1000, totalLines: 8_000, unplugAfterLines },
+    acceptDownloads: true,
+  });
+  await page.waitForSelector('#live[data-live-state="idle"]');
+  await page.click('#live-connect');
+  await page.waitForSelector('#live[data-live-state="disconnected"]', { timeout: 20_000 });
+  assert.match(await text(page, 'live-status'), /The connection ended: The device has been lost\. All 4322 lines received are kept/);
+  // The half line at the unplug is read (and skipped as incomplete), never joined to the next.
+  assert.equal(await text(page, 'live-lines'), String(unplugAfterLines + 1));
+  assert.equal(await text(page, 'live-skipped-count'), '1');
+  const { bytes: recording } = await download(page, '#live-download');
+  const sentText = await page.evaluate(() => window.fakeSerial.sentText);
+  assert.ok(recording.equals(Buffer.from(sentText)), `the recording (${recording.length} bytes) is every byte sent (${sentText.length})`);
+  await page.screenshot({ path: join(out, 'live-unplugged.png'), fullPage: false });
+
+  // Plugged back in: the same session goes on counting.
+  assert.equal(await page.isDisabled('#live-connect'), false);
+  await page.click('#live-connect');
+  await page.waitForSelector('#live[data-live-state="connected"]');
+  await page.waitForFunction((n) => Number(document.getElementById('live-lines').textContent) > n + 500,
+    unplugAfterLines, { timeout: 10_000 });
+  await page.click('#live-disconnect');
+  await page.waitForSelector('#live[data-live-state="disconnected"]');
+  const { bytes: whole } = await download(page, '#live-download');
+  assert.ok(whole.equals(Buffer.from(await page.evaluate(() => window.fakeSerial.sentText))), 'both ports\' bytes, in order');
+  assert.deepEqual(problems, []);
+  await close();
+});
+
+test('a browser without Web Serial says so, and the rest of the page works', async () => {
+  const { page, problems, close } = await openPage({
+    initScript: () => Object.defineProperty(Navigator.prototype, 'serial', { configurable: true, get: () => undefined }),
+  });
+  await page.waitForSelector('#live[data-live-state="unsupported"]');
+  assert.match(await text(page, 'live-status'), /This browser has no Web Serial/);
+  assert.equal(await page.isDisabled('#live-connect'), true);
+  await page.waitForSelector('body[data-state="ready"]');
+  assert.deepEqual(problems, []);
+  await close();
+});
