@@ -192,7 +192,8 @@ impl LiveSession {
     /// received).
     pub fn port_closed(&mut self) {
         let reader = &mut self.reader;
-        self.decoder.finish(|line| reader.read_line(line.number, &line.text, None));
+        self.decoder
+            .finish(|line| reader.read_line(line.number, &line.text, None));
         self.decoder = LineDecoder::continuing(MAX_LINE_BYTES, self.decoder.n_lines());
         self.take_new_samples();
     }
@@ -580,7 +581,10 @@ mod tests {
         assert_eq!(counts.n_skipped_lines, 0);
         assert_eq!(counts.format, Some("MotionCal Raw: counts"));
         session.set_expected_field(Some(48.0));
-        let quality = session.refit().expect("3000 samples over the sphere fit").clone();
+        let quality = session
+            .refit()
+            .expect("3000 samples over the sphere fit")
+            .clone();
         let calibration = quality.calibration;
         assert!(
             (calibration.hard_iron_ut - board.hard_iron_ut).norm() < 0.2,
@@ -588,14 +592,25 @@ mod tests {
             calibration.hard_iron_ut
         );
         // The correction undoes the distortion up to the field's scale.
-        let undone = calibration.soft_iron * board.distortion * (board.field_ut / calibration.field_ut);
+        let undone =
+            calibration.soft_iron * board.distortion * (board.field_ut / calibration.field_ut);
         assert!((undone - Matrix3::identity()).amax() < 0.01, "{undone}");
-        assert!(quality.field_spread_pct < 1.0, "{}", quality.field_spread_pct);
-        assert!(quality.coverage.gap_pct < 1.0, "{}", quality.coverage.gap_pct);
+        assert!(
+            quality.field_spread_pct < 1.0,
+            "{}",
+            quality.field_spread_pct
+        );
+        assert!(
+            quality.coverage.gap_pct < 1.0,
+            "{}",
+            quality.coverage.gap_pct
+        );
         assert!(quality.verdict.good_enough, "{:?}", quality.verdict);
         // The fitted field is the distorted ellipsoid's mean radius: within a few
         // percent of the true 48 µT (the distortion's determinant is 1.047).
-        let difference_pct = quality.field_difference_pct.expect("an expected field was given");
+        let difference_pct = quality
+            .field_difference_pct
+            .expect("an expected field was given");
         assert!(difference_pct.abs() < 3.0, "{difference_pct}");
     }
 
@@ -605,7 +620,9 @@ mod tests {
         let mut rng = SplitMix64::new(4);
         let mut session = LiveSession::new();
         // Only the upper half of the sweep's directions (z > 0).
-        let text: String = (0..1500).map(|idx| board.raw_line(idx, 3000, &mut rng)).collect();
+        let text: String = (0..1500)
+            .map(|idx| board.raw_line(idx, 3000, &mut rng))
+            .collect();
         session.feed(text.as_bytes(), 0.0);
         let verdict = match session.refit() {
             Ok(quality) => quality.verdict.clone(),
@@ -613,7 +630,10 @@ mod tests {
         };
         assert!(!verdict.good_enough);
         assert!(
-            verdict.reasons.iter().any(|reason| reason.contains("sphere of directions")),
+            verdict
+                .reasons
+                .iter()
+                .any(|reason| reason.contains("sphere of directions")),
             "{verdict:?}"
         );
     }
@@ -638,7 +658,10 @@ mod tests {
         let lines: Vec<Option<usize>> = session.diagnostics().kept.iter().map(|d| d.line).collect();
         assert_eq!(lines, vec![Some(1), Some(2)]);
         let latest = session.latest_mag_ut().expect("one reading");
-        assert!((latest - Vector3::new(10.0, 20.0, 30.0)).norm() < 1e-9, "{latest}");
+        assert!(
+            (latest - Vector3::new(10.0, 20.0, 30.0)).norm() < 1e-9,
+            "{latest}"
+        );
     }
 
     #[test]
@@ -660,12 +683,23 @@ mod tests {
         );
         let cal2 = format!(
             "Cal2:{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4}\n",
-            s[(0, 0)], s[(0, 1)], s[(0, 2)], s[(1, 0)], s[(1, 1)], s[(1, 2)], s[(2, 0)], s[(2, 1)], s[(2, 2)]
+            s[(0, 0)],
+            s[(0, 1)],
+            s[(0, 2)],
+            s[(1, 0)],
+            s[(1, 1)],
+            s[(1, 2)],
+            s[(2, 0)],
+            s[(2, 1)],
+            s[(2, 2)]
         );
         session.feed(cal1.as_bytes(), 30.0);
         assert_eq!(session.confirmation(), Confirmation::Waiting);
         session.feed(cal2.as_bytes(), 30.1);
-        assert_eq!(session.confirmation(), Confirmation::Confirmed { line: 2002 });
+        assert_eq!(
+            session.confirmation(),
+            Confirmation::Confirmed { line: 2002 }
+        );
         // An echo of another calibration is named.
         session.packet_for_device();
         session.feed(b"Cal1:0,0,0,0,0,0,1.000,2.000,3.000,50.000\n", 31.0);
@@ -690,7 +724,10 @@ mod tests {
         assert_eq!(counts.n_lines, 4);
         assert_eq!(counts.n_skipped_lines, 1);
         assert_eq!(counts.n_mag_samples, 2);
-        assert_eq!(session.diagnostics().kept.first().and_then(|d| d.line), Some(2));
+        assert_eq!(
+            session.diagnostics().kept.first().and_then(|d| d.line),
+            Some(2)
+        );
         assert_eq!(session.raw(), [first_port, second_port].concat().as_slice());
     }
 
@@ -701,7 +738,12 @@ mod tests {
         session.feed(lines.as_bytes(), 0.0);
         let counts = session.counts();
         assert_eq!(counts.n_lines, 3);
-        assert!(counts.format.is_some_and(|format| format.starts_with("NMEA 0183")), "{counts:?}");
+        assert!(
+            counts
+                .format
+                .is_some_and(|format| format.starts_with("NMEA 0183")),
+            "{counts:?}"
+        );
         assert_eq!(session.raw(), lines.as_bytes());
     }
 
@@ -710,7 +752,10 @@ mod tests {
         let board = Board::new();
         let (session, _) = streamed(&board, 40_000, 4096);
         let kept = session.kept_samples_ut().len();
-        assert!((MAX_KEPT_SAMPLES / 2..MAX_KEPT_SAMPLES).contains(&kept), "{kept}");
+        assert!(
+            (MAX_KEPT_SAMPLES / 2..MAX_KEPT_SAMPLES).contains(&kept),
+            "{kept}"
+        );
         assert_eq!(session.counts().n_mag_samples, 39_999);
     }
 }

@@ -318,7 +318,10 @@ mod tests {
             let bounds = region_bounds(region_idx);
             let area = (bounds.azimuth_end_deg - bounds.azimuth_start_deg).to_radians()
                 * (bounds.sin_elevation_high - bounds.sin_elevation_low);
-            assert!((area - 4.0 * PI / N_REGIONS as f64).abs() < 1e-12, "{region_idx}");
+            assert!(
+                (area - 4.0 * PI / N_REGIONS as f64).abs() < 1e-12,
+                "{region_idx}"
+            );
             let centre = region_centre(region_idx);
             let azimuth_deg = centre.y.atan2(centre.x).to_degrees();
             let sin_elevation = -centre.z;

@@ -95,7 +95,11 @@ pub fn draw_live_clouds<DB: DrawingBackend>(
                 .draw_series(LineSeries::new(circle, FIT_COLOR.stroke_width(2)))
                 .map_err(&error)?;
             chart
-                .draw_series(std::iter::once(Cross::new((cx, cy), 6, FIT_COLOR.stroke_width(2))))
+                .draw_series(std::iter::once(Cross::new(
+                    (cx, cy),
+                    6,
+                    FIT_COLOR.stroke_width(2),
+                )))
                 .map_err(&error)?;
         }
     }
@@ -218,7 +222,10 @@ pub fn draw_heading_dial<DB: DrawingBackend>(
         Some(heading_rad) => {
             let heading_rad = heading_rad.rem_euclid(TAU);
             area.draw(&PathElement::new(
-                vec![at(heading_rad + std::f64::consts::PI, radius * 0.25), at(heading_rad, radius * 0.85)],
+                vec![
+                    at(heading_rad + std::f64::consts::PI, radius * 0.25),
+                    at(heading_rad, radius * 0.85),
+                ],
                 MISSING_EDGE_COLOR.stroke_width(4),
             ))
             .map_err(&error)?;
@@ -268,13 +275,21 @@ mod tests {
             let area = SVGBackend::with_string(&mut svg, (1200, 400)).into_drawing_area();
             draw_live_clouds(&area, session.kept_samples_ut(), Some(&quality)).expect("draws");
         }
-        assert!(svg.contains("X-Y (µT), 599 samples"), "{}", &svg[..svg.len().min(400)]);
+        assert!(
+            svg.contains("X-Y (µT), 599 samples"),
+            "{}",
+            &svg[..svg.len().min(400)]
+        );
         let mut svg = String::new();
         {
             let area = SVGBackend::with_string(&mut svg, (600, 400)).into_drawing_area();
             draw_coverage_map(&area, Some(&quality.coverage)).expect("draws");
         }
-        assert!(svg.contains("Coverage: 100 of 100 regions"), "{}", &svg[..svg.len().min(400)]);
+        assert!(
+            svg.contains("Coverage: 100 of 100 regions"),
+            "{}",
+            &svg[..svg.len().min(400)]
+        );
         let mut svg = String::new();
         {
             let area = SVGBackend::with_string(&mut svg, (400, 400)).into_drawing_area();

@@ -92,7 +92,9 @@ pub fn draw_live_clouds(
     samples_ut: &[nalgebra::Vector3<f64>],
     quality: Option<&crate::live::LiveQuality>,
 ) -> Result<(), String> {
-    draw_with(canvas, |area| crate::plot::live::draw_live_clouds(area, samples_ut, quality))
+    draw_with(canvas, |area| {
+        crate::plot::live::draw_live_clouds(area, samples_ut, quality)
+    })
 }
 
 /// The live panel's coverage map.
@@ -100,12 +102,16 @@ pub fn draw_coverage(
     canvas: &HtmlCanvasElement,
     coverage: Option<&crate::calib::sphere_coverage::SphereCoverage>,
 ) -> Result<(), String> {
-    draw_with(canvas, |area| crate::plot::live::draw_coverage_map(area, coverage))
+    draw_with(canvas, |area| {
+        crate::plot::live::draw_coverage_map(area, coverage)
+    })
 }
 
 /// The live panel's heading dial.
 pub fn draw_dial(canvas: &HtmlCanvasElement, heading_rad: Option<f64>) -> Result<(), String> {
-    draw_with(canvas, |area| crate::plot::live::draw_heading_dial(area, heading_rad))
+    draw_with(canvas, |area| {
+        crate::plot::live::draw_heading_dial(area, heading_rad)
+    })
 }
 
 /// Replaces a plot by a message, so that a failed analysis never leaves a blank or

@@ -91,7 +91,10 @@ impl LivePanel {
             disconnect: cast(typed("live-disconnect")?, "live-disconnect")?,
             send: cast(typed("live-send")?, "live-send")?,
             download: cast(typed("live-download")?, "live-download")?,
-            download_calibration: cast(typed("live-download-calibration")?, "live-download-calibration")?,
+            download_calibration: cast(
+                typed("live-download-calibration")?,
+                "live-download-calibration",
+            )?,
             download_snippet: cast(typed("live-download-snippet")?, "live-download-snippet")?,
             reset: cast(typed("live-reset")?, "live-reset")?,
             baud: cast(typed("live-baud")?, "live-baud")?,
@@ -144,7 +147,9 @@ impl LivePanel {
             spawn_local(async move { panel.send_to_device().await });
         });
         on(&self.download, |panel| panel.download_recording());
-        on(&self.download_calibration, |panel| panel.download_calibration_json());
+        on(&self.download_calibration, |panel| {
+            panel.download_calibration_json()
+        });
         on(&self.download_snippet, |panel| panel.download_c_snippet());
         on(&self.reset, |panel| panel.new_session());
         for input in [&self.lat, &self.lon] {
@@ -166,13 +171,19 @@ impl LivePanel {
             return;
         };
         let baud_rate = self.baud.value().parse::<u32>().unwrap_or(115_200);
-        self.set_state("connecting", "Choose the board's port in the browser's list…");
+        self.set_state(
+            "connecting",
+            "Choose the board's port in the browser's list…",
+        );
         let port = match JsFuture::from(serial.request_port()).await {
             Ok(port) => port.unchecked_into::<SerialPort>(),
             Err(error) => {
                 self.set_state(
                     "idle",
-                    &format!("No port chosen ({}). Click Connect to try again.", describe_js_error(error)),
+                    &format!(
+                        "No port chosen ({}). Click Connect to try again.",
+                        describe_js_error(error)
+                    ),
                 );
                 return;
             }
@@ -248,7 +259,9 @@ impl LivePanel {
             }
             if let Ok(value) = js_sys::Reflect::get(&chunk, &"value".into()) {
                 if let Some(bytes) = value.dyn_ref::<Uint8Array>() {
-                    self.session.borrow_mut().feed(&bytes.to_vec(), now_ms() / 1e3);
+                    self.session
+                        .borrow_mut()
+                        .feed(&bytes.to_vec(), now_ms() / 1e3);
                     self.dirty.set(true);
                 }
             }
@@ -274,7 +287,10 @@ impl LivePanel {
             return;
         };
         let Some(packet) = self.session.borrow_mut().packet_for_device() else {
-            self.set_text("live-confirmation", "No calibration yet: keep turning the board.");
+            self.set_text(
+                "live-confirmation",
+                "No calibration yet: keep turning the board.",
+            );
             return;
         };
         let writer = match port.writable().get_writer() {
@@ -282,7 +298,10 @@ impl LivePanel {
             Err(error) => {
                 self.set_text(
                     "live-confirmation",
-                    &format!("The port cannot be written to: {}.", describe_js_error(error)),
+                    &format!(
+                        "The port cannot be written to: {}.",
+                        describe_js_error(error)
+                    ),
                 );
                 return;
             }
@@ -318,11 +337,21 @@ impl LivePanel {
         let text = serde::Serialize::serialize(&export, &serializer)
             .ok()
             .and_then(|value| {
-                js_sys::JSON::stringify_with_replacer_and_space(&value, &JsValue::NULL, &JsValue::from(2)).ok()
+                js_sys::JSON::stringify_with_replacer_and_space(
+                    &value,
+                    &JsValue::NULL,
+                    &JsValue::from(2),
+                )
+                .ok()
             })
             .and_then(|text| text.as_string());
         if let Some(text) = text {
-            download_bytes(&self.document, "compass-pdr-calibration.json", text.as_bytes(), "application/json");
+            download_bytes(
+                &self.document,
+                "compass-pdr-calibration.json",
+                text.as_bytes(),
+                "application/json",
+            );
         }
     }
 
@@ -330,7 +359,12 @@ impl LivePanel {
         let session = self.session.borrow();
         if let Some(quality) = session.quality() {
             let text = c_snippet(&quality.calibration);
-            download_bytes(&self.document, "compass-pdr-calibration.h", text.as_bytes(), "text/plain");
+            download_bytes(
+                &self.document,
+                "compass-pdr-calibration.h",
+                text.as_bytes(),
+                "text/plain",
+            );
         }
     }
 
@@ -448,7 +482,10 @@ impl LivePanel {
                 );
                 let verdict = &quality.verdict;
                 self.section
-                    .set_attribute("data-good-enough", if verdict.good_enough { "yes" } else { "no" })
+                    .set_attribute(
+                        "data-good-enough",
+                        if verdict.good_enough { "yes" } else { "no" },
+                    )
                     .ok();
                 self.set_text(
                     "live-verdict",
@@ -471,10 +508,14 @@ impl LivePanel {
             }
         }
         let skipped = session.diagnostics();
-        let shown = skipped.kept.iter().take(MAX_SKIPPED_SHOWN).map(|diagnostic| match diagnostic.line {
-            Some(line) => format!("line {line}: {}", diagnostic.message),
-            None => diagnostic.message.clone(),
-        });
+        let shown = skipped
+            .kept
+            .iter()
+            .take(MAX_SKIPPED_SHOWN)
+            .map(|diagnostic| match diagnostic.line {
+                Some(line) => format!("line {line}: {}", diagnostic.message),
+                None => diagnostic.message.clone(),
+            });
         let more = skipped
             .total()
             .checked_sub(MAX_SKIPPED_SHOWN)
@@ -486,7 +527,10 @@ impl LivePanel {
         self.show_confirmation_of(&session.confirmation());
         let samples = session.kept_samples_ut();
         let heading = session.latest_heading_rad();
-        drop_errors(&self.clouds, canvas::draw_live_clouds(&self.clouds, samples, quality));
+        drop_errors(
+            &self.clouds,
+            canvas::draw_live_clouds(&self.clouds, samples, quality),
+        );
         drop_errors(
             &self.coverage,
             canvas::draw_coverage(&self.coverage, quality.map(|quality| &quality.coverage)),
@@ -613,15 +657,16 @@ pub fn download_bytes(document: &Document, name: &str, bytes: &[u8], mime: &str)
         let _ = web_sys::Url::revoke_object_url(&url);
     });
     if let Some(window) = web_sys::window() {
-        let _ = window.set_timeout_with_callback_and_timeout_and_arguments_0(
-            revoke.unchecked_ref(),
-            60_000,
-        );
+        let _ = window
+            .set_timeout_with_callback_and_timeout_and_arguments_0(revoke.unchecked_ref(), 60_000);
     }
 }
 
 fn drop_errors(canvas_element: &HtmlCanvasElement, result: Result<(), String>) {
     if let Err(message) = result {
-        let _ = canvas::draw_message(canvas_element, &format!("This plot could not be drawn: {message}"));
+        let _ = canvas::draw_message(
+            canvas_element,
+            &format!("This plot could not be drawn: {message}"),
+        );
     }
 }

@@ -28,8 +28,8 @@ use crate::calibration::CalibrationOptions;
 pub fn run_page() -> Result<(), JsError> {
     install_panic_hook();
     let page = page::Page::from_document().map_err(|message| JsError::new(&message))?;
-    let live = live::LivePanel::from_document(&page.document)
-        .map_err(|message| JsError::new(&message))?;
+    let live =
+        live::LivePanel::from_document(&page.document).map_err(|message| JsError::new(&message))?;
     page.start();
     live.start();
     Ok(())
