@@ -68,6 +68,7 @@ pub mod pdr;
 pub mod plot;
 pub mod recording;
 pub mod reference;
+pub mod report;
 pub mod sim;
 pub mod stats;
 

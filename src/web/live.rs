@@ -17,7 +17,7 @@ use std::rc::Rc;
 use gloo::events::EventListener;
 use js_sys::Uint8Array;
 use wasm_bindgen::closure::Closure;
-use wasm_bindgen::{JsCast, JsValue};
+use wasm_bindgen::JsCast;
 use wasm_bindgen_futures::{spawn_local, JsFuture};
 use web_sys::{
     Document, Element, HtmlButtonElement, HtmlCanvasElement, HtmlInputElement, HtmlSelectElement,
@@ -25,6 +25,7 @@ use web_sys::{
 };
 
 use super::canvas;
+use super::exports::{calibration_json, download_bytes};
 use super::page::describe_js_error;
 use crate::calib::export::{c_snippet, calibration_export};
 use crate::calib::wmm::{date_of_unix_s, expected_field};
@@ -332,26 +333,14 @@ impl LivePanel {
         let Some(quality) = session.quality() else {
             return;
         };
-        let export = calibration_export(&quality.calibration);
-        let serializer = serde_wasm_bindgen::Serializer::json_compatible();
-        let text = serde::Serialize::serialize(&export, &serializer)
-            .ok()
-            .and_then(|value| {
-                js_sys::JSON::stringify_with_replacer_and_space(
-                    &value,
-                    &JsValue::NULL,
-                    &JsValue::from(2),
-                )
-                .ok()
-            })
-            .and_then(|text| text.as_string());
-        if let Some(text) = text {
-            download_bytes(
+        match calibration_json(&calibration_export(&quality.calibration)) {
+            Ok(text) => download_bytes(
                 &self.document,
                 "compass-pdr-calibration.json",
                 text.as_bytes(),
                 "application/json",
-            );
+            ),
+            Err(message) => self.set_text("live-confirmation", &message),
         }
     }
 
@@ -632,34 +621,6 @@ fn timestamp_for_file_name() -> String {
         date.get_minutes(),
         date.get_seconds()
     )
-}
-
-/// Offers `bytes` as a download named `name`.
-pub fn download_bytes(document: &Document, name: &str, bytes: &[u8], mime: &str) {
-    let parts = js_sys::Array::of1(&Uint8Array::from(bytes));
-    let options = web_sys::BlobPropertyBag::new();
-    options.set_type(mime);
-    let Ok(blob) = web_sys::Blob::new_with_u8_array_sequence_and_options(&parts, &options) else {
-        return;
-    };
-    let Ok(url) = web_sys::Url::create_object_url_with_blob(&blob) else {
-        return;
-    };
-    if let Ok(anchor) = document.create_element("a") {
-        let _ = anchor.set_attribute("href", &url);
-        let _ = anchor.set_attribute("download", name);
-        if let Some(anchor) = anchor.dyn_ref::<web_sys::HtmlElement>() {
-            anchor.click();
-        }
-    }
-    // The download starts after this returns: the URL is given back a minute later.
-    let revoke = Closure::once_into_js(move || {
-        let _ = web_sys::Url::revoke_object_url(&url);
-    });
-    if let Some(window) = web_sys::window() {
-        let _ = window
-            .set_timeout_with_callback_and_timeout_and_arguments_0(revoke.unchecked_ref(), 60_000);
-    }
 }
 
 fn drop_errors(canvas_element: &HtmlCanvasElement, result: Result<(), String>) {

@@ -6,6 +6,7 @@
 //! same analysis for scripts, returning the summary as a plain object.
 
 mod canvas;
+mod exports;
 mod live;
 mod mapping;
 mod nn_bench;
@@ -30,6 +31,7 @@ pub fn run_page() -> Result<(), JsError> {
     let page = page::Page::from_document().map_err(|message| JsError::new(&message))?;
     let live =
         live::LivePanel::from_document(&page.document).map_err(|message| JsError::new(&message))?;
+    exports::wire(&page);
     page.start();
     live.start();
     Ok(())

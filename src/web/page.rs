@@ -16,12 +16,14 @@ use super::canvas::{self, HeadingPlot, PdrPlot, Plot};
 use super::mapping;
 use crate::analysis::AnalysisError;
 use crate::calibration::{calibrate, CalibrationAnalysis, CalibrationOptions, CalibrationReport};
+use crate::deviation::HeadingAnalysis;
 use crate::deviation::{compare, HeadingOptions, HeadingReport};
 use crate::io::delimited::{preview, ColumnMapping, Preview};
 use crate::io::import::import_files;
 use crate::io::import::{header_signature, merge, ChunkedImport, FileImport};
 use crate::io::{ImportError, ImportReport};
 use crate::pdr::{self, PdrAnalysis, PdrError, PdrOptions};
+use crate::report;
 
 /// The ids of the elements the page must have (see `www/index.html`).
 const STATUS_ID: &str = "status";
@@ -82,6 +84,16 @@ pub struct Page {
     trajectory_canvas: HtmlCanvasElement,
     steps_canvas: HtmlCanvasElement,
     position_error_canvas: HtmlCanvasElement,
+    /// The latest analysis, for the exports; `None` before the first and after an error.
+    results: std::cell::RefCell<Option<Rc<Results>>>,
+}
+
+/// One log's analysis: what the exports write.
+pub struct Results {
+    pub calibration: CalibrationAnalysis,
+    pub heading: HeadingAnalysis,
+    /// The dead reckoning, or why there is none.
+    pub pdr: Result<PdrAnalysis, String>,
 }
 
 impl Page {
@@ -118,6 +130,7 @@ impl Page {
             position_error_canvas: canvas(POSITION_ERROR_CANVAS_ID)?,
             body,
             document,
+            results: std::cell::RefCell::new(None),
         }))
     }
 
@@ -363,13 +376,30 @@ impl Page {
             Ok(analysis) => {
                 self.show_calibration(&analysis);
                 yield_to_browser().await;
-                let summary = self.show_heading_models(&analysis);
+                let (summary, heading) = self.show_heading_models(&analysis);
                 yield_to_browser().await;
-                let pdr_summary = self.show_dead_reckoning(for_pdr);
+                let (pdr_summary, pdr) = self.show_dead_reckoning(for_pdr);
+                self.keep_results(Results {
+                    calibration: analysis,
+                    heading,
+                    pdr,
+                });
                 self.set_state("ready", &format!("{summary}{pdr_summary}"));
             }
             Err(error) => self.show_error(&error.to_string()),
         }
+    }
+
+    /// Keeps the analysis for the exports and enables their buttons.
+    fn keep_results(&self, results: Results) {
+        let results = Rc::new(results);
+        super::exports::enable(&self.document, Some(&results));
+        *self.results.borrow_mut() = Some(results);
+    }
+
+    /// The latest analysis, if there is one.
+    pub fn results(&self) -> Option<Rc<Results>> {
+        self.results.borrow().clone()
     }
 
     fn show_progress(&self, fraction: f64, file_name: &str) {
@@ -400,8 +430,8 @@ impl Page {
     #[cfg(test)]
     pub fn show_analysis(&self, analysis: &CalibrationAnalysis, for_pdr: Option<ImportReport>) {
         self.show_calibration(analysis);
-        let summary = self.show_heading_models(analysis);
-        let pdr_summary = self.show_dead_reckoning(for_pdr);
+        let (summary, _) = self.show_heading_models(analysis);
+        let (pdr_summary, _) = self.show_dead_reckoning(for_pdr);
         self.set_state("ready", &format!("{summary}{pdr_summary}"));
     }
 
@@ -439,8 +469,9 @@ impl Page {
     }
 
     /// The heading models on top of the calibration: every method and every stack on
-    /// the same split, the deviation curve and the residuals. Returns the status line.
-    fn show_heading_models(&self, analysis: &CalibrationAnalysis) -> String {
+    /// the same split, the deviation curve and the residuals. Returns the status line
+    /// and the analysis.
+    fn show_heading_models(&self, analysis: &CalibrationAnalysis) -> (String, HeadingAnalysis) {
         let report = &analysis.report;
         let headings = compare(analysis, &HeadingOptions::default());
         self.show_methods(&headings.report);
@@ -472,16 +503,20 @@ impl Page {
             "loading",
             &format!("Calibrated {}; dead-reckoning the walk…", report.file_name),
         );
-        format!(
+        let summary = format!(
             "Analysed {}: {} magnetometer samples.{best}{problems}",
             report.file_name, report.n_samples_used
-        )
+        );
+        (summary, headings)
     }
 
     /// Dead-reckons the walk (steps, step model, the EKF) and shows its summary and
     /// plots; a log that cannot be dead-reckoned says why in their place. Returns a
-    /// sentence for the status line.
-    fn show_dead_reckoning(&self, report: Option<ImportReport>) -> String {
+    /// sentence for the status line, and the analysis or why there is none.
+    fn show_dead_reckoning(
+        &self,
+        report: Option<ImportReport>,
+    ) -> (String, Result<PdrAnalysis, String>) {
         let result = report
             .ok_or_else(|| "the log has no accelerometer, so no steps can be detected".to_string())
             .and_then(|report| {
@@ -497,7 +532,10 @@ impl Page {
         ];
         match result {
             Ok(analysis) => {
-                self.fill_list("pdr-summary", pdr_summary(&analysis).into_iter());
+                self.fill_list(
+                    "pdr-summary",
+                    report::pdr_summary_lines(&analysis).into_iter(),
+                );
                 for (canvas, plot) in canvases {
                     if let Err(message) = canvas::draw_pdr(canvas, plot, &analysis) {
                         let _ = canvas::draw_message(
@@ -506,10 +544,11 @@ impl Page {
                         );
                     }
                 }
-                format!(
+                let sentence = format!(
                     " {} steps dead-reckoned over {:.0} m.",
                     analysis.report.n_steps, analysis.report.pdr_distance_m
-                )
+                );
+                (sentence, Ok(analysis))
             }
             Err(message) => {
                 let message = format!("No dead reckoning: {message}.");
@@ -517,7 +556,7 @@ impl Page {
                 for (canvas, _) in canvases {
                     let _ = canvas::draw_message(canvas, &message);
                 }
-                String::new()
+                (String::new(), Err(message))
             }
         }
     }
@@ -525,6 +564,8 @@ impl Page {
     /// Shows an error in the status area and on the canvases, and clears the figures of
     /// the previous file so that none of them is taken for this one's.
     pub fn show_error(&self, message: &str) {
+        self.results.borrow_mut().take();
+        super::exports::enable(&self.document, None);
         self.body.remove_attribute("data-file").ok();
         self.set_text("result-file", "—");
         for id in [
@@ -556,45 +597,7 @@ impl Page {
 
     /// Where the reference, declination and expected field came from, and the split.
     fn show_context(&self, report: &CalibrationReport) {
-        let reference = report
-            .reference
-            .map_or_else(|| "none in the log".to_string(), |source| source.describe());
-        let field = match &report.expected_field {
-            Some(expected) => format!(
-                "Field: {:.1} µT measured (raw), {:.1} µT expected, inclination {:.1}° ({})",
-                report.mean_raw_field_ut,
-                expected.total_ut,
-                expected.inclination_deg,
-                expected.model
-            ),
-            None => format!(
-                "Field: {:.1} µT measured (raw); no model value without a position and a date",
-                report.mean_raw_field_ut
-            ),
-        };
-        let split = match report.train_until_s {
-            Some(until_s) => format!(
-                "Train on the first {until_s:.1} s ({} samples), check on the rest ({} samples)",
-                report.n_train, report.n_check
-            ),
-            None => format!(
-                "All {} samples train the methods (no reference to check against)",
-                report.n_train
-            ),
-        };
-        self.fill_list(
-            "context",
-            [
-                format!("Reference heading: {reference}"),
-                format!(
-                    "Declination: {:.2}° ({})",
-                    report.declination.declination_deg, report.declination.source
-                ),
-                field,
-                split,
-            ]
-            .into_iter(),
-        );
+        self.fill_list("context", report::context_lines(report).into_iter());
     }
 
     /// The comparison table: one row per method, train and check heading errors.
@@ -673,68 +676,18 @@ impl Page {
 
     /// The Fourier deviation models as the PDR paper's Table II, and the online one.
     fn show_deviation_model(&self, report: &HeadingReport) {
-        let models = report.fourier.iter().map(|fourier| {
-            let model = fourier.fit.model;
-            format!(
-                "{}: A {:.2}°, B {:.2}°, C {:.2}°, D {:.2}°, E {:.2}°; residuals {:.2} ± {:.2}°, {:.0} % within ±5° (train)",
-                fourier.base_label,
-                model.a_deg,
-                model.b_deg,
-                model.c_deg,
-                model.d_deg,
-                model.e_deg,
-                fourier.fit.residual_mean_deg,
-                fourier.fit.residual_std_deg,
-                fourier.fit.within_5_deg_pct
-            )
-        });
-        let neural = report.neural.iter().map(|neural| {
-            format!(
-                "MLP on {}: inputs {}; {} one-second pairs, {} logistic neurons, {} L-BFGS iterations, train MSE {:.2} deg²",
-                neural.base_label,
-                neural.inputs.join(", "),
-                neural.n_pairs,
-                neural.n_hidden,
-                neural.iterations,
-                neural.train_mse_deg2
-            )
-        });
-        let online = report.online.iter().map(|online| {
-            let model = online.model;
-            format!(
-                "Online on {} (recursive least squares, memory {:.0} s, {} updates): A {:.2}°, B {:.2}°, C {:.2}°, D {:.2}°, E {:.2}°",
-                online.base_label, online.memory_s, online.n_updates, model.a_deg, model.b_deg, model.c_deg, model.d_deg, model.e_deg
-            )
-        });
-        let notes = report.notes.iter().cloned();
         self.fill_list(
             "deviation-model",
-            or_none(models.chain(neural).chain(online).chain(notes)),
+            or_none(report::deviation_model_lines(report).into_iter()),
         );
     }
 
     /// The calibration to store in the device, as numbers a person can copy.
     fn show_device_calibration(&self, analysis: &CalibrationAnalysis) {
-        let lines: Vec<String> = match analysis.device_calibration() {
-            Some((method, calibration)) => {
-                let hard = calibration.hard_iron_ut;
-                let soft = calibration.soft_iron;
-                vec![
-                    format!("From the {} method", method.label()),
-                    format!("Hard iron ({:.2}, {:.2}, {:.2}) µT", hard.x, hard.y, hard.z),
-                    format!(
-                        "Soft iron [[{:.4}, {:.4}, {:.4}], [{:.4}, {:.4}, {:.4}], [{:.4}, {:.4}, {:.4}]]",
-                        soft[(0, 0)], soft[(0, 1)], soft[(0, 2)], soft[(1, 0)], soft[(1, 1)], soft[(1, 2)], soft[(2, 0)], soft[(2, 1)], soft[(2, 2)]
-                    ),
-                    format!("Field {:.2} µT after correction", calibration.field_ut),
-                ]
-            }
-            None => vec![
-                "No 3D calibration: the ellipse and ellipsoid methods both failed (see the table)."
-                    .to_string(),
-            ],
-        };
-        self.fill_list("calibration", lines.into_iter());
+        self.fill_list(
+            "calibration",
+            report::device_calibration_lines(analysis).into_iter(),
+        );
     }
 
     fn show_diagnostics(&self, report: &CalibrationReport) {
@@ -788,43 +741,6 @@ impl Page {
 /// detect steps in (the calibration consumes the original).
 fn copy_for_pdr(report: &ImportReport) -> Option<ImportReport> {
     (!report.recording.acc_in_body_mps2.is_empty()).then(|| report.clone())
-}
-
-/// The dead reckoning as the paper reports it, a line each.
-fn pdr_summary(analysis: &PdrAnalysis) -> Vec<String> {
-    let report = &analysis.report;
-    let mut lines = vec![format!(
-        "{} steps in {} bouts{}; {:.1} m dead-reckoned over {:.0} s.",
-        report.n_steps,
-        report.n_bouts,
-        report
-            .mean_step_frequency_hz
-            .map_or(String::new(), |hz| format!(" at {hz:.2} steps/s")),
-        report.pdr_distance_m,
-        report.duration_s
-    )];
-    lines.push(format!("Step model: {}.", report.step_model.describe()));
-    lines.push(format!("Heading: {}.", report.heading_label));
-    if let Some(errors) = &report.position_error {
-        lines.push(format!(
-            "Position error at {} reference points: RMS {:.2} m ({:.2} % of {:.0} m), max {:.2} m; distance error {:+.1} %.",
-            errors.n_points, errors.rms_m, errors.rms_pct, errors.distance_m, errors.max_m, errors.distance_error_pct
-        ));
-    }
-    if let Some(error) = &report.step_length_error_m {
-        lines.push(format!(
-            "Step length error: {:+.3} ± {:.3} m over {} steps.",
-            error.mean, error.std, error.n
-        ));
-    }
-    if let Some(error) = &report.heading_error_deg {
-        lines.push(format!(
-            "Heading error: {:+.2} ± {:.2}° over {} steps.",
-            error.mean, error.std, error.n
-        ));
-    }
-    lines.extend(report.notes.iter().cloned());
-    lines
 }
 
 fn or_none(items: impl Iterator<Item = String>) -> impl Iterator<Item = String> {

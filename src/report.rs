@@ -1,0 +1,411 @@
+//! An analysis in words and files: the sentences the page shows (and the HTML report
+//! repeats), the corrected data as CSV, and a self-contained HTML report with the same
+//! figures as SVG.
+//!
+//! Pure: each function takes the analyses and returns text. Every piece of text that
+//! comes from a log (file names, messages) is escaped before it goes into HTML.
+
+use std::fmt::Write as _;
+
+use plotters::prelude::*;
+
+use crate::calibration::{CalibrationAnalysis, CalibrationReport};
+use crate::deviation::{HeadingAnalysis, HeadingReport};
+use crate::pdr::PdrAnalysis;
+use crate::plot::{draw_calibration_figure, draw_deviation_figure, draw_pdr_figure};
+
+/// Where the reference, declination and expected field came from, and the split.
+pub fn context_lines(report: &CalibrationReport) -> Vec<String> {
+    let reference = report
+        .reference
+        .map_or_else(|| "none in the log".to_string(), |source| source.describe());
+    let field = match &report.expected_field {
+        Some(expected) => format!(
+            "Field: {:.1} µT measured (raw), {:.1} µT expected, inclination {:.1}° ({})",
+            report.mean_raw_field_ut, expected.total_ut, expected.inclination_deg, expected.model
+        ),
+        None => format!(
+            "Field: {:.1} µT measured (raw); no model value without a position and a date",
+            report.mean_raw_field_ut
+        ),
+    };
+    let split = match report.train_until_s {
+        Some(until_s) => format!(
+            "Train on the first {until_s:.1} s ({} samples), check on the rest ({} samples)",
+            report.n_train, report.n_check
+        ),
+        None => format!(
+            "All {} samples train the methods (no reference to check against)",
+            report.n_train
+        ),
+    };
+    vec![
+        format!("Reference heading: {reference}"),
+        format!(
+            "Declination: {:.2}° ({})",
+            report.declination.declination_deg, report.declination.source
+        ),
+        field,
+        split,
+    ]
+}
+
+/// The calibration to store in the device, as numbers a person can copy.
+pub fn device_calibration_lines(analysis: &CalibrationAnalysis) -> Vec<String> {
+    match analysis.device_calibration() {
+        Some((method, calibration)) => {
+            let hard = calibration.hard_iron_ut;
+            let soft = calibration.soft_iron;
+            vec![
+                format!("From the {} method", method.label()),
+                format!("Hard iron ({:.2}, {:.2}, {:.2}) µT", hard.x, hard.y, hard.z),
+                format!(
+                    "Soft iron [[{:.4}, {:.4}, {:.4}], [{:.4}, {:.4}, {:.4}], [{:.4}, {:.4}, {:.4}]]",
+                    soft[(0, 0)],
+                    soft[(0, 1)],
+                    soft[(0, 2)],
+                    soft[(1, 0)],
+                    soft[(1, 1)],
+                    soft[(1, 2)],
+                    soft[(2, 0)],
+                    soft[(2, 1)],
+                    soft[(2, 2)]
+                ),
+                format!("Field {:.2} µT after correction", calibration.field_ut),
+            ]
+        }
+        None => vec![
+            "No 3D calibration: the ellipse and ellipsoid methods both failed (see the table)."
+                .to_string(),
+        ],
+    }
+}
+
+/// The Fourier deviation models as the PDR paper's Table II, the networks, the online
+/// model and the notes.
+pub fn deviation_model_lines(report: &HeadingReport) -> Vec<String> {
+    let models = report.fourier.iter().map(|fourier| {
+        let model = fourier.fit.model;
+        format!(
+            "{}: A {:.2}°, B {:.2}°, C {:.2}°, D {:.2}°, E {:.2}°; residuals {:.2} ± {:.2}°, {:.0} % within ±5° (train)",
+            fourier.base_label,
+            model.a_deg,
+            model.b_deg,
+            model.c_deg,
+            model.d_deg,
+            model.e_deg,
+            fourier.fit.residual_mean_deg,
+            fourier.fit.residual_std_deg,
+            fourier.fit.within_5_deg_pct
+        )
+    });
+    let neural = report.neural.iter().map(|neural| {
+        format!(
+            "MLP on {}: inputs {}; {} one-second pairs, {} logistic neurons, {} L-BFGS iterations, train MSE {:.2} deg²",
+            neural.base_label,
+            neural.inputs.join(", "),
+            neural.n_pairs,
+            neural.n_hidden,
+            neural.iterations,
+            neural.train_mse_deg2
+        )
+    });
+    let online = report.online.iter().map(|online| {
+        let model = online.model;
+        format!(
+            "Online on {} (recursive least squares, memory {:.0} s, {} updates): A {:.2}°, B {:.2}°, C {:.2}°, D {:.2}°, E {:.2}°",
+            online.base_label,
+            online.memory_s,
+            online.n_updates,
+            model.a_deg,
+            model.b_deg,
+            model.c_deg,
+            model.d_deg,
+            model.e_deg
+        )
+    });
+    models
+        .chain(neural)
+        .chain(online)
+        .chain(report.notes.iter().cloned())
+        .collect()
+}
+
+/// The dead reckoning as the paper reports it, a line each.
+pub fn pdr_summary_lines(analysis: &PdrAnalysis) -> Vec<String> {
+    let report = &analysis.report;
+    let mut lines = vec![format!(
+        "{} steps in {} bouts{}; {:.1} m dead-reckoned over {:.0} s.",
+        report.n_steps,
+        report.n_bouts,
+        report
+            .mean_step_frequency_hz
+            .map_or(String::new(), |hz| format!(" at {hz:.2} steps/s")),
+        report.pdr_distance_m,
+        report.duration_s
+    )];
+    lines.push(format!("Step model: {}.", report.step_model.describe()));
+    lines.push(format!("Heading: {}.", report.heading_label));
+    if let Some(errors) = &report.position_error {
+        lines.push(format!(
+            "Position error at {} reference points: RMS {:.2} m ({:.2} % of {:.0} m), max {:.2} m; distance error {:+.1} %.",
+            errors.n_points,
+            errors.rms_m,
+            errors.rms_pct,
+            errors.distance_m,
+            errors.max_m,
+            errors.distance_error_pct
+        ));
+    }
+    if let Some(error) = &report.step_length_error_m {
+        lines.push(format!(
+            "Step length error: {:+.3} ± {:.3} m over {} steps.",
+            error.mean, error.std, error.n
+        ));
+    }
+    if let Some(error) = &report.heading_error_deg {
+        lines.push(format!(
+            "Heading error: {:+.2} ± {:.2}° over {} steps.",
+            error.mean, error.std, error.n
+        ));
+    }
+    lines.extend(report.notes.iter().cloned());
+    lines
+}
+
+/// The corrected data, one row per magnetometer sample used: time, the levelled field
+/// raw and corrected, the raw heading, each method's heading, the reference heading, and
+/// |B| raw and corrected. Empty cells where a value does not exist.
+pub fn corrected_csv(analysis: &CalibrationAnalysis) -> String {
+    let mut text = String::from(
+        "t_s,level_raw_x_ut,level_raw_y_ut,level_corrected_x_ut,level_corrected_y_ut,raw_heading_deg",
+    );
+    for (method, _) in &analysis.headings_deg {
+        let _ = write!(text, ",{}_heading_deg", method.key());
+    }
+    text.push_str(",ref_heading_deg,field_raw_ut,field_corrected_ut\n");
+    let cell = |value: Option<&f64>, decimals: usize| -> String {
+        value
+            .filter(|value| value.is_finite())
+            .map_or(String::new(), |value| format!("{value:.decimals$}"))
+    };
+    for (idx, t_s) in analysis.t_s.iter().enumerate() {
+        let raw = analysis.level_raw_ut.get(idx);
+        let corrected = analysis.level_corrected_ut.get(idx);
+        let _ = write!(
+            text,
+            "{t_s:.3},{},{},{},{},{}",
+            cell(raw.map(|v| &v.x), 3),
+            cell(raw.map(|v| &v.y), 3),
+            cell(corrected.map(|v| &v.x), 3),
+            cell(corrected.map(|v| &v.y), 3),
+            cell(analysis.raw_heading_deg.get(idx), 2)
+        );
+        for (_, headings) in &analysis.headings_deg {
+            let _ = write!(text, ",{}", cell(headings.get(idx), 2));
+        }
+        let reference = analysis.ref_heading_deg.get(idx).and_then(Option::as_ref);
+        let _ = writeln!(
+            text,
+            ",{},{},{}",
+            cell(reference, 2),
+            cell(analysis.field_raw_ut.get(idx), 3),
+            cell(analysis.field_corrected_ut.get(idx), 3)
+        );
+    }
+    text
+}
+
+/// `&`, `<`, `>`, `"` and `'` as entities, so that text from a log stays text.
+pub fn escape_html(text: &str) -> String {
+    let mut escaped = String::with_capacity(text.len());
+    for character in text.chars() {
+        match character {
+            '&' => escaped.push_str("&amp;"),
+            '<' => escaped.push_str("&lt;"),
+            '>' => escaped.push_str("&gt;"),
+            '"' => escaped.push_str("&quot;"),
+            '\'' => escaped.push_str("&#39;"),
+            other => escaped.push(other),
+        }
+    }
+    escaped
+}
+
+/// A figure drawn to an SVG string, or a sentence saying why it could not be.
+fn svg_figure(
+    size: (u32, u32),
+    draw: impl FnOnce(
+        &DrawingArea<SVGBackend<'_>, plotters::coord::Shift>,
+    ) -> Result<(), crate::plot::PlotError>,
+) -> String {
+    let mut svg = String::new();
+    let result = {
+        let area = SVGBackend::with_string(&mut svg, size).into_drawing_area();
+        let drawn = draw(&area);
+        drawn.and_then(|()| {
+            area.present().map_err(|error| crate::plot::PlotError {
+                plot: "report",
+                reason: format!("{error:?}"),
+            })
+        })
+    };
+    match result {
+        Ok(()) => svg,
+        Err(error) => format!("<p>{}</p>", escape_html(&error.to_string())),
+    }
+}
+
+fn list(items: &[String]) -> String {
+    let mut html = String::from("<ul>\n");
+    for item in items {
+        let _ = writeln!(html, "<li>{}</li>", escape_html(item));
+    }
+    html.push_str("</ul>\n");
+    html
+}
+
+/// A self-contained HTML page of the analysis: the context, the comparison table, the
+/// device calibration, the heading models, the dead reckoning, the notes and the
+/// figures (inline SVG). No script, no remote resource. `pdr` is the dead reckoning or
+/// the sentence saying why there is none.
+pub fn html_report(
+    calibration: &CalibrationAnalysis,
+    heading: Option<&HeadingAnalysis>,
+    pdr: Result<&PdrAnalysis, &str>,
+) -> String {
+    let report = &calibration.report;
+    let file_name = escape_html(&report.file_name);
+    let mut html = format!(
+        "<!doctype html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n\
+         <meta http-equiv=\"Content-Security-Policy\" content=\"default-src 'none'; style-src 'unsafe-inline'; img-src data:\">\n\
+         <title>compass-pdr report: {file_name}</title>\n<style>\n\
+         body {{ font-family: system-ui, sans-serif; max-width: 1500px; margin: 0 auto; padding: 1rem; color: #1d2430; }}\n\
+         table {{ border-collapse: collapse; }} th, td {{ padding: 0.2rem 0.7rem; border-bottom: 1px solid #dde2ea; text-align: right; }}\n\
+         th[scope=row] {{ text-align: left; }} svg {{ max-width: 100%; height: auto; }}\n\
+         </style>\n</head>\n<body>\n<h1>compass-pdr report: {file_name}</h1>\n\
+         <p>{} ({} magnetometer samples used of {}).</p>\n",
+        escape_html(report.format),
+        report.n_samples_used,
+        report.n_mag_samples
+    );
+    html.push_str("<h2>Context</h2>\n");
+    html.push_str(&list(&context_lines(report)));
+    if let Some(heading) = heading {
+        html.push_str(
+            "<h2>Heading error against the reference</h2>\n<table>\n<thead><tr><th scope=\"col\">method</th>\
+             <th scope=\"col\">train RMS</th><th scope=\"col\">check RMS</th><th scope=\"col\">check mean</th>\
+             <th scope=\"col\">check std</th><th scope=\"col\">check 95th pct |error|</th>\
+             <th scope=\"col\">check within ±5°</th></tr></thead>\n<tbody>\n",
+        );
+        let format = |value: Option<f64>, unit: &str| {
+            value.map_or("—".to_string(), |value| format!("{value:.2}{unit}"))
+        };
+        for row in &heading.report.rows {
+            let _ = write!(
+                html,
+                "<tr><th scope=\"row\">{}</th>",
+                escape_html(&row.label)
+            );
+            match &row.error {
+                Some(error) => {
+                    let _ = write!(html, "<td colspan=\"6\">{}</td>", escape_html(error));
+                }
+                None => {
+                    let (train, check) = (row.train, row.check);
+                    for cell in [
+                        format(train.map(|stats| stats.rms_deg), "°"),
+                        format(check.map(|stats| stats.rms_deg), "°"),
+                        format(check.map(|stats| stats.mean_deg), "°"),
+                        format(check.map(|stats| stats.std_deg), "°"),
+                        format(check.map(|stats| stats.p95_abs_deg), "°"),
+                        format(check.map(|stats| stats.within_5_deg_pct), " %"),
+                    ] {
+                        let _ = write!(html, "<td>{cell}</td>");
+                    }
+                }
+            }
+            html.push_str("</tr>\n");
+        }
+        html.push_str("</tbody>\n</table>\n");
+    }
+    html.push_str("<h2>Device calibration</h2>\n");
+    html.push_str(&list(&device_calibration_lines(calibration)));
+    html.push_str(&svg_figure((1500, 450), |area| {
+        draw_calibration_figure(area, calibration)
+    }));
+    if let Some(heading) = heading {
+        html.push_str("<h2>Heading error models</h2>\n");
+        html.push_str(&list(&deviation_model_lines(&heading.report)));
+        html.push_str(&svg_figure((1500, 450), |area| {
+            draw_deviation_figure(area, heading)
+        }));
+    }
+    html.push_str("<h2>Dead reckoning</h2>\n");
+    match pdr {
+        Ok(pdr) => {
+            html.push_str(&list(&pdr_summary_lines(pdr)));
+            html.push_str(&svg_figure((1500, 450), |area| draw_pdr_figure(area, pdr)));
+        }
+        Err(reason) => {
+            let _ = writeln!(html, "<p>{}</p>", escape_html(reason));
+        }
+    }
+    html.push_str("<h2>Notes</h2>\n");
+    html.push_str(&list(&report.notes));
+    let _ = writeln!(
+        html,
+        "<p>{} lines of the log were skipped or suspect; the page and <code>compass-pdr inspect</code> list them.</p>",
+        report.diagnostics.total()
+    );
+    html.push_str("</body>\n</html>\n");
+    html
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::analysis::analyse_file;
+    use crate::calibration::CalibrationOptions;
+    use crate::deviation::{compare, HeadingOptions};
+    use crate::sim::walk::{simulate, WalkConfig};
+
+    #[test]
+    fn escaping_keeps_markup_from_a_log_as_text() {
+        assert_eq!(
+            escape_html("<script>alert('x')</script> & \"q\""),
+            "&lt;script&gt;alert(&#39;x&#39;)&lt;/script&gt; &amp; &quot;q&quot;"
+        );
+    }
+
+    #[test]
+    fn the_csv_and_the_report_hold_the_analysis() {
+        let csv = crate::io::canonical_csv::write(&simulate(&WalkConfig::from_seed(3, 120.0)));
+        let analysis = analyse_file(
+            "<b>walk</b>.csv",
+            csv.as_bytes(),
+            &CalibrationOptions::default(),
+        )
+        .expect("a simulated walk calibrates");
+        let corrected = corrected_csv(&analysis);
+        let mut lines = corrected.lines();
+        let header = lines.next().expect("a header");
+        assert!(header.starts_with("t_s,level_raw_x_ut"), "{header}");
+        assert!(header.contains("ellipse_heading_deg"), "{header}");
+        let n_columns = header.split(',').count();
+        let rows: Vec<&str> = lines.collect();
+        assert_eq!(rows.len(), analysis.t_s.len());
+        assert!(rows.iter().all(|row| row.split(',').count() == n_columns));
+
+        let heading = compare(&analysis, &HeadingOptions::default());
+        let html = html_report(&analysis, Some(&heading), Err("no steps in this log"));
+        assert!(html.contains("compass-pdr report: &lt;b&gt;walk&lt;/b&gt;.csv"));
+        assert!(!html.contains("<b>walk"));
+        assert!(!html.contains("<script"));
+        assert!(html.matches("<svg").count() >= 2, "the figures are inline");
+        assert!(html.contains("<p>no steps in this log</p>"));
+        for row in &heading.report.rows {
+            assert!(html.contains(&escape_html(&row.label)), "{}", row.label);
+        }
+    }
+}

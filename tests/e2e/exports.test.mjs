@@ -1,0 +1,100 @@
+// End-to-end tests of the exports: every file the page offers is downloaded and read
+// back, and agrees with what the page shows.
+import { test } from 'node:test';
+import assert from 'node:assert/strict';
+import { readFileSync } from 'node:fs';
+import { join } from 'node:path';
+import { download, openPage, out, text, waitForState } from './common.mjs';
+
+/** The floats of a C initialiser, in order (`1.5f`, `-2e-3f`, `7`). */
+const cFloats = (source) => [...source.matchAll(/-?\d+(?:\.\d+)?(?:e-?\d+)?f?(?=[,\s}])/gi)].map((m) => parseFloat(m[0]));
+
+test('every export of the demo analysis downloads and reads back', async () => {
+  const { page, problems, close } = await openPage({ acceptDownloads: true });
+  await waitForState(page, 'ready', 'demo-walk.csv');
+  const pdr = JSON.parse(readFileSync(join(out, 'demo-walk-pdr.json'), 'utf8'));
+
+  // Calibration JSON: the device calibration the page lists.
+  const json = await download(page, '#export-calibration');
+  assert.equal(json.name, 'demo-walk-calibration.json');
+  const calibration = JSON.parse(json.bytes.toString('utf8'));
+  assert.equal(calibration.hard_iron_ut.length, 3);
+  assert.equal(calibration.soft_iron.flat().length, 9);
+  assert.ok(calibration.field_ut > 20 && calibration.field_ut < 70, `${calibration.field_ut}`);
+  const shown = (await text(page, 'calibration')).match(/Hard iron \((-?[\d.]+), (-?[\d.]+), (-?[\d.]+)\) µT/);
+  assert.ok(shown, 'the page lists the hard iron');
+  calibration.hard_iron_ut.forEach((ut, i) => assert.equal(ut.toFixed(2), shown[i + 1]));
+
+  // C snippet: the same numbers as C declarations.
+  const snippet = (await download(page, '#export-snippet')).bytes.toString('utf8');
+  assert.match(snippet, /float hard_iron\[3\] = \{/);
+  const hard = cFloats(snippet.match(/float hard_iron\[3\] = (\{[^}]*\})/)[1]);
+  const soft = cFloats(snippet.match(/float soft_iron\[3\]\[3\] = \{([\s\S]*?)\};/)[1]);
+  const field = parseFloat(snippet.match(/float mag_field = (-?[\d.e-]+)f?;/)[1]);
+  hard.forEach((value, i) => assert.ok(Math.abs(value - calibration.hard_iron_ut[i]) < 1e-5, `hard ${i}`));
+  soft.forEach((value, i) => assert.ok(Math.abs(value - calibration.soft_iron.flat()[i]) < 1e-6, `soft ${i}`));
+  assert.ok(Math.abs(field - calibration.field_ut) < 1e-4);
+
+  // Corrected data: one row per magnetometer sample used, every row as wide as the header.
+  const csv = (await download(page, '#export-csv')).bytes.toString('utf8').trimEnd().split('\n');
+  const header = csv[0].split(',');
+  assert.deepEqual(header.slice(0, 6), ['t_s', 'level_raw_x_ut', 'level_raw_y_ut', 'level_corrected_x_ut', 'level_corrected_y_ut', 'raw_heading_deg']);
+  assert.ok(header.includes('ellipse_heading_deg') && header.includes('ref_heading_deg'), header.join(','));
+  assert.equal(csv.length - 1, 9000);
+  assert.ok(csv.slice(1).every((row) => row.split(',').length === header.length));
+  const refColumn = header.indexOf('ref_heading_deg');
+  const ellipseColumn = header.indexOf('ellipse_heading_deg');
+  const errors = csv.slice(1).map((row) => row.split(',')).filter((cells) => cells[refColumn] !== '')
+    .map((cells) => ((Number(cells[ellipseColumn]) - Number(cells[refColumn]) + 540) % 360) - 180);
+  const rms = Math.sqrt(errors.reduce((sum, e) => sum + e * e, 0) / errors.length);
+  assert.ok(rms < 5, `the corrected headings follow the reference (RMS ${rms.toFixed(2)}°)`);
+
+  // The demo has no GNSS: its track has no latitude and longitude, and the buttons say why.
+  assert.equal(await page.isDisabled('#export-geojson'), true);
+  assert.match(await page.getAttribute('#export-geojson', 'title'), /no latitude and longitude/);
+
+  // The HTML report: self-contained, with the table, the figures and the PDR summary.
+  const report = await download(page, '#export-report');
+  assert.equal(report.name, 'demo-walk-report.html');
+  const reportPage = await page.context().newPage();
+  const requests = [];
+  reportPage.on('request', (request) => { if (!request.url().startsWith('data:')) requests.push(request.url()); });
+  await reportPage.setContent(report.bytes.toString('utf8'));
+  assert.match(await reportPage.title(), /compass-pdr report: demo-walk\.csv/);
+  assert.ok(await reportPage.$$eval('tbody tr', (rows) => rows.length) >= 8, 'the comparison table');
+  assert.ok(await reportPage.$$eval('svg', (svgs) => svgs.length) >= 3, 'the figures');
+  assert.match(await reportPage.textContent('body'), new RegExp(`${pdr.n_steps} steps in ${pdr.n_bouts} bouts`));
+  assert.deepEqual(requests, [], 'the report loads nothing');
+  await reportPage.screenshot({ path: join(out, 'report.png'), fullPage: false });
+  await reportPage.close();
+
+  // Any plot as PNG, at the canvas's size.
+  for (const id of ['plot-circle', 'plot-trajectory']) {
+    const png = await download(page, `#png-${id}`);
+    assert.equal(png.name, `${id}.png`);
+    assert.deepEqual([...png.bytes.subarray(0, 8)], [137, 80, 78, 71, 13, 10, 26, 10], 'a PNG signature');
+    const size = [png.bytes.readUInt32BE(16), png.bytes.readUInt32BE(20)];
+    assert.deepEqual(size, await page.$eval(`#${id}`, (canvas) => [canvas.width, canvas.height]));
+  }
+  // A walk with GNSS: its track as GeoJSON (RFC 7946 [lon, lat]) and GPX.
+  await page.setInputFiles('#file-input', join(out, 'pdr-walk.csv'));
+  await waitForState(page, 'ready', 'pdr-walk.csv');
+  const walkPdr = JSON.parse(readFileSync(join(out, 'pdr-walk-pdr.json'), 'utf8'));
+  const geojson = JSON.parse((await download(page, '#export-geojson')).bytes.toString('utf8'));
+  assert.equal(geojson.type, 'FeatureCollection');
+  const line = geojson.features.find((feature) => feature.geometry.type === 'LineString');
+  assert.ok(line, 'a LineString');
+  const [lon, lat] = line.geometry.coordinates[0];
+  assert.ok(Math.abs(lat) <= 90 && Math.abs(lon) <= 180);
+  const gpxText = (await download(page, '#export-gpx')).bytes.toString('utf8');
+  const gpx = await page.evaluate((source) => {
+    const doc = new DOMParser().parseFromString(source, 'application/xml');
+    return { error: doc.querySelector('parsererror')?.textContent ?? null, points: doc.getElementsByTagName('trkpt').length };
+  }, gpxText);
+  assert.equal(gpx.error, null);
+  assert.equal(gpx.points, line.geometry.coordinates.length);
+  assert.ok(gpx.points >= walkPdr.n_steps, `${gpx.points} track points for ${walkPdr.n_steps} steps`);
+
+  assert.deepEqual(problems, []);
+  await close();
+});
