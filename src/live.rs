@@ -296,11 +296,16 @@ impl LiveSession {
     /// device's echoes can confirm it; `None` before the first fit.
     pub fn packet_for_device(&mut self) -> Option<[u8; MOTIONCAL_PACKET_LEN]> {
         let calibration = self.quality.as_ref()?.calibration;
+        Some(self.packet_for(calibration))
+    }
+
+    /// MotionCal's packet for any calibration (a saved one), remembered as sent.
+    pub fn packet_for(&mut self, calibration: FieldCalibration) -> [u8; MOTIONCAL_PACKET_LEN] {
         self.sent = Some(Sent {
             calibration,
             n_echoes_before: self.reader.echoes().len(),
         });
-        Some(motioncal_packet(&calibration))
+        motioncal_packet(&calibration)
     }
 
     /// Whether the device echoed back what was sent: the first `Cal1:` and the first

@@ -27,7 +27,11 @@ use web_sys::{
 use super::canvas;
 use super::exports::{calibration_json, download_bytes};
 use super::page::describe_js_error;
-use crate::calib::export::{c_snippet, calibration_export};
+use super::storage::{
+    self, RecentCalibration, Settings, CALIBRATIONS_KEY, MAX_RECENT_CALIBRATIONS, SETTINGS_KEY,
+};
+use crate::calib::export::{c_snippet, calibration_export, CalibrationExport};
+use crate::calib::model::FieldCalibration;
 use crate::calib::wmm::{date_of_unix_s, expected_field};
 use crate::live::{Confirmation, LiveSession, MIN_FIT_SAMPLES};
 
@@ -69,6 +73,10 @@ pub struct LivePanel {
     ticker: RefCell<Option<Ticker>>,
     /// Why the last refit gave no fit, for the status line.
     fit_message: RefCell<Option<String>>,
+    /// The recent calibrations (newest first), as stored.
+    recent: RefCell<Vec<RecentCalibration>>,
+    import: HtmlInputElement,
+    recent_list: Element,
 }
 
 impl LivePanel {
@@ -112,11 +120,16 @@ impl LivePanel {
             dirty: Cell::new(false),
             ticker: RefCell::new(None),
             fit_message: RefCell::new(None),
+            recent: RefCell::new(Vec::new()),
+            import: cast(typed("live-import")?, "live-import")?,
+            recent_list: element("live-recent")?,
         }))
     }
 
     /// Wires the buttons, or says that this browser has no Web Serial.
     pub fn start(self: Rc<Self>) {
+        self.restore();
+        self.wire_storage();
         self.update_buttons();
         self.draw();
         let Some(_) = serial() else {
@@ -145,7 +158,7 @@ impl LivePanel {
         on(&self.disconnect, |panel| panel.stop_reading());
         on(&self.send, |panel| {
             let panel = Rc::clone(panel);
-            spawn_local(async move { panel.send_to_device().await });
+            spawn_local(async move { panel.send_to_device(None).await });
         });
         on(&self.download, |panel| panel.download_recording());
         on(&self.download_calibration, |panel| {
@@ -160,6 +173,226 @@ impl LivePanel {
                 panel.refit_and_draw();
             })
             .forget();
+        }
+    }
+
+    /// The settings and recent calibrations saved by an earlier visit.
+    fn restore(&self) {
+        let settings: Settings = storage::load(SETTINGS_KEY, "settings").unwrap_or_default();
+        if let Some(baud_rate) = settings.baud_rate {
+            self.baud.set_value(&baud_rate.to_string());
+        }
+        for (input, value) in [(&self.lat, settings.lat_deg), (&self.lon, settings.lon_deg)] {
+            if let Some(value) = value.filter(|value| value.is_finite()) {
+                input.set_value(&value.to_string());
+            }
+        }
+        let recent: Vec<RecentCalibration> =
+            storage::load(CALIBRATIONS_KEY, "recent calibrations").unwrap_or_default();
+        // Entries whose numbers do not make a calibration are dropped like corrupt ones.
+        *self.recent.borrow_mut() = recent
+            .into_iter()
+            .filter(|entry| entry.calibration.to_calibration().is_ok())
+            .take(MAX_RECENT_CALIBRATIONS)
+            .collect();
+        self.render_recent();
+    }
+
+    /// Saves the settings when they change; wires the recent list and the import.
+    fn wire_storage(self: &Rc<Self>) {
+        for element in [
+            self.baud.clone().unchecked_into::<Element>(),
+            self.lat.clone().unchecked_into::<Element>(),
+            self.lon.clone().unchecked_into::<Element>(),
+        ] {
+            let panel = Rc::clone(self);
+            EventListener::new(&element, "change", move |_| panel.save_settings()).forget();
+        }
+        let panel = Rc::clone(self);
+        EventListener::new(&self.recent_list, "click", move |event| {
+            let Some(target) = event
+                .target()
+                .and_then(|target| target.dyn_into::<Element>().ok())
+            else {
+                return;
+            };
+            let action = target.get_attribute("data-action");
+            let index = target
+                .get_attribute("data-index")
+                .and_then(|index| index.parse::<usize>().ok());
+            let (Some(action), Some(index)) = (action, index) else {
+                return;
+            };
+            let entry = panel.recent.borrow().get(index).cloned();
+            let Some(entry) = entry else {
+                return;
+            };
+            let Ok(calibration) = entry.calibration.to_calibration() else {
+                return;
+            };
+            match action.as_str() {
+                "send" => {
+                    let panel = Rc::clone(&panel);
+                    spawn_local(async move { panel.send_to_device(Some(calibration)).await });
+                }
+                "download" => {
+                    if let Ok(text) = calibration_json(&entry.calibration) {
+                        download_bytes(
+                            &panel.document,
+                            "compass-pdr-calibration.json",
+                            text.as_bytes(),
+                            "application/json",
+                        );
+                    }
+                }
+                _ => {}
+            }
+        })
+        .forget();
+        let panel = Rc::clone(self);
+        EventListener::new(&self.import, "change", move |_| {
+            let Some(file) = panel.import.files().and_then(|files| files.get(0)) else {
+                return;
+            };
+            panel.import.set_value("");
+            let panel = Rc::clone(&panel);
+            spawn_local(async move { panel.import_calibration(file).await });
+        })
+        .forget();
+    }
+
+    fn save_settings(&self) {
+        let number =
+            |input: &HtmlInputElement| Some(input.value_as_number()).filter(|v| v.is_finite());
+        let settings = Settings {
+            baud_rate: self.baud.value().parse().ok(),
+            lat_deg: number(&self.lat),
+            lon_deg: number(&self.lon),
+        };
+        storage::save(SETTINGS_KEY, &settings);
+    }
+
+    /// Keeps the latest fit among the recent calibrations (once).
+    fn keep_latest_fit(&self) {
+        let calibration = self
+            .session
+            .borrow()
+            .quality()
+            .map(|quality| quality.calibration);
+        if let Some(calibration) = calibration {
+            self.keep(RecentCalibration {
+                source: "live session".to_string(),
+                saved_at: String::from(js_sys::Date::new_0().to_iso_string()),
+                calibration: calibration_export(&calibration),
+            });
+        }
+    }
+
+    fn keep(&self, entry: RecentCalibration) {
+        {
+            let mut recent = self.recent.borrow_mut();
+            if recent
+                .first()
+                .is_some_and(|newest| newest.calibration == entry.calibration)
+            {
+                return;
+            }
+            recent.insert(0, entry);
+            recent.truncate(MAX_RECENT_CALIBRATIONS);
+            storage::save(CALIBRATIONS_KEY, &*recent);
+        }
+        self.render_recent();
+    }
+
+    /// Reads a calibration JSON the user chose and keeps it among the recent ones.
+    async fn import_calibration(self: Rc<Self>, file: web_sys::File) {
+        let name = file.name();
+        let text = match gloo_file::futures::read_as_text(&gloo::file::Blob::from(file)).await {
+            Ok(text) => text,
+            Err(error) => {
+                self.set_text(
+                    "live-import-status",
+                    &format!("Could not read {name}: {error}."),
+                );
+                return;
+            }
+        };
+        let parsed = js_sys::JSON::parse(&text)
+            .map_err(|_| "it is not JSON".to_string())
+            .and_then(|value| {
+                serde_wasm_bindgen::from_value::<CalibrationExport>(value)
+                    .map_err(|error| error.to_string())
+            })
+            .and_then(|export| {
+                export
+                    .to_calibration()
+                    .map(|_| export)
+                    .map_err(|error| error.to_string())
+            });
+        match parsed {
+            Ok(export) => {
+                self.keep(RecentCalibration {
+                    source: name.clone(),
+                    saved_at: String::from(js_sys::Date::new_0().to_iso_string()),
+                    calibration: export,
+                });
+                self.set_text(
+                    "live-import-status",
+                    &format!("Loaded the calibration in {name}: it is first in the list below."),
+                );
+            }
+            Err(reason) => self.set_text(
+                "live-import-status",
+                &format!(
+                    "{name} is not a calibration compass-pdr can read: {reason}. Choose a file saved with \
+                     \"Download calibration (JSON)\"."
+                ),
+            ),
+        }
+    }
+
+    fn render_recent(&self) {
+        let list = &self.recent_list;
+        list.set_text_content(None);
+        let recent = self.recent.borrow();
+        if recent.is_empty() {
+            if let Ok(item) = self.document.create_element("li") {
+                item.set_text_content(Some(
+                    "None yet: a calibration you send or download is kept here.",
+                ));
+                let _ = list.append_child(&item);
+            }
+            return;
+        }
+        for (index, entry) in recent.iter().enumerate() {
+            let Ok(item) = self.document.create_element("li") else {
+                continue;
+            };
+            let hard = entry.calibration.hard_iron_ut;
+            let when = entry
+                .saved_at
+                .get(..16)
+                .unwrap_or(&entry.saved_at)
+                .replace('T', " ");
+            let description = format!(
+                "{when} UTC, {}: hard iron ({:.2}, {:.2}, {:.2}) µT, field {:.2} µT ",
+                entry.source, hard[0], hard[1], hard[2], entry.calibration.field_ut
+            );
+            if let Ok(span) = self.document.create_element("span") {
+                span.set_text_content(Some(&description));
+                let _ = item.append_child(&span);
+            }
+            for (action, label) in [("send", "Send to device"), ("download", "Download JSON")] {
+                if let Ok(button) = self.document.create_element("button") {
+                    let _ = button.set_attribute("type", "button");
+                    let _ = button.set_attribute("data-action", action);
+                    let _ = button.set_attribute("data-index", &index.to_string());
+                    let _ = button.set_attribute("id", &format!("recent-{action}-{index}"));
+                    button.set_text_content(Some(label));
+                    let _ = item.append_child(&button);
+                }
+            }
+            let _ = list.append_child(&item);
         }
     }
 
@@ -278,7 +511,9 @@ impl LivePanel {
         }
     }
 
-    async fn send_to_device(self: Rc<Self>) {
+    /// Sends the latest fit (`saved` `None`) or a saved calibration to the board, and
+    /// keeps the latest fit among the recent calibrations.
+    async fn send_to_device(self: Rc<Self>, saved: Option<FieldCalibration>) {
         let port = self.port.borrow().clone();
         let Some(port) = port else {
             self.set_text(
@@ -287,7 +522,15 @@ impl LivePanel {
             );
             return;
         };
-        let Some(packet) = self.session.borrow_mut().packet_for_device() else {
+        let packet = match saved {
+            Some(calibration) => Some(self.session.borrow_mut().packet_for(calibration)),
+            None => {
+                let packet = self.session.borrow_mut().packet_for_device();
+                self.keep_latest_fit();
+                packet
+            }
+        };
+        let Some(packet) = packet else {
             self.set_text(
                 "live-confirmation",
                 "No calibration yet: keep turning the board.",
@@ -333,7 +576,10 @@ impl LivePanel {
         let Some(quality) = session.quality() else {
             return;
         };
-        match calibration_json(&calibration_export(&quality.calibration)) {
+        let export = calibration_export(&quality.calibration);
+        drop(session);
+        self.keep_latest_fit();
+        match calibration_json(&export) {
             Ok(text) => download_bytes(
                 &self.document,
                 "compass-pdr-calibration.json",

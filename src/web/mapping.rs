@@ -3,9 +3,8 @@
 //! When a dropped file's header names no column this tool knows, the page shows the
 //! columns with their first values and asks what each one is (the choices are the
 //! core's `MAPPING_TARGETS`). The answer is remembered under the file's header, so the
-//! next file with the same columns is read without asking. A stored entry that cannot
-//! be read (corrupt, or of another version) is ignored with a notice in the console,
-//! never a broken page.
+//! next file with the same columns is read without asking (see [`super::storage`] for
+//! what happens to an entry that cannot be read).
 
 use std::collections::BTreeMap;
 use std::rc::Rc;
@@ -15,51 +14,20 @@ use wasm_bindgen::JsCast;
 use web_sys::{HtmlDialogElement, HtmlSelectElement};
 
 use super::page::Page;
+use super::storage;
 use crate::io::delimited::{suggested_target, ColumnMapping, Preview, MAPPING_TARGETS};
 
-/// The storage key, with the schema version in it.
-const STORAGE_KEY: &str = "compass-pdr.column-mappings.v1";
 const DIALOG_ID: &str = "mapping-dialog";
 
 /// Header signature → mapping.
 type Remembered = BTreeMap<String, ColumnMapping>;
 
 fn load() -> Remembered {
-    let Some(storage) = web_sys::window().and_then(|window| window.local_storage().ok().flatten())
-    else {
-        return Remembered::new();
-    };
-    let Ok(Some(text)) = storage.get_item(STORAGE_KEY) else {
-        return Remembered::new();
-    };
-    match js_sys::JSON::parse(&text)
-        .ok()
-        .and_then(|value| serde_wasm_bindgen::from_value::<Remembered>(value).ok())
-    {
-        Some(remembered) => remembered,
-        None => {
-            web_sys::console::warn_1(
-                &"compass-pdr: the saved column mappings could not be read and were ignored".into(),
-            );
-            Remembered::new()
-        }
-    }
+    storage::load(storage::MAPPINGS_KEY, "column mappings").unwrap_or_default()
 }
 
 fn save(remembered: &Remembered) {
-    let Some(storage) = web_sys::window().and_then(|window| window.local_storage().ok().flatten())
-    else {
-        return;
-    };
-    let serializer = serde_wasm_bindgen::Serializer::json_compatible();
-    let text = serde::Serialize::serialize(remembered, &serializer)
-        .ok()
-        .and_then(|value| js_sys::JSON::stringify(&value).ok())
-        .and_then(|text| text.as_string());
-    if let Some(text) = text {
-        // A full or disabled storage only means the mapping is asked for again.
-        let _ = storage.set_item(STORAGE_KEY, &text);
-    }
+    storage::save(storage::MAPPINGS_KEY, remembered);
 }
 
 /// The mapping remembered for a header, if any.

@@ -12,6 +12,7 @@ mod mapping;
 mod nn_bench;
 mod page;
 mod pdr_bench;
+mod storage;
 
 #[cfg(test)]
 mod tests;

@@ -270,3 +270,63 @@ test('a browser without Web Serial says so, and the rest of the page works', asy
   assert.deepEqual(problems, []);
   await close();
 });
+
+test('settings and recent calibrations are restored after a reload; a corrupt entry is set aside with a notice', async () => {
+  const { page, problems, close } = await openPage({
+    initScript: installFakeSerial,
+    initArg: { board: { ...BOARD, sweepLines: 3000 }, linesPerS: 1000, totalLines: 3000 },
+    acceptDownloads: true,
+  });
+  await page.waitForSelector('#live[data-live-state="idle"]');
+  assert.match(await text(page, 'live-recent'), /None yet/);
+  await page.selectOption('#live-baud', '57600');
+  await page.fill('#live-lat', '48.14');
+  await page.fill('#live-lon', '11.58');
+  await page.press('#live-lon', 'Tab');
+  await page.click('#live-connect');
+  await page.waitForFunction(() => window.fakeSerial.finished, null, { timeout: 20_000 });
+  await page.waitForSelector('#live[data-good-enough="yes"]', { timeout: 5_000 });
+  assert.deepEqual(await page.evaluate(() => window.fakeSerial.openedWith), [{ baudRate: 57600 }]);
+  const { bytes } = await download(page, '#live-download-calibration');
+  const fitted = JSON.parse(bytes.toString('utf8'));
+  await page.click('#live-disconnect');
+  await page.waitForSelector('#live[data-live-state="disconnected"]');
+  assert.match(await text(page, 'live-recent'), /live session: hard iron \(12\.\d\d, -7\.\d\d, 30\.\d\d\) µT/);
+
+  // A calibration saved earlier is loaded from its file.
+  const saved = { hard_iron_ut: [1.5, -2.25, 3], soft_iron: [[1, 0, 0], [0, 1, 0], [0, 0, 1]], field_ut: 50 };
+  await page.setInputFiles('#live-import', { name: 'bench-board.json', mimeType: 'application/json', buffer: Buffer.from(JSON.stringify(saved)) });
+  await page.waitForFunction(() => document.getElementById('live-import-status').textContent.startsWith('Loaded'));
+  const listed = await page.$$eval('#live-recent li', (items) => items.map((item) => item.textContent));
+  assert.equal(listed.length, 2);
+  assert.match(listed[0], /bench-board\.json: hard iron \(1\.50, -2\.25, 3\.00\) µT, field 50\.00 µT/);
+  // One that is not a calibration is refused with the reason.
+  await page.setInputFiles('#live-import', { name: 'notes.json', mimeType: 'application/json', buffer: Buffer.from('{"hard_iron_ut": [1, 2]}') });
+  await page.waitForFunction(() => document.getElementById('live-import-status').textContent.startsWith('notes.json'));
+  assert.match(await text(page, 'live-import-status'), /notes\.json is not a calibration compass-pdr can read/);
+
+  await page.reload();
+  await page.waitForSelector('#live[data-live-state="idle"]');
+  assert.equal(await page.$eval('#live-baud', (select) => select.value), '57600');
+  assert.equal(await page.inputValue('#live-lat'), '48.14');
+  assert.equal(await page.inputValue('#live-lon'), '11.58');
+  assert.deepEqual(await page.$$eval('#live-recent li', (items) => items.map((item) => item.textContent)), listed);
+  // The kept calibration downloads again as it was.
+  const again = JSON.parse((await download(page, '#recent-download-1')).bytes.toString('utf8'));
+  assert.deepEqual(again, fitted);
+  assert.equal(await text(page, 'storage-notice'), '');
+  await page.screenshot({ path: join(out, 'restored.png'), fullPage: false });
+
+  // A corrupt entry: set aside with a notice, and the page works.
+  await page.evaluate(() => localStorage.setItem('compass-pdr.calibrations.v1', '{"not": "a list"'));
+  await page.reload();
+  await page.waitForSelector('#live[data-live-state="idle"]');
+  assert.match(await text(page, 'storage-notice'), /The saved recent calibrations could not be read \(it is not JSON\) and were set aside/);
+  assert.match(await text(page, 'live-recent'), /None yet/);
+  assert.equal(await page.$eval('#live-baud', (select) => select.value), '57600', 'the settings are still read');
+  await page.waitForSelector('body[data-state="ready"]');
+  assert.equal(await page.evaluate(() => localStorage.getItem('compass-pdr.calibrations.v1')), null);
+  // Problems logged are the notices' warnings only.
+  assert.deepEqual(problems, []);
+  await close();
+});
