@@ -157,6 +157,26 @@ pub fn pdr_summary_lines(analysis: &PdrAnalysis) -> Vec<String> {
             errors.distance_error_pct
         ));
     }
+    let fixes = &report.fixes;
+    if fixes.used + fixes.used_after_reset + fixes.in_outage + fixes.poor_accuracy + fixes.rejected
+        > 0
+    {
+        lines.push(format!(
+            "GNSS fixes: {} used, {} after a reset, {} in outages, {} too inaccurate, {} rejected by the gate.",
+            fixes.used, fixes.used_after_reset, fixes.in_outage, fixes.poor_accuracy, fixes.rejected
+        ));
+    }
+    for errors in &report.outage_position_errors {
+        lines.push(format!(
+            "In the outage {:.0}-{:.0} s: RMS {:.2} m ({:.2} % of {:.0} m), max {:.2} m.",
+            errors.start_s,
+            errors.end_s,
+            errors.rms_m,
+            errors.rms_pct,
+            errors.distance_m,
+            errors.max_m
+        ));
+    }
     if let Some(error) = &report.step_length_error_m {
         lines.push(format!(
             "Step length error: {:+.3} ± {:.3} m over {} steps.",

@@ -29,14 +29,30 @@ impl Outage {
         (self.start_s..=self.end_s).contains(&t_s)
     }
 
-    /// Parses `START:END` in seconds.
+    /// Parses `START:END` (or `START-END`) in seconds.
     pub fn parse(text: &str) -> Option<Outage> {
-        let (start, end) = text.split_once(':')?;
+        let text = text.trim();
+        let (start, end) = text.split_once(':').or_else(|| text.split_once('-'))?;
         let start_s: f64 = start.trim().parse().ok()?;
         let end_s: f64 = end.trim().parse().ok()?;
         (start_s.is_finite() && end_s.is_finite() && end_s > start_s)
             .then_some(Outage { start_s, end_s })
     }
+}
+
+/// Outages written as a list, `START:END` or `START-END` in seconds, separated by commas
+/// or semicolons (`240:840, 900-960`); an empty text is no outage. The error names the
+/// item that could not be read.
+pub fn parse_outages(text: &str) -> Result<Vec<Outage>, String> {
+    text.split([',', ';'])
+        .map(str::trim)
+        .filter(|item| !item.is_empty())
+        .map(|item| {
+            Outage::parse(item).ok_or_else(|| {
+                format!("\"{item}\" is not an outage: write START-END in seconds of log time, START before END, e.g. 240-840")
+            })
+        })
+        .collect()
 }
 
 /// Which fixes the filter takes.
@@ -242,6 +258,19 @@ pub fn fuse(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn outage_lists_are_read_with_either_separator() {
+        let outages = parse_outages(" 240:840, 900-960;1000 : 1010 ,").expect("three outages");
+        let pairs: Vec<(f64, f64)> = outages.iter().map(|o| (o.start_s, o.end_s)).collect();
+        assert_eq!(
+            pairs,
+            vec![(240.0, 840.0), (900.0, 960.0), (1000.0, 1010.0)]
+        );
+        assert_eq!(parse_outages("  "), Ok(Vec::new()));
+        let error = parse_outages("240-840, 9-3").expect_err("end before start");
+        assert!(error.starts_with("\"9-3\" is not an outage"), "{error}");
+    }
 
     fn walk_north(n: usize) -> Vec<StepInput> {
         (0..n)

@@ -10,6 +10,7 @@ pub mod field_magnitude;
 pub mod heading_error;
 pub mod live;
 pub mod pdr;
+pub mod timeline;
 
 use plotters::coord::types::RangedCoordf64;
 use plotters::coord::Shift;

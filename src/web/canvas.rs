@@ -107,6 +107,16 @@ pub fn draw_coverage(
     })
 }
 
+/// The controls' timeline.
+pub fn draw_timeline(
+    canvas: &HtmlCanvasElement,
+    timeline: &crate::plot::timeline::Timeline,
+) -> Result<(), String> {
+    draw_with(canvas, |area| {
+        crate::plot::timeline::draw_timeline(area, timeline)
+    })
+}
+
 /// The live panel's heading dial.
 pub fn draw_dial(canvas: &HtmlCanvasElement, heading_rad: Option<f64>) -> Result<(), String> {
     draw_with(canvas, |area| {

@@ -6,6 +6,7 @@
 //! same analysis for scripts, returning the summary as a plain object.
 
 mod canvas;
+mod controls;
 mod exports;
 mod live;
 mod mapping;
@@ -33,6 +34,7 @@ pub fn run_page() -> Result<(), JsError> {
     let live =
         live::LivePanel::from_document(&page.document).map_err(|message| JsError::new(&message))?;
     exports::wire(&page);
+    controls::wire(&page);
     page.start();
     live.start();
     Ok(())

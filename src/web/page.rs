@@ -13,16 +13,18 @@ use wasm_bindgen_futures::{spawn_local, JsFuture};
 use web_sys::{Document, DragEvent, Element, HtmlCanvasElement, HtmlElement, HtmlInputElement};
 
 use super::canvas::{self, HeadingPlot, PdrPlot, Plot};
+use super::controls::{self, Stage};
 use super::mapping;
 use crate::analysis::AnalysisError;
-use crate::calibration::{calibrate, CalibrationAnalysis, CalibrationOptions, CalibrationReport};
+use crate::calibration::{calibrate, CalibrationAnalysis, CalibrationReport};
 use crate::deviation::HeadingAnalysis;
 use crate::deviation::{compare, HeadingOptions, HeadingReport};
 use crate::io::delimited::{preview, ColumnMapping, Preview};
 use crate::io::import::import_files;
 use crate::io::import::{header_signature, merge, ChunkedImport, FileImport};
 use crate::io::{ImportError, ImportReport};
-use crate::pdr::{self, PdrAnalysis, PdrError, PdrOptions};
+use crate::pdr::{self, PdrAnalysis, PdrError};
+use crate::plot::timeline::Timeline;
 use crate::report;
 
 /// The ids of the elements the page must have (see `www/index.html`).
@@ -86,6 +88,12 @@ pub struct Page {
     position_error_canvas: HtmlCanvasElement,
     /// The latest analysis, for the exports; `None` before the first and after an error.
     results: std::cell::RefCell<Option<Rc<Results>>>,
+    /// The latest log as imported, for re-running the analysis when a control changes.
+    import: std::cell::RefCell<Option<Rc<ImportReport>>>,
+    /// How many times the calibration and the dead reckoning ran (on the body as
+    /// `data-calibration-runs` and `data-pdr-runs`, for the tests).
+    n_calibration_runs: std::cell::Cell<u32>,
+    n_pdr_runs: std::cell::Cell<u32>,
 }
 
 /// One log's analysis: what the exports write.
@@ -131,6 +139,9 @@ impl Page {
             body,
             document,
             results: std::cell::RefCell::new(None),
+            import: std::cell::RefCell::new(None),
+            n_calibration_runs: std::cell::Cell::new(0),
+            n_pdr_runs: std::cell::Cell::new(0),
         }))
     }
 
@@ -258,9 +269,7 @@ impl Page {
             page.hide_progress();
             page.set_state("loading", &format!("Analysing {}…", names.join(", ")));
             let merged = merge(results).map_err(AnalysisError::from);
-            let for_pdr = merged.as_ref().ok().and_then(copy_for_pdr);
-            let result =
-                merged.and_then(|report| calibrate(report, &CalibrationOptions::default()));
+            let (result, for_pdr) = page.calibrate_import(merged);
             // A single delimited file whose columns were not understood: ask the user.
             let unreadable_header = matches!(
                 result,
@@ -395,6 +404,7 @@ impl Page {
         let results = Rc::new(results);
         super::exports::enable(&self.document, Some(&results));
         *self.results.borrow_mut() = Some(results);
+        self.show_timeline();
     }
 
     /// The latest analysis, if there is one.
@@ -421,9 +431,106 @@ impl Page {
 
     async fn analyse_and_show(&self, files: &[(&str, &[u8])]) {
         let imported = import_files(files).map_err(AnalysisError::from);
-        let for_pdr = imported.as_ref().ok().and_then(copy_for_pdr);
-        let result = imported.and_then(|report| calibrate(report, &CalibrationOptions::default()));
+        let (result, for_pdr) = self.calibrate_import(imported);
         self.show_result(result, for_pdr).await;
+    }
+
+    /// Keeps the import for re-runs and calibrates it with the controls' options; also
+    /// returns the copy the dead reckoning takes (when the log has an accelerometer).
+    fn calibrate_import(
+        &self,
+        imported: Result<ImportReport, AnalysisError>,
+    ) -> (
+        Result<CalibrationAnalysis, AnalysisError>,
+        Option<ImportReport>,
+    ) {
+        let kept = imported.as_ref().ok().map(|report| Rc::new(report.clone()));
+        let for_pdr = kept.as_deref().and_then(copy_for_pdr);
+        *self.import.borrow_mut() = kept;
+        let options = controls::read(&self.document).calibration_options();
+        self.count_run(&self.n_calibration_runs, "data-calibration-runs");
+        let result = imported.and_then(|report| calibrate(report, &options));
+        (result, for_pdr)
+    }
+
+    fn count_run(&self, counter: &std::cell::Cell<u32>, attribute: &str) {
+        counter.set(counter.get() + 1);
+        self.body
+            .set_attribute(attribute, &counter.get().to_string())
+            .ok();
+    }
+
+    /// Re-runs `stage` (and what follows it) on the kept import with the controls'
+    /// current values.
+    pub fn rerun(self: &Rc<Self>, stage: Stage) {
+        let Some(import) = self.import.borrow().clone() else {
+            return;
+        };
+        let page = Rc::clone(self);
+        spawn_local(async move {
+            let file_name = import.file_name.clone();
+            page.set_state("loading", &format!("Analysing {file_name} again…"));
+            yield_to_browser().await;
+            let previous = page.results.borrow_mut().take();
+            match (stage, previous.map(Rc::try_unwrap)) {
+                (Stage::DeadReckoning, Some(Ok(results))) => {
+                    let (pdr_summary, pdr) = page.show_dead_reckoning(copy_for_pdr(&import));
+                    let summary = format!(
+                        "Dead-reckoned {file_name} again with the new settings.{pdr_summary}"
+                    );
+                    page.keep_results(Results { pdr, ..results });
+                    page.set_state("ready", &summary);
+                }
+                _ => {
+                    let options = controls::read(&page.document).calibration_options();
+                    page.count_run(&page.n_calibration_runs, "data-calibration-runs");
+                    let result = calibrate((*import).clone(), &options);
+                    page.show_result(result, copy_for_pdr(&import)).await;
+                }
+            }
+        });
+    }
+
+    /// The timeline of the kept import, with the controls' split and outages.
+    pub fn timeline(&self) -> Option<Timeline> {
+        let import = self.import.borrow().clone()?;
+        let recording = &import.recording;
+        let times = &recording.mag_in_body_ut.t_s;
+        let (start_s, end_s) = (*times.first()?, *times.last()?);
+        let controls = controls::read(&self.document);
+        let train_until_s = self
+            .results
+            .borrow()
+            .as_ref()
+            .and_then(|results| results.calibration.report.train_until_s)
+            .or(controls.train_until_s);
+        Some(Timeline {
+            start_s,
+            end_s: end_s.max(start_s + 1.0),
+            train_until_s,
+            outages: controls.outages,
+            gnss_times_s: recording.gnss.t_s.clone(),
+        })
+    }
+
+    fn show_timeline(&self) {
+        let Some(canvas) = self
+            .document
+            .get_element_by_id(controls::TIMELINE_ID)
+            .and_then(|element| element.dyn_into::<HtmlCanvasElement>().ok())
+        else {
+            return;
+        };
+        let drawn = match self.timeline() {
+            Some(timeline) => canvas::draw_timeline(&canvas, &timeline),
+            None => canvas::draw_message(&canvas, "No log yet."),
+        };
+        if let Err(message) = drawn {
+            let _ = canvas::draw_message(
+                &canvas,
+                &format!("The timeline could not be drawn: {message}"),
+            );
+        }
     }
 
     /// The whole analysis at once (the browser tests use it).
@@ -517,10 +624,12 @@ impl Page {
         &self,
         report: Option<ImportReport>,
     ) -> (String, Result<PdrAnalysis, String>) {
+        self.count_run(&self.n_pdr_runs, "data-pdr-runs");
+        let options = controls::read(&self.document).pdr_options();
         let result = report
             .ok_or_else(|| "the log has no accelerometer, so no steps can be detected".to_string())
             .and_then(|report| {
-                pdr::run(report, &PdrOptions::default()).map_err(|error| match error {
+                pdr::run(report, &options).map_err(|error| match error {
                     PdrError::Analysis(error) => error.to_string(),
                     other => other.to_string(),
                 })
