@@ -1,7 +1,11 @@
 //! Drawing the core's plots on canvas elements.
 
 use plotters::prelude::*;
+use plotters_backend::{
+    BackendColor, BackendCoord, BackendStyle, BackendTextStyle, DrawingErrorKind,
+};
 use plotters_canvas::CanvasBackend;
+use wasm_bindgen::JsCast;
 use web_sys::HtmlCanvasElement;
 
 use crate::calibration::CalibrationAnalysis;
@@ -36,11 +40,9 @@ pub fn draw(
 /// Clears the canvas to white, draws one plot on it, and presents it.
 fn draw_with(
     canvas: &HtmlCanvasElement,
-    plot: impl FnOnce(&DrawingArea<CanvasBackend, plotters::coord::Shift>) -> Result<(), PlotError>,
+    plot: impl FnOnce(&DrawingArea<HiDpi, plotters::coord::Shift>) -> Result<(), PlotError>,
 ) -> Result<(), String> {
-    let backend =
-        CanvasBackend::with_canvas_object(canvas.clone()).ok_or("the canvas has no 2D context")?;
-    let area = backend.into_drawing_area();
+    let area = HiDpi::of(canvas)?.into_drawing_area();
     area.fill(&WHITE).map_err(|error| format!("{error:?}"))?;
     plot(&area).map_err(|error| error.to_string())?;
     area.present().map_err(|error| format!("{error:?}"))
@@ -127,9 +129,7 @@ pub fn draw_dial(canvas: &HtmlCanvasElement, heading_rad: Option<f64>) -> Result
 /// Replaces a plot by a message, so that a failed analysis never leaves a blank or
 /// stale canvas.
 pub fn draw_message(canvas: &HtmlCanvasElement, message: &str) -> Result<(), String> {
-    let backend =
-        CanvasBackend::with_canvas_object(canvas.clone()).ok_or("the canvas has no 2D context")?;
-    let area = backend.into_drawing_area();
+    let area = HiDpi::of(canvas)?.into_drawing_area();
     area.fill(&RGBColor(250, 246, 240))
         .map_err(|error| format!("{error:?}"))?;
     let (width_px, height_px) = area.dim_in_pixel();
@@ -168,4 +168,149 @@ fn wrap_words(text: &str, max_chars: usize) -> Vec<String> {
         lines.push(current);
     }
     lines
+}
+
+/// The size a canvas is laid out for, in CSS pixels: its `width` and `height` as the
+/// page wrote them (kept in `data-width` and `data-height` the first time, since the
+/// backing store is then resized).
+pub fn logical_size(canvas: &HtmlCanvasElement) -> (u32, u32) {
+    let read = |name: &str, current: u32| match canvas
+        .get_attribute(name)
+        .and_then(|value| value.parse::<u32>().ok())
+    {
+        Some(value) => value,
+        None => {
+            let _ = canvas.set_attribute(name, &current.to_string());
+            current
+        }
+    };
+    (
+        read("data-width", canvas.width()),
+        read("data-height", canvas.height()),
+    )
+}
+
+/// A canvas backend whose backing store has `devicePixelRatio` pixels per CSS pixel (so
+/// plots are sharp on high-density screens) while the plots lay themselves out in CSS
+/// pixels: the size it reports is the logical one, and the 2D context is scaled.
+pub struct HiDpi {
+    inner: CanvasBackend,
+    logical: (u32, u32),
+}
+
+impl HiDpi {
+    fn of(canvas: &HtmlCanvasElement) -> Result<HiDpi, String> {
+        let logical = logical_size(canvas);
+        let ratio = web_sys::window()
+            .map_or(1.0, |window| window.device_pixel_ratio())
+            .clamp(1.0, 4.0);
+        let physical = (
+            (f64::from(logical.0) * ratio).round() as u32,
+            (f64::from(logical.1) * ratio).round() as u32,
+        );
+        if (canvas.width(), canvas.height()) != physical {
+            canvas.set_width(physical.0);
+            canvas.set_height(physical.1);
+        }
+        let inner = CanvasBackend::with_canvas_object(canvas.clone())
+            .ok_or("the canvas has no 2D context")?;
+        let context = canvas
+            .get_context("2d")
+            .ok()
+            .flatten()
+            .and_then(|context| context.dyn_into::<web_sys::CanvasRenderingContext2d>().ok())
+            .ok_or("the canvas has no 2D context")?;
+        context
+            .set_transform(ratio, 0.0, 0.0, ratio, 0.0, 0.0)
+            .map_err(|_| "the canvas could not be scaled".to_string())?;
+        Ok(HiDpi { inner, logical })
+    }
+}
+
+type CanvasErrorKind = DrawingErrorKind<<CanvasBackend as DrawingBackend>::ErrorType>;
+
+impl DrawingBackend for HiDpi {
+    type ErrorType = <CanvasBackend as DrawingBackend>::ErrorType;
+
+    fn get_size(&self) -> (u32, u32) {
+        self.logical
+    }
+
+    fn ensure_prepared(&mut self) -> Result<(), CanvasErrorKind> {
+        self.inner.ensure_prepared()
+    }
+
+    fn present(&mut self) -> Result<(), CanvasErrorKind> {
+        self.inner.present()
+    }
+
+    fn draw_pixel(
+        &mut self,
+        point: BackendCoord,
+        color: BackendColor,
+    ) -> Result<(), CanvasErrorKind> {
+        self.inner.draw_pixel(point, color)
+    }
+
+    fn draw_line<S: BackendStyle>(
+        &mut self,
+        from: BackendCoord,
+        to: BackendCoord,
+        style: &S,
+    ) -> Result<(), CanvasErrorKind> {
+        self.inner.draw_line(from, to, style)
+    }
+
+    fn draw_rect<S: BackendStyle>(
+        &mut self,
+        upper_left: BackendCoord,
+        bottom_right: BackendCoord,
+        style: &S,
+        fill: bool,
+    ) -> Result<(), CanvasErrorKind> {
+        self.inner.draw_rect(upper_left, bottom_right, style, fill)
+    }
+
+    fn draw_path<S: BackendStyle, I: IntoIterator<Item = BackendCoord>>(
+        &mut self,
+        path: I,
+        style: &S,
+    ) -> Result<(), CanvasErrorKind> {
+        self.inner.draw_path(path, style)
+    }
+
+    fn draw_circle<S: BackendStyle>(
+        &mut self,
+        center: BackendCoord,
+        radius: u32,
+        style: &S,
+        fill: bool,
+    ) -> Result<(), CanvasErrorKind> {
+        self.inner.draw_circle(center, radius, style, fill)
+    }
+
+    fn fill_polygon<S: BackendStyle, I: IntoIterator<Item = BackendCoord>>(
+        &mut self,
+        vert: I,
+        style: &S,
+    ) -> Result<(), CanvasErrorKind> {
+        self.inner.fill_polygon(vert, style)
+    }
+
+    fn draw_text<TStyle: BackendTextStyle>(
+        &mut self,
+        text: &str,
+        style: &TStyle,
+        pos: BackendCoord,
+    ) -> Result<(), CanvasErrorKind> {
+        self.inner.draw_text(text, style, pos)
+    }
+
+    fn estimate_text_size<TStyle: BackendTextStyle>(
+        &self,
+        text: &str,
+        style: &TStyle,
+    ) -> Result<(u32, u32), CanvasErrorKind> {
+        self.inner.estimate_text_size(text, style)
+    }
 }

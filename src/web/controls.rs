@@ -185,7 +185,7 @@ pub fn wire(page: &Rc<Page>) {
             return;
         };
         let up_x = canvas_x(&canvas_for_up, event);
-        let width = f64::from(canvas_for_up.width());
+        let width = f64::from(super::canvas::logical_size(&canvas_for_up).0);
         let (t0, t1) = (
             timeline.time_at(down_x.min(up_x), width),
             timeline.time_at(down_x.max(up_x), width),
@@ -199,10 +199,10 @@ pub fn wire(page: &Rc<Page>) {
     .forget();
 }
 
-/// The pointer's x in the canvas's own pixels (it may be drawn scaled).
+/// The pointer's x in the canvas's layout pixels (it may be shown scaled).
 fn canvas_x(canvas: &HtmlCanvasElement, event: &MouseEvent) -> f64 {
     let shown_px = f64::from(canvas.client_width().max(1));
-    event.offset_x() * f64::from(canvas.width()) / shown_px
+    event.offset_x() * f64::from(super::canvas::logical_size(canvas).0) / shown_px
 }
 
 /// Writes a brush into the fields: in outage mode a drag adds an outage and a click

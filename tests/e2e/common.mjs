@@ -21,8 +21,8 @@ after(async () => { await browser?.close(); });
 
 /** A fresh page at the site, with console errors and page errors collected.
  * `initScript` (a function and its argument) runs in the page before its own scripts. */
-export async function openPage({ initScript, initArg, acceptDownloads = false } = {}) {
-  const context = await browser.newContext({ viewport: { width: 1360, height: 1000 }, acceptDownloads });
+export async function openPage({ initScript, initArg, acceptDownloads = false, viewport = { width: 1360, height: 1000 }, deviceScaleFactor = 1 } = {}) {
+  const context = await browser.newContext({ viewport, acceptDownloads, deviceScaleFactor });
   const page = await context.newPage();
   if (initScript) await page.addInitScript(initScript, initArg);
   const problems = [];

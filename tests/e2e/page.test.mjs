@@ -225,3 +225,19 @@ for (const bad of badFiles) {
     await close();
   });
 }
+
+test('on a phone-width, high-density screen the plots are sharp and the page fits', async () => {
+  const { page, problems, close } = await openPage({ viewport: { width: 390, height: 844 }, deviceScaleFactor: 2 });
+  await waitForState(page, 'ready', 'demo-walk.csv');
+  // The backing store has two pixels per CSS pixel; the plot is laid out as before.
+  const sizes = await page.$eval('#plot-circle', (canvas) => [canvas.width, canvas.height, canvas.dataset.width, canvas.clientWidth]);
+  assert.deepEqual(sizes.slice(0, 3), [1120, 880, '560']);
+  assert.ok(sizes[3] <= 390, `the canvas is shown ${sizes[3]} px wide`);
+  assert.ok(await drawnPixels(page, 'plot-circle') > 40_000);
+  // Nothing is wider than the window.
+  const overflow = await page.evaluate(() => document.documentElement.scrollWidth - window.innerWidth);
+  assert.ok(overflow <= 0, `the page is ${overflow} px wider than the window`);
+  await page.screenshot({ path: join(out, 'phone.png'), fullPage: false });
+  assert.deepEqual(problems, []);
+  await close();
+});
