@@ -252,6 +252,52 @@ pub fn escape_html(text: &str) -> String {
     escaped
 }
 
+/// A figure for the report: its HTML (an inline `<svg>`, or an `<img>` of a PNG data
+/// URL, made by the caller from its own drawing) and a caption.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ReportFigure {
+    /// Which section it goes in.
+    pub section: ReportSection,
+    pub html: String,
+}
+
+/// The report's sections that carry figures.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ReportSection {
+    Calibration,
+    HeadingModels,
+    DeadReckoning,
+}
+
+/// The report's figures drawn as inline SVG by this crate's plots (the CLI and the
+/// tests; the page passes its canvases as PNG instead, so that the browser module
+/// carries one drawing backend).
+pub fn svg_figures(
+    calibration: &CalibrationAnalysis,
+    heading: Option<&HeadingAnalysis>,
+    pdr: Option<&PdrAnalysis>,
+) -> Vec<ReportFigure> {
+    let mut figures = vec![ReportFigure {
+        section: ReportSection::Calibration,
+        html: svg_figure((1500, 450), |area| {
+            draw_calibration_figure(area, calibration)
+        }),
+    }];
+    if let Some(heading) = heading {
+        figures.push(ReportFigure {
+            section: ReportSection::HeadingModels,
+            html: svg_figure((1500, 450), |area| draw_deviation_figure(area, heading)),
+        });
+    }
+    if let Some(pdr) = pdr {
+        figures.push(ReportFigure {
+            section: ReportSection::DeadReckoning,
+            html: svg_figure((1500, 450), |area| draw_pdr_figure(area, pdr)),
+        });
+    }
+    figures
+}
+
 /// A figure drawn to an SVG string, or a sentence saying why it could not be.
 fn svg_figure(
     size: (u32, u32),
@@ -287,13 +333,21 @@ fn list(items: &[String]) -> String {
 
 /// A self-contained HTML page of the analysis: the context, the comparison table, the
 /// device calibration, the heading models, the dead reckoning, the notes and the
-/// figures (inline SVG). No script, no remote resource. `pdr` is the dead reckoning or
-/// the sentence saying why there is none.
+/// figures. No script, no remote resource. `pdr` is the dead reckoning or the sentence
+/// saying why there is none.
 pub fn html_report(
     calibration: &CalibrationAnalysis,
     heading: Option<&HeadingAnalysis>,
     pdr: Result<&PdrAnalysis, &str>,
+    figures: &[ReportFigure],
 ) -> String {
+    let figures_of = |section: ReportSection| -> String {
+        figures
+            .iter()
+            .filter(|figure| figure.section == section)
+            .map(|figure| format!("<figure>{}</figure>\n", figure.html))
+            .collect()
+    };
     let report = &calibration.report;
     let file_name = escape_html(&report.file_name);
     let mut html = format!(
@@ -302,7 +356,7 @@ pub fn html_report(
          <title>compass-pdr report: {file_name}</title>\n<style>\n\
          body {{ font-family: system-ui, sans-serif; max-width: 1500px; margin: 0 auto; padding: 1rem; color: #1d2430; }}\n\
          table {{ border-collapse: collapse; }} th, td {{ padding: 0.2rem 0.7rem; border-bottom: 1px solid #dde2ea; text-align: right; }}\n\
-         th[scope=row] {{ text-align: left; }} svg {{ max-width: 100%; height: auto; }}\n\
+         th[scope=row] {{ text-align: left; }} svg, img {{ max-width: 100%; height: auto; }} figure {{ margin: 0.5rem 0; }}\n\
          </style>\n</head>\n<body>\n<h1>compass-pdr report: {file_name}</h1>\n\
          <p>{} ({} magnetometer samples used of {}).</p>\n",
         escape_html(report.format),
@@ -351,21 +405,17 @@ pub fn html_report(
     }
     html.push_str("<h2>Device calibration</h2>\n");
     html.push_str(&list(&device_calibration_lines(calibration)));
-    html.push_str(&svg_figure((1500, 450), |area| {
-        draw_calibration_figure(area, calibration)
-    }));
+    html.push_str(&figures_of(ReportSection::Calibration));
     if let Some(heading) = heading {
         html.push_str("<h2>Heading error models</h2>\n");
         html.push_str(&list(&deviation_model_lines(&heading.report)));
-        html.push_str(&svg_figure((1500, 450), |area| {
-            draw_deviation_figure(area, heading)
-        }));
+        html.push_str(&figures_of(ReportSection::HeadingModels));
     }
     html.push_str("<h2>Dead reckoning</h2>\n");
     match pdr {
         Ok(pdr) => {
             html.push_str(&list(&pdr_summary_lines(pdr)));
-            html.push_str(&svg_figure((1500, 450), |area| draw_pdr_figure(area, pdr)));
+            html.push_str(&figures_of(ReportSection::DeadReckoning));
         }
         Err(reason) => {
             let _ = writeln!(html, "<p>{}</p>", escape_html(reason));
@@ -418,7 +468,13 @@ mod tests {
         assert!(rows.iter().all(|row| row.split(',').count() == n_columns));
 
         let heading = compare(&analysis, &HeadingOptions::default());
-        let html = html_report(&analysis, Some(&heading), Err("no steps in this log"));
+        let figures = svg_figures(&analysis, Some(&heading), None);
+        let html = html_report(
+            &analysis,
+            Some(&heading),
+            Err("no steps in this log"),
+            &figures,
+        );
         assert!(html.contains("compass-pdr report: &lt;b&gt;walk&lt;/b&gt;.csv"));
         assert!(!html.contains("<b>walk"));
         assert!(!html.contains("<script"));

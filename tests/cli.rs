@@ -340,6 +340,33 @@ fn pdr_dead_reckons_the_demo_and_writes_the_track_and_figure() {
 }
 
 /// Bad input: exit code 1, a message naming the file and what to do, never a panic.
+#[test]
+fn report_writes_the_page_s_html_report_with_svg_figures() {
+    let dir = scratch_dir("report");
+    let out = dir.join("demo-report.html");
+    let demo = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/demo-walk.csv");
+    let output = compass_pdr(&[
+        "report",
+        demo.to_str().unwrap_or_default(),
+        "--out",
+        out.to_str().unwrap_or_default(),
+    ]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    let html = std::fs::read_to_string(&out).expect("written");
+    assert!(html.starts_with("<!doctype html>"));
+    assert!(
+        html.contains("demo-walk.csv</title>"),
+        "the log is named in the title"
+    );
+    assert_eq!(
+        html.matches("<svg").count(),
+        3,
+        "calibration, heading models, PDR"
+    );
+    assert!(html.contains(" steps in 1 bouts"), "the PDR summary");
+    assert!(!html.contains("<script"));
+}
+
 fn check_refused(test_name: &str, file_name: &str, content: &[u8], expect_in_message: &str) {
     let dir = scratch_dir(test_name);
     let path = dir.join(file_name);

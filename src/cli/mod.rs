@@ -10,7 +10,7 @@ use compass_pdr::calib::plane::SoftIronModel;
 use compass_pdr::calibration::{
     calibrate, CalibrationOptions, CalibrationReport, DeclinationChoice, Method, MethodParameters,
 };
-use compass_pdr::deviation::{analyse_headings, HeadingOptions, HeadingReport};
+use compass_pdr::deviation::{analyse_headings, compare, HeadingOptions, HeadingReport};
 use compass_pdr::io::canonical_csv;
 use compass_pdr::io::delimited::ColumnMapping;
 use compass_pdr::io::import::{header_signature, merge, ChunkedImport, Inspection};
@@ -21,6 +21,7 @@ use compass_pdr::pdr::step_length::StepModelKind;
 use compass_pdr::pdr::{self, HeadingChoice, PdrOptions, PdrReport};
 use compass_pdr::plot::{draw_calibration_figure, draw_deviation_figure, draw_pdr_figure};
 use compass_pdr::reference::{ReferenceChoice, ReferenceOptions};
+use compass_pdr::report::{html_report, svg_figures};
 use compass_pdr::sim::gait::StepTruth;
 use compass_pdr::sim::walk::{simulate_with_truth, WalkConfig};
 use compass_pdr::stats::HeadingErrorStats;
@@ -115,6 +116,18 @@ enum Command {
         /// Draw the trajectory, the step lengths and the position error to this SVG file.
         #[arg(long)]
         plot: Option<PathBuf>,
+    },
+    /// Analyse a log the way the page does (calibration, heading models, dead
+    /// reckoning) and write the page's self-contained HTML report, with the figures as
+    /// SVG.
+    Report {
+        #[command(flatten)]
+        input: ImportArgs,
+        #[command(flatten)]
+        pdr: PdrArgs,
+        /// Where to write the report (.html).
+        #[arg(long)]
+        out: PathBuf,
     },
     /// Show what a log holds: its format, streams (count, rate, duration, gaps), what
     /// was assumed, and every line that was skipped.
@@ -372,6 +385,9 @@ pub fn main() -> ExitCode {
         } => pdr
             .options()
             .and_then(|options| run_pdr(&input, &options, json, out.as_deref(), plot.as_deref())),
+        Command::Report { input, pdr, out } => pdr
+            .options()
+            .and_then(|options| run_report(&input, &options, &out)),
         Command::Calibrate {
             input,
             method,
@@ -670,6 +686,31 @@ fn run_heading(
             .map_err(|error| format!("{error} ({})", plot.display()))?;
     }
     print_report(report, json, heading_text)
+}
+
+fn run_report(input: &ImportArgs, options: &PdrOptions, out: &Path) -> Result<(), String> {
+    let report = import_paths(input)?;
+    let file_name = report.file_name.clone();
+    let for_pdr = (!report.recording.acc_in_body_mps2.is_empty()).then(|| report.clone());
+    let calibration = calibrate(report, &options.heading_options.calibration)
+        .map_err(|error| error.to_string())?;
+    print_import_diagnostics(&file_name, &calibration.report.diagnostics);
+    let heading = compare(&calibration, &options.heading_options);
+    let pdr = for_pdr
+        .ok_or_else(|| "the log has no accelerometer, so no steps can be detected".to_string())
+        .and_then(|report| pdr::run(report, options).map_err(|error| error.to_string()));
+    let figures = svg_figures(&calibration, Some(&heading), pdr.as_ref().ok());
+    let html = html_report(
+        &calibration,
+        Some(&heading),
+        pdr.as_ref().map_err(String::as_str),
+        &figures,
+    );
+    std::fs::write(out, html).map_err(|error| format!("{}: {error}", out.display()))?;
+    print_out(&format!(
+        "{file_name}: report written to {}\n",
+        out.display()
+    ))
 }
 
 /// Prints a report as pretty JSON, or as the text `text` makes of it.

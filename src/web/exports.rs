@@ -13,7 +13,7 @@ use web_sys::{Document, HtmlButtonElement, HtmlCanvasElement};
 use super::page::{Page, Results};
 use crate::calib::export::{c_snippet, calibration_export, CalibrationExport};
 use crate::pdr::export::{track_text, TrackFormat};
-use crate::report::{corrected_csv, html_report};
+use crate::report::{corrected_csv, escape_html, html_report, ReportFigure, ReportSection};
 
 /// The analysis exports: button id, what it writes.
 const ANALYSIS_EXPORTS: [(&str, Export); 6] = [
@@ -164,6 +164,7 @@ fn write(document: &Document, results: &Results, export: Export) -> Result<(), S
                 &results.calibration,
                 Some(&results.heading),
                 results.pdr.as_ref().map_err(String::as_str),
+                &canvas_figures(document),
             );
             download_bytes(
                 document,
@@ -174,6 +175,48 @@ fn write(document: &Document, results: &Results, export: Export) -> Result<(), S
         }
     }
     Ok(())
+}
+
+/// The page's plots as PNG images for the report, section by section.
+fn canvas_figures(document: &Document) -> Vec<ReportFigure> {
+    const SECTIONS: [(ReportSection, &[&str]); 3] = [
+        (
+            ReportSection::Calibration,
+            &["plot-circle", "plot-heading", "plot-field"],
+        ),
+        (
+            ReportSection::HeadingModels,
+            &["plot-deviation", "plot-residuals", "plot-online"],
+        ),
+        (
+            ReportSection::DeadReckoning,
+            &["plot-trajectory", "plot-steps", "plot-position-error"],
+        ),
+    ];
+    let mut figures = Vec::new();
+    for (section, ids) in SECTIONS {
+        for id in ids {
+            let Some(canvas) = document
+                .get_element_by_id(id)
+                .and_then(|element| element.dyn_into::<HtmlCanvasElement>().ok())
+            else {
+                continue;
+            };
+            let (Ok(url), Some(label)) = (canvas.to_data_url(), canvas.get_attribute("aria-label"))
+            else {
+                continue;
+            };
+            let (width, _) = super::canvas::logical_size(&canvas);
+            figures.push(ReportFigure {
+                section,
+                html: format!(
+                    "<img src=\"{url}\" width=\"{width}\" alt=\"{}\">",
+                    escape_html(&label)
+                ),
+            });
+        }
+    }
+    figures
 }
 
 /// A calibration as indented JSON (the browser's serializer).

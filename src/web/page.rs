@@ -566,6 +566,7 @@ impl Page {
                 );
             }
         }
+        self.mark_time("data-first-plot-ms");
         self.set_state(
             "loading",
             &format!(
@@ -841,6 +842,22 @@ impl Page {
     fn set_state(&self, state: &str, message: &str) {
         self.body.set_attribute("data-state", state).ok();
         self.status.set_text_content(Some(message));
+        if state == "ready" {
+            self.mark_time("data-ready-ms");
+        }
+    }
+
+    /// Milliseconds from the page's navigation to now, on the body the first time (the
+    /// time to the first plots and to the whole demo, which the README reports).
+    fn mark_time(&self, attribute: &str) {
+        if self.body.has_attribute(attribute) {
+            return;
+        }
+        if let Some(performance) = web_sys::window().and_then(|window| window.performance()) {
+            let _ = self
+                .body
+                .set_attribute(attribute, &format!("{:.0}", performance.now()));
+        }
     }
 }
 

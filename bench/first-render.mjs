@@ -1,0 +1,29 @@
+// Time to first render of the demo, in headless Chromium: loads the served page `runs`
+// times in fresh contexts (no cache, no service worker) and reports, from navigation
+// start, when the first plots were drawn (the calibration) and when the whole demo was
+// (heading models and dead reckoning too), as the page records them on its body.
+//
+//   node bench/first-render.mjs http://127.0.0.1:8765/ [runs]
+import { chromium } from 'playwright-core';
+
+const [url, runsText] = process.argv.slice(2);
+const runs = Number(runsText || 5);
+const browser = await chromium.launch({
+  executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
+  args: ['--no-sandbox', '--disable-gpu', '--disable-dev-shm-usage', '--disable-background-networking'],
+});
+const median = (values) => [...values].sort((a, b) => a - b)[Math.floor(values.length / 2)];
+const first = [];
+const ready = [];
+for (let run = 0; run < runs; run += 1) {
+  const context = await browser.newContext({ viewport: { width: 1360, height: 1000 }, serviceWorkers: 'block' });
+  const page = await context.newPage();
+  await page.goto(url);
+  await page.waitForSelector('body[data-state="ready"][data-file="demo-walk.csv"]', { timeout: 30_000 });
+  const times = await page.evaluate(() => [Number(document.body.dataset.firstPlotMs), Number(document.body.dataset.readyMs)]);
+  first.push(times[0]);
+  ready.push(times[1]);
+  await context.close();
+}
+await browser.close();
+console.log(JSON.stringify({ runs, first_plot_ms: first, ready_ms: ready, median_first_plot_ms: median(first), median_ready_ms: median(ready) }));
