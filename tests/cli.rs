@@ -363,7 +363,7 @@ fn report_writes_the_page_s_html_report_with_svg_figures() {
         3,
         "calibration, heading models, PDR"
     );
-    assert!(html.contains(" steps in 1 bouts"), "the PDR summary");
+    assert!(html.contains("313 steps in 2 bouts"), "the PDR summary");
     assert!(!html.contains("<script"));
 }
 
