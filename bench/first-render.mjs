@@ -3,8 +3,13 @@
 // start, when the first plots were drawn (the calibration) and when the whole demo was
 // (heading models and dead reckoning too), as the page records them on its body.
 //
-//   node bench/first-render.mjs http://127.0.0.1:8765/ [runs]
-import { chromium } from 'playwright-core';
+//   ./run &   # serves the page on http://127.0.0.1:8000/
+//   node bench/first-render.mjs http://127.0.0.1:8000/ [runs]
+import { dirname, join } from 'node:path';
+import { fileURLToPath } from 'node:url';
+
+const root = join(dirname(fileURLToPath(import.meta.url)), '..');
+const { chromium } = await import(join(root, 'tests/e2e/node_modules/playwright-core/index.mjs'));
 
 const [url, runsText] = process.argv.slice(2);
 const runs = Number(runsText || 5);
