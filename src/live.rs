@@ -752,6 +752,36 @@ mod tests {
         assert_eq!(session.raw(), lines.as_bytes());
     }
 
+    /// Ten minutes at 1,000 lines/s, in the chunks a port delivers every 10 ms: every
+    /// line counted, memory for the fit bounded, refits as cheap as at the start.
+    #[test]
+    fn ten_minutes_at_a_thousand_lines_a_second_stay_bounded() {
+        let board = Board::new();
+        let mut rng = SplitMix64::new(9);
+        let mut session = LiveSession::new();
+        let n_lines = 600_000;
+        let mut n_bytes = 0;
+        for tick in 0..n_lines / 10 {
+            let chunk: String = (0..10)
+                .map(|k| board.raw_line((tick * 10 + k) % 20_000, 20_000, &mut rng))
+                .collect();
+            n_bytes += chunk.len();
+            session.feed(chunk.as_bytes(), tick as f64 * 0.01);
+            if tick % 50 == 0 {
+                // The page refits every 500 ms.
+                let _ = session.refit();
+            }
+        }
+        let counts = session.counts();
+        assert_eq!(counts.n_lines, n_lines);
+        assert_eq!(counts.n_bytes, n_bytes);
+        assert_eq!(counts.n_mag_samples, n_lines - 1);
+        assert!(session.kept_samples_ut().len() < MAX_KEPT_SAMPLES);
+        let quality = session.refit().expect("fits");
+        assert!(quality.verdict.good_enough, "{:?}", quality.verdict);
+        assert!((quality.calibration.hard_iron_ut - board.hard_iron_ut).norm() < 0.1);
+    }
+
     #[test]
     fn thinning_keeps_the_session_evenly() {
         let board = Board::new();

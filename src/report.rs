@@ -50,6 +50,27 @@ pub fn context_lines(report: &CalibrationReport) -> Vec<String> {
     ]
 }
 
+/// What was read from the log: its format, then one line per stream (samples, rate,
+/// duration, unit, gaps).
+pub fn stream_lines(format: &str, streams: &[crate::io::summary::StreamSummary]) -> Vec<String> {
+    let mut lines = vec![format!("Format: {format}")];
+    for stream in streams.iter().filter(|stream| stream.n_samples > 0) {
+        let rate = stream
+            .rate_hz
+            .map_or(String::new(), |hz| format!(" at {hz:.1} Hz"));
+        let gaps = match stream.n_gaps {
+            0 => String::new(),
+            1 => format!(", 1 gap (up to {:.1} s)", stream.largest_gap_s),
+            n => format!(", {n} gaps (up to {:.1} s)", stream.largest_gap_s),
+        };
+        lines.push(format!(
+            "{}: {} samples{rate} over {:.1} s, in {}{gaps}",
+            stream.stream, stream.n_samples, stream.duration_s, stream.unit
+        ));
+    }
+    lines
+}
+
 /// The calibration to store in the device, as numbers a person can copy.
 pub fn device_calibration_lines(analysis: &CalibrationAnalysis) -> Vec<String> {
     match analysis.device_calibration() {

@@ -548,6 +548,16 @@ impl Page {
         self.body.set_attribute("data-file", &report.file_name).ok();
         self.set_text("result-file", &report.file_name);
         self.show_context(report);
+        if let Some(import) = self.import.borrow().as_ref() {
+            self.fill_list(
+                "streams",
+                report::stream_lines(
+                    import.format,
+                    &crate::io::summary::summarize(&import.recording),
+                )
+                .into_iter(),
+            );
+        }
         // The table waits for the heading models; no stale rows meanwhile.
         self.fill_list("methods-body", std::iter::empty());
         self.fill_list("deviation-model", std::iter::empty());
@@ -679,6 +689,7 @@ impl Page {
         self.body.remove_attribute("data-file").ok();
         self.set_text("result-file", "—");
         for id in [
+            "streams",
             "context",
             "methods-body",
             "deviation-model",

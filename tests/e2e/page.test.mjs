@@ -112,6 +112,10 @@ test('phyphox files dropped together are merged into one recording', async (t) =
   await dropFiles(page, names.map((name) => ({ name, content: readFileSync(join(dir, name), 'utf8') })));
   await waitForState(page, 'ready', names.join(' + '));
   assert.match(await text(page, 'status'), /10575 magnetometer samples/);
+  // What was read, stream by stream, as `compass-pdr inspect` summarises it.
+  const streams = await text(page, 'streams');
+  assert.match(streams, /Format: delimited text/);
+  assert.match(streams, /magnetometer: 10575 samples at \d+\.\d Hz over \d+\.\d s, in µT/);
   // No reference heading in a phyphox walk: the figures say so instead of inventing one.
   assert.equal(await text(page, 'stat-min_max-check-rms'), '—');
   assert.match(await text(page, 'notes'), /no reference heading/);
