@@ -196,3 +196,64 @@ fn the_page_shows_an_analysis_then_an_error() {
     page.show_error("<b>x</b>.csv is empty.");
     assert_eq!(text("status"), "<b>x</b>.csv is empty.");
 }
+
+#[wasm_bindgen_test]
+fn a_stored_entry_reads_back_and_a_corrupt_one_is_set_aside_with_a_notice() {
+    use super::storage::{self, Settings};
+    let window = web_sys::window().expect("a window");
+    let document = window.document().expect("a document");
+    let storage_area = window
+        .local_storage()
+        .expect("storage")
+        .expect("local storage");
+    let notice = document.create_element("p").expect("p");
+    notice.set_id("storage-notice");
+    document
+        .body()
+        .expect("a body")
+        .append_child(&notice)
+        .expect("appended");
+    let key = "compass-pdr.test-settings.v1";
+    let settings = Settings {
+        baud_rate: Some(57_600),
+        lat_deg: Some(48.14),
+        lon_deg: None,
+    };
+    storage::save(key, &settings);
+    assert_eq!(
+        storage::load::<Settings>(key, "test settings"),
+        Some(settings)
+    );
+    assert_eq!(notice.text_content().unwrap_or_default(), "");
+
+    storage_area
+        .set_item(key, "{\"baud_rate\": \"fast\"}")
+        .expect("stored");
+    assert_eq!(storage::load::<Settings>(key, "test settings"), None);
+    let text = notice.text_content().unwrap_or_default();
+    assert!(
+        text.starts_with("The saved test settings could not be read ("),
+        "{text}"
+    );
+    assert_eq!(storage_area.get_item(key).expect("read"), None, "set aside");
+    // Nothing stored: nothing said.
+    notice.set_text_content(None);
+    assert_eq!(storage::load::<Settings>(key, "test settings"), None);
+    assert_eq!(notice.text_content().unwrap_or_default(), "");
+}
+
+#[wasm_bindgen_test]
+fn plots_are_drawn_at_the_device_pixel_ratio_and_laid_out_in_css_pixels() {
+    let canvas = new_canvas(300, 200);
+    let ratio = web_sys::window()
+        .expect("a window")
+        .device_pixel_ratio()
+        .clamp(1.0, 4.0);
+    canvas::draw_message(&canvas, "a message").expect("drawn");
+    assert_eq!(canvas::logical_size(&canvas), (300, 200));
+    assert_eq!(canvas.width(), (300.0 * ratio).round() as u32);
+    // Drawing again keeps the layout size (not the enlarged backing store).
+    canvas::draw_message(&canvas, "again").expect("drawn");
+    assert_eq!(canvas.width(), (300.0 * ratio).round() as u32);
+    assert!(n_drawn_pixels(&canvas) > 100);
+}
