@@ -341,6 +341,48 @@ fn pdr_dead_reckons_the_demo_and_writes_the_track_and_figure() {
 
 /// Bad input: exit code 1, a message naming the file and what to do, never a panic.
 #[test]
+fn simulate_writes_the_calibration_dance_as_motioncal_lines_with_its_truth() {
+    let dir = scratch_dir("dance");
+    let (out, truth) = (dir.join("dance.txt"), dir.join("dance.json"));
+    let output = compass_pdr(&[
+        "simulate",
+        "--scenario",
+        "dance",
+        "--duration-s",
+        "30",
+        "--sample-rate-hz",
+        "100",
+        "--out",
+        out.to_str().unwrap_or_default(),
+        "--truth",
+        truth.to_str().unwrap_or_default(),
+    ]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    let text = std::fs::read_to_string(&out).expect("written");
+    assert_eq!(text.lines().count(), 3000);
+    assert!(text.lines().all(|line| line.starts_with("Raw:")));
+    let truth: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&truth).expect("written")).expect("JSON");
+    assert_eq!(truth["n_lines"], 3000);
+    assert_eq!(truth["hard_iron_ut"].as_array().map(Vec::len), Some(3));
+    // The same seed gives the same lines.
+    let again = dir.join("again.txt");
+    let output = compass_pdr(&[
+        "simulate",
+        "--scenario",
+        "dance",
+        "--duration-s",
+        "30",
+        "--sample-rate-hz",
+        "100",
+        "--out",
+        again.to_str().unwrap_or_default(),
+    ]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    assert_eq!(std::fs::read(&again).expect("written"), text.into_bytes());
+}
+
+#[test]
 fn report_writes_the_page_s_html_report_with_svg_figures() {
     let dir = scratch_dir("report");
     let out = dir.join("demo-report.html");

@@ -22,6 +22,7 @@ use compass_pdr::pdr::{self, HeadingChoice, PdrOptions, PdrReport};
 use compass_pdr::plot::{draw_calibration_figure, draw_deviation_figure, draw_pdr_figure};
 use compass_pdr::reference::{ReferenceChoice, ReferenceOptions};
 use compass_pdr::report::{html_report, svg_figures};
+use compass_pdr::sim::dance::{motioncal_raw_lines, DanceConfig};
 use compass_pdr::sim::gait::StepTruth;
 use compass_pdr::sim::walk::{simulate_with_truth, WalkConfig};
 use compass_pdr::stats::HeadingErrorStats;
@@ -327,6 +328,10 @@ enum Scenario {
     Demo,
     /// Issue 6's PDR walk: varied steps, unified-model compass error, 3 m GNSS noise.
     Pdr,
+    /// A board's sphere "calibration dance", written as MotionCal `Raw:` lines (what a
+    /// calibration sketch prints over the serial port), with an Eq. 5 distortion (hard
+    /// iron, symmetric soft iron) as its truth. `--sample-rate-hz` is its line rate.
+    Dance,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -455,12 +460,28 @@ fn run_simulate(
             "--sample-rate-hz {sample_rate_hz} is out of range: give a rate from 10 to 1000 Hz"
         ));
     }
+    if scenario == Scenario::Dance {
+        let config = DanceConfig {
+            rate_hz: sample_rate_hz,
+            ..DanceConfig::from_seed(seed, duration_s)
+        };
+        let (text, dance_truth) = motioncal_raw_lines(&config);
+        std::fs::write(out, text)
+            .map_err(|error| format!("cannot write {}: {error}", out.display()))?;
+        if let Some(truth) = truth {
+            let json = serde_json::to_string_pretty(&dance_truth)
+                .map_err(|error| format!("cannot encode the truth: {error}"))?;
+            std::fs::write(truth, json + "\n")
+                .map_err(|error| format!("cannot write {}: {error}", truth.display()))?;
+        }
+        return Ok(());
+    }
     let config = match scenario {
         Scenario::Demo => WalkConfig {
             sample_rate_hz,
             ..WalkConfig::from_seed(seed, duration_s)
         },
-        Scenario::Pdr => WalkConfig::pdr_walk(seed, duration_s, sample_rate_hz),
+        Scenario::Pdr | Scenario::Dance => WalkConfig::pdr_walk(seed, duration_s, sample_rate_hz),
     };
     let (rows, walk_truth) = simulate_with_truth(&config);
     std::fs::write(out, canonical_csv::write(&rows))
@@ -469,7 +490,7 @@ fn run_simulate(
         // The demo's truth file stays the config alone, as assets/demo-walk.truth.json.
         let encoded = match scenario {
             Scenario::Demo => serde_json::to_string_pretty(&config),
-            Scenario::Pdr => serde_json::to_string_pretty(&PdrTruth {
+            Scenario::Pdr | Scenario::Dance => serde_json::to_string_pretty(&PdrTruth {
                 config: &config,
                 path_length_m: walk_truth.path_length_m,
                 steps: &walk_truth.steps,

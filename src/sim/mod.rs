@@ -7,12 +7,15 @@
 //! hand, and a vertical bounce at the step frequency. The true heading and position are
 //! written as the reference columns. [`gait`] is the varied gait of the PDR scenario
 //! (`WalkConfig::pdr_walk`): steps whose frequency and length vary, accelerations that
-//! follow Weinberg's relation, and the truth of every step.
+//! follow Weinberg's relation, and the truth of every step. [`dance`] is the sphere
+//! "calibration dance" of a board on a breadboard, printed as MotionCal `Raw:` lines, with
+//! the Eq. 5 distortion (hard iron, a symmetric soft-iron matrix) as its truth.
 //!
 //! Randomness comes from [`rng::SplitMix64`], written out here rather than taken from a
 //! crate so that a seed gives the same log forever, on every platform: the demo in
 //! `assets/` depends on it.
 
+pub mod dance;
 pub mod field;
 pub mod gait;
 pub mod rng;
