@@ -69,6 +69,8 @@ pub struct LivePanel {
     last_refit_ms: Cell<f64>,
     /// New bytes since the last redraw.
     dirty: Cell<bool>,
+    /// Bytes came in since the last refit.
+    refit_pending: Cell<bool>,
     /// While connected: the interval timer that refits and redraws, and its callback.
     ticker: RefCell<Option<Ticker>>,
     /// Why the last refit gave no fit, for the status line.
@@ -118,6 +120,7 @@ impl LivePanel {
             reading: Cell::new(false),
             last_refit_ms: Cell::new(f64::NEG_INFINITY),
             dirty: Cell::new(false),
+            refit_pending: Cell::new(false),
             ticker: RefCell::new(None),
             fit_message: RefCell::new(None),
             recent: RefCell::new(Vec::new()),
@@ -658,13 +661,18 @@ impl LivePanel {
         }
     }
 
+    /// Redraws when bytes came in; refits at most every [`REFIT_EVERY_MS`], and once
+    /// more after the last bytes, so that the fit shown is always of everything received.
     fn tick(&self) {
-        if !self.dirty.replace(false) {
+        let now = now_ms();
+        if self.dirty.replace(false) {
+            self.refit_pending.set(true);
+        } else if !self.refit_pending.get() {
             return;
         }
-        let now = now_ms();
         if now - self.last_refit_ms.get() >= REFIT_EVERY_MS {
             self.last_refit_ms.set(now);
+            self.refit_pending.set(false);
             self.refit();
         }
         self.draw();
