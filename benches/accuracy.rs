@@ -15,17 +15,17 @@ mod common;
 #[cfg(not(target_arch = "wasm32"))]
 mod report {
     use std::fmt::Write as _;
-    use std::path::{Path, PathBuf};
+    use std::path::Path;
 
     use compass_pdr::calibration::{
         CalibrationOptions, DeclinationChoice, Method, MethodParameters,
     };
     use compass_pdr::deviation::{analyse_headings, HeadingAnalysis, HeadingOptions};
     use compass_pdr::io::canonical_csv;
-    use compass_pdr::io::import::{import, import_files};
+    use compass_pdr::io::import::import;
     use compass_pdr::pdr::fusion::{GnssPolicy, Outage};
-    use compass_pdr::pdr::step_length::{weinberg_feature, StepModelKind};
-    use compass_pdr::pdr::{run, HeadingChoice, PdrAnalysis, PdrOptions};
+    use compass_pdr::pdr::step_length::StepModelKind;
+    use compass_pdr::pdr::{run, PdrAnalysis, PdrOptions};
     use compass_pdr::reference::{ReferenceChoice, ReferenceOptions};
     use compass_pdr::sim::walk::{simulate, simulate_with_truth, WalkConfig};
     use compass_pdr::stats::HeadingErrorStats;
@@ -50,15 +50,6 @@ mod report {
         stats.map_or("—".to_string(), |s| {
             format!("{:.0} %", s.within_5_deg_pct)
         })
-    }
-
-    fn import_paths(paths: &[PathBuf]) -> compass_pdr::io::ImportReport {
-        let contents = common::read_named(paths);
-        let slices: Vec<(&str, &[u8])> = contents
-            .iter()
-            .map(|(name, bytes)| (name.as_str(), bytes.as_slice()))
-            .collect();
-        import_files(&slices).expect("the recording imports")
     }
 
     /// One row of the heading table: raw, min/max and the MLP on the raw heading (the
@@ -152,50 +143,6 @@ mod report {
         )
     }
 
-    fn indoor_walk(
-        data: &Path,
-        floor: &str,
-        heading: &str,
-        k: Option<f64>,
-        declination: DeclinationChoice,
-    ) -> PdrAnalysis {
-        let paths = common::files_in(&data.join("msft-indoor-2020/site1").join(floor), "txt");
-        run(
-            import_paths(&paths),
-            &PdrOptions {
-                heading: HeadingChoice::parse(heading),
-                weinberg_k: k,
-                heading_options: HeadingOptions {
-                    calibration: CalibrationOptions {
-                        position_deg: Some((30.3, 120.1)),
-                        declination,
-                        ..CalibrationOptions::default()
-                    },
-                    ..HeadingOptions::default()
-                },
-                ..PdrOptions::default()
-            },
-        )
-        .expect("dead-reckons")
-    }
-
-    /// Weinberg's K that makes a walk's steps between its first and last waypoint as long
-    /// as the waypoint path (the paper's protocol: fitted on one walk, used on another).
-    fn fitted_k(data: &Path, floor: &str) -> f64 {
-        let analysis = indoor_walk(data, floor, "device", None, DeclinationChoice::Auto);
-        let errors = analysis
-            .report
-            .position_error
-            .expect("waypoints score the walk");
-        let sum: f64 = analysis
-            .steps
-            .iter()
-            .filter(|step| (errors.start_s..=errors.end_s).contains(&step.mid_s()))
-            .map(weinberg_feature)
-            .sum();
-        errors.distance_m / sum
-    }
-
     pub fn write() {
         let root = Path::new(env!("CARGO_MANIFEST_DIR"));
         let data = root.join("../shared/data");
@@ -251,7 +198,8 @@ mod report {
             )
         );
         if have_data {
-            let vehicle = import_paths(&[data.join("vehicle-pixel6a/2023-08-09_12-47-42.csv")]);
+            let vehicle =
+                common::import_paths(&[data.join("vehicle-pixel6a/2023-08-09_12-47-42.csv")]);
             let _ = writeln!(
                 text,
                 "{}",
@@ -266,7 +214,7 @@ mod report {
                 let paths =
                     common::files_in(&data.join("msft-indoor-2020/site1").join(floor), "txt");
                 let analysis = headings(
-                    import_paths(&paths),
+                    common::import_paths(&paths),
                     CalibrationOptions {
                         reference: ReferenceOptions {
                             choice: ReferenceChoice::Legs,
@@ -289,7 +237,7 @@ mod report {
             }
             let loop_paths = common::files_in(&data.join("phyphox-hallway-loop"), "csv");
             let analysis = headings(
-                import_paths(&loop_paths),
+                common::import_paths(&loop_paths),
                 CalibrationOptions {
                     reference: ReferenceOptions {
                         choice: ReferenceChoice::Gyro,
@@ -369,9 +317,9 @@ mod report {
             );
         }
         if have_data {
-            let (k_f1, k_f4) = (fitted_k(&data, "F1"), fitted_k(&data, "F4"));
+            let (k_f1, k_f4) = (common::fitted_k(&data, "F1"), common::fitted_k(&data, "F4"));
             for (floor, other_k) in [("F1", k_f4), ("F4", k_f1)] {
-                let analysis = indoor_walk(
+                let analysis = common::indoor_walk(
                     &data,
                     floor,
                     "gyro+device",
@@ -393,7 +341,7 @@ mod report {
             }
             let loop_paths = common::files_in(&data.join("phyphox-hallway-loop"), "csv");
             let analysis = run(
-                import_paths(&loop_paths),
+                common::import_paths(&loop_paths),
                 &PdrOptions {
                     known_distance_m: Some(116.0),
                     closed_loop: true,

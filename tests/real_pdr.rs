@@ -6,11 +6,10 @@
 
 mod common;
 
-use compass_pdr::calibration::{CalibrationOptions, DeclinationChoice};
-use compass_pdr::deviation::HeadingOptions;
+use compass_pdr::calibration::DeclinationChoice;
 use compass_pdr::io::import::import_files;
 use compass_pdr::pdr::step_length::StepLengthModel;
-use compass_pdr::pdr::{run, HeadingChoice, PdrAnalysis, PdrOptions};
+use compass_pdr::pdr::{run, PdrAnalysis, PdrOptions};
 use std::path::PathBuf;
 
 fn dead_reckon(paths: &[PathBuf], options: &PdrOptions) -> PdrAnalysis {
@@ -59,34 +58,6 @@ fn hallway_loop_has_its_168_steps_and_closes_within_3_percent() {
     );
 }
 
-/// The indoor walks: the phone held flat, no GNSS; the walk starts at the first
-/// waypoint, and no later waypoint trains anything.
-fn indoor_walk(
-    data: &std::path::Path,
-    floor: &str,
-    heading: &str,
-    k: Option<f64>,
-    declination: DeclinationChoice,
-) -> PdrAnalysis {
-    let paths = common::files_in(&data.join("msft-indoor-2020/site1").join(floor), "txt");
-    dead_reckon(
-        &paths,
-        &PdrOptions {
-            heading: HeadingChoice::parse(heading),
-            weinberg_k: k,
-            heading_options: HeadingOptions {
-                calibration: CalibrationOptions {
-                    position_deg: Some((30.3, 120.1)),
-                    declination,
-                    ..CalibrationOptions::default()
-                },
-                ..HeadingOptions::default()
-            },
-            ..PdrOptions::default()
-        },
-    )
-}
-
 #[test]
 fn indoor_walks_at_the_waypoints() {
     let Some(data) = common::shared_data() else {
@@ -95,22 +66,7 @@ fn indoor_walks_at_the_waypoints() {
     // The paper's protocol for the step model: train it on one walk, use it on another.
     // Here each walk's K is fitted to its own waypoint path (the steps between its first
     // and last waypoint) and given to the other walk.
-    let fitted_k = |floor: &str| {
-        let analysis = indoor_walk(&data, floor, "device", None, DeclinationChoice::Auto);
-        let errors = analysis
-            .report
-            .position_error
-            .expect("waypoints score the walk");
-        // The steps between the first and the last waypoint walked the waypoint path.
-        let sum: f64 = analysis
-            .steps
-            .iter()
-            .filter(|step| (errors.start_s..=errors.end_s).contains(&step.mid_s()))
-            .map(compass_pdr::pdr::step_length::weinberg_feature)
-            .sum();
-        errors.distance_m / sum
-    };
-    let (k_f1, k_f4) = (fitted_k("F1"), fitted_k("F4"));
+    let (k_f1, k_f4) = (common::fitted_k(&data, "F1"), common::fitted_k(&data, "F4"));
     eprintln!("Weinberg K fitted to the waypoint path: F1 {k_f1:.4}, F4 {k_f4:.4}");
     eprintln!("| walk | heading | north | step model | steps | path (m) | RMS (m) | RMS (%) | max (m) | distance error (%) |");
     let mut best = std::collections::HashMap::new();
@@ -122,7 +78,7 @@ fn indoor_walks_at_the_waypoints() {
                     ("true (WMM −5.7°)", DeclinationChoice::Auto),
                     ("magnetic", DeclinationChoice::Degrees(0.0)),
                 ] {
-                    let analysis = indoor_walk(&data, floor, heading, k, declination);
+                    let analysis = common::indoor_walk(&data, floor, heading, k, declination);
                     let report = &analysis.report;
                     let errors = report.position_error.expect("waypoints score the walk");
                     let k_value = match report.step_model.model {
