@@ -187,14 +187,16 @@ impl LiveSession {
         self.take_new_samples();
     }
 
-    /// The port closed: a last line without its ending is read as it is, and the next
-    /// port's first line starts a line of its own (the raw recording is left as
-    /// received).
+    /// The port closed: a last line without its ending is read as it is, the reading
+    /// waiting for a possible `Uni:` line is taken, and the next port's first line starts
+    /// a line of its own (the raw recording is left as received).
     pub fn port_closed(&mut self) {
         let reader = &mut self.reader;
         self.decoder
             .finish(|line| reader.read_line(line.number, &line.text, None));
         self.decoder = LineDecoder::continuing(MAX_LINE_BYTES, self.decoder.n_lines());
+        // No `Uni:` line can follow on a closed port: the last reading counts now.
+        self.reader.end_of_stream();
         self.take_new_samples();
     }
 
@@ -728,10 +730,19 @@ mod tests {
         let counts = session.counts();
         assert_eq!(counts.n_lines, 4);
         assert_eq!(counts.n_skipped_lines, 1);
-        assert_eq!(counts.n_mag_samples, 2);
+        assert_eq!(
+            counts.n_mag_samples, 2,
+            "the last reading waits for the next line"
+        );
         assert_eq!(
             session.diagnostics().kept.first().and_then(|d| d.line),
             Some(2)
+        );
+        session.port_closed();
+        assert_eq!(
+            session.counts().n_mag_samples,
+            3,
+            "a closed port's last reading is taken"
         );
         assert_eq!(session.raw(), [first_port, second_port].concat().as_slice());
     }

@@ -495,6 +495,12 @@ impl SerialReader {
         &self.echoes
     }
 
+    /// The stream ended (a serial port closed): the reading still waiting for the rest of
+    /// its lines is taken as it is, as `finish` would take it.
+    pub fn end_of_stream(&mut self) {
+        self.flush_frame();
+    }
+
     /// The lines skipped so far, with their line numbers and reasons.
     pub fn diagnostics(&self) -> &Diagnostics {
         &self.diagnostics
