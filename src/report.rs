@@ -178,14 +178,8 @@ pub fn pdr_summary_lines(analysis: &PdrAnalysis) -> Vec<String> {
             errors.distance_error_pct
         ));
     }
-    let fixes = &report.fixes;
-    if fixes.used + fixes.used_after_reset + fixes.in_outage + fixes.poor_accuracy + fixes.rejected
-        > 0
-    {
-        lines.push(format!(
-            "GNSS fixes: {} used, {} after a reset, {} in outages, {} too inaccurate, {} rejected by the gate.",
-            fixes.used, fixes.used_after_reset, fixes.in_outage, fixes.poor_accuracy, fixes.rejected
-        ));
+    if let Some(fixes) = report.fixes.describe() {
+        lines.push(format!("GNSS fixes: {fixes}."));
     }
     for errors in &report.outage_position_errors {
         lines.push(format!(

@@ -798,17 +798,13 @@ fn pdr_text(report: &PdrReport) -> String {
         "  heading: {} ({})",
         report.heading_label, report.heading_key
     );
-    let fixes = &report.fixes;
-    if fixes.used + fixes.used_after_reset + fixes.in_outage + fixes.poor_accuracy + fixes.rejected
-        == 0
-    {
-        let _ = writeln!(text, "  GNSS: none in the log");
-    } else {
-        let _ = writeln!(
-            text,
-            "  GNSS fixes: {} used, {} after a reset, {} in outages, {} too inaccurate, {} rejected by the gate",
-            fixes.used, fixes.used_after_reset, fixes.in_outage, fixes.poor_accuracy, fixes.rejected
-        );
+    match report.fixes.describe() {
+        Some(fixes) => {
+            let _ = writeln!(text, "  GNSS fixes: {fixes}");
+        }
+        None => {
+            let _ = writeln!(text, "  GNSS: none in the log");
+        }
     }
     let position_row =
         |text: &mut String, name: &str, errors: &compass_pdr::pdr::metrics::PositionErrors| {

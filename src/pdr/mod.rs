@@ -206,6 +206,19 @@ pub struct FixCounts {
     pub outside_walk: usize,
 }
 
+impl FixCounts {
+    /// "N used, … rejected by the gate", or `None` when the log had no fix to judge.
+    pub fn describe(&self) -> Option<String> {
+        (self.used + self.used_after_reset + self.in_outage + self.poor_accuracy + self.rejected > 0)
+            .then(|| {
+                format!(
+                    "{} used, {} after a reset, {} in outages, {} too inaccurate, {} rejected by the gate",
+                    self.used, self.used_after_reset, self.in_outage, self.poor_accuracy, self.rejected
+                )
+            })
+    }
+}
+
 /// What `compass-pdr pdr --json` prints.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct PdrReport {

@@ -10,6 +10,7 @@ use wasm_bindgen::closure::Closure;
 use wasm_bindgen::JsCast;
 use web_sys::{Document, HtmlButtonElement, HtmlCanvasElement};
 
+use super::dom::set_text;
 use super::page::{Page, Results};
 use crate::calib::export::{c_snippet, calibration_export, CalibrationExport};
 use crate::pdr::export::{track_text, TrackFormat};
@@ -322,11 +323,5 @@ fn download_url(document: &Document, name: &str, url: &str) {
         if let Some(anchor) = anchor.dyn_ref::<web_sys::HtmlElement>() {
             anchor.click();
         }
-    }
-}
-
-fn set_text(document: &Document, id: &str, text: &str) {
-    if let Some(element) = document.get_element_by_id(id) {
-        element.set_text_content(Some(text));
     }
 }

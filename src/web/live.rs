@@ -25,6 +25,7 @@ use web_sys::{
 };
 
 use super::canvas;
+use super::dom;
 use super::exports::{calibration_json, download_bytes};
 use super::page::describe_js_error;
 use super::storage::{
@@ -825,28 +826,17 @@ impl LivePanel {
         self.reset.set_disabled(reading);
     }
 
-    fn set_state(&self, state: &str, message: &str) {
-        self.section.set_attribute("data-live-state", state).ok();
-        self.set_text("live-status", message);
-    }
-
     fn set_text(&self, id: &str, text: &str) {
-        if let Some(element) = self.document.get_element_by_id(id) {
-            element.set_text_content(Some(text));
-        }
+        dom::set_text(&self.document, id, text);
     }
 
     fn fill_list(&self, id: &str, items: impl Iterator<Item = String>) {
-        let Some(list) = self.document.get_element_by_id(id) else {
-            return;
-        };
-        list.set_text_content(None);
-        for item in items {
-            if let Ok(list_item) = self.document.create_element("li") {
-                list_item.set_text_content(Some(&item));
-                let _ = list.append_child(&list_item);
-            }
-        }
+        dom::fill_list(&self.document, id, items);
+    }
+
+    fn set_state(&self, state: &str, message: &str) {
+        self.section.set_attribute("data-live-state", state).ok();
+        self.set_text("live-status", message);
     }
 }
 

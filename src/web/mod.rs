@@ -7,6 +7,7 @@
 
 mod canvas;
 mod controls;
+mod dom;
 mod exports;
 mod live;
 mod mapping;

@@ -14,6 +14,7 @@ use web_sys::{Document, DragEvent, Element, HtmlCanvasElement, HtmlElement, Html
 
 use super::canvas::{self, HeadingPlot, PdrPlot, Plot};
 use super::controls::{self, Stage};
+use super::dom;
 use super::mapping;
 use crate::analysis::AnalysisError;
 use crate::calibration::{calibrate, CalibrationAnalysis, CalibrationReport};
@@ -830,24 +831,12 @@ impl Page {
         self.fill_list("diagnostics", or_none(shown.chain(more)));
     }
 
-    /// Replaces the items of list `#id` with one `<li>` of text per item.
-    fn fill_list(&self, id: &str, items: impl Iterator<Item = String>) {
-        let Some(list) = self.document.get_element_by_id(id) else {
-            return;
-        };
-        list.set_text_content(None);
-        for item in items {
-            if let Ok(list_item) = self.document.create_element("li") {
-                list_item.set_text_content(Some(&item));
-                let _ = list.append_child(&list_item);
-            }
-        }
+    fn set_text(&self, id: &str, text: &str) {
+        dom::set_text(&self.document, id, text);
     }
 
-    fn set_text(&self, id: &str, text: &str) {
-        if let Some(element) = self.document.get_element_by_id(id) {
-            element.set_text_content(Some(text));
-        }
+    fn fill_list(&self, id: &str, items: impl Iterator<Item = String>) {
+        dom::fill_list(&self.document, id, items);
     }
 
     fn set_state(&self, state: &str, message: &str) {
