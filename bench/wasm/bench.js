@@ -1,10 +1,12 @@
 // The import benchmark in the browser: the release module's `inspect_file` (import +
 // stream summaries + conversion to a JS object, what the page does with a dropped file)
-// on each benchmark input. One warm-up call, then `runs` timed calls; the median is
+// on each benchmark input, and `inspect_blob` (the page's path for a dropped file: the
+// bytes as a Blob, read in chunks through the chunked importer; its result must equal
+// the whole-file one). One warm-up call, then `runs` timed calls; the median is
 // reported. The result is left in `window.benchResults` (or `window.benchError`) for
 // bench/wasm-bench.mjs, and shown in the page.
 import { report } from './report.js';
-import init, { inspect_file } from './pkg/compass_pdr.js';
+import init, { inspect_blob, inspect_file } from './pkg/compass_pdr.js';
 
 const INPUTS = [
   { name: 'walk.csv', url: 'data/walk.csv' },
@@ -34,11 +36,28 @@ async function run() {
       ms.push(performance.now() - start);
     }
     const medianMs = median(ms);
+    // The page's path for a dropped file: the same bytes as a Blob, read in chunks (the
+    // next read while this one is parsed) through the chunked importer.
+    const blob = new Blob([bytes]);
+    const fromBlob = await inspect_blob(input.name, blob);
+    if (JSON.stringify(fromBlob) !== JSON.stringify(inspection)) {
+      throw new Error(`${input.name}: read from a Blob in chunks, the import differs from reading it whole`);
+    }
+    const blobMs = [];
+    for (let i = 0; i < runs; i += 1) {
+      const start = performance.now();
+      await inspect_blob(input.name, blob);
+      blobMs.push(performance.now() - start);
+    }
+    const blobMedianMs = median(blobMs);
     results.inputs[input.name] = {
       bytes: bytes.length,
       ms: ms.map((value) => Math.round(value * 10) / 10),
       median_ms: medianMs,
       mb_per_s: bytes.length / 1e6 / (medianMs / 1e3),
+      blob_ms: blobMs.map((value) => Math.round(value * 10) / 10),
+      blob_median_ms: blobMedianMs,
+      blob_mb_per_s: bytes.length / 1e6 / (blobMedianMs / 1e3),
       format: inspection.format,
       n_data_lines: inspection.n_data_lines,
       streams: inspection.streams.map((stream) => `${stream.stream} ${stream.n_samples}`),

@@ -275,7 +275,7 @@ pub fn read_raw_mapped(
 /// Reads lines up to and including the header: the reader, the offset of the first byte
 /// after the header's line ending, and the number of lines read. `None` when no line
 /// ending follows the header (the caller then reads line by line).
-fn read_up_to_header(
+pub(crate) fn read_up_to_header(
     bytes: &[u8],
     mapping: Option<&ColumnMapping>,
     size_hint_bytes: Option<usize>,
@@ -999,6 +999,14 @@ impl DelimitedReader {
     pub fn read_line(&mut self, line: &Line<'_>) {
         self.read_any_line(line);
     }
+
+    /// Reads a block of whole data lines (after the header; the last may lack its
+    /// ending) where they lie, numbered on from `n_lines_before`, as reading the file
+    /// whole does; returns how many lines there were. For a file read in chunks
+    /// ([`super::import::ChunkedImport`]), which keeps an unfinished line for the next.
+    pub(crate) fn read_lines_block(&mut self, bytes: &[u8], n_lines_before: usize) -> usize {
+        self.read_data_bytes(bytes, n_lines_before)
+    }
 }
 
 // Every method here is private: the (private) bound is no part of the public interface.
@@ -1510,7 +1518,7 @@ fn read_field_slowly(
         Some(_) => problems.push(format!(
             "{} is {}",
             field_name(header, field_idx),
-            field.trim()
+            shorten(field.trim())
         )),
         None if field.trim().trim_matches('"').trim().is_empty() => {}
         None => problems.push(format!(

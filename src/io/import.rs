@@ -270,17 +270,133 @@ const SNIFF_BYTES: usize = SAMPLE_BYTES;
 
 /// A file read in chunks (from disk, or from a `File` in the browser), so that memory
 /// holds the samples and one chunk, never the whole text. The format is told from the
-/// first 16 KiB; from then on every chunk goes through the line decoder into that
-/// format's reader. Feeding the same bytes in any chunks gives the same result.
+/// first 16 KiB. From then on, delimited data lines and NMEA sentences are read in
+/// blocks of whole lines where they lie in the chunk, by the same code and with the same
+/// result as reading the file whole (only a chunk's unfinished last line is kept for
+/// the next); every other format, and a header that does not end in the first 16 KiB,
+/// goes line by line through the line decoder. Feeding the same bytes in any chunks
+/// gives the same result.
 pub struct ChunkedImport {
     file_name: String,
     size_hint_bytes: Option<usize>,
     /// The first bytes, held until the format is known.
     prefix: Vec<u8>,
-    reader: Option<(LineDecoder, FormatReader)>,
+    reader: Option<Reading>,
     saw_text: bool,
     n_bytes_read: usize,
     mapping: Option<ColumnMapping>,
+}
+
+/// How a chunked import reads, once the format is known.
+enum Reading {
+    Lines(LineDecoder, FormatReader),
+    Blocks {
+        reader: BlockReader,
+        /// The unfinished line at the end of the last chunk.
+        carry: Vec<u8>,
+        /// Lines read so far (the header's included).
+        n_lines: usize,
+    },
+}
+
+/// An unfinished line longer than this goes to the line decoder (which bounds the
+/// memory a line takes), with the rest of the file.
+const MAX_CARRY_BYTES: usize = 1 << 20;
+
+/// The readers that take blocks of whole lines.
+enum BlockReader {
+    Delimited(DelimitedReader),
+    Nmea(nmea::NmeaReader),
+}
+
+impl BlockReader {
+    fn read(&mut self, lines: &[u8], n_lines_before: usize) -> usize {
+        match self {
+            BlockReader::Delimited(reader) => reader.read_lines_block(lines, n_lines_before),
+            BlockReader::Nmea(reader) => reader.read_lines_block(lines, n_lines_before),
+        }
+    }
+
+    fn into_line_reader(self) -> FormatReader {
+        match self {
+            BlockReader::Delimited(reader) => FormatReader::Delimited(reader),
+            BlockReader::Nmea(reader) => FormatReader::Nmea(reader),
+        }
+    }
+}
+
+impl Reading {
+    fn feed(&mut self, chunk: &[u8]) {
+        match self {
+            Reading::Lines(decoder, reader) => decoder.feed(chunk, |line| reader.read_line(&line)),
+            Reading::Blocks {
+                reader,
+                carry,
+                n_lines,
+            } => {
+                let Some(last_newline) = memchr::memrchr(b'\n', chunk) else {
+                    carry.extend_from_slice(chunk);
+                    return;
+                };
+                let (mut lines, rest) = chunk.split_at(last_newline + 1);
+                if !carry.is_empty() {
+                    // Finish the carried line; read the rest of the chunk where it lies.
+                    let first_end =
+                        memchr::memchr(b'\n', lines).map_or(lines.len(), |newline| newline + 1);
+                    let (first_rest, after) = lines.split_at(first_end);
+                    carry.extend_from_slice(first_rest);
+                    *n_lines += reader.read(carry, *n_lines);
+                    carry.clear();
+                    lines = after;
+                }
+                if !lines.is_empty() {
+                    *n_lines += reader.read(lines, *n_lines);
+                }
+                carry.extend_from_slice(rest);
+            }
+        }
+    }
+
+    /// Whether the unfinished line has grown too long to keep whole.
+    fn carries_too_much(&self) -> bool {
+        matches!(self, Reading::Blocks { carry, .. } if carry.len() > MAX_CARRY_BYTES)
+    }
+
+    /// Goes on line by line through the line decoder, from the carried line on.
+    fn into_lines(self) -> Reading {
+        match self {
+            Reading::Blocks {
+                reader,
+                carry,
+                n_lines,
+            } => {
+                let mut decoder = LineDecoder::continuing(MAX_LINE_BYTES, n_lines);
+                let mut reader = reader.into_line_reader();
+                decoder.feed(&carry, |line| reader.read_line(&line));
+                Reading::Lines(decoder, reader)
+            }
+            lines @ Reading::Lines(..) => lines,
+        }
+    }
+
+    fn finish(self, file_name: &str) -> Result<FileImport, ImportError> {
+        match self {
+            Reading::Lines(mut decoder, mut reader) => {
+                decoder.finish(|line| reader.read_line(&line));
+                reader.finish(file_name)
+            }
+            Reading::Blocks {
+                mut reader,
+                carry,
+                n_lines,
+            } => {
+                if !carry.is_empty() {
+                    reader.read(&carry, n_lines);
+                }
+                reader.into_line_reader().finish(file_name)
+            }
+        }
+    }
 }
 
 enum FormatReader {
@@ -353,7 +469,12 @@ impl ChunkedImport {
             self.saw_text = chunk.iter().any(|byte| !byte.is_ascii_whitespace());
         }
         match &mut self.reader {
-            Some((decoder, reader)) => decoder.feed(chunk, |line| reader.read_line(&line)),
+            Some(reading) => {
+                reading.feed(chunk);
+                if reading.carries_too_much() {
+                    self.reader = self.reader.take().map(Reading::into_lines);
+                }
+            }
             None => {
                 self.prefix.extend_from_slice(chunk);
                 if self.prefix.len() >= SNIFF_BYTES {
@@ -372,7 +493,14 @@ impl ChunkedImport {
                 byte_offset,
             });
         }
-        let mut reader = match detect(&self.prefix) {
+        let format = detect(&self.prefix);
+        if let Some((mut reading, data_start)) = self.blocks_for(format) {
+            let prefix = std::mem::take(&mut self.prefix);
+            reading.feed(prefix.get(data_start..).unwrap_or_default());
+            self.reader = Some(reading);
+            return Ok(());
+        }
+        let mut reader = match format {
             Some(Format::Nmea) => FormatReader::Nmea(nmea::NmeaReader::new()),
             Some(Format::AndroidDump) => {
                 FormatReader::Android(tagged_lines::AndroidReader::default())
@@ -390,8 +518,31 @@ impl ChunkedImport {
         let mut decoder = LineDecoder::new(MAX_LINE_BYTES);
         decoder.feed(&self.prefix, |line| reader.read_line(&line));
         self.prefix = Vec::new();
-        self.reader = Some((decoder, reader));
+        self.reader = Some(Reading::Lines(decoder, reader));
         Ok(())
+    }
+
+    /// Block reading for NMEA, and for delimited text whose header ends in the prefix
+    /// (the header is read here), with where the data starts in the prefix.
+    fn blocks_for(&self, format: Option<Format>) -> Option<(Reading, usize)> {
+        let (reader, data_start, n_lines) = match format? {
+            Format::Nmea => (BlockReader::Nmea(nmea::NmeaReader::new()), 0, 0),
+            Format::Delimited => {
+                let (reader, data_start, n_lines) = delimited::read_up_to_header(
+                    &self.prefix,
+                    self.mapping.as_ref(),
+                    self.size_hint_bytes,
+                )?;
+                (BlockReader::Delimited(reader), data_start, n_lines)
+            }
+            Format::AndroidDump | Format::GetSensorData | Format::SerialLines => return None,
+        };
+        let reading = Reading::Blocks {
+            reader,
+            carry: Vec::new(),
+            n_lines,
+        };
+        Some((reading, data_start))
     }
 
     /// Ends the file and hands over what was read, for [`merge`].
@@ -404,13 +555,12 @@ impl ChunkedImport {
         if self.reader.is_none() {
             self.start_reading()?;
         }
-        let Some((mut decoder, mut reader)) = self.reader.take() else {
+        let Some(reading) = self.reader.take() else {
             return Err(ImportError::Empty {
                 file_name: self.file_name,
             });
         };
-        decoder.finish(|line| reader.read_line(&line));
-        reader.finish(&self.file_name)
+        reading.finish(&self.file_name)
     }
 }
 
@@ -438,6 +588,176 @@ impl Inspection {
             streams: summarize(&report.recording),
             notes: report.notes.clone(),
             diagnostics: report.diagnostics.clone(),
+        }
+    }
+}
+
+// Native only: proptest is a native dev-dependency.
+#[cfg(all(test, not(target_arch = "wasm32")))]
+mod tests {
+    use proptest::prelude::*;
+
+    use super::*;
+
+    fn sentence(body: &str) -> String {
+        let checksum = body.bytes().fold(0u8, |acc, byte| acc ^ byte);
+        format!("${body}*{checksum:02X}")
+    }
+
+    /// A canonical CSV with what a block must get right: comments and a blank line among
+    /// the data, a quoted field, bad numbers, a short row, a time that goes back, a lone
+    /// CR, CRLF endings, bytes that are not UTF-8, and a last line without its ending.
+    fn tricky_csv() -> Vec<u8> {
+        let mut text = b"# comment\nt_s,mag_x_ut,mag_y_ut,mag_z_ut,acc_x_mps2,acc_y_mps2,acc_z_mps2,lat_deg,lon_deg\n".to_vec();
+        for row in 0..1500u32 {
+            let t = f64::from(row) * 0.01;
+            let line = match row % 57 {
+                3 => format!("{t:.2},abc,1,2,0,0,-9.8,,\n"),
+                7 => format!("{t:.2},\"20.5\",1,2,0,0,-9.8,48.1,11.5\r\n"),
+                11 => "\n".to_string(),
+                13 => format!("{t:.2},20\n"),
+                17 => format!("{:.2},21,2,3,0,0,-9.8,,\n", t - 1.0),
+                19 => format!("{t:.2},22,1,2\r0,0,-9.8,,\n"),
+                23 => format!("# note {row}\r\n"),
+                _ => format!("{t:.2},{},{},-40,0.1,0.2,-9.8,,\n", 20 + row % 5, row % 3),
+            };
+            text.extend_from_slice(line.as_bytes());
+            if row == 700 {
+                text.extend_from_slice(b"1.5,\xff\xfe,1,2,0,0,-9.8,,\n");
+            }
+        }
+        text.extend_from_slice(b"99.99,20,1,2,0,0,-9.8,,");
+        text
+    }
+
+    /// NMEA with a midnight, untimed sentences, every line ending, a bad checksum, an
+    /// unknown address, bytes that are not UTF-8, blank lines, an overlong line and a
+    /// last line without its ending.
+    fn tricky_nmea() -> Vec<u8> {
+        let mut text = sentence("HEHDT,10.0,T").into_bytes();
+        text.extend_from_slice(b"\r\n");
+        for epoch in 0..600u32 {
+            let seconds = 235_950 + epoch;
+            let hhmmss = format!(
+                "{:02}{:02}{:02}",
+                (seconds / 3600) % 24,
+                (seconds / 60) % 60,
+                seconds % 60
+            );
+            let date = if seconds / 3600 >= 24 {
+                "030124"
+            } else {
+                "020124"
+            };
+            let lines = [
+                sentence(&format!(
+                    "GPRMC,{hhmmss}.00,A,4807.038,N,01131.000,E,1.5,{:.1},{date},,,A",
+                    f64::from(epoch % 360)
+                )),
+                sentence(&format!(
+                    "GPGGA,{hhmmss}.00,4807.038,N,01131.000,E,1,08,0.9,545.4,M,47.0,M,,"
+                )),
+                sentence("GPVTG,54.7,T,,M,5.5,N,10.2,K,A"),
+                sentence("HCHDG,101.1,,,7.1,W"),
+                sentence("PTNTHPR,85.9,N,-0.9,N,0.8,N"),
+            ];
+            for (idx, line) in lines.iter().enumerate() {
+                let ending: &[u8] = match (epoch as usize + idx) % 3 {
+                    0 => b"\r\n",
+                    1 => b"\n",
+                    _ => b"\r",
+                };
+                if epoch % 41 == 5 && idx == 1 {
+                    text.extend_from_slice(b"$GPGGA,bad*00\n");
+                }
+                if epoch % 53 == 7 && idx == 2 {
+                    text.extend_from_slice(b"$GPXYZ,1,2,3\n\xff\xfe garbage\n\n");
+                }
+                text.extend_from_slice(line.as_bytes());
+                text.extend_from_slice(ending);
+            }
+        }
+        text.extend_from_slice(&[b'x'; 5000]);
+        text.extend_from_slice(b"\n");
+        text.extend_from_slice(sentence("HEHDT,12.0,T").as_bytes());
+        text
+    }
+
+    fn read_in_chunks(
+        name: &str,
+        bytes: &[u8],
+        chunk_ends: &[usize],
+    ) -> Result<ImportReport, ImportError> {
+        let mut chunked = ChunkedImport::new(name, Some(bytes.len()));
+        let mut start = 0;
+        for &end in chunk_ends.iter().chain(std::iter::once(&bytes.len())) {
+            let end = end.clamp(start, bytes.len());
+            chunked.feed(&bytes[start..end])?;
+            start = end;
+        }
+        merge(vec![(name.to_string(), chunked.finish())])
+    }
+
+    #[test]
+    fn delimited_and_nmea_chunks_read_in_blocks_give_the_whole_files_import() {
+        for (name, bytes) in [("tricky.csv", tricky_csv()), ("tricky.nmea", tricky_nmea())] {
+            let whole = import(name, &bytes);
+            assert!(whole
+                .as_ref()
+                .is_ok_and(|report| report.diagnostics.kept.len() > 5));
+            let len = bytes.len();
+            for chunk_len in [1usize, 2, 3, 7, 100, 4096, 16 * 1024, 16 * 1024 + 1, len] {
+                let ends: Vec<usize> = (1..=len / chunk_len).map(|idx| idx * chunk_len).collect();
+                assert_eq!(
+                    read_in_chunks(name, &bytes, &ends),
+                    whole,
+                    "{name} in chunks of {chunk_len}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn a_line_too_long_to_carry_goes_to_the_line_decoder_with_the_same_result() {
+        let mut csv = b"t_s,mag_x_ut,mag_y_ut,mag_z_ut\n0,1,2,3\n0.2,1,2,3\n0.5,".to_vec();
+        csv.extend(std::iter::repeat_n(b'7', 3 * MAX_CARRY_BYTES));
+        csv.extend_from_slice(b",2,3\n1,1,2,3\n2,1,2,3\n");
+        let mut nmea = format!(
+            "{}\n{}\n{}\n",
+            sentence("HEHDT,10.0,T"),
+            sentence("HEHDT,10.5,T"),
+            sentence("HEHDT,10.7,T")
+        )
+        .into_bytes();
+        nmea.extend(std::iter::repeat_n(b'$', 3 * MAX_CARRY_BYTES));
+        nmea.extend_from_slice(format!("\n{}\n", sentence("HEHDT,11.0,T")).as_bytes());
+        for (name, bytes) in [("long.csv", csv), ("long.nmea", nmea)] {
+            let whole = import(name, &bytes);
+            let kept = whole.as_ref().map(|report| report.diagnostics.kept.clone());
+            assert!(
+                kept.as_ref().is_ok_and(|kept| {
+                    kept.iter().any(|diagnostic| {
+                        diagnostic.line == Some(4) && diagnostic.message.len() < 200
+                    })
+                }),
+                "{name}: {kept:?}"
+            );
+            let ends: Vec<usize> = (1..bytes.len() / 65536).map(|idx| idx * 65536).collect();
+            assert_eq!(read_in_chunks(name, &bytes, &ends), whole, "{name}");
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(48))]
+
+        #[test]
+        fn any_chunks_give_the_whole_files_import(
+            mut chunk_ends in proptest::collection::vec(0usize..80_000, 0..12),
+            nmea in any::<bool>(),
+        ) {
+            let (name, bytes) = if nmea { ("p.nmea", tricky_nmea()) } else { ("p.csv", tricky_csv()) };
+            chunk_ends.sort_unstable();
+            prop_assert_eq!(read_in_chunks(name, &bytes, &chunk_ends), import(name, &bytes));
         }
     }
 }

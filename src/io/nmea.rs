@@ -1428,6 +1428,16 @@ impl NmeaReader {
         self.apply(line_number, LineEvent::parse(text));
     }
 
+    /// Reads a block of whole lines where they lie (the last may lack its ending),
+    /// numbered on from `n_lines_before`, as [`read`] does for a whole file; returns how
+    /// many lines there were. For a file read in chunks
+    /// ([`super::import::ChunkedImport`]), which keeps an unfinished line for the next.
+    pub(crate) fn read_lines_block(&mut self, bytes: &[u8], n_lines_before: usize) -> usize {
+        for_each_line(bytes, |line_number, content| {
+            self.apply(n_lines_before + line_number, LineEvent::of(content));
+        })
+    }
+
     /// Reads one line from [`LineDecoder`](super::lines::LineDecoder), skipping it with
     /// a diagnostic if the decoder had to cut it.
     pub fn read_decoded(&mut self, line: &Line<'_>) {

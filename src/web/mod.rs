@@ -6,6 +6,7 @@
 //! same analysis for scripts, returning the summary as a plain object.
 
 mod canvas;
+mod chunks;
 mod controls;
 mod dom;
 mod exports;
@@ -59,6 +60,29 @@ pub fn analyse_file(file_name: &str, bytes: &[u8]) -> Result<JsValue, JsError> {
 #[wasm_bindgen]
 pub fn inspect_file(file_name: &str, bytes: &[u8]) -> Result<JsValue, JsError> {
     let report = crate::io::import::import(file_name, bytes)
+        .map_err(|error| JsError::new(&error.to_string()))?;
+    let inspection = crate::io::import::Inspection::of(&report);
+    let serializer = serde_wasm_bindgen::Serializer::json_compatible();
+    serde::Serialize::serialize(&inspection, &serializer)
+        .map_err(|error| JsError::new(&error.to_string()))
+}
+
+/// [`inspect_file`] for a `Blob` (a dropped `File`), read as the page reads one: in
+/// chunks, the next read while this one is parsed, through a
+/// [`ChunkedImport`](crate::io::import::ChunkedImport). For the import benchmark.
+#[wasm_bindgen]
+pub async fn inspect_blob(file_name: String, blob: web_sys::Blob) -> Result<JsValue, JsError> {
+    let mut reader = chunks::ChunkReader::new(blob, page::CHUNK_BYTES);
+    let mut import =
+        crate::io::import::ChunkedImport::new(&file_name, Some(reader.size() as usize));
+    let mut bytes = Vec::new();
+    while let Some(read) = reader.next_into(&mut bytes).await {
+        read.map_err(|message| JsError::new(&message))?;
+        import
+            .feed(&bytes)
+            .map_err(|error| JsError::new(&error.to_string()))?;
+    }
+    let report = crate::io::import::merge(vec![(file_name, import.finish())])
         .map_err(|error| JsError::new(&error.to_string()))?;
     let inspection = crate::io::import::Inspection::of(&report);
     let serializer = serde_wasm_bindgen::Serializer::json_compatible();

@@ -13,6 +13,7 @@ use wasm_bindgen_futures::{spawn_local, JsFuture};
 use web_sys::{Document, DragEvent, Element, HtmlCanvasElement, HtmlElement, HtmlInputElement};
 
 use super::canvas::{self, HeadingPlot, PdrPlot, Plot};
+use super::chunks::ChunkReader;
 use super::controls::{self, Stage};
 use super::dom;
 use super::mapping;
@@ -45,7 +46,11 @@ const PROGRESS_ID: &str = "progress";
 
 /// Bytes read from a file at a time: small enough that the page answers between
 /// chunks, large enough that the reads cost little.
-const CHUNK_BYTES: f64 = 4.0 * 1024.0 * 1024.0;
+pub(super) const CHUNK_BYTES: f64 = 4.0 * 1024.0 * 1024.0;
+
+/// While a file is read, the browser gets a turn at least this often. (A chunk read
+/// ahead is often ready when it is wanted, and awaiting it then gives the browser none.)
+const YIELD_EVERY_MS: f64 = 40.0;
 
 /// How much of a file's start is kept for the mapping dialog's preview.
 const PREVIEW_BYTES: usize = 64 * 1024;
@@ -309,6 +314,9 @@ impl Page {
     }
 
     /// One file through a [`ChunkedImport`]; `Err` only when the browser cannot read it.
+    /// The next chunk is read while this one is parsed ([`ChunkReader`]); the browser
+    /// gets a turn (to paint the progress bar, to answer input) at least every
+    /// [`YIELD_EVERY_MS`].
     async fn read_in_chunks(
         &self,
         file: &web_sys::File,
@@ -317,21 +325,17 @@ impl Page {
         bytes_done: &mut f64,
         total_bytes: f64,
     ) -> Result<ChunkedRead, String> {
-        let size = file.size();
+        let mut reader = ChunkReader::new(file.clone().into(), CHUNK_BYTES);
+        let size = reader.size();
         let mut import: Option<ChunkedImport> = None;
         let mut first_chunk = Vec::new();
         let mut used_remembered_mapping = false;
-        let mut start = 0.0;
-        loop {
-            let end = (start + CHUNK_BYTES).min(size);
-            let slice = file
-                .slice_with_f64_and_f64(start, end)
-                .map_err(|_| format!("Could not read {file_name}. Try choosing it again."))?;
-            let bytes = gloo_file::futures::read_as_bytes(&gloo::file::Blob::from(slice))
-                .await
-                .map_err(|error| {
-                    format!("Could not read {file_name}: {error}. Try choosing it again.")
-                })?;
+        let mut bytes = Vec::new();
+        let mut last_turn_ms = now_ms();
+        while let Some(read) = reader.next_into(&mut bytes).await {
+            read.map_err(|error| {
+                format!("Could not read {file_name}: {error}. Try choosing it again.")
+            })?;
             let chunked = import.get_or_insert_with(|| {
                 // The header is in the first chunk: it picks a remembered mapping.
                 let signature = header_signature(&bytes);
@@ -354,11 +358,11 @@ impl Page {
                     used_remembered_mapping,
                 });
             }
-            *bytes_done += end - start;
-            start = end;
+            *bytes_done += bytes.len() as f64;
             self.show_progress(*bytes_done / total_bytes.max(1.0), file_name);
-            if start >= size {
-                break;
+            if now_ms() - last_turn_ms >= YIELD_EVERY_MS {
+                yield_to_browser().await;
+                last_turn_ms = now_ms();
             }
         }
         let result = match import {
@@ -873,6 +877,13 @@ fn or_none(items: impl Iterator<Item = String>) -> impl Iterator<Item = String> 
     let mut items = items.peekable();
     let none = items.peek().is_none().then(|| "None.".to_string());
     items.chain(none)
+}
+
+/// Milliseconds on the page's clock (`performance.now()`), 0 where there is none.
+fn now_ms() -> f64 {
+    web_sys::window()
+        .and_then(|window| window.performance())
+        .map_or(0.0, |performance| performance.now())
 }
 
 /// Lets the browser run its queued work (painting, input) before the next step: a
