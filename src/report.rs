@@ -192,6 +192,9 @@ pub fn pdr_summary_lines(analysis: &PdrAnalysis) -> Vec<String> {
             errors.max_m
         ));
     }
+    for gap in &report.gnss_gaps {
+        lines.push(gap_sentence(gap));
+    }
     if let Some(error) = &report.step_length_error_m {
         lines.push(format!(
             "Step length error: {:+.3} ± {:.3} m over {} steps.",
@@ -206,6 +209,24 @@ pub fn pdr_summary_lines(analysis: &PdrAnalysis) -> Vec<String> {
     }
     lines.extend(report.notes.iter().cloned());
     lines
+}
+
+/// What the dead reckoning did across a span without GNSS, as a sentence.
+pub fn gap_sentence(gap: &crate::pdr::GnssGap) -> String {
+    let head = format!(
+        "No GNSS fix from {:.0} to {:.0} s ({:.0} s): dead reckoning alone carried the track {:.1} m",
+        gap.start_s,
+        gap.end_s,
+        gap.end_s - gap.start_s,
+        gap.pdr_distance_m
+    );
+    match &gap.position_error {
+        Some(errors) => format!(
+            "{head}, with an error of RMS {:.2} m, max {:.2} m ({:.2} % of the {:.0} m walked).",
+            errors.rms_m, errors.max_m, errors.max_pct, errors.distance_m
+        ),
+        None => format!("{head}."),
+    }
 }
 
 /// The corrected data, one row per magnetometer sample used: time, the levelled field

@@ -30,7 +30,7 @@ fn the_committed_demo_is_what_the_simulator_writes() {
         "--seed",
         "1",
         "--duration-s",
-        "180",
+        "240",
         "--out",
         out.to_str().unwrap_or_default(),
     ]);
@@ -93,10 +93,12 @@ fn simulate_writes_the_pdr_scenario_with_its_step_truth() {
         assert!(steps[0][key].is_f64(), "{key}");
     }
 
-    // The demo's truth stays the config alone, without a gait.
+    // The steady walk's truth is the config alone, without a gait.
     let demo_truth = dir.join("demo.truth.json");
     let output = compass_pdr(&[
         "simulate",
+        "--scenario",
+        "steady",
         "--duration-s",
         "10",
         "--out",
@@ -140,7 +142,7 @@ fn calibrate_prints_json_with_the_heading_errors() {
     ]);
     assert!(output.status.success(), "{}", stderr(&output));
     let json: serde_json::Value = serde_json::from_slice(&output.stdout).expect("JSON on stdout");
-    assert_eq!(json["n_samples_used"], 9000);
+    assert_eq!(json["n_samples_used"], 12000);
     assert_eq!(json["methods"].as_array().map(Vec::len), Some(1));
     let method = &json["methods"][0];
     assert_eq!(method["method"], "min_max");
@@ -150,8 +152,10 @@ fn calibrate_prints_json_with_the_heading_errors() {
     let rms_after = method["heading_error_check"]["rms_deg"]
         .as_f64()
         .unwrap_or(f64::NAN);
+    // The demo's compass also drifts with temperature and passes near iron: a few
+    // degrees are left after a field-domain calibration (the heading models take more).
     assert!(
-        rms_before > 10.0 && rms_after < 3.0,
+        rms_before > 10.0 && rms_after < 5.0,
         "before {rms_before}, after {rms_after}"
     );
     for key in ["scale_x", "scale_y", "bias_x_ut", "bias_y_ut"] {
@@ -274,8 +278,17 @@ fn pdr_dead_reckons_the_demo_and_writes_the_track_and_figure() {
         dir.join("track.csv"),
         dir.join("track.gpx"),
     );
-    let demo = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/demo-walk.csv");
-    let demo = demo.to_str().unwrap_or_default();
+    // A walk without GNSS: the step model is fitted to a known distance, if any.
+    let steady = dir.join("steady.csv");
+    let output = compass_pdr(&[
+        "simulate",
+        "--scenario",
+        "steady",
+        "--out",
+        steady.to_str().unwrap_or_default(),
+    ]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    let demo = steady.to_str().unwrap_or_default();
     let output = compass_pdr(&[
         "pdr",
         demo,
@@ -314,6 +327,24 @@ fn pdr_dead_reckons_the_demo_and_writes_the_track_and_figure() {
     assert!(report["position_error"]["rms_m"].is_number());
     // Nothing in the demo trains a linear model: the default Weinberg K is used, and said.
     assert_eq!(report["step_model"]["trained_on"], "default");
+
+    // The demo has GNSS with a minute's gap: the step model learns from the GNSS speed,
+    // the gap is bridged and scored, and the track has latitude and longitude for GPX.
+    let gnss_demo = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/demo-walk.csv");
+    let gnss_demo = gnss_demo.to_str().unwrap_or_default();
+    let output = compass_pdr(&["pdr", gnss_demo, "--out", gpx.to_str().unwrap_or_default()]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(stdout.contains("trained on the GNSS speed"), "{stdout}");
+    assert!(stdout.contains("no GNSS 143-204 s"), "{stdout}");
+    let gpx_text = std::fs::read_to_string(&gpx).expect("GPX written");
+    assert!(gpx_text.matches("<trkpt").count() > 400, "a point per step");
+    let output = compass_pdr(&["pdr", gnss_demo, "--json"]);
+    let report: serde_json::Value = serde_json::from_slice(&output.stdout).expect("JSON");
+    let gap_max_m = report["gnss_gaps"][0]["position_error"]["max_m"]
+        .as_f64()
+        .unwrap_or(f64::NAN);
+    assert!(gap_max_m < 5.0, "{gap_max_m} m off at worst across the gap");
 
     // A track without GNSS has no latitude and longitude for GPX; a bad outage is refused.
     for (args, expected) in [
@@ -405,7 +436,11 @@ fn report_writes_the_page_s_html_report_with_svg_figures() {
         3,
         "calibration, heading models, PDR"
     );
-    assert!(html.contains("313 steps in 2 bouts"), "the PDR summary");
+    assert!(html.contains("415 steps in 3 bouts"), "the PDR summary");
+    assert!(
+        html.contains("No GNSS fix from 143 to 204 s"),
+        "the gap bridged"
+    );
     assert!(!html.contains("<script"));
 }
 

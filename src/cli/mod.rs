@@ -53,8 +53,10 @@ enum Command {
         /// scenario, with the truth of every step.
         #[arg(long)]
         truth: Option<PathBuf>,
-        /// Which walk: the demo's, or the PDR scenario (varied steps with per-step
-        /// truth, a compass error of the unified model, GNSS with 3 m noise).
+        /// Which scenario: the demo's walk, the PDR walk (varied steps with per-step
+        /// truth, a compass error of the unified model, GNSS with 3 m noise), a steady
+        /// walk without GNSS, a turntable, the 2007 paper's raw case, or a board's
+        /// calibration dance.
         #[arg(long, value_enum, default_value_t = Scenario::Demo)]
         scenario: Scenario,
         /// Samples per second of the motion sensors (phones log at 50 or 100).
@@ -324,8 +326,18 @@ impl AnalysisArgs {
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 enum Scenario {
-    /// A steady walk with hard iron and scale factors (`assets/demo-walk.csv`).
+    /// The demo log (`assets/demo-walk.csv`): a walk in Helsinki with hard iron, scale
+    /// factors and their temperature drift, varied steps, GNSS with an outage and
+    /// multipath, and a passage near iron.
     Demo,
+    /// A steady walk with hard iron and scale factors, no GNSS (the demo before 2026-11).
+    Steady,
+    /// The phone of the steady walk on a level turntable, one turn a minute.
+    Turntable,
+    /// The 2007 paper's raw case on the turntable: a raw heading error of (12 ± 30)°
+    /// (hard iron of 0.69 of the horizontal field, and a declination of −12° that the log
+    /// does not reveal).
+    Paper,
     /// Issue 6's PDR walk: varied steps, unified-model compass error, 3 m GNSS noise.
     Pdr,
     /// A board's sphere "calibration dance", written as MotionCal `Raw:` lines (what a
@@ -477,9 +489,18 @@ fn run_simulate(
         return Ok(());
     }
     let config = match scenario {
-        Scenario::Demo => WalkConfig {
+        Scenario::Demo => WalkConfig::demo(seed, duration_s, sample_rate_hz),
+        Scenario::Steady => WalkConfig {
             sample_rate_hz,
             ..WalkConfig::from_seed(seed, duration_s)
+        },
+        Scenario::Turntable => WalkConfig {
+            sample_rate_hz,
+            ..WalkConfig::turntable(seed, duration_s, 60.0)
+        },
+        Scenario::Paper => WalkConfig {
+            sample_rate_hz,
+            ..WalkConfig::paper_raw_case(seed, duration_s)
         },
         Scenario::Pdr | Scenario::Dance => WalkConfig::pdr_walk(seed, duration_s, sample_rate_hz),
     };
@@ -487,14 +508,18 @@ fn run_simulate(
     std::fs::write(out, canonical_csv::write(&rows))
         .map_err(|error| format!("cannot write {}: {error}", out.display()))?;
     if let Some(truth) = truth {
-        // The demo's truth file stays the config alone, as assets/demo-walk.truth.json.
+        // The steady walk's truth is its config alone; a varied gait's has its steps.
         let encoded = match scenario {
-            Scenario::Demo => serde_json::to_string_pretty(&config),
-            Scenario::Pdr | Scenario::Dance => serde_json::to_string_pretty(&PdrTruth {
-                config: &config,
-                path_length_m: walk_truth.path_length_m,
-                steps: &walk_truth.steps,
-            }),
+            Scenario::Steady | Scenario::Turntable | Scenario::Paper => {
+                serde_json::to_string_pretty(&config)
+            }
+            Scenario::Demo | Scenario::Pdr | Scenario::Dance => {
+                serde_json::to_string_pretty(&PdrTruth {
+                    config: &config,
+                    path_length_m: walk_truth.path_length_m,
+                    steps: &walk_truth.steps,
+                })
+            }
         };
         let json = encoded.map_err(|error| format!("cannot encode the truth: {error}"))?;
         std::fs::write(truth, json + "\n")
@@ -820,7 +845,15 @@ fn pdr_text(report: &PdrReport) -> String {
             errors.distance_error_pct
         );
         };
-    if report.position_error.is_some() || !report.outage_position_errors.is_empty() {
+    let gap_errors: Vec<&compass_pdr::pdr::metrics::PositionErrors> = report
+        .gnss_gaps
+        .iter()
+        .filter_map(|gap| gap.position_error.as_ref())
+        .collect();
+    if report.position_error.is_some()
+        || !report.outage_position_errors.is_empty()
+        || !gap_errors.is_empty()
+    {
         let _ = writeln!(
             text,
             "  {:<26} {:>9} {:>10} {:>9} {:>8} {:>9} {:>8} {:>9}",
@@ -830,12 +863,26 @@ fn pdr_text(report: &PdrReport) -> String {
     if let Some(errors) = &report.position_error {
         position_row(&mut text, "whole walk", errors);
     }
-    for (outage, errors) in report.outages.iter().zip(&report.outage_position_errors) {
+    for errors in &report.outage_position_errors {
         position_row(
             &mut text,
-            &format!("outage {:.0}-{:.0} s", outage.start_s, outage.end_s),
+            &format!("outage {:.0}-{:.0} s", errors.start_s, errors.end_s),
             errors,
         );
+    }
+    for errors in gap_errors {
+        position_row(
+            &mut text,
+            &format!("no GNSS {:.0}-{:.0} s", errors.start_s, errors.end_s),
+            errors,
+        );
+    }
+    for gap in report
+        .gnss_gaps
+        .iter()
+        .filter(|gap| gap.position_error.is_none())
+    {
+        let _ = writeln!(text, "  {}", compass_pdr::report::gap_sentence(gap));
     }
     if let Some(error) = &report.step_length_error_m {
         let _ = writeln!(

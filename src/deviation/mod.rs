@@ -127,12 +127,22 @@ impl HeadingReport {
     /// The Fourier model the plots feature: of those with all five terms, the one that
     /// fits its train part best; else the one on the raw heading.
     pub fn featured_fourier(&self) -> Option<&FourierReport> {
-        self.fourier
-            .iter()
-            .filter(|report| report.fit.terms == fourier::FourierTerms::Full)
-            .min_by(|a, b| a.fit.residual_std_deg.total_cmp(&b.fit.residual_std_deg))
-            .or_else(|| self.fourier.iter().find(|report| report.base_key == "raw"))
+        featured(&self.fourier)
     }
+}
+
+/// The Fourier model to show and to adapt online: the best fitting (smallest residual
+/// spread) of those with all five terms, else of those with fewer (when the train
+/// headings cover too little of the circle for all five: a calibrated base with A, B
+/// and C still shows more than the raw heading's constant).
+fn featured(reports: &[FourierReport]) -> Option<&FourierReport> {
+    let best = |full_only: bool| {
+        reports
+            .iter()
+            .filter(|report| !full_only || report.fit.terms == fourier::FourierTerms::Full)
+            .min_by(|a, b| a.fit.residual_std_deg.total_cmp(&b.fit.residual_std_deg))
+    };
+    best(true).or_else(|| best(false))
 }
 
 /// The report with the per-sample series the plots draw.
@@ -433,11 +443,8 @@ pub fn compare(calibration: &CalibrationAnalysis, options: &HeadingOptions) -> H
     }
 
     // Online adaptation over every referenced sample in time order, on the base whose
-    // batch model fits best (the raw heading when nothing else was fitted).
-    let online_base = fourier_reports
-        .iter()
-        .filter(|report| report.fit.terms == fourier::FourierTerms::Full)
-        .min_by(|a, b| a.fit.residual_std_deg.total_cmp(&b.fit.residual_std_deg))
+    // batch model is featured (the raw heading when nothing was fitted).
+    let online_base = featured(&fourier_reports)
         .and_then(|report| bases.iter().find(|base| base.key == report.base_key))
         .or(bases.first());
     let online = online_base.and_then(|raw| {

@@ -238,12 +238,79 @@ pub struct PdrReport {
     /// Against reference positions over the whole walk, and over each outage.
     pub position_error: Option<PositionErrors>,
     pub outage_position_errors: Vec<PositionErrors>,
+    /// Spans of the walk in which the log itself has no GNSS fix (a tunnel, a roof):
+    /// what the dead reckoning bridged, with its error there where there is a reference.
+    pub gnss_gaps: Vec<GnssGap>,
     /// Model step length minus the reference step length (m).
     pub step_length_error_m: Option<MeanStd>,
     /// Filtered step heading minus the reference heading (deg).
     pub heading_error_deg: Option<MeanStd>,
     pub loop_closure: Option<LoopClosure>,
     pub notes: Vec<String>,
+}
+
+/// A span of the walk without any GNSS fix in the log, longer than
+/// [`min_gap_s`] of its fix interval: the dead reckoning alone carried the track.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct GnssGap {
+    /// The last fix before and the first after (or the walk's end).
+    pub start_s: f64,
+    pub end_s: f64,
+    /// The track's length across the gap.
+    pub pdr_distance_m: f64,
+    /// Against the reference positions, where the log has them.
+    pub position_error: Option<PositionErrors>,
+}
+
+/// The shortest span without fixes that counts as a gap: five fix intervals (the
+/// median interval of the log's fixes), and at least 5 s.
+fn min_gap_s(fix_times_s: &[f64]) -> f64 {
+    let mut intervals: Vec<f64> = fix_times_s
+        .windows(2)
+        .filter_map(|pair| match pair {
+            [before, after] if after > before => Some(after - before),
+            _ => None,
+        })
+        .collect();
+    intervals.sort_by(f64::total_cmp);
+    let median = intervals.get(intervals.len() / 2).copied().unwrap_or(1.0);
+    (5.0 * median).max(5.0)
+}
+
+/// The gaps between the log's fixes (sorted times) within the walk.
+fn gnss_gaps(
+    fix_times_s: &[f64],
+    walk_start_s: f64,
+    walk_end_s: f64,
+    track: &[TrackPoint],
+    reference_en_m: &[(f64, [f64; 2])],
+) -> Vec<GnssGap> {
+    if fix_times_s.is_empty() {
+        return Vec::new();
+    }
+    let min_gap_s = min_gap_s(fix_times_s);
+    let inside: Vec<f64> = fix_times_s
+        .iter()
+        .copied()
+        .filter(|t_s| (walk_start_s..=walk_end_s).contains(t_s))
+        .collect();
+    let bounds = std::iter::once(walk_start_s)
+        .chain(inside.iter().copied())
+        .chain(std::iter::once(walk_end_s));
+    let bounds: Vec<f64> = bounds.collect();
+    bounds
+        .windows(2)
+        .filter_map(|pair| match pair {
+            [start_s, end_s] if end_s - start_s > min_gap_s => Some((*start_s, *end_s)),
+            _ => None,
+        })
+        .map(|(start_s, end_s)| GnssGap {
+            start_s,
+            end_s,
+            pdr_distance_m: metrics::track_distance_m(track, start_s, end_s),
+            position_error: metrics::position_errors(track, reference_en_m, start_s, end_s),
+        })
+        .collect()
 }
 
 /// The report with the series the plots and exports draw.
@@ -568,6 +635,15 @@ pub fn run(report: ImportReport, options: &PdrOptions) -> Result<PdrAnalysis, Pd
             metrics::position_errors(&track, &reference_en_m, outage.start_s, outage.end_s)
         })
         .collect();
+    let mut fix_times_s: Vec<f64> = fixes.iter().map(|fix| fix.t_s).collect();
+    fix_times_s.sort_by(f64::total_cmp);
+    let gnss_gaps = gnss_gaps(
+        &fix_times_s,
+        walk_start_s,
+        walk_end_s,
+        &track,
+        &reference_en_m,
+    );
     let step_references_m = step_reference_lengths(&steps, &reference_en_m, &gnss_references);
     let step_length_error_m = MeanStd::of(
         step_lengths_m
@@ -608,6 +684,7 @@ pub fn run(report: ImportReport, options: &PdrOptions) -> Result<PdrAnalysis, Pd
         fixes: fix_counts,
         position_error,
         outage_position_errors,
+        gnss_gaps,
         step_length_error_m,
         heading_error_deg,
         loop_closure,

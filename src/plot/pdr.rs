@@ -161,11 +161,11 @@ pub fn draw_trajectory<DB: DrawingBackend>(
         .label("PDR")
         .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], TRACK_COLOR.stroke_width(2)));
     let mut labelled = false;
-    for outage in &analysis.report.outages {
+    for (start_s, end_s) in without_gnss(analysis) {
         let segment: Vec<(f64, f64)> = analysis
             .track
             .iter()
-            .filter(|point| outage.contains(point.t_s))
+            .filter(|point| (start_s..=end_s).contains(&point.t_s))
             .map(|point| (point.east_m, point.north_m))
             .collect();
         if segment.len() < 2 {
@@ -175,7 +175,7 @@ pub fn draw_trajectory<DB: DrawingBackend>(
             .draw_series(LineSeries::new(segment, OUTAGE_COLOR.stroke_width(3)))
             .map_err(&error)?;
         if !labelled {
-            series.label("PDR in outage").legend(|(x, y)| {
+            series.label("PDR without GNSS").legend(|(x, y)| {
                 PathElement::new([(x, y), (x + 16, y)], OUTAGE_COLOR.stroke_width(3))
             });
             labelled = true;
@@ -295,13 +295,10 @@ pub fn draw_position_error<DB: DrawingBackend>(
     };
     let mut chart = super::styled_chart(area, caption, t_lo..t_hi, 0.0..top, "time (s)", "metres")
         .map_err(&error)?;
-    for outage in &analysis.report.outages {
+    for (start_s, end_s) in without_gnss(analysis) {
         chart
             .draw_series([Rectangle::new(
-                [
-                    (outage.start_s.max(t_lo), 0.0),
-                    (outage.end_s.min(t_hi), top),
-                ],
+                [(start_s.max(t_lo), 0.0), (end_s.min(t_hi), top)],
                 OUTAGE_COLOR.mix(0.15).filled(),
             )])
             .map_err(&error)?;
@@ -322,6 +319,18 @@ pub fn draw_position_error<DB: DrawingBackend>(
         .label("filter σ")
         .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], GNSS_COLOR));
     super::draw_legend(&mut chart, SeriesLabelPosition::UpperLeft).map_err(&error)
+}
+
+/// The spans the dead reckoning bridged alone: the user's outages (GNSS ignored) and the
+/// gaps without any fix in the log.
+fn without_gnss(analysis: &PdrAnalysis) -> Vec<(f64, f64)> {
+    let report = &analysis.report;
+    report
+        .outages
+        .iter()
+        .map(|outage| (outage.start_s, outage.end_s))
+        .chain(report.gnss_gaps.iter().map(|gap| (gap.start_s, gap.end_s)))
+        .collect()
 }
 
 #[cfg(test)]

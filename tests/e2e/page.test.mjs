@@ -63,16 +63,23 @@ test('the demo is analysed and drawn on load, with the CLI\'s figures', async ()
   await assertStatsMatch(page, expected);
   // The demo shows what calibration is for: tens of degrees before, a few after.
   assert.ok(checkRms(expected, 'raw') > 10, 'large error before');
-  assert.ok(checkRms(expected, 'ellipse') < 3, 'small error after the ellipse fit');
-  assert.ok(checkRms(expected, 'min_max') < 3, 'small error after min/max');
+  assert.ok(checkRms(expected, 'ellipse') < 5, 'small error after the ellipse fit');
+  assert.ok(checkRms(expected, 'min_max') < 5, 'small error after min/max');
   await assertPlotsDrawn(page);
-  assert.match(await text(page, 'status'), /Analysed demo-walk\.csv: 9000 magnetometer samples\./);
+  assert.match(await text(page, 'status'), /Analysed demo-walk\.csv: 12000 magnetometer samples\./);
+  // Dated and placed by its GNSS: the World Magnetic Model gives declination and field.
+  assert.match(await text(page, 'context'), /Declination: 14\.92° \(WMM2025 on 2026-05-14/);
+  assert.match(await text(page, 'context'), /52\.6 µT expected, inclination 68\.8°/);
   // The dead reckoning agrees with `compass-pdr pdr --json`: steps, distance, error.
   const pdr = JSON.parse(readFileSync(join(out, 'demo-walk-pdr.json'), 'utf8'));
   const summary = await text(page, 'pdr-summary');
   assert.ok(summary.includes(`${pdr.n_steps} steps in ${pdr.n_bouts} bouts`), summary);
   assert.ok(summary.includes(`${pdr.pdr_distance_m.toFixed(1)} m dead-reckoned`), summary);
   assert.ok(summary.includes(`RMS ${pdr.position_error.rms_m.toFixed(2)} m`), summary);
+  // The minute without GNSS, bridged by the dead reckoning.
+  const gap = pdr.gnss_gaps[0];
+  assert.ok(summary.includes(`No GNSS fix from ${gap.start_s.toFixed(0)} to ${gap.end_s.toFixed(0)} s`), summary);
+  assert.match(summary, /Step model: Weinberg, .*trained on the GNSS speed/);
   assert.match(await text(page, 'status'), new RegExp(`${pdr.n_steps} steps dead-reckoned`));
   assert.equal(await statusBackground(page), 'rgb(244, 246, 249)', 'a good result is not styled as an error');
   assert.match(await text(page, 'context'), /Reference heading: the log's reference-heading column/);
