@@ -55,8 +55,8 @@ enum Command {
         truth: Option<PathBuf>,
         /// Which scenario: the demo's walk, the PDR walk (varied steps with per-step
         /// truth, a compass error of the unified model, GNSS with 3 m noise), a steady
-        /// walk without GNSS, a turntable, the 2007 paper's raw case, or a board's
-        /// calibration dance.
+        /// walk without GNSS, a turntable, a car's loop, the 2007 paper's raw case, or a
+        /// board's calibration dance.
         #[arg(long, value_enum, default_value_t = Scenario::Demo)]
         scenario: Scenario,
         /// Samples per second of the motion sensors (phones log at 50 or 100).
@@ -334,6 +334,9 @@ enum Scenario {
     Steady,
     /// The phone of the steady walk on a level turntable, one turn a minute.
     Turntable,
+    /// A car's octagonal loop at 12 m/s, the phone in a fixed mount, its compass
+    /// deviating by Eq. 12 (the car's iron), GNSS with its course.
+    Vehicle,
     /// The 2007 paper's raw case on the turntable: a raw heading error of (12 ± 30)°
     /// (hard iron of 0.69 of the horizontal field, and a declination of −12° that the log
     /// does not reveal).
@@ -498,6 +501,7 @@ fn run_simulate(
             sample_rate_hz,
             ..WalkConfig::turntable(seed, duration_s, 60.0)
         },
+        Scenario::Vehicle => WalkConfig::vehicle_loop(seed, duration_s, sample_rate_hz),
         Scenario::Paper => WalkConfig {
             sample_rate_hz,
             ..WalkConfig::paper_raw_case(seed, duration_s)
@@ -510,7 +514,7 @@ fn run_simulate(
     if let Some(truth) = truth {
         // The steady walk's truth is its config alone; a varied gait's has its steps.
         let encoded = match scenario {
-            Scenario::Steady | Scenario::Turntable | Scenario::Paper => {
+            Scenario::Steady | Scenario::Turntable | Scenario::Paper | Scenario::Vehicle => {
                 serde_json::to_string_pretty(&config)
             }
             Scenario::Demo | Scenario::Pdr | Scenario::Dance => {

@@ -633,6 +633,53 @@ mod tests {
         }
     }
 
+    /// A car's compass swung against its GPS course: the vehicle loop (eight headings
+    /// held in turn, 1° course noise), levelled in its mount. The declination the WMM
+    /// gives for the log's place and date is applied first, so A is the car's own.
+    #[test]
+    fn a_to_e_of_a_cars_compass_come_back_from_its_gps_course_on_the_vehicle_loop() {
+        let config = WalkConfig {
+            mean_pitch_deg: 0.0,
+            mean_roll_deg: 0.0,
+            ..WalkConfig::vehicle_loop(1, 1200.0, 10.0)
+        };
+        let Some(truth) = config.deviation_deg else {
+            panic!("the car's compass deviates")
+        };
+        let options = HeadingOptions {
+            calibration: CalibrationOptions {
+                methods: vec![Method::MinMax],
+                train_until_s: Some(1e9),
+                reference: ReferenceOptions {
+                    choice: ReferenceChoice::Gps,
+                    ..ReferenceOptions::default()
+                },
+                ..CalibrationOptions::default()
+            },
+            ..HeadingOptions::default()
+        };
+        let analysis = analyse_headings(simulated(&config), &options).expect("analyses");
+        let fit = &analysis
+            .report
+            .fourier
+            .iter()
+            .find(|report| report.base_key == "raw")
+            .expect("fitted")
+            .fit;
+        assert_eq!(fit.terms, fourier::FourierTerms::Full);
+        let model = fit.model;
+        let got = [
+            model.a_deg,
+            model.b_deg,
+            model.c_deg,
+            model.d_deg,
+            model.e_deg,
+        ];
+        for (got, want) in got.iter().zip(truth) {
+            assert!((got - want).abs() < 0.3, "{got:?} vs {truth:?}");
+        }
+    }
+
     #[test]
     fn when_the_error_depends_on_temperature_the_mlp_beats_the_fourier_model_on_check() {
         // Hard iron that drifts 1 µT/°C with a ±10 °C swing every 5 minutes: the

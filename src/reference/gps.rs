@@ -40,6 +40,14 @@ pub struct GpsCourseGates {
 /// How far either side (s) a course sample's neighbours are looked for.
 pub const STEADY_WINDOW_S: f64 = 1.5;
 
+/// How long (s) before and after a vehicle's turn (at [`VEHICLE_MIN_SPEED_MPS`] or
+/// faster) the course is not taken either. In a turn a vehicle's centripetal
+/// acceleration tilts the accelerometer's gravity (v·ω: 2.4 m/s², 14° of false roll, at
+/// 12 m/s and 11°/s), and the tilt, averaged over about a second, carries that into the
+/// compass heading for a while after the turn as well as in it. A walker's turns are
+/// too gentle for it, and too frequent to lose the courses around them.
+pub const TURN_MARGIN_S: f64 = 2.0;
+
 /// Speed above which a vehicle's course is its heading (the vehicle log's README).
 pub const VEHICLE_MIN_SPEED_MPS: f64 = 5.0;
 /// Walking pace: below it a pedestrian's course is mostly receiver noise.
@@ -95,6 +103,7 @@ pub fn course_reference(
 ) -> (Stream<f64>, GpsCourseUse) {
     let mut used = GpsCourseUse::default();
     let mut course = Stream::default();
+    let mut speeds_mps = Vec::new();
     let accurate = |fix: &GnssFix| fix.hacc_m.is_none_or(|hacc_m| hacc_m <= gates.max_hacc_m);
     for (&t_s, fix) in gnss.t_s.iter().zip(&gnss.values) {
         let (Some(speed_mps), Some(course_rad)) = (fix.speed_mps, fix.course_rad) else {
@@ -109,11 +118,12 @@ pub fn course_reference(
             used.n_inaccurate += 1;
         } else {
             course.push(t_s, course_rad);
+            speeds_mps.push(speed_mps);
             used.n_from_course_field += 1;
         }
     }
     if !course.is_empty() {
-        let steady = steady_only(&course, gates.max_turn_rate_dps);
+        let steady = steady_only(&course, &speeds_mps, gates.max_turn_rate_dps);
         used.n_turning = course.len() - steady.len();
         used.n_from_course_field = steady.len();
         return (steady, used);
@@ -183,13 +193,14 @@ pub fn course_reference(
 }
 
 /// The course samples whose neighbours within [`STEADY_WINDOW_S`] (both sides) turn no
-/// faster than `max_turn_rate_dps`. A sample without a neighbour on a side is judged by
-/// the other.
-fn steady_only(course: &Stream<f64>, max_turn_rate_dps: f64) -> Stream<f64> {
+/// faster than `max_turn_rate_dps`, and that are more than [`TURN_MARGIN_S`] from a
+/// vehicle's turn (`speeds_mps`: the speed of each sample). A sample without a
+/// neighbour on a side is judged by the other.
+fn steady_only(course: &Stream<f64>, speeds_mps: &[f64], max_turn_rate_dps: f64) -> Stream<f64> {
     let max_rate_radps = max_turn_rate_dps.to_radians();
-    let mut steady = Stream::default();
     let n = course.len();
-    for idx in 0..n {
+    let mut turning = vec![false; n];
+    for (idx, flag) in turning.iter_mut().enumerate() {
         let (Some(&t_s), Some(&value)) = (course.t_s.get(idx), course.values.get(idx)) else {
             continue;
         };
@@ -202,7 +213,28 @@ fn steady_only(course: &Stream<f64>, max_turn_rate_dps: f64) -> Stream<f64> {
         let before = idx.checked_sub(1).and_then(turn_rate_to);
         let after = turn_rate_to(idx + 1);
         let within = |rate: Option<f64>| rate.is_none_or(|rate| rate <= max_rate_radps);
-        if within(before) && within(after) {
+        *flag = !(within(before) && within(after));
+    }
+    // The turns a vehicle made, whose neighbours go too.
+    let turn_times_s: Vec<f64> = course
+        .t_s
+        .iter()
+        .zip(&turning)
+        .zip(speeds_mps)
+        .filter_map(|((&t_s, &turning), &speed_mps)| {
+            (turning && speed_mps >= VEHICLE_MIN_SPEED_MPS).then_some(t_s)
+        })
+        .collect();
+    let mut steady = Stream::default();
+    for ((&t_s, &value), &turning) in course.t_s.iter().zip(&course.values).zip(&turning) {
+        // The turns nearest in time (the times are sorted).
+        let next = turn_times_s.partition_point(|&turn_t_s| turn_t_s < t_s);
+        let near_a_turn = [next.checked_sub(1), Some(next)]
+            .into_iter()
+            .flatten()
+            .filter_map(|idx| turn_times_s.get(idx))
+            .any(|&turn_t_s| (turn_t_s - t_s).abs() <= TURN_MARGIN_S);
+        if !turning && !near_a_turn {
             steady.push(t_s, value);
         }
     }
@@ -212,6 +244,27 @@ fn steady_only(course: &Stream<f64>, max_turn_rate_dps: f64) -> Stream<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn courses_in_a_turn_and_near_it_are_left_out() {
+        // 1 Hz: north until 10 s, a 45° turn from 10 to 14 s, then steady.
+        let mut course = Stream::default();
+        for t in 0..30 {
+            let t_s = f64::from(t);
+            let course_deg = 45.0 * ((t_s - 10.0) / 4.0).clamp(0.0, 1.0);
+            course.push(t_s, course_deg.to_radians());
+        }
+        let kept = |speed_mps: f64| -> Vec<u32> {
+            let speeds = vec![speed_mps; course.len()];
+            let steady = steady_only(&course, &speeds, 10.0);
+            steady.t_s.iter().map(|&t_s| t_s as u32).collect()
+        };
+        // Turning (11.25°/s to a neighbour): 10 to 14 s; a car's, within 2 s of those
+        // too: 8, 9 and 15, 16.
+        assert_eq!(kept(12.0), (0..8).chain(17..30).collect::<Vec<u32>>());
+        // A walker's turn costs only the turning courses.
+        assert_eq!(kept(1.3), (0..10).chain(15..30).collect::<Vec<u32>>());
+    }
 
     fn fix(speed_mps: Option<f64>, course_deg: Option<f64>, hacc_m: Option<f64>) -> GnssFix {
         GnssFix {
