@@ -131,6 +131,51 @@ fn simulate_writes_the_pdr_scenario_with_its_step_truth() {
 }
 
 #[test]
+fn simulate_writes_a_car_loop_as_nmea_that_reads_back() {
+    let dir = scratch_dir("simulate-nmea");
+    let out = dir.join("car.nmea");
+    let output = compass_pdr(&[
+        "simulate",
+        "--scenario",
+        "vehicle",
+        "--duration-s",
+        "60",
+        "--sample-rate-hz",
+        "10",
+        "--out",
+        out.to_str().unwrap_or_default(),
+    ]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    let text = std::fs::read_to_string(&out).expect("written");
+    assert!(
+        text.starts_with("$GPRMC,120000.00,A,4808."),
+        "{}",
+        &text[..80.min(text.len())]
+    );
+    let output = compass_pdr(&["inspect", out.to_str().unwrap_or_default(), "--json"]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    let json: serde_json::Value = serde_json::from_slice(&output.stdout).expect("JSON");
+    assert_eq!(json["format"], "NMEA 0183");
+    assert_eq!(
+        json["diagnostics"]["kept"].as_array().map(Vec::len),
+        Some(0)
+    );
+    let streams: Vec<String> = json["streams"]
+        .as_array()
+        .map(|streams| {
+            streams
+                .iter()
+                .map(|stream| stream["stream"].to_string())
+                .collect()
+        })
+        .unwrap_or_default();
+    assert!(
+        streams.iter().any(|name| name.contains("GNSS")),
+        "{streams:?}"
+    );
+}
+
+#[test]
 fn calibrate_prints_json_with_the_heading_errors() {
     let demo = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/demo-walk.csv");
     let output = compass_pdr(&[

@@ -46,7 +46,9 @@ enum Command {
         /// Length of the walk in seconds.
         #[arg(long, default_value_t = 180.0)]
         duration_s: f64,
-        /// Where to write the canonical CSV.
+        /// Where to write the log: the canonical CSV, or NMEA 0183 (RMC, GGA, VTG at each
+        /// GNSS fix, the compass's HDG and the true HDT at 10 Hz) for a name ending in
+        /// `.nmea`. The dance is always MotionCal `Raw:` lines.
         #[arg(long)]
         out: PathBuf,
         /// Where to write the simulator's parameters as JSON (the truth); for the PDR
@@ -509,7 +511,20 @@ fn run_simulate(
         Scenario::Pdr | Scenario::Dance => WalkConfig::pdr_walk(seed, duration_s, sample_rate_hz),
     };
     let (rows, walk_truth) = simulate_with_truth(&config);
-    std::fs::write(out, canonical_csv::write(&rows))
+    let is_nmea = out
+        .extension()
+        .is_some_and(|extension| extension.eq_ignore_ascii_case("nmea"));
+    let text = if is_nmea {
+        // Absolute rows (a config with a start) are written at their own times.
+        let origin_unix_s = match config.start_unix_s {
+            Some(_) => 0.0,
+            None => compass_pdr::sim::nmea::DEFAULT_START_UNIX_S,
+        };
+        compass_pdr::sim::nmea::write(&rows, origin_unix_s, 10.0)
+    } else {
+        canonical_csv::write(&rows)
+    };
+    std::fs::write(out, text)
         .map_err(|error| format!("cannot write {}: {error}", out.display()))?;
     if let Some(truth) = truth {
         // The steady walk's truth is its config alone; a varied gait's has its steps.

@@ -18,5 +18,6 @@
 pub mod dance;
 pub mod field;
 pub mod gait;
+pub mod nmea;
 pub mod rng;
 pub mod walk;

@@ -10,6 +10,7 @@ mod chunks;
 mod controls;
 mod dom;
 mod exports;
+mod import_bench;
 mod live;
 mod mapping;
 mod nn_bench;
