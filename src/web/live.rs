@@ -35,6 +35,7 @@ use crate::calib::export::{c_snippet, calibration_export, CalibrationExport};
 use crate::calib::model::FieldCalibration;
 use crate::calib::wmm::{date_of_unix_s, expected_field};
 use crate::live::{Confirmation, LiveSession, MIN_FIT_SAMPLES};
+use crate::sim::dance::{motioncal_raw_lines, DanceConfig, DanceTruth};
 
 /// Refits this often while samples arrive (ms).
 const REFIT_EVERY_MS: f64 = 500.0;
@@ -46,6 +47,21 @@ const MAX_SKIPPED_SHOWN: usize = 20;
 /// An interval timer's handle and the callback it calls (dropped when it is cleared).
 type Ticker = (i32, Closure<dyn FnMut()>);
 
+/// How long the simulated board's dance is (s of the board's time).
+const SIMULATED_DANCE_S: f64 = 60.0;
+/// How much faster than the board the simulated dance plays.
+const SIMULATION_SPEED_UP: f64 = 10.0;
+/// How often the simulated board delivers a piece (ms).
+const SIMULATION_TICK_MS: f64 = 50.0;
+
+/// A simulated board's text, how much of it was delivered, and its truth.
+struct Simulation {
+    text: Vec<u8>,
+    sent: usize,
+    bytes_per_tick: usize,
+    truth: DanceTruth,
+}
+
 pub struct LivePanel {
     document: Document,
     section: Element,
@@ -56,6 +72,7 @@ pub struct LivePanel {
     download_calibration: HtmlButtonElement,
     download_snippet: HtmlButtonElement,
     reset: HtmlButtonElement,
+    simulate: HtmlButtonElement,
     baud: HtmlSelectElement,
     lat: HtmlInputElement,
     lon: HtmlInputElement,
@@ -74,6 +91,8 @@ pub struct LivePanel {
     refit_pending: Cell<bool>,
     /// While connected: the interval timer that refits and redraws, and its callback.
     ticker: RefCell<Option<Ticker>>,
+    /// While a simulated board plays: its timer, and what is left of its text.
+    simulation: RefCell<Option<(Ticker, Simulation)>>,
     /// Why the last refit gave no fit, for the status line.
     fit_message: RefCell<Option<String>>,
     /// The recent calibrations (newest first), as stored.
@@ -109,6 +128,7 @@ impl LivePanel {
             )?,
             download_snippet: cast(typed("live-download-snippet")?, "live-download-snippet")?,
             reset: cast(typed("live-reset")?, "live-reset")?,
+            simulate: cast(typed("live-simulate")?, "live-simulate")?,
             baud: cast(typed("live-baud")?, "live-baud")?,
             lat: cast(typed("live-lat")?, "live-lat")?,
             lon: cast(typed("live-lon")?, "live-lon")?,
@@ -123,6 +143,7 @@ impl LivePanel {
             dirty: Cell::new(false),
             refit_pending: Cell::new(false),
             ticker: RefCell::new(None),
+            simulation: RefCell::new(None),
             fit_message: RefCell::new(None),
             recent: RefCell::new(Vec::new()),
             import: cast(typed("live-import")?, "live-import")?,
@@ -136,34 +157,13 @@ impl LivePanel {
         self.wire_storage();
         self.update_buttons();
         self.draw();
-        let Some(_) = serial() else {
-            self.set_state(
-                "unsupported",
-                "This browser has no Web Serial: live calibration needs Chromium, Chrome, Edge or \
-                 Opera on a desktop computer. You can still record the board's output with any serial \
-                 terminal and drop the file above.",
-            );
-            self.connect.set_disabled(true);
-            return;
-        };
-        self.set_state(
-            "idle",
-            "Connect a board that prints magnetometer lines (MotionCal Raw:, Adafruit, Serial Plotter, \
-             CircuitPython or plain numbers), then turn it slowly through every direction.",
-        );
         let on = |button: &HtmlButtonElement, action: fn(&Rc<LivePanel>)| {
             let panel = Rc::clone(&self);
             EventListener::new(button, "click", move |_| action(&panel)).forget();
         };
-        on(&self.connect, |panel| {
-            let panel = Rc::clone(panel);
-            spawn_local(async move { panel.connect_and_read().await });
-        });
-        on(&self.disconnect, |panel| panel.stop_reading());
-        on(&self.send, |panel| {
-            let panel = Rc::clone(panel);
-            spawn_local(async move { panel.send_to_device(None).await });
-        });
+        // A simulated board, its downloads and a new session need no Web Serial.
+        on(&self.simulate, |panel| panel.start_simulation());
+        on(&self.disconnect, |panel| panel.stop_simulation());
         on(&self.download, |panel| panel.download_recording());
         on(&self.download_calibration, |panel| {
             panel.download_calibration_json()
@@ -178,6 +178,30 @@ impl LivePanel {
             })
             .forget();
         }
+        let Some(_) = serial() else {
+            self.set_state(
+                "unsupported",
+                "This browser has no Web Serial: live calibration needs Chromium, Chrome, Edge or \
+                 Opera on a desktop computer. You can still record the board's output with any serial \
+                 terminal and drop the file above, or try a simulated board here.",
+            );
+            self.connect.set_disabled(true);
+            return;
+        };
+        self.set_state(
+            "idle",
+            "Connect a board that prints magnetometer lines (MotionCal Raw:, Adafruit, Serial Plotter, \
+             CircuitPython or plain numbers), then turn it slowly through every direction.",
+        );
+        on(&self.connect, |panel| {
+            let panel = Rc::clone(panel);
+            spawn_local(async move { panel.connect_and_read().await });
+        });
+        on(&self.disconnect, |panel| panel.stop_reading());
+        on(&self.send, |panel| {
+            let panel = Rc::clone(panel);
+            spawn_local(async move { panel.send_to_device(None).await });
+        });
     }
 
     /// The settings and recent calibrations saved by an earlier visit.
@@ -508,6 +532,106 @@ impl LivePanel {
         result
     }
 
+    /// Plays the simulator's calibration dance (`sim::dance`: MotionCal `Raw:` lines of
+    /// a board with a random hard and soft iron) into the session as a board's port
+    /// would deliver it, ten times as fast as the board would, in pieces cut anywhere,
+    /// so that the panel can be tried without a board. The truth is said at the end.
+    fn start_simulation(self: &Rc<Self>) {
+        if self.reading.get() {
+            return;
+        }
+        let seed = (now_ms() as u64) % 1000 + 1;
+        let config = DanceConfig::from_seed(seed, SIMULATED_DANCE_S);
+        let (text, truth) = motioncal_raw_lines(&config);
+        let bytes_per_tick = (text.len() as f64 / SIMULATED_DANCE_S
+            * SIMULATION_SPEED_UP
+            * SIMULATION_TICK_MS
+            / 1e3)
+            .ceil() as usize;
+        self.update_expected_field();
+        self.reading.set(true);
+        self.update_buttons();
+        self.set_state(
+            "connected",
+            &format!(
+                "A simulated board (seed {seed}) is turned through every direction, printing \
+                 MotionCal Raw: lines; it plays ten times as fast as a board would."
+            ),
+        );
+        self.start_ticker();
+        let panel = Rc::clone(self);
+        let tick = Closure::<dyn FnMut()>::new(move || panel.play_simulation());
+        let id = web_sys::window().and_then(|window| {
+            window
+                .set_interval_with_callback_and_timeout_and_arguments_0(
+                    tick.as_ref().unchecked_ref(),
+                    SIMULATION_TICK_MS as i32,
+                )
+                .ok()
+        });
+        let Some(id) = id else {
+            self.reading.set(false);
+            self.stop_ticker();
+            self.update_buttons();
+            return;
+        };
+        *self.simulation.borrow_mut() = Some((
+            (id, tick),
+            Simulation {
+                text: text.into_bytes(),
+                sent: 0,
+                bytes_per_tick: bytes_per_tick.max(1),
+                truth,
+            },
+        ));
+    }
+
+    /// The simulated board's next piece; at the end of its text, the end of the session.
+    fn play_simulation(&self) {
+        let piece = {
+            let mut simulation = self.simulation.borrow_mut();
+            let Some((_, playing)) = simulation.as_mut() else {
+                return;
+            };
+            let start = playing.sent;
+            let end = (start + playing.bytes_per_tick).min(playing.text.len());
+            playing.sent = end;
+            playing.text.get(start..end).map(<[u8]>::to_vec)
+        };
+        match piece {
+            Some(piece) if !piece.is_empty() => {
+                self.session.borrow_mut().feed(&piece, now_ms() / 1e3);
+                self.dirty.set(true);
+            }
+            _ => self.stop_simulation(),
+        }
+    }
+
+    /// Ends the simulated board (at the end of its text, or on Disconnect).
+    fn stop_simulation(&self) {
+        let Some(((id, _tick), simulation)) = self.simulation.borrow_mut().take() else {
+            return;
+        };
+        if let Some(window) = web_sys::window() {
+            window.clear_interval_with_handle(id);
+        }
+        self.stop_ticker();
+        self.reading.set(false);
+        self.session.borrow_mut().port_closed();
+        self.refit_and_draw();
+        let n_lines = self.session.borrow().counts().n_lines;
+        let [x, y, z] = simulation.truth.hard_iron_ut;
+        self.set_state(
+            "disconnected",
+            &format!(
+                "The simulated board stopped after {n_lines} lines. Its true hard iron was \
+                 ({x:.2}, {y:.2}, {z:.2}) µT: compare the fit. Download the recording, or connect \
+                 a real board."
+            ),
+        );
+        self.update_buttons();
+    }
+
     fn stop_reading(&self) {
         if let Some(reader) = self.reader.borrow().as_ref() {
             // The read loop then sees the stream end and closes the port.
@@ -817,9 +941,11 @@ impl LivePanel {
         let session = self.session.borrow();
         let has_fit = session.quality().is_some();
         let reading = self.reading.get();
+        let has_port = self.port.borrow().is_some();
         self.connect.set_disabled(reading || serial().is_none());
         self.disconnect.set_disabled(!reading);
-        self.send.set_disabled(!(reading && has_fit));
+        self.send.set_disabled(!(reading && has_port && has_fit));
+        self.simulate.set_disabled(reading);
         self.download.set_disabled(session.raw().is_empty());
         self.download_calibration.set_disabled(!has_fit);
         self.download_snippet.set_disabled(!has_fit);

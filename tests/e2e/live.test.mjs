@@ -259,14 +259,34 @@ test('an unplug mid-stream keeps every byte, and connecting again continues the 
   await close();
 });
 
-test('a browser without Web Serial says so, and the rest of the page works', async () => {
+test('a browser without Web Serial says so, the rest of the page works, and a simulated board can be tried', async () => {
   const { page, problems, close } = await openPage({
+    acceptDownloads: true,
     initScript: () => Object.defineProperty(Navigator.prototype, 'serial', { configurable: true, get: () => undefined }),
   });
   await page.waitForSelector('#live[data-live-state="unsupported"]');
   assert.match(await text(page, 'live-status'), /This browser has no Web Serial/);
   assert.equal(await page.isDisabled('#live-connect'), true);
   await page.waitForSelector('body[data-state="ready"]');
+
+  // The simulator's calibration dance, played as a board's port would deliver it.
+  await page.click('#live-simulate');
+  await page.waitForSelector('#live[data-live-state="connected"]');
+  assert.equal(await page.isDisabled('#live-simulate'), true);
+  assert.equal(await page.isDisabled('#live-send'), true, 'no board to send to');
+  await page.waitForSelector('#live[data-live-state="disconnected"]', { timeout: 30_000 });
+  const status = await text(page, 'live-status');
+  const truth = status.match(/true hard iron was \((-?[\d.]+), (-?[\d.]+), (-?[\d.]+)\) µT/);
+  assert.ok(truth, status);
+  assert.equal(await text(page, 'live-lines'), '3000', 'the whole dance: 60 s at 50 lines/s');
+  assert.equal(await text(page, 'live-skipped-count'), '0');
+  await page.waitForSelector('#live[data-good-enough="yes"]', { timeout: 5_000 });
+  const calibration = JSON.parse((await download(page, '#live-download-calibration')).bytes.toString('utf8'));
+  calibration.hard_iron_ut.forEach((ut, i) => assert.ok(Math.abs(ut - Number(truth[i + 1])) < 1.0, `hard iron ${i}: ${ut} vs ${truth[i + 1]}`));
+  for (const id of ['live-clouds', 'live-coverage', 'live-dial']) {
+    assert.ok(await drawnPixels(page, id) > 5_000, `#${id} is drawn`);
+  }
+  await page.locator('#live').screenshot({ path: join(out, 'live-simulated.png') });
   assert.deepEqual(problems, []);
   await close();
 });
