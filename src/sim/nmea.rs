@@ -94,7 +94,7 @@ fn time_and_date(unix_s: f64) -> (String, String) {
 }
 
 /// `ddmm.mmmmm,H` (two or three degree digits), as NMEA writes latitude and longitude.
-fn ddmm(value_deg: f64, degree_digits: usize, positive: char, negative: char) -> String {
+pub fn ddmm(value_deg: f64, degree_digits: usize, positive: char, negative: char) -> String {
     let hemisphere = if value_deg < 0.0 { negative } else { positive };
     let value_deg = value_deg.abs();
     let mut degrees = value_deg.trunc();
@@ -113,7 +113,7 @@ fn ddmm(value_deg: f64, degree_digits: usize, positive: char, negative: char) ->
 }
 
 /// `$`, the body, `*`, the XOR of the body's bytes in two hex digits, CRLF.
-fn push_sentence(text: &mut String, body: &str) {
+pub fn push_sentence(text: &mut String, body: &str) {
     let checksum = body.bytes().fold(0u8, |acc, byte| acc ^ byte);
     let _ = write!(text, "${body}*{checksum:02X}\r\n");
 }

@@ -560,23 +560,14 @@ impl LivePanel {
         );
         self.start_ticker();
         let panel = Rc::clone(self);
-        let tick = Closure::<dyn FnMut()>::new(move || panel.play_simulation());
-        let id = web_sys::window().and_then(|window| {
-            window
-                .set_interval_with_callback_and_timeout_and_arguments_0(
-                    tick.as_ref().unchecked_ref(),
-                    SIMULATION_TICK_MS as i32,
-                )
-                .ok()
-        });
-        let Some(id) = id else {
+        let Some(ticker) = every(SIMULATION_TICK_MS, move || panel.play_simulation()) else {
             self.reading.set(false);
             self.stop_ticker();
             self.update_buttons();
             return;
         };
         *self.simulation.borrow_mut() = Some((
-            (id, tick),
+            ticker,
             Simulation {
                 text: text.into_bytes(),
                 sent: 0,
@@ -764,18 +755,7 @@ impl LivePanel {
     /// reading never waits for drawing and the last bytes are always shown.
     fn start_ticker(self: &Rc<Self>) {
         let panel = Rc::clone(self);
-        let tick = Closure::<dyn FnMut()>::new(move || panel.tick());
-        let id = web_sys::window().and_then(|window| {
-            window
-                .set_interval_with_callback_and_timeout_and_arguments_0(
-                    tick.as_ref().unchecked_ref(),
-                    DRAW_EVERY_MS as i32,
-                )
-                .ok()
-        });
-        if let Some(id) = id {
-            *self.ticker.borrow_mut() = Some((id, tick));
-        }
+        *self.ticker.borrow_mut() = every(DRAW_EVERY_MS, move || panel.tick());
     }
 
     fn stop_ticker(&self) {
@@ -967,6 +947,19 @@ impl LivePanel {
 }
 
 /// `navigator.serial`, when this browser has Web Serial.
+/// Calls `callback` every `interval_ms` until the returned ticker is cleared; `None`
+/// when the page has no window to set a timer on.
+fn every(interval_ms: f64, callback: impl FnMut() + 'static) -> Option<Ticker> {
+    let callback = Closure::<dyn FnMut()>::new(callback);
+    let id = web_sys::window()?
+        .set_interval_with_callback_and_timeout_and_arguments_0(
+            callback.as_ref().unchecked_ref(),
+            interval_ms as i32,
+        )
+        .ok()?;
+    Some((id, callback))
+}
+
 fn serial() -> Option<Serial> {
     let navigator = web_sys::window()?.navigator();
     let serial = js_sys::Reflect::get(&navigator, &"serial".into()).ok()?;
