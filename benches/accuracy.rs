@@ -122,6 +122,15 @@ mod report {
     }
 
     /// The PDR scenario with GNSS ignored from 4 to 14 minutes.
+    /// A simulated log, imported as its canonical CSV.
+    fn import_simulated(file_name: &str, config: &WalkConfig) -> compass_pdr::io::ImportReport {
+        import(
+            file_name,
+            canonical_csv::write(&simulate(config)).as_bytes(),
+        )
+        .expect("a simulated log imports")
+    }
+
     fn simulated_outage(seed: u64, rate_hz: f64, model: StepModelKind) -> (PdrAnalysis, usize) {
         let config = WalkConfig::pdr_walk(seed, 900.0, rate_hz);
         let (rows, truth) = simulate_with_truth(&config);
@@ -167,11 +176,7 @@ mod report {
              |---|---|---|---|---|---|---|\n\
              | **2007 paper** (land vehicle, KVH compass) | DGPS/INS | (12 ± 30)° | (0.4 ± 3)° / (4.1 ± 2.1)° | (−1.5 ± 4.7)° / (−2.1 ± 5.6)° | — | 78-94 % of residuals within ±5° |\n",
         );
-        let paper = import(
-            "paper.csv",
-            canonical_csv::write(&simulate(&WalkConfig::paper_raw_case(1, 600.0))).as_bytes(),
-        )
-        .expect("the paper's raw case imports");
+        let paper = import_simulated("paper.csv", &WalkConfig::paper_raw_case(1, 600.0));
         let _ = writeln!(
             text,
             "{}",
@@ -182,11 +187,7 @@ mod report {
                 &mut heading_verdicts
             )
         );
-        let demo = import(
-            "demo-walk.csv",
-            canonical_csv::write(&simulate(&WalkConfig::demo(1, 240.0, 50.0))).as_bytes(),
-        )
-        .expect("the demo imports");
+        let demo = import_simulated("demo-walk.csv", &WalkConfig::demo(1, 240.0, 50.0));
         let _ = writeln!(
             text,
             "{}",
@@ -197,11 +198,7 @@ mod report {
                 &mut heading_verdicts
             )
         );
-        let pdr_sim = import(
-            "pdr-walk.csv",
-            canonical_csv::write(&simulate(&WalkConfig::pdr_walk(1, 900.0, 50.0))).as_bytes(),
-        )
-        .expect("the PDR walk imports");
+        let pdr_sim = import_simulated("pdr-walk.csv", &WalkConfig::pdr_walk(1, 900.0, 50.0));
         let _ = writeln!(
             text,
             "{}",
@@ -212,11 +209,10 @@ mod report {
                 &mut heading_verdicts
             )
         );
-        let car = import(
+        let car = import_simulated(
             "vehicle-loop.csv",
-            canonical_csv::write(&simulate(&WalkConfig::vehicle_loop(1, 1200.0, 10.0))).as_bytes(),
-        )
-        .expect("the vehicle loop imports");
+            &WalkConfig::vehicle_loop(1, 1200.0, 10.0),
+        );
         let _ = writeln!(
             text,
             "{}",

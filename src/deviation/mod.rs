@@ -579,14 +579,9 @@ mod tests {
         import("walk.csv", text.as_bytes()).expect("imports")
     }
 
-    #[test]
-    fn a_to_e_come_back_within_0_3_degrees_from_a_walk_with_2_degree_gps_course_noise() {
-        let config = WalkConfig {
-            deviation_deg: Some(TABLE_II_1),
-            gnss: Some(GnssSim::default()),
-            ..WalkConfig::from_seed(5, 1200.0)
-        };
-        let options = HeadingOptions {
+    /// Every referenced sample trains, against the GPS course.
+    fn all_train_on_gps() -> HeadingOptions {
+        HeadingOptions {
             calibration: CalibrationOptions {
                 methods: vec![Method::MinMax],
                 train_until_s: Some(1e9),
@@ -597,7 +592,17 @@ mod tests {
                 ..CalibrationOptions::default()
             },
             ..HeadingOptions::default()
+        }
+    }
+
+    #[test]
+    fn a_to_e_come_back_within_0_3_degrees_from_a_walk_with_2_degree_gps_course_noise() {
+        let config = WalkConfig {
+            deviation_deg: Some(TABLE_II_1),
+            gnss: Some(GnssSim::default()),
+            ..WalkConfig::from_seed(5, 1200.0)
         };
+        let options = all_train_on_gps();
         let analysis = analyse_headings(simulated(&config), &options).expect("analyses");
         assert_eq!(
             analysis.report.reference.map(|source| source.label()),
@@ -646,18 +651,7 @@ mod tests {
         let Some(truth) = config.deviation_deg else {
             panic!("the car's compass deviates")
         };
-        let options = HeadingOptions {
-            calibration: CalibrationOptions {
-                methods: vec![Method::MinMax],
-                train_until_s: Some(1e9),
-                reference: ReferenceOptions {
-                    choice: ReferenceChoice::Gps,
-                    ..ReferenceOptions::default()
-                },
-                ..CalibrationOptions::default()
-            },
-            ..HeadingOptions::default()
-        };
+        let options = all_train_on_gps();
         let analysis = analyse_headings(simulated(&config), &options).expect("analyses");
         let fit = &analysis
             .report
