@@ -644,6 +644,7 @@ impl LivePanel {
         let packet = match saved {
             Some(calibration) => Some(self.session.borrow_mut().packet_for(calibration)),
             None => {
+                self.refit_if_behind();
                 let packet = self.session.borrow_mut().packet_for_device();
                 self.keep_latest_fit();
                 packet
@@ -691,6 +692,7 @@ impl LivePanel {
     }
 
     fn download_calibration_json(&self) {
+        self.refit_if_behind();
         let session = self.session.borrow();
         let Some(quality) = session.quality() else {
             return;
@@ -710,6 +712,7 @@ impl LivePanel {
     }
 
     fn download_c_snippet(&self) {
+        self.refit_if_behind();
         let session = self.session.borrow();
         if let Some(quality) = session.quality() {
             let text = c_snippet(&quality.calibration);
@@ -781,6 +784,17 @@ impl LivePanel {
             self.refit();
         }
         self.draw();
+    }
+
+    /// Refits now when samples came in since the last refit (the ticker refits at most
+    /// every [`REFIT_EVERY_MS`]), so that what is downloaded or sent is the fit of
+    /// everything received, and the same fit for each of them.
+    fn refit_if_behind(&self) {
+        if self.dirty.replace(false) || self.refit_pending.replace(false) {
+            self.last_refit_ms.set(now_ms());
+            self.refit();
+            self.draw();
+        }
     }
 
     fn refit_and_draw(&self) {
