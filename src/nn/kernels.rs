@@ -1,36 +1,46 @@
 //! The inner loops of a batch evaluation: the forward pass, the residuals and the
-//! gradient of one *part* of the samples, four samples at a time.
+//! gradient of one *part* of the samples, eight samples at a time, in single precision.
 //!
-//! The kernel is written once, generic over [`Lanes`] (four `f64` lanes with the few
-//! operations it needs), and compiled twice: with [`Portable`] (`[f64; 4]`, plain
+//! **Precision.** The samples, the weights of the evaluation, the activations and the
+//! residuals are `f32`, as in the usual neural-network libraries: the targets are
+//! normalised, so single precision resolves a residual to about 10⁻⁷ of the target's
+//! spread, far below any heading error worth modelling. Sums are formed in `f32` lanes
+//! over one chunk of [`CHUNK`] samples and then added in `f64`, and the optimiser keeps
+//! its weights, gradients and curvature pairs in `f64`. Eight `f32` lanes fill an AVX2
+//! register (four `f64` did), so an evaluation does half the instructions.
+//!
+//! The kernel is written once, generic over [`Lanes`] (eight `f32` lanes with the few
+//! operations it needs), and compiled twice: with [`Portable`] (`[f32; 8]`, plain
 //! scalar operations, the code wasm runs) and, on x86-64 when the processor has AVX2
 //! (checked at run time), with `Avx2` (one 256-bit register). Each lane does exactly the
 //! portable code's IEEE operations in the same order (no fused multiply-add, which wasm
-//! lacks; on AMD Zen the separate multiply and add pipes give the same throughput), and
-//! the reduction of the lanes is the same, so both give the same bits: a network trained
-//! natively and in the browser is the same network. A test checks it.
+//! lacks), and the reduction of the lanes is the same scalar code, so both give the same
+//! bits: a network trained natively and in the browser is the same network. A test
+//! checks it.
 //!
 //! The release profile optimises for size, under which the compiler neither vectorises
 //! nor unrolls loops by itself, so the lanes are explicit and the loops over a group of
 //! inputs, whose accumulators must stay in registers, are unrolled by a macro for each
 //! group size.
 //!
-//! Order of the sums (which fixes the bits): per part, each accumulated quantity has
-//! four lane sums; lane `l` adds the samples `part_start + 4v + l` for `v = 0, 1, …` in
-//! order. At the end of the part the lanes are reduced as `(l₀ + l₁) + (l₂ + l₃)`.
-//! Samples past the end of the range (the last vector's spare lanes) get a residual of
-//! exactly `+0`, so they add `±0` to every sum.
+//! Order of the sums (which fixes the bits): per chunk, each accumulated quantity has
+//! eight `f32` lane sums starting at zero; lane `l` adds the chunk's samples
+//! `chunk_start + 8v + l` for `v = 0, 1, …` in order. At the end of the chunk the lanes
+//! are converted to `f64` and reduced as `((l₀ + l₁) + (l₂ + l₃)) + ((l₄ + l₅) + (l₆ + l₇))`,
+//! and that is added to the part's `f64` sum, chunk after chunk. Samples past the end of
+//! the range (the last vector's spare lanes) get a residual of exactly `+0`, so they add
+//! `±0` to every sum.
 
 use super::activation::{Activation, EXP_COEFFICIENTS, EXP_LIMIT, LN2_HI, LN2_LO, ROUND};
 use super::loss::Shape;
 
 /// Lanes per vector.
-pub(crate) const LANES: usize = 4;
+pub(crate) const LANES: usize = 8;
 
 /// Samples in a [`Pair`] of vectors.
 pub(crate) const PAIR: usize = 2 * LANES;
 
-/// Samples per chunk: the chunk's hidden activations (16 × 128 × 8 bytes = 16 KiB) stay
+/// Samples per chunk: the chunk's hidden activations (16 × 128 × 4 bytes = 8 KiB) stay
 /// in the L1 cache between the forward and the backward pass. A multiple of [`PAIR`].
 pub(crate) const CHUNK: usize = 128;
 
@@ -39,11 +49,11 @@ pub(crate) const CHUNK: usize = 128;
 /// fills AVX2's 16 registers).
 const MAX_GROUP: usize = 6;
 
-/// Four `f64` lanes. Every operation acts lane by lane with IEEE double rounding, except
-/// where said; `min` and `max` follow x86's `minpd`/`maxpd` (the second operand when
+/// Eight `f32` lanes. Every operation acts lane by lane with IEEE single rounding, except
+/// where said; `min` and `max` follow x86's `minps`/`maxps` (the second operand when
 /// either is NaN).
 pub(crate) trait Lanes: Copy {
-    /// Samples per value (4, or 8 for a [`Pair`]).
+    /// Samples per value (8, or 16 for a [`Pair`]).
     const WIDTH: usize;
     /// The most inputs one backward pass keeps accumulators for: as many as the
     /// registers hold. The grouping does not change any sum, only how many passes there
@@ -52,11 +62,11 @@ pub(crate) trait Lanes: Copy {
     /// Whether the hidden layer runs on [`Pair`]s (which does not change any value).
     const PAIRED: bool;
 
-    fn splat(value: f64) -> Self;
-    /// The four values at `values[start..start + 4]`.
-    fn load(values: &[f64], start: usize) -> Self;
-    /// Writes the lanes to `values[start..start + 4]`.
-    fn store(self, values: &mut [f64], start: usize);
+    fn splat(value: f32) -> Self;
+    /// The eight values at `values[start..start + 8]`.
+    fn load(values: &[f32], start: usize) -> Self;
+    /// Writes the lanes to `values[start..start + 8]`.
+    fn store(self, values: &mut [f32], start: usize);
     fn add(self, other: Self) -> Self;
     fn sub(self, other: Self) -> Self;
     fn mul(self, other: Self) -> Self;
@@ -64,13 +74,11 @@ pub(crate) trait Lanes: Copy {
     fn min(self, other: Self) -> Self;
     fn max(self, other: Self) -> Self;
     fn neg(self) -> Self;
-    /// `f64::from_bits((shifted.to_bits() + 1023) << 52)` (wrapping), lane by lane: 2ⁿ
+    /// `f32::from_bits((shifted.to_bits() + 127) << 23)` (wrapping), lane by lane: 2ⁿ
     /// for the integer `n` that adding [`ROUND`] left in the low bits of `shifted`.
     fn two_to_the_rounded(shifted: Self) -> Self;
-    /// The first `count` lanes (0 to 3) kept, the others `+0`.
+    /// The first `count` lanes (0 to 7) kept, the others `+0`.
     fn keep_first(self, count: usize) -> Self;
-    /// `(l₀ + l₁) + (l₂ + l₃)`.
-    fn reduce(self) -> f64;
 
     /// [`super::activation::exp`] of each lane, with its bits.
     #[inline(always)]
@@ -79,48 +87,52 @@ pub(crate) trait Lanes: Copy {
     }
 }
 
-/// Four lanes in an array: the reference, and the code every target without AVX2 runs.
+/// Eight lanes in an array: the reference, and the code every target without AVX2 runs.
 #[derive(Clone, Copy)]
-pub(crate) struct Portable([f64; 4]);
+pub(crate) struct Portable([f32; 8]);
 
 impl Portable {
     #[inline(always)]
-    fn map2(self, other: Self, f: impl Fn(f64, f64) -> f64) -> Self {
+    fn map(self, f: impl Fn(f32) -> f32) -> Self {
+        Portable(self.0.map(f))
+    }
+
+    #[inline(always)]
+    fn map2(self, other: Self, f: impl Fn(f32, f32) -> f32) -> Self {
         let (a, b) = (self.0, other.0);
-        Portable([f(a[0], b[0]), f(a[1], b[1]), f(a[2], b[2]), f(a[3], b[3])])
+        Portable(std::array::from_fn(|lane| f(a[lane], b[lane])))
     }
 }
 
 impl Lanes for Portable {
     const WIDTH: usize = LANES;
-    // Without SIMD registers (wasm), a lane is a scalar register: four lanes of six
+    // Without SIMD registers (wasm), a lane is a scalar register: eight lanes of six
     // accumulators would not fit.
     const MAX_GROUP: usize = 1;
     const PAIRED: bool = false;
 
-    /// One lane after the other: the four lanes' temporaries would not fit in scalar
+    /// One lane after the other: the lanes' temporaries would not fit in scalar
     /// registers at once.
     #[inline(always)]
     fn exp(self) -> Self {
-        let exp = super::activation::exp;
-        let a = self.0;
-        Portable([exp(a[0]), exp(a[1]), exp(a[2]), exp(a[3])])
+        self.map(super::activation::exp)
     }
 
     #[inline(always)]
-    fn splat(value: f64) -> Self {
-        Portable([value; 4])
+    fn splat(value: f32) -> Self {
+        Portable([value; 8])
     }
 
     #[inline(always)]
-    fn load(values: &[f64], start: usize) -> Self {
-        let v = &values[start..start + 4];
-        Portable([v[0], v[1], v[2], v[3]])
+    fn load(values: &[f32], start: usize) -> Self {
+        let mut lanes = [0.0; 8];
+        lanes.copy_from_slice(&values[start..start + 8]);
+        Portable(lanes)
     }
 
     #[inline(always)]
-    fn store(self, values: &mut [f64], start: usize) {
-        values[start..start + 4].copy_from_slice(&self.0);
+    fn store(self, values: &mut [f32], start: usize) {
+        values[start..start + 8].copy_from_slice(&self.0);
     }
 
     #[inline(always)]
@@ -155,15 +167,12 @@ impl Lanes for Portable {
 
     #[inline(always)]
     fn neg(self) -> Self {
-        let a = self.0;
-        Portable([-a[0], -a[1], -a[2], -a[3]])
+        self.map(|a| -a)
     }
 
     #[inline(always)]
     fn two_to_the_rounded(shifted: Self) -> Self {
-        let scale = |x: f64| f64::from_bits(x.to_bits().wrapping_add(1023) << 52);
-        let a = shifted.0;
-        Portable([scale(a[0]), scale(a[1]), scale(a[2]), scale(a[3])])
+        shifted.map(|x| f32::from_bits(x.to_bits().wrapping_add(127) << 23))
     }
 
     #[inline(always)]
@@ -174,16 +183,10 @@ impl Lanes for Portable {
         }
         Portable(kept)
     }
-
-    #[inline(always)]
-    fn reduce(self) -> f64 {
-        let a = self.0;
-        (a[0] + a[1]) + (a[2] + a[3])
-    }
 }
 
-/// Two vectors side by side (eight samples): the forward pass runs on pairs so that two
-/// independent chains of the long `exp` computation overlap. Each half does exactly
+/// Two vectors side by side (sixteen samples): the forward pass runs on pairs so that
+/// two independent chains of the long `exp` computation overlap. Each half does exactly
 /// what it would do alone.
 #[derive(Clone, Copy)]
 struct Pair<V>(V, V);
@@ -194,17 +197,17 @@ impl<V: Lanes> Lanes for Pair<V> {
     const PAIRED: bool = true;
 
     #[inline(always)]
-    fn splat(value: f64) -> Self {
+    fn splat(value: f32) -> Self {
         Pair(V::splat(value), V::splat(value))
     }
 
     #[inline(always)]
-    fn load(values: &[f64], start: usize) -> Self {
+    fn load(values: &[f32], start: usize) -> Self {
         Pair(V::load(values, start), V::load(values, start + LANES))
     }
 
     #[inline(always)]
-    fn store(self, values: &mut [f64], start: usize) {
+    fn store(self, values: &mut [f32], start: usize) {
         self.0.store(values, start);
         self.1.store(values, start + LANES);
     }
@@ -252,7 +255,7 @@ impl<V: Lanes> Lanes for Pair<V> {
         )
     }
 
-    /// Here `count` is 0 to 7.
+    /// Here `count` is 0 to 15.
     #[inline(always)]
     fn keep_first(self, count: usize) -> Self {
         if count >= LANES {
@@ -261,36 +264,27 @@ impl<V: Lanes> Lanes for Pair<V> {
             Pair(self.0.keep_first(count), self.1.keep_first(0))
         }
     }
-
-    #[inline(always)]
-    fn reduce(self) -> f64 {
-        self.0.reduce() + self.1.reduce()
-    }
 }
 
-/// `activation::exp`, operation for operation, on four lanes.
+/// `activation::exp`, operation for operation, on eight lanes.
 #[inline(always)]
 fn exp_lanes<V: Lanes>(x: V) -> V {
     let x = x.min(V::splat(EXP_LIMIT)).max(V::splat(-EXP_LIMIT));
     let shifted = x
-        .mul(V::splat(std::f64::consts::LOG2_E))
+        .mul(V::splat(std::f32::consts::LOG2_E))
         .add(V::splat(ROUND));
     let n = shifted.sub(V::splat(ROUND));
     let r = x.sub(n.mul(V::splat(LN2_HI))).sub(n.mul(V::splat(LN2_LO)));
     let c = |k: usize| V::splat(EXP_COEFFICIENTS[k]);
-    let r2 = r.mul(r);
-    let r4 = r2.mul(r2);
-    let r8 = r4.mul(r4);
-    let pair = |k: usize| c(k).add(c(k + 1).mul(r));
-    let s0 = pair(0).add(pair(2).mul(r2));
-    let s1 = pair(4).add(pair(6).mul(r2));
-    let s2 = pair(8).add(pair(10).mul(r2));
-    let s3 = pair(12);
-    let p = s0.add(s1.mul(r4)).add(s2.add(s3.mul(r4)).mul(r8));
-    p.mul(V::two_to_the_rounded(shifted))
+    let mut p = c(0);
+    for k in 1..EXP_COEFFICIENTS.len() {
+        p = p.mul(r).add(c(k));
+    }
+    let e = p.mul(r.mul(r)).add(r).add(V::splat(1.0));
+    e.mul(V::two_to_the_rounded(shifted))
 }
 
-/// [`Activation::apply`] on four lanes, with its bits.
+/// [`Activation::of`] on eight lanes, with its bits.
 #[inline(always)]
 fn activate<V: Lanes>(activation: Activation, z: V) -> V {
     let one = V::splat(1.0);
@@ -303,7 +297,7 @@ fn activate<V: Lanes>(activation: Activation, z: V) -> V {
     }
 }
 
-/// [`Activation::derivative`] on four lanes, with its bits.
+/// [`Activation::derivative`] on eight lanes, with its bits.
 #[inline(always)]
 fn derivative<V: Lanes>(activation: Activation, h: V) -> V {
     let one = V::splat(1.0);
@@ -317,24 +311,24 @@ fn derivative<V: Lanes>(activation: Activation, h: V) -> V {
 pub(crate) struct PartInput<'a> {
     pub shape: Shape,
     pub activation: Activation,
-    /// `[W₁ | b₁ | W₂ | b₂]` as in [`Shape::split`].
-    pub params: &'a [f64],
+    /// `[W₁ | b₁ | W₂ | b₂]` as in [`Shape::split`], rounded to `f32`.
+    pub params: &'a [f32],
     /// `inputs[i·stride + s]`: input `i` of sample `s`; readable up to the end of the
     /// range rounded up to a whole [`PAIR`].
-    pub inputs: &'a [f64],
+    pub inputs: &'a [f32],
     /// `targets[k·stride + s]`, likewise.
-    pub targets: &'a [f64],
+    pub targets: &'a [f32],
     pub stride: usize,
 }
 
 /// One part's scratch space, allocated once per batch (and thread).
 pub(crate) struct Scratch {
     /// Activations of one chunk, `hidden[j·CHUNK + s]`; then their deltas.
-    hidden: Vec<f64>,
+    hidden: Vec<f32>,
     /// Residuals of one chunk, `residuals[k·CHUNK + s]`.
-    residuals: Vec<f64>,
-    /// Four lane sums per quantity of [`evaluate_part`]'s `sums`.
-    lanes: Vec<f64>,
+    residuals: Vec<f32>,
+    /// Eight lane sums per quantity of [`evaluate_part`]'s `sums`, over one chunk.
+    lanes: Vec<f32>,
 }
 
 impl Scratch {
@@ -375,6 +369,15 @@ pub(crate) fn evaluate_part_portable(
     sums: &mut [f64],
 ) {
     part::<Portable>(input, range, scratch, sums);
+}
+
+/// Adds each quantity's eight lane sums, reduced in `f64` in the order of the module
+/// documentation, to its sum.
+fn add_lane_sums(lanes: &[f32], sums: &mut [f64]) {
+    for (sum, lane) in sums.iter_mut().zip(lanes.chunks_exact(LANES)) {
+        let l = |k: usize| f64::from(lane[k]);
+        *sum += ((l(0) + l(1)) + (l(2) + l(3))) + ((l(4) + l(5)) + (l(6) + l(7)));
+    }
 }
 
 /// Runs `$body` with `$i` bound to each constant `0..$n` (`$n` ≤ 8, a constant), so that
@@ -447,10 +450,12 @@ fn part<V: Lanes>(
         lanes,
     } = scratch;
     let lanes = &mut lanes[..LANES * n_quantities];
-    lanes.fill(0.0);
+    let sums = &mut sums[..n_quantities];
+    sums.fill(0.0);
 
     let mut chunk_start = range.start;
     while chunk_start < range.end {
+        lanes.fill(0.0);
         let chunk_len = CHUNK.min(range.end - chunk_start);
         let n_vectors = chunk_len.div_ceil(LANES);
 
@@ -487,6 +492,7 @@ fn part<V: Lanes>(
             sum_squares.store(lanes, LANES * output_idx);
         }
         if !with_gradient {
+            add_lane_sums(lanes, sums);
             chunk_start += CHUNK;
             continue;
         }
@@ -566,14 +572,8 @@ fn part<V: Lanes>(
                 group_start += group;
             }
         }
+        add_lane_sums(lanes, sums);
         chunk_start += CHUNK;
-    }
-
-    for (sum, lane_sums) in sums[..n_quantities]
-        .iter_mut()
-        .zip(lanes.chunks_exact(LANES))
-    {
-        *sum = V::load(lane_sums, 0).reduce();
     }
 }
 
@@ -582,10 +582,10 @@ fn part<V: Lanes>(
 #[inline(always)]
 fn hidden_layer<W: Lanes>(
     input: &PartInput,
-    params: &super::loss::Blocks<&[f64]>,
+    params: &super::loss::Blocks<&[f32]>,
     chunk_start: usize,
     chunk_len: usize,
-    hidden: &mut [f64],
+    hidden: &mut [f32],
 ) {
     let n_values = chunk_len.div_ceil(W::WIDTH);
     for ((row, weights), bias) in hidden
@@ -611,14 +611,14 @@ struct Neuron<'a> {
     idx: usize,
     n_hidden: usize,
     /// `W₂` (outputs × hidden, row-major).
-    output_weights: &'a [f64],
+    output_weights: &'a [f32],
     n_outputs: usize,
 }
 
 /// A pass over one chunk for one neuron and a group of inputs.
 #[derive(Clone, Copy)]
 struct Pass<'a> {
-    inputs: &'a [f64],
+    inputs: &'a [f32],
     stride: usize,
     chunk_start: usize,
     n_vectors: usize,
@@ -630,7 +630,7 @@ struct Pass<'a> {
 /// What the delta pass needs beyond [`Pass`].
 struct Deltas<'a> {
     neuron: &'a Neuron<'a>,
-    residuals: &'a [f64],
+    residuals: &'a [f32],
     bias_lanes: usize,
     output_weight_lanes: usize,
 }
@@ -641,8 +641,8 @@ struct Deltas<'a> {
 fn delta_pass<V: Lanes, const G: usize>(
     pass: &Pass,
     deltas: &Deltas,
-    row: &mut [f64],
-    lanes: &mut [f64],
+    row: &mut [f32],
+    lanes: &mut [f32],
 ) {
     let neuron = deltas.neuron;
     let first_weight = V::splat(neuron.output_weights[neuron.idx]);
@@ -681,7 +681,7 @@ fn delta_pass<V: Lanes, const G: usize>(
 
 /// `Σ δ·xᵢ` for the `G` inputs from `pass.first_input`, `row` holding `δ`.
 #[inline(always)]
-fn input_pass<V: Lanes, const G: usize>(pass: &Pass, row: &[f64], lanes: &mut [f64]) {
+fn input_pass<V: Lanes, const G: usize>(pass: &Pass, row: &[f32], lanes: &mut [f32]) {
     let mut weight_sums = [V::splat(0.0); G];
     unrolled!(G, |i| {
         weight_sums[i] = V::load(lanes, pass.weight_lanes + LANES * (pass.first_input + i));
@@ -703,10 +703,10 @@ fn input_pass<V: Lanes, const G: usize>(pass: &Pass, row: &[f64], lanes: &mut [f
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
     use std::arch::x86_64::{
-        __m256d, _mm256_add_epi64, _mm256_add_pd, _mm256_and_pd, _mm256_castpd_si256,
-        _mm256_castsi256_pd, _mm256_div_pd, _mm256_loadu_pd, _mm256_max_pd, _mm256_min_pd,
-        _mm256_mul_pd, _mm256_set1_epi64x, _mm256_set1_pd, _mm256_slli_epi64, _mm256_storeu_pd,
-        _mm256_sub_pd, _mm256_xor_pd,
+        __m256, _mm256_add_epi32, _mm256_add_ps, _mm256_and_ps, _mm256_castps_si256,
+        _mm256_castsi256_ps, _mm256_div_ps, _mm256_loadu_ps, _mm256_max_ps, _mm256_min_ps,
+        _mm256_mul_ps, _mm256_set1_epi32, _mm256_set1_ps, _mm256_slli_epi32, _mm256_storeu_ps,
+        _mm256_sub_ps, _mm256_xor_ps,
     };
 
     use super::{Lanes, PartInput, Scratch};
@@ -716,96 +716,89 @@ mod avx2 {
         std::arch::is_x86_feature_detected!("avx2")
     }
 
-    /// Four lanes in one AVX register. A value exists only inside [`evaluate_part`],
+    /// Eight lanes in one AVX register. A value exists only inside [`evaluate_part`],
     /// which runs only when the processor has AVX2: that is what makes the intrinsics
     /// below sound.
     #[derive(Clone, Copy)]
-    pub(super) struct Avx2(__m256d);
+    pub(super) struct Avx2(__m256);
 
     // SAFETY (every `unsafe` block in this impl): an `Avx2` value exists only inside
     // `evaluate_part`, which its caller runs only after checking that the processor has
-    // AVX2; loads and stores go through a bounds-checked slice of four values.
+    // AVX2; loads and stores go through a bounds-checked slice of eight values.
     impl Lanes for Avx2 {
         const WIDTH: usize = super::LANES;
         const MAX_GROUP: usize = super::MAX_GROUP;
         const PAIRED: bool = true;
 
         #[inline(always)]
-        fn splat(value: f64) -> Self {
-            Avx2(unsafe { _mm256_set1_pd(value) })
+        fn splat(value: f32) -> Self {
+            Avx2(unsafe { _mm256_set1_ps(value) })
         }
 
         #[inline(always)]
-        fn load(values: &[f64], start: usize) -> Self {
-            let four = &values[start..start + 4];
-            Avx2(unsafe { _mm256_loadu_pd(four.as_ptr()) })
+        fn load(values: &[f32], start: usize) -> Self {
+            let eight = &values[start..start + 8];
+            Avx2(unsafe { _mm256_loadu_ps(eight.as_ptr()) })
         }
 
         #[inline(always)]
-        fn store(self, values: &mut [f64], start: usize) {
-            let four = &mut values[start..start + 4];
-            unsafe { _mm256_storeu_pd(four.as_mut_ptr(), self.0) }
+        fn store(self, values: &mut [f32], start: usize) {
+            let eight = &mut values[start..start + 8];
+            unsafe { _mm256_storeu_ps(eight.as_mut_ptr(), self.0) }
         }
 
         #[inline(always)]
         fn add(self, other: Self) -> Self {
-            Avx2(unsafe { _mm256_add_pd(self.0, other.0) })
+            Avx2(unsafe { _mm256_add_ps(self.0, other.0) })
         }
 
         #[inline(always)]
         fn sub(self, other: Self) -> Self {
-            Avx2(unsafe { _mm256_sub_pd(self.0, other.0) })
+            Avx2(unsafe { _mm256_sub_ps(self.0, other.0) })
         }
 
         #[inline(always)]
         fn mul(self, other: Self) -> Self {
-            Avx2(unsafe { _mm256_mul_pd(self.0, other.0) })
+            Avx2(unsafe { _mm256_mul_ps(self.0, other.0) })
         }
 
         #[inline(always)]
         fn div(self, other: Self) -> Self {
-            Avx2(unsafe { _mm256_div_pd(self.0, other.0) })
+            Avx2(unsafe { _mm256_div_ps(self.0, other.0) })
         }
 
         #[inline(always)]
         fn min(self, other: Self) -> Self {
-            Avx2(unsafe { _mm256_min_pd(self.0, other.0) })
+            Avx2(unsafe { _mm256_min_ps(self.0, other.0) })
         }
 
         #[inline(always)]
         fn max(self, other: Self) -> Self {
-            Avx2(unsafe { _mm256_max_pd(self.0, other.0) })
+            Avx2(unsafe { _mm256_max_ps(self.0, other.0) })
         }
 
         #[inline(always)]
         fn neg(self) -> Self {
-            Avx2(unsafe { _mm256_xor_pd(self.0, _mm256_set1_pd(-0.0)) })
+            Avx2(unsafe { _mm256_xor_ps(self.0, _mm256_set1_ps(-0.0)) })
         }
 
         #[inline(always)]
         fn two_to_the_rounded(shifted: Self) -> Self {
             Avx2(unsafe {
-                _mm256_castsi256_pd(_mm256_slli_epi64::<52>(_mm256_add_epi64(
-                    _mm256_castpd_si256(shifted.0),
-                    _mm256_set1_epi64x(1023),
+                _mm256_castsi256_ps(_mm256_slli_epi32::<23>(_mm256_add_epi32(
+                    _mm256_castps_si256(shifted.0),
+                    _mm256_set1_epi32(127),
                 )))
             })
         }
 
         #[inline(always)]
         fn keep_first(self, count: usize) -> Self {
-            let mut mask = [0.0; 4];
+            let mut mask = [0.0; 8];
             for lane in mask.iter_mut().take(count) {
-                *lane = f64::from_bits(u64::MAX);
+                *lane = f32::from_bits(u32::MAX);
             }
-            Avx2(unsafe { _mm256_and_pd(self.0, _mm256_loadu_pd(mask.as_ptr())) })
-        }
-
-        #[inline(always)]
-        fn reduce(self) -> f64 {
-            let mut four = [0.0; 4];
-            self.store(&mut four, 0);
-            (four[0] + four[1]) + (four[2] + four[3])
+            Avx2(unsafe { _mm256_and_ps(self.0, _mm256_loadu_ps(mask.as_ptr())) })
         }
     }
 
@@ -830,7 +823,7 @@ mod tests {
     fn exp_on_lanes_gives_the_scalar_bits() {
         let mut rng = SplitMix64::new(1);
         for _ in 0..2000 {
-            let values: [f64; 4] = std::array::from_fn(|_| 30.0 * rng.gaussian());
+            let values: [f32; 8] = std::array::from_fn(|_| (30.0 * rng.gaussian()) as f32);
             let lanes = exp_lanes(Portable(values));
             for (lane, value) in lanes.0.iter().zip(values) {
                 assert_eq!(
@@ -842,23 +835,23 @@ mod tests {
     }
 
     /// Random normalised data, `stride` long columns padded with zeros.
-    fn case(shape: Shape, n: usize, seed: u64) -> (Vec<f64>, Vec<f64>, Vec<f64>, usize) {
+    fn case(shape: Shape, n: usize, seed: u64) -> (Vec<f32>, Vec<f32>, Vec<f32>, usize) {
         let mut rng = SplitMix64::new(seed);
-        let stride = n + 8;
+        let stride = n + PAIR;
         let mut inputs = vec![0.0; shape.n_inputs * stride];
         let mut targets = vec![0.0; shape.n_outputs * stride];
         for column in inputs.chunks_exact_mut(stride) {
             for value in &mut column[..n] {
-                *value = 2.0 * rng.gaussian();
+                *value = (2.0 * rng.gaussian()) as f32;
             }
         }
         for column in targets.chunks_exact_mut(stride) {
             for value in &mut column[..n] {
-                *value = rng.gaussian();
+                *value = rng.gaussian() as f32;
             }
         }
         let params = (0..shape.n_params())
-            .map(|_| rng.uniform_in(-1.5, 1.5))
+            .map(|_| rng.uniform_in(-1.5, 1.5) as f32)
             .collect();
         (inputs, targets, params, stride)
     }

@@ -184,32 +184,37 @@ impl Mlp {
             });
         }
         let params = shape.split(&self.params);
-        // The same sums in the same order as the training's batch evaluation.
-        let mut hidden = params.hidden_biases.to_vec();
-        for (neuron, weights) in hidden
-            .iter_mut()
-            .zip(params.hidden_weights.chunks_exact(shape.n_inputs))
+        // The training's forward pass for one sample: the same f32 operations in the
+        // same order (`kernels.rs`), so the network predicts what it was trained on.
+        // Each output's sum is kept in `outputs` (an f32 value is exact in f64).
+        for (output, bias) in outputs.iter_mut().zip(params.output_biases) {
+            *output = f64::from(*bias as f32);
+        }
+        for (neuron_idx, (weights, bias)) in params
+            .hidden_weights
+            .chunks_exact(shape.n_inputs)
+            .zip(params.hidden_biases)
+            .enumerate()
         {
+            let mut z = *bias as f32;
             for (input_idx, (weight, raw)) in weights.iter().zip(inputs).enumerate() {
                 let normalised = self
                     .input_scaling
                     .normalise(input_idx, *raw)
-                    .clamp(-INPUT_CLAMP, INPUT_CLAMP);
-                *neuron += weight * normalised;
+                    .clamp(-INPUT_CLAMP, INPUT_CLAMP) as f32;
+                z += *weight as f32 * normalised;
+            }
+            let h = self.activation.of(z);
+            for (output, weights) in outputs
+                .iter_mut()
+                .zip(params.output_weights.chunks_exact(shape.n_hidden))
+            {
+                let weight = weights.get(neuron_idx).copied().unwrap_or_default() as f32;
+                *output = f64::from(*output as f32 + weight * h);
             }
         }
-        self.activation.apply(&mut hidden);
-        for (output_idx, ((output, weights), bias)) in outputs
-            .iter_mut()
-            .zip(params.output_weights.chunks_exact(shape.n_hidden))
-            .zip(params.output_biases)
-            .enumerate()
-        {
-            let mut normalised = *bias;
-            for (weight, neuron) in weights.iter().zip(&hidden) {
-                normalised += weight * neuron;
-            }
-            *output = self.output_scaling.denormalise(output_idx, normalised);
+        for (output_idx, output) in outputs.iter_mut().enumerate() {
+            *output = self.output_scaling.denormalise(output_idx, *output);
         }
         Ok(())
     }

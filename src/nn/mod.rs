@@ -12,13 +12,13 @@
 //!
 //! - `dataset.rs`: [`Dataset`], the checked training samples (row-major, finite).
 //! - `normalise.rs`: [`Standardiser`], mean removed and scaled by the standard deviation.
-//! - `activation.rs`: the logistic and tanh functions on whole slices (a vectorisable
-//!   `exp`, so native and wasm builds give the same bits).
+//! - `activation.rs`: the logistic and tanh functions in single precision (an `exp` of
+//!   plain arithmetic, so native and wasm builds give the same bits).
 //! - `mlp.rs`: [`Mlp`], the trained model (weights and normalisation, serde), `predict`.
 //! - `loss.rs`: the mean-squared error with its L2 penalty and its analytic gradient over
 //!   a whole batch (column-major, in parts of fixed size added in a fixed order).
-//! - `kernels.rs`: one part's forward pass and gradient, four samples at a time (portable
-//!   lanes, or AVX2 when the processor has it, with the same bits).
+//! - `kernels.rs`: one part's forward pass and gradient, eight samples at a time in `f32`
+//!   (portable lanes, or AVX2 when the processor has it, with the same bits).
 //! - `workers.rs`: helper threads that evaluate a large batch's parts (native builds).
 //! - `lbfgs.rs`: L-BFGS with a strong-Wolfe line search, for any smooth objective.
 //! - `train.rs`: [`train`]: splitting, initialisation, the two optimisers (L-BFGS and

@@ -866,8 +866,9 @@ mod tests {
             .map(|(p, t)| (p - t) * (p - t))
             .sum::<f64>()
             / 150.0;
-        assert!((model.mean_squared_error(&data).unwrap() - mse).abs() < 1e-12 * (1.0 + mse));
-        assert!((report.train_mse - mse).abs() < 1e-12 * (1.0 + mse));
+        // The batch forms the residuals in the kernels' f32, the predictions end in f64.
+        assert!((model.mean_squared_error(&data).unwrap() - mse).abs() < 1e-6 * (1.0 + mse));
+        assert!((report.train_mse - mse).abs() < 1e-6 * (1.0 + mse));
     }
 
     #[cfg(not(target_arch = "wasm32"))]

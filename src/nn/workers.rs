@@ -29,7 +29,8 @@ const YIELD: Duration = Duration::from_micros(200);
 /// What a helper evaluates, and where it writes.
 struct Job {
     samples: Option<Arc<Samples>>,
-    params: Vec<f64>,
+    /// The weights rounded to the kernels' `f32`.
+    params: Vec<f32>,
     /// The whole parts of `part_len` samples to evaluate (the last may be shorter).
     span: Range<usize>,
     part_len: usize,
@@ -102,7 +103,7 @@ impl Workers {
     pub fn evaluate(
         &mut self,
         samples: &Arc<Samples>,
-        params: &[f64],
+        params: &[f32],
         range: Range<usize>,
         part_len: usize,
         n_threads: usize,
