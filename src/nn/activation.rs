@@ -1,4 +1,4 @@
-//! The hidden layer's activation functions, applied to whole slices.
+//! The hidden layer's activation functions, in single precision.
 //!
 //! - Logistic `σ(z) = 1 / (1 + e^−z)`, the "logistic function (sigmoid)" of Noureldin
 //!   et al. (2007), Section 3; `σ' = σ·(1 − σ)`.
@@ -10,8 +10,8 @@
 //! straight-line arithmetic that the kernels run on eight lanes at once, and it gives the
 //! same bits on every target (it uses no fused multiply-add), so a native and a wasm
 //! build train the same network. Both are computed in single precision, as the kernels
-//! evaluate the network (`kernels.rs`; [`Activation::of`] on one value), so a trained network predicts with
-//! the function it was trained with.
+//! evaluate the network (`kernels.rs` on eight lanes, [`Activation::of`] on one value for
+//! `Mlp::predict`), so a trained network predicts with the function it was trained with.
 
 /// The hidden layer's activation function.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
