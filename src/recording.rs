@@ -117,7 +117,7 @@ impl<T> Stream<T> {
 }
 
 impl Stream<f64> {
-    /// Linear interpolation at `t_s`; see [`Stream::bracket`] for when it is `None`.
+    /// Linear interpolation at `t_s`; see `Stream::bracket` for when it is `None`.
     pub fn interpolate_at(&self, t_s: f64, max_gap_s: f64) -> Option<f64> {
         let (before, after, fraction) = self.bracket(t_s, max_gap_s)?;
         Some(before + (after - before) * fraction)

@@ -819,7 +819,7 @@ impl RawImport {
 /// [`super::lines::LineDecoder`]). Values go straight into the recording in the file's
 /// units and are converted in place by [`DelimitedReader::finish`], so that memory holds
 /// one copy of the samples. (The parallel reader's parts write into their share of
-/// columns prepared for the whole file instead: `S`, see [`SampleSinks`].)
+/// columns prepared for the whole file instead: `S`, see `SampleSinks`.)
 pub struct DelimitedReader<S = Recording> {
     header: Option<Header>,
     plan: Plan,

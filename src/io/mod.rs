@@ -1,4 +1,4 @@
-//! Importers: bytes in, a [`Recording`](crate::recording::Recording) and diagnostics out.
+//! Importers: bytes in, a [`Recording`] and diagnostics out.
 //!
 //! Partial failure is not failure. A line that cannot be used becomes a [`Diagnostic`]
 //! with its line number and the reason, and the rest of the file is still read. Only a

@@ -1166,7 +1166,7 @@ pub fn looks_like(sample_lines: &[&str]) -> bool {
 ///
 /// Parsing a line needs no state, applying it does (the clock, the epoch merge, the
 /// placing of untimed sentences, the counts): on native builds a large file is parsed
-/// on every core and applied in order on one thread ([`parallel`]), with the same
+/// on every core and applied in order on one thread (`parallel`), with the same
 /// result as reading it line by line; the browser build reads on one thread.
 pub fn read(file_name: &str, bytes: &[u8]) -> Result<ImportReport, ImportError> {
     ensure_text(file_name, bytes)?;

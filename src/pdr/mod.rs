@@ -250,7 +250,7 @@ pub struct PdrReport {
 }
 
 /// A span of the walk without any GNSS fix in the log, longer than
-/// [`min_gap_s`] of its fix interval: the dead reckoning alone carried the track.
+/// `min_gap_s` of its fix interval: the dead reckoning alone carried the track.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct GnssGap {
     /// The last fix before and the first after (or the walk's end).

@@ -2,7 +2,7 @@
 //!
 //! Chen et al., *A unified heading error model and step length estimation for PDR*,
 //! Section III: "a combination of three methods: sliding window, peak detection and
-//! zero-crossing, [which] can calculate the statistics of acceleration per step
+//! zero-crossing, \[which\] can calculate the statistics of acceleration per step
 //! simultaneously". Here, on samples at any rate (times, not sample counts, set every
 //! window):
 //!

@@ -101,7 +101,7 @@ pub struct WalkConfig {
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum Route {
-    /// Stand, walk a calibration circle, then legs, turns and stops ([`plan_route`]).
+    /// Stand, walk a calibration circle, then legs, turns and stops (`plan_route`).
     #[default]
     Walk,
     /// Turn on the spot at a steady rate, one turn every `period_s`, without a step:
