@@ -225,11 +225,7 @@ mod tests {
         let analysis = analyse(&text).expect("analysable");
         let report = &analysis.report;
         assert_eq!(report.n_samples_used, 1440);
-        let min_max = report
-            .methods
-            .iter()
-            .find(|method| method.method == Method::MinMax)
-            .expect("min/max ran");
+        let min_max = report.method(Method::MinMax).expect("min/max ran");
         let check = min_max.heading_error_check.expect("a reference");
         assert!(check.rms_deg < 0.2, "{check:?}");
         assert!(report

@@ -242,6 +242,13 @@ pub struct CalibrationAnalysis {
     pub gyro_heading_deg: Vec<Option<f64>>,
 }
 
+impl CalibrationReport {
+    /// The report of `method`, if it was run.
+    pub fn method(&self, method: Method) -> Option<&MethodReport> {
+        self.methods.iter().find(|report| report.method == method)
+    }
+}
+
 impl CalibrationAnalysis {
     /// The 3D calibration to store in a device (C snippet, MotionCal packet): of the
     /// ellipse and ellipsoid methods, the one with the lower check (else train) heading
@@ -811,9 +818,7 @@ mod tests {
     fn check_rms(analysis: &CalibrationAnalysis, method: Method) -> f64 {
         analysis
             .report
-            .methods
-            .iter()
-            .find(|report| report.method == method)
+            .method(method)
             .and_then(|report| report.heading_error_check)
             .map_or(f64::INFINITY, |stats| stats.rms_deg)
     }
@@ -843,11 +848,7 @@ mod tests {
             );
         }
         // A walk held nearly level is no data for a 3D fit, and the report says why.
-        let ellipsoid = report
-            .methods
-            .iter()
-            .find(|report| report.method == Method::Ellipsoid)
-            .expect("ran");
+        let ellipsoid = report.method(Method::Ellipsoid).expect("ran");
         assert!(
             ellipsoid
                 .error

@@ -579,6 +579,34 @@ mod tests {
         import("walk.csv", text.as_bytes()).expect("imports")
     }
 
+    /// The Fourier model fitted on the raw heading of the simulated `config`, every
+    /// sample with a GPS course training (the reference must be the GPS course).
+    fn raw_fourier_fit_on_gps(config: &WalkConfig) -> fourier::FourierFit {
+        let analysis = analyse_headings(simulated(config), &all_train_on_gps()).expect("analyses");
+        assert_eq!(
+            analysis.report.reference.map(|source| source.label()),
+            Some("GPS course")
+        );
+        analysis
+            .report
+            .fourier
+            .into_iter()
+            .find(|report| report.base_key == "raw")
+            .expect("fitted")
+            .fit
+    }
+
+    /// A to E, in degrees.
+    fn coefficients(model: &fourier::FourierDeviation) -> [f64; 5] {
+        [
+            model.a_deg,
+            model.b_deg,
+            model.c_deg,
+            model.d_deg,
+            model.e_deg,
+        ]
+    }
+
     /// Every referenced sample trains, against the GPS course.
     fn all_train_on_gps() -> HeadingOptions {
         HeadingOptions {
@@ -602,38 +630,12 @@ mod tests {
             gnss: Some(GnssSim::default()),
             ..WalkConfig::from_seed(5, 1200.0)
         };
-        let options = all_train_on_gps();
-        let analysis = analyse_headings(simulated(&config), &options).expect("analyses");
-        assert_eq!(
-            analysis.report.reference.map(|source| source.label()),
-            Some("GPS course")
-        );
-        let fit = &analysis
-            .report
-            .fourier
-            .iter()
-            .find(|report| report.base_key == "raw")
-            .expect("fitted")
-            .fit;
-        let model = fit.model;
-        let got = [
-            model.a_deg,
-            model.b_deg,
-            model.c_deg,
-            model.d_deg,
-            model.e_deg,
-        ];
+        let fit = raw_fourier_fit_on_gps(&config);
+        let got = coefficients(&fit.model);
         for (got, want) in got.iter().zip(TABLE_II_1) {
             assert!(
                 (got - want).abs() < 0.3,
-                "{:?} vs {TABLE_II_1:?} {fit:?}",
-                [
-                    model.a_deg,
-                    model.b_deg,
-                    model.c_deg,
-                    model.d_deg,
-                    model.e_deg
-                ]
+                "{got:?} vs {TABLE_II_1:?} {fit:?}"
             );
         }
     }
@@ -651,24 +653,9 @@ mod tests {
         let Some(truth) = config.deviation_deg else {
             panic!("the car's compass deviates")
         };
-        let options = all_train_on_gps();
-        let analysis = analyse_headings(simulated(&config), &options).expect("analyses");
-        let fit = &analysis
-            .report
-            .fourier
-            .iter()
-            .find(|report| report.base_key == "raw")
-            .expect("fitted")
-            .fit;
+        let fit = raw_fourier_fit_on_gps(&config);
         assert_eq!(fit.terms, fourier::FourierTerms::Full);
-        let model = fit.model;
-        let got = [
-            model.a_deg,
-            model.b_deg,
-            model.c_deg,
-            model.d_deg,
-            model.e_deg,
-        ];
+        let got = coefficients(&fit.model);
         for (got, want) in got.iter().zip(truth) {
             assert!((got - want).abs() < 0.3, "{got:?} vs {truth:?}");
         }

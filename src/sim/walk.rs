@@ -998,9 +998,7 @@ mod tests {
         // unknown declination stays.
         let min_max = analysis
             .report
-            .methods
-            .iter()
-            .find(|method| method.method == Method::MinMax)
+            .method(Method::MinMax)
             .and_then(|method| method.heading_error_train)
             .expect("min/max fitted");
         assert!(
@@ -1026,9 +1024,7 @@ mod tests {
         let check_rms = |method: Method| {
             analysis
                 .report
-                .methods
-                .iter()
-                .find(|result| result.method == method)
+                .method(method)
                 .and_then(|result| result.heading_error_check)
                 .map_or(f64::NAN, |stats| stats.rms_deg)
         };
@@ -1356,11 +1352,7 @@ mod tests {
             .expect("analysable");
         let report = &analysis.report;
         let raw = report.raw_heading_error_check.expect("reference present");
-        let min_max = report
-            .methods
-            .iter()
-            .find(|method| method.method == Method::MinMax)
-            .expect("min/max ran");
+        let min_max = report.method(Method::MinMax).expect("min/max ran");
         let after = min_max.heading_error_check.expect("reference present");
         assert!(raw.rms_deg > 10.0, "{raw:?}");
         assert!(after.rms_deg < 3.0, "{after:?}");

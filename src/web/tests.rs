@@ -154,12 +154,7 @@ fn the_page_shows_an_analysis_then_an_error() {
         .expect("analysable");
     let import = crate::io::import::import("walk.csv", &simulated_csv()).expect("readable");
     page.show_analysis(&analysis, Some(import));
-    let min_max = analysis
-        .report
-        .methods
-        .iter()
-        .find(|method| method.method == Method::MinMax)
-        .expect("min/max ran");
+    let min_max = analysis.report.method(Method::MinMax).expect("min/max ran");
     let check = min_max.heading_error_check.expect("reference present");
     assert_eq!(
         text("stat-min_max-check-rms"),
