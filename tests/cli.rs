@@ -21,20 +21,24 @@ fn stderr(output: &Output) -> String {
     String::from_utf8_lossy(&output.stderr).into_owned()
 }
 
+/// `compass-pdr simulate ARGS --out OUT`, which must succeed.
+fn simulate_to(out: &Path, args: &[&str]) {
+    let out_arg = ["--out", out.to_str().unwrap_or_default()];
+    let all: Vec<&str> = ["simulate"]
+        .iter()
+        .chain(args)
+        .chain(&out_arg)
+        .copied()
+        .collect();
+    let output = compass_pdr(&all);
+    assert!(output.status.success(), "{}", stderr(&output));
+}
+
 #[test]
 fn the_committed_demo_is_what_the_simulator_writes() {
     let dir = scratch_dir("demo");
     let out = dir.join("demo-walk.csv");
-    let output = compass_pdr(&[
-        "simulate",
-        "--seed",
-        "1",
-        "--duration-s",
-        "240",
-        "--out",
-        out.to_str().unwrap_or_default(),
-    ]);
-    assert!(output.status.success(), "{}", stderr(&output));
+    simulate_to(&out, &["--seed", "1", "--duration-s", "240"]);
     let regenerated = std::fs::read(&out).expect("written");
     let committed =
         std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/demo-walk.csv"))
@@ -134,18 +138,17 @@ fn simulate_writes_the_pdr_scenario_with_its_step_truth() {
 fn simulate_writes_a_car_loop_as_nmea_that_reads_back() {
     let dir = scratch_dir("simulate-nmea");
     let out = dir.join("car.nmea");
-    let output = compass_pdr(&[
-        "simulate",
-        "--scenario",
-        "vehicle",
-        "--duration-s",
-        "60",
-        "--sample-rate-hz",
-        "10",
-        "--out",
-        out.to_str().unwrap_or_default(),
-    ]);
-    assert!(output.status.success(), "{}", stderr(&output));
+    simulate_to(
+        &out,
+        &[
+            "--scenario",
+            "vehicle",
+            "--duration-s",
+            "60",
+            "--sample-rate-hz",
+            "10",
+        ],
+    );
     let text = std::fs::read_to_string(&out).expect("written");
     assert!(
         text.starts_with("$GPRMC,120000.00,A,4808."),
@@ -325,14 +328,7 @@ fn pdr_dead_reckons_the_demo_and_writes_the_track_and_figure() {
     );
     // A walk without GNSS: the step model is fitted to a known distance, if any.
     let steady = dir.join("steady.csv");
-    let output = compass_pdr(&[
-        "simulate",
-        "--scenario",
-        "steady",
-        "--out",
-        steady.to_str().unwrap_or_default(),
-    ]);
-    assert!(output.status.success(), "{}", stderr(&output));
+    simulate_to(&steady, &["--scenario", "steady"]);
     let demo = steady.to_str().unwrap_or_default();
     let output = compass_pdr(&[
         "pdr",
@@ -443,18 +439,17 @@ fn simulate_writes_the_calibration_dance_as_motioncal_lines_with_its_truth() {
     assert_eq!(truth["hard_iron_ut"].as_array().map(Vec::len), Some(3));
     // The same seed gives the same lines.
     let again = dir.join("again.txt");
-    let output = compass_pdr(&[
-        "simulate",
-        "--scenario",
-        "dance",
-        "--duration-s",
-        "30",
-        "--sample-rate-hz",
-        "100",
-        "--out",
-        again.to_str().unwrap_or_default(),
-    ]);
-    assert!(output.status.success(), "{}", stderr(&output));
+    simulate_to(
+        &again,
+        &[
+            "--scenario",
+            "dance",
+            "--duration-s",
+            "30",
+            "--sample-rate-hz",
+            "100",
+        ],
+    );
     assert_eq!(std::fs::read(&again).expect("written"), text.into_bytes());
 }
 
