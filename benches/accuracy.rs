@@ -176,39 +176,37 @@ mod report {
              |---|---|---|---|---|---|---|\n\
              | **2007 paper** (land vehicle, KVH compass) | DGPS/INS | (12 ± 30)° | (0.4 ± 3)° / (4.1 ± 2.1)° | (−1.5 ± 4.7)° / (−2.1 ± 5.6)° | — | 78-94 % of residuals within ±5° |\n",
         );
-        let paper = import_simulated("paper.csv", &WalkConfig::paper_raw_case(1, 600.0));
-        let _ = writeln!(
-            text,
-            "{}",
-            heading_row(
+        for (file_name, label, config) in [
+            (
+                "paper.csv",
                 "simulator: the paper's raw case on a turntable (`paper_raw_case(1, 600 s)`: hard iron 0.69 of the horizontal field, a declination of −12° the log does not reveal)",
-                "its reference-heading column (truth)",
-                &headings(paper, CalibrationOptions::default()),
-                &mut heading_verdicts
-            )
-        );
-        let demo = import_simulated("demo-walk.csv", &WalkConfig::demo(1, 240.0, 50.0));
-        let _ = writeln!(
-            text,
-            "{}",
-            heading_row(
+                WalkConfig::paper_raw_case(1, 600.0),
+            ),
+            (
+                "demo-walk.csv",
                 "simulator: the demo walk (`WalkConfig::demo(1, 240 s, 50 Hz)`: temperature drift, iron, GNSS gap; the WMM's declination)",
-                "its reference-heading column (truth)",
-                &headings(demo, CalibrationOptions::default()),
-                &mut heading_verdicts
-            )
-        );
-        let pdr_sim = import_simulated("pdr-walk.csv", &WalkConfig::pdr_walk(1, 900.0, 50.0));
-        let _ = writeln!(
-            text,
-            "{}",
-            heading_row(
+                WalkConfig::demo(1, 240.0, 50.0),
+            ),
+            (
+                "pdr-walk.csv",
                 "simulator: the PDR walk (`pdr_walk(1, 900 s, 50 Hz)`, Eq. 12 compass error)",
-                "its reference-heading column (truth)",
-                &headings(pdr_sim, CalibrationOptions::default()),
-                &mut heading_verdicts
-            )
-        );
+                WalkConfig::pdr_walk(1, 900.0, 50.0),
+            ),
+        ] {
+            let _ = writeln!(
+                text,
+                "{}",
+                heading_row(
+                    label,
+                    "its reference-heading column (truth)",
+                    &headings(
+                        import_simulated(file_name, &config),
+                        CalibrationOptions::default()
+                    ),
+                    &mut heading_verdicts
+                )
+            );
+        }
         let car = import_simulated(
             "vehicle-loop.csv",
             &WalkConfig::vehicle_loop(1, 1200.0, 10.0),
