@@ -53,6 +53,13 @@
 //! map matching, so indoors its heading is only as good as the compass or the device's
 //! own yaw.
 
+// The threaded browser build (nightly, `-C target-feature=+atomics`) waits with
+// `memory.atomic.wait32` in its workers (`par::pool`).
+#![cfg_attr(
+    all(target_arch = "wasm32", target_feature = "atomics"),
+    feature(stdarch_wasm_atomic_wait)
+)]
+
 pub mod align;
 pub mod analysis;
 pub mod angle;
@@ -64,6 +71,7 @@ pub mod geo;
 pub mod io;
 pub mod live;
 pub mod nn;
+pub mod par;
 pub mod pdr;
 pub mod plot;
 pub mod recording;

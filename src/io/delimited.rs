@@ -257,7 +257,7 @@ pub fn read_raw_mapped(
     mapping: Option<&ColumnMapping>,
 ) -> Result<RawImport, ImportError> {
     ensure_text(file_name, bytes)?;
-    #[cfg(not(target_arch = "wasm32"))]
+    #[cfg(any(not(target_arch = "wasm32"), target_feature = "atomics"))]
     if let Some(raw) = parallel::read_raw(file_name, bytes, mapping) {
         return raw;
     }
@@ -291,17 +291,18 @@ pub(crate) fn read_up_to_header(
     Some((reader, offset, decoder.n_lines()))
 }
 
-/// Large files on native builds: the data lines are cut into one part per core at line
-/// boundaries, parsed side by side, and joined in order, with line numbers counted on
-/// across the parts. The result is the same as reading line by line (a test checks it);
-/// only the time differs. The browser build reads on one thread.
+/// Large files on native builds and the browser's threaded build ([`crate::par`]): the
+/// data lines are cut into one part per thread at line boundaries, parsed side by side,
+/// and joined in order, with line numbers counted on across the parts. The result is the
+/// same as reading line by line (a test checks it); only the time differs. The browser's
+/// default build reads on one thread.
 ///
 /// The dense streams' vectors are made once for the whole file, with room for at most
 /// one sample per line of each part, and each part writes into its own share of that
 /// room (so that each thread touches, and the system maps, its own memory, and no part
 /// is copied after the others); the shares are then closed up. GNSS fixes and attitudes
 /// (few, or absent) are gathered per part and appended.
-#[cfg(not(target_arch = "wasm32"))]
+#[cfg(any(not(target_arch = "wasm32"), target_feature = "atomics"))]
 mod parallel {
     use std::mem::MaybeUninit;
 
@@ -317,7 +318,7 @@ mod parallel {
         bytes: &[u8],
         mapping: Option<&ColumnMapping>,
     ) -> Option<Result<RawImport, ImportError>> {
-        let n_threads = std::thread::available_parallelism().map_or(1, usize::from);
+        let n_threads = crate::par::n_threads();
         if bytes.len() < MIN_PARALLEL_BYTES || n_threads < 2 {
             return None;
         }
@@ -329,7 +330,7 @@ mod parallel {
         }
         let header = reader.header.clone()?;
         let parts = cut_into_parts(bytes.get(data_offset..)?, n_threads);
-        let max_rows = on_each_part(parts.iter(), |part| count_lines(part))?;
+        let max_rows = crate::par::on_each_part(parts.iter(), |part| count_lines(part))?;
         let filled = reader.plan.filled_streams();
         // Two rows of spare room, given back by `finish`. (Measured with glibc's malloc
         // in the import benchmark's loop: with exact capacities the columns' memory went
@@ -337,7 +338,7 @@ mod parallel {
         // again, 34,000 page faults per import instead of 14,000. The shrink's small
         // remainders keep the heap in place. An allocator's detail, not a guarantee.)
         let mut columns = Columns::new(filled, max_rows.iter().sum::<usize>() + 2);
-        let results = on_each_part(
+        let results = crate::par::on_each_part(
             columns.shares(&max_rows).into_iter().zip(&parts),
             |(share, part)| {
                 let mut part_reader = DelimitedReader {
@@ -380,27 +381,6 @@ mod parallel {
             lines_before += result.n_lines;
         }
         Some(reader.finish(file_name))
-    }
-
-    /// `work` on each item, the first on this thread and each other on a thread of its
-    /// own, the results in order; `None` if a thread panicked.
-    fn on_each_part<I, R>(items: I, work: impl Fn(I::Item) -> R + Sync) -> Option<Vec<R>>
-    where
-        I: Iterator,
-        I::Item: Send,
-        R: Send,
-    {
-        let mut items = items;
-        let first = items.next();
-        let work = &work;
-        std::thread::scope(|scope| {
-            let handles: Vec<_> = items.map(|item| scope.spawn(move || work(item))).collect();
-            let mut results: Vec<R> = first.map(work).into_iter().collect();
-            for handle in handles {
-                results.push(handle.join().ok()?);
-            }
-            Some(results)
-        })
     }
 
     /// The data bytes cut into about `n_parts` parts that end just after a newline. A
@@ -863,7 +843,7 @@ impl RowTimes {
     }
 
     /// Joins the rows that follow (another part of the file).
-    #[cfg(not(target_arch = "wasm32"))]
+    #[cfg(any(not(target_arch = "wasm32"), target_feature = "atomics"))]
     fn then(self, next: RowTimes) -> RowTimes {
         match next.first {
             None => self,

@@ -67,7 +67,7 @@ use super::{ensure_text, shorten, Diagnostics, ImportError, ImportReport};
 use crate::angle::wrap_to_2pi;
 use crate::recording::{Attitude, DeviceHeading, GnssFix, North, Recording};
 
-#[cfg(not(target_arch = "wasm32"))]
+#[cfg(any(not(target_arch = "wasm32"), target_feature = "atomics"))]
 mod parallel;
 
 pub const FORMAT_NAME: &str = "NMEA 0183";
@@ -1167,10 +1167,11 @@ pub fn looks_like(sample_lines: &[&str]) -> bool {
 /// Parsing a line needs no state, applying it does (the clock, the epoch merge, the
 /// placing of untimed sentences, the counts): on native builds a large file is parsed
 /// on every core and applied in order on one thread (`parallel`), with the same
-/// result as reading it line by line; the browser build reads on one thread.
+/// result as reading it line by line; so is it in the browser's threaded build
+/// ([`crate::par`]), and the default browser build reads on one thread.
 pub fn read(file_name: &str, bytes: &[u8]) -> Result<ImportReport, ImportError> {
     ensure_text(file_name, bytes)?;
-    #[cfg(not(target_arch = "wasm32"))]
+    #[cfg(any(not(target_arch = "wasm32"), target_feature = "atomics"))]
     if let Some(report) = parallel::read(file_name, bytes) {
         return report;
     }
@@ -1482,7 +1483,7 @@ impl NmeaReader {
     /// Reserves room in each stream for the whole input, extrapolated from what the
     /// first `bytes_read` of its `bytes_total` bytes gave, so that the streams of a large
     /// file are not copied as they grow. Only the capacity changes, never the samples.
-    #[cfg(not(target_arch = "wasm32"))]
+    #[cfg(any(not(target_arch = "wasm32"), target_feature = "atomics"))]
     fn reserve_for(&mut self, bytes_read: usize, bytes_total: usize) {
         if bytes_read == 0 || bytes_total <= bytes_read {
             return;

@@ -1,4 +1,5 @@
-//! Large NMEA files on native builds: parsed on every core, applied in order on one.
+//! Large NMEA files on native builds and in the browser's threaded build ([`crate::par`]):
+//! parsed on every thread, applied in order on one.
 //!
 //! Parsing a line (framing, checksum, fields, numbers) needs no state and is nearly all
 //! the work; applying it ([`NmeaReader::apply`]: the clock across midnight, the merge of
@@ -11,9 +12,8 @@
 //! order, so the result is the same whatever the number of cores (a test checks it);
 //! only the time differs.
 
-use std::collections::BTreeMap;
-use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::{mpsc, Mutex};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::Mutex;
 
 use super::{for_each_line, LineEvent, NmeaReader};
 use crate::io::{ImportError, ImportReport};
@@ -27,12 +27,12 @@ const MIN_PARALLEL_BYTES: usize = 4 << 20;
 /// simulated 4 MiB last-level cache missed 2.5 times as often.
 const BATCH_BYTES: usize = 64 << 10;
 
-/// How many parsed batches may wait for their turn, beyond those in flight.
+/// How many parsed batches may wait for their turn, beyond one per thread.
 const MAX_BATCHES_WAITING: usize = 4;
 
 /// `None` when the file is better read on one thread: small, or on one core.
 pub(super) fn read(file_name: &str, bytes: &[u8]) -> Option<Result<ImportReport, ImportError>> {
-    let n_threads = std::thread::available_parallelism().map_or(1, usize::from);
+    let n_threads = crate::par::n_threads();
     if bytes.len() < MIN_PARALLEL_BYTES || n_threads < 2 {
         return None;
     }
@@ -85,6 +85,14 @@ fn cut_batches(bytes: &[u8], batch_bytes: usize) -> Vec<&[u8]> {
 
 /// Reads `bytes` as [`super::read`] does, in batches of about `batch_bytes` on
 /// `n_threads` threads (this one included).
+///
+/// This thread applies the batches in order; the others ([`crate::par::on_each_part`])
+/// parse them. Nothing here makes this thread block on another: in the browser it is
+/// the page's main thread, which may not, so it spins where it must wait (only when it
+/// has caught up with the parsers and has nothing left to parse itself), and takes
+/// locks only with `try_lock`. The parsers wait (spinning, and yielding natively) when
+/// they are a batch per thread and [`MAX_BATCHES_WAITING`] more ahead of the applying, so that parsed
+/// events never hold more than a few batches' worth of memory.
 pub(super) fn read_in_batches(
     file_name: &str,
     bytes: &[u8],
@@ -92,90 +100,153 @@ pub(super) fn read_in_batches(
     batch_bytes: usize,
 ) -> Result<ImportReport, ImportError> {
     let batches = cut_batches(bytes, batch_bytes);
+    let n_batches = batches.len();
+    let slots: Vec<BatchSlot<'_>> = batches.iter().map(|_| BatchSlot::default()).collect();
+    // The next batch nobody has started; the batches applied so far.
     let next_to_parse = AtomicUsize::new(0);
-    // The next batch nobody has started, claimed by whoever takes it.
-    let claim = || {
-        let batch_idx = next_to_parse.fetch_add(1, Ordering::Relaxed);
-        batches.get(batch_idx).map(|batch| (batch_idx, *batch))
-    };
-    // Emptied event vectors, handed back for the next batches.
+    let n_applied = AtomicUsize::new(0);
+    let n_parsers_running = AtomicUsize::new(n_threads.min(n_batches).saturating_sub(1));
+    // Emptied event vectors, handed back for the next batches (when the lock is free).
     let spare_events: Mutex<Vec<Vec<(usize, LineEvent<'_>)>>> = Mutex::new(Vec::new());
     let spare = || {
         spare_events
-            .lock()
+            .try_lock()
             .ok()
             .and_then(|mut spare| spare.pop())
             .unwrap_or_default()
     };
-    let mut reader = NmeaReader::new();
-    std::thread::scope(|scope| {
-        let (sender, receiver) = mpsc::sync_channel::<(usize, ParsedBatch<'_>)>(n_threads);
-        for _ in 1..n_threads.min(batches.len()) {
-            let sender = sender.clone();
-            scope.spawn(move || {
-                while let Some((batch_idx, batch)) = claim() {
-                    if sender
-                        .send((batch_idx, parse_batch(batch, spare())))
-                        .is_err()
-                    {
-                        break;
-                    }
-                }
-            });
+    // Claims the next batch if it is not too far ahead of the applying.
+    let claim = |ahead_of: usize| {
+        let batch_idx = next_to_parse.load(Ordering::Acquire);
+        if batch_idx >= n_batches || batch_idx >= ahead_of + n_threads + MAX_BATCHES_WAITING {
+            return Claim::NotNow(batch_idx >= n_batches);
         }
-        drop(sender);
+        match next_to_parse.compare_exchange(
+            batch_idx,
+            batch_idx + 1,
+            Ordering::AcqRel,
+            Ordering::Acquire,
+        ) {
+            Ok(_) => Claim::Batch(batch_idx),
+            Err(_) => Claim::NotNow(false),
+        }
+    };
+    let parse_into_slot = |batch_idx: usize| {
+        if let (Some(slot), Some(batch)) = (slots.get(batch_idx), batches.get(batch_idx)) {
+            slot.put(parse_batch(batch, spare()));
+        }
+    };
 
-        let mut waiting: BTreeMap<usize, ParsedBatch<'_>> = BTreeMap::new();
-        let mut lines_before = 0usize;
-        for next_idx in 0..batches.len() {
-            let parsed = loop {
-                if let Some(parsed) = waiting.remove(&next_idx) {
-                    break parsed;
-                }
-                // Take what the workers have finished; if nothing, parse a batch here
-                // rather than wait, unless enough are waiting already.
-                match receiver.try_recv() {
-                    Ok((batch_idx, parsed)) => {
-                        waiting.insert(batch_idx, parsed);
-                        continue;
-                    }
-                    Err(mpsc::TryRecvError::Empty | mpsc::TryRecvError::Disconnected) => {}
-                }
-                if waiting.len() < MAX_BATCHES_WAITING {
-                    if let Some((batch_idx, batch)) = claim() {
-                        waiting.insert(batch_idx, parse_batch(batch, spare()));
-                        continue;
+    let mut reader = NmeaReader::new();
+    // `None` when a parser panicked (natively): the applier has parsed what it left, so
+    // the reading is whole all the same.
+    let _ = crate::par::on_each_part(
+        std::iter::once(Role::Apply(&mut reader))
+            .chain((1..n_threads.min(n_batches)).map(|_| Role::Parse)),
+        |role| {
+            let Role::Apply(reader) = role else {
+                // A parser: stops when every batch is claimed.
+                let _running = Running(&n_parsers_running);
+                loop {
+                    match claim(n_applied.load(Ordering::Acquire)) {
+                        Claim::Batch(batch_idx) => parse_into_slot(batch_idx),
+                        Claim::NotNow(true) => break,
+                        Claim::NotNow(false) => wait_a_little(),
                     }
                 }
-                match receiver.recv() {
-                    Ok((batch_idx, parsed)) => {
-                        waiting.insert(batch_idx, parsed);
-                    }
-                    // Every worker has stopped without sending this batch (one
-                    // panicked, which the scope reports): parse it here.
-                    Err(mpsc::RecvError) => {
-                        break parse_batch(
-                            batches.get(next_idx).copied().unwrap_or_default(),
-                            Vec::new(),
-                        )
-                    }
-                }
+                return;
             };
-            let mut events = parsed.events;
-            for (line_number, event) in events.drain(..) {
-                reader.apply(lines_before + line_number, event);
+            // The applier (this thread).
+            let mut lines_before = 0usize;
+            for (next_idx, slot) in slots.iter().enumerate() {
+                let parsed = loop {
+                    if let Some(parsed) = slot.take() {
+                        break parsed;
+                    }
+                    match claim(next_idx) {
+                        Claim::Batch(batch_idx) => parse_into_slot(batch_idx),
+                        // Claimed by a parser that stopped without parsing it (it
+                        // panicked, natively): parse it here.
+                        Claim::NotNow(_) if n_parsers_running.load(Ordering::Acquire) == 0 => {
+                            break parse_batch(
+                                batches.get(next_idx).copied().unwrap_or_default(),
+                                Vec::new(),
+                            );
+                        }
+                        Claim::NotNow(_) => core::hint::spin_loop(),
+                    }
+                };
+                let mut events = parsed.events;
+                for (line_number, event) in events.drain(..) {
+                    reader.apply(lines_before + line_number, event);
+                }
+                lines_before += parsed.n_lines;
+                if next_idx == 0 {
+                    let first_len = batches.first().map_or(0, |batch| batch.len());
+                    reader.reserve_for(first_len, bytes.len());
+                }
+                n_applied.store(next_idx + 1, Ordering::Release);
+                if let Ok(mut spare) = spare_events.try_lock() {
+                    spare.push(events);
+                }
             }
-            lines_before += parsed.n_lines;
-            if next_idx == 0 {
-                let first_len = batches.first().map_or(0, |batch| batch.len());
-                reader.reserve_for(first_len, bytes.len());
-            }
-            if let Ok(mut spare) = spare_events.lock() {
-                spare.push(events);
-            }
-        }
-    });
+        },
+    );
     reader.finish(file_name)
+}
+
+/// What a thread of [`read_in_batches`] does.
+enum Role<'a> {
+    Apply(&'a mut NmeaReader),
+    Parse,
+}
+
+/// What a thread gets when it asks for a batch: one to parse, or none now (`true`: none
+/// will come, every batch is claimed).
+enum Claim {
+    Batch(usize),
+    NotNow(bool),
+}
+
+/// Where a parsed batch waits for the applier: set once by whoever parsed it, taken
+/// once by the applier, which only `try_lock`s (after `ready`, the parser has let go).
+#[derive(Default)]
+struct BatchSlot<'a> {
+    ready: AtomicBool,
+    parsed: Mutex<Option<ParsedBatch<'a>>>,
+}
+
+impl<'a> BatchSlot<'a> {
+    fn put(&self, parsed: ParsedBatch<'a>) {
+        if let Ok(mut slot) = self.parsed.lock() {
+            *slot = Some(parsed);
+        }
+        self.ready.store(true, Ordering::Release);
+    }
+
+    /// The parsed batch, once it is ready.
+    fn take(&self) -> Option<ParsedBatch<'a>> {
+        if !self.ready.load(Ordering::Acquire) {
+            return None;
+        }
+        self.parsed.try_lock().ok()?.take()
+    }
+}
+
+/// Counts a parser out when it stops, also when it panics (natively).
+struct Running<'a>(&'a AtomicUsize);
+
+impl Drop for Running<'_> {
+    fn drop(&mut self) {
+        self.0.fetch_sub(1, Ordering::AcqRel);
+    }
+}
+
+/// A parser that is too far ahead of the applier waits: natively it lets the core go.
+fn wait_a_little() {
+    #[cfg(not(target_arch = "wasm32"))]
+    std::thread::yield_now();
+    core::hint::spin_loop();
 }
 
 #[cfg(test)]
