@@ -618,7 +618,7 @@ pub fn calibrate(
                     .zip(&ref_heading_rad)
                     .zip(&is_fit)
                     .filter_map(|((&level, &reference), &train)| {
-                        Some((level, reference?)).filter(|_| train)
+                        train.then_some((level, reference?))
                     })
                     .unzip();
                 if pairs.0.is_empty() {
