@@ -42,6 +42,13 @@ pub enum AnalysisError {
         found: String,
     },
 
+    #[error(
+        "{file_name} holds no magnetometer samples, only {found}. To calibrate, drop it \
+         together with the log that has the magnetometer (the files are merged on one \
+         timeline), or choose a log with a magnetometer."
+    )]
+    NoMagnetometerStream { file_name: String, found: String },
+
     #[error("{file_name}: none of its {n_data_lines} data lines has a usable magnetometer sample{first_problem}. Check that the log holds numbers in mag_x_ut, mag_y_ut and mag_z_ut.")]
     NoMagnetometerSamples {
         file_name: String,
@@ -54,6 +61,35 @@ pub enum AnalysisError {
 
     #[error("{file_name}: no calibration could be fitted. {reasons}")]
     NoMethodFitted { file_name: String, reasons: String },
+}
+
+/// The streams a recording holds, with their sample counts, for a message ("1,200 GNSS
+/// fixes and 40 device headings"); "nothing" when it holds none.
+fn streams_found(recording: &Recording) -> String {
+    let counts = [
+        (recording.acc_in_body_mps2.len(), "accelerometer samples"),
+        (recording.gyro_in_body_radps.len(), "gyroscope samples"),
+        (recording.temp_c.len(), "temperatures"),
+        (recording.pressure_hpa.len(), "pressures"),
+        (recording.gnss.len(), "GNSS fixes"),
+        (recording.attitude.len(), "attitudes"),
+        (recording.device_heading.len(), "device headings"),
+        (recording.ref_heading_rad.len(), "reference headings"),
+        (
+            recording.ref_position_en_m.len() + recording.ref_position_lat_lon_deg.len(),
+            "reference positions",
+        ),
+    ];
+    let found: Vec<String> = counts
+        .iter()
+        .filter(|(count, _)| *count > 0)
+        .map(|(count, what)| format!("{} {what}", crate::report::thousands(*count)))
+        .collect();
+    match found.as_slice() {
+        [] => "nothing it could read".to_string(),
+        [one] => one.clone(),
+        [rest @ .., last] => format!("{} and {last}", rest.join(", ")),
+    }
 }
 
 /// Magnetometer samples with the tilt at each, ready for any calibration.
@@ -87,6 +123,12 @@ pub fn tilted_samples(
         let has_mag_columns = header_columns
             .iter()
             .any(|name| name.to_ascii_lowercase().starts_with("mag_"));
+        if header.is_none() {
+            return Err(AnalysisError::NoMagnetometerStream {
+                file_name,
+                found: streams_found(recording),
+            });
+        }
         return Err(if has_mag_columns {
             let first_problem = diagnostics
                 .kept
@@ -194,6 +236,32 @@ mod tests {
             "{message}"
         );
         assert!(message.contains("t_s, acc_x_mps2"), "{message}");
+    }
+
+    #[test]
+    fn a_log_without_a_magnetometer_says_what_it_holds_and_what_to_do() {
+        // A GPS log: two fixes and a heading, no field.
+        let text = "$GPRMC,120000.00,A,4808.000,N,01134.800,E,2.5,45.0,221126,,,A*64\r\n\
+                    $GPRMC,120001.00,A,4808.001,N,01134.800,E,2.5,45.0,221126,,,A*64\r\n\
+                    $HEHDT,10.0,T*1E\r\n";
+        let message = analyse_file(
+            "track.nmea",
+            text.as_bytes(),
+            &CalibrationOptions::default(),
+        )
+        .map(|_| ())
+        .unwrap_err()
+        .to_string();
+        assert!(
+            message.starts_with("track.nmea holds no magnetometer samples, only "),
+            "{message}"
+        );
+        assert!(message.contains("GNSS fixes"), "{message}");
+        assert!(
+            message.contains("drop it together with the log"),
+            "{message}"
+        );
+        assert!(!message.contains("header"), "{message}");
     }
 
     #[test]

@@ -66,6 +66,7 @@ use super::lines::Line;
 use super::{ensure_text, shorten, Diagnostics, ImportError, ImportReport};
 use crate::angle::wrap_to_2pi;
 use crate::recording::{Attitude, DeviceHeading, GnssFix, North, Recording};
+use crate::report::thousands;
 
 #[cfg(any(not(target_arch = "wasm32"), target_feature = "atomics"))]
 mod parallel;
@@ -2058,19 +2059,6 @@ fn hms(time_of_day_s: f64) -> (u32, u32, f64) {
     let seconds = time_of_day_s - whole_minutes * 60.0;
     let whole_minutes = whole_minutes as u32;
     (whole_minutes / 60, whole_minutes % 60, seconds)
-}
-
-/// A count with thousands separators, as the notes print it.
-fn thousands(count: usize) -> String {
-    let digits = count.to_string();
-    let mut grouped = String::with_capacity(digits.len() + digits.len() / 3);
-    for (idx, digit) in digits.chars().enumerate() {
-        if idx > 0 && (digits.len() - idx).is_multiple_of(3) {
-            grouped.push(',');
-        }
-        grouped.push(digit);
-    }
-    grouped
 }
 
 #[cfg(test)]
