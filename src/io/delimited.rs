@@ -311,6 +311,9 @@ mod parallel {
     /// Below this size one thread is as fast.
     const MIN_PARALLEL_BYTES: usize = 4 << 20;
 
+    /// A block (see [`read_lines_block`]) below this size is read on one thread.
+    const MIN_PARALLEL_BLOCK_BYTES: usize = 1 << 20;
+
     /// `None` when the file is better read on one thread: small, on one core, or without
     /// a time column (the sample number is then counted across the whole file).
     pub(super) fn read_raw(
@@ -381,6 +384,56 @@ mod parallel {
             lines_before += result.n_lines;
         }
         Some(reader.finish(file_name))
+    }
+
+    /// A block of whole data lines (a chunk of a file read in chunks, as the page reads
+    /// a dropped file) on every thread: each part into a reader of its own, joined in
+    /// order into `reader` (samples appended, line numbers counted on), as
+    /// [`read_raw`] joins a whole file's parts. `None` (nothing read) when the block is
+    /// better read on one thread: small, on one thread, or without a time column.
+    pub(super) fn read_lines_block(
+        reader: &mut DelimitedReader,
+        bytes: &[u8],
+        n_lines_before: usize,
+    ) -> Option<usize> {
+        let n_threads = crate::par::n_threads();
+        if bytes.len() < MIN_PARALLEL_BLOCK_BYTES || n_threads < 2 || reader.plan.time.is_none() {
+            return None;
+        }
+        let header = reader.header.clone()?;
+        let parts = cut_into_parts(bytes, n_threads);
+        let results = crate::par::on_each_part(parts.iter(), |part| {
+            let mut part_reader = DelimitedReader {
+                header: Some(header.clone()),
+                plan: Plan::of(&header),
+                row: vec![f64::NAN; header.columns.len()],
+                recording: Recording::default(),
+                diagnostics: Diagnostics::default(),
+                n_data_lines: 0,
+                size_hint_bytes: None,
+                mapping: None,
+                problems: Vec::new(),
+                row_times: RowTimes::default(),
+            };
+            // Numbered from 2, as in `read_raw`.
+            let n_lines = part_reader.read_data_bytes(part, 1);
+            (part_reader, n_lines)
+        })?;
+        let mut lines_before = n_lines_before;
+        for (part_reader, n_lines) in results {
+            for diagnostic in part_reader.diagnostics.kept {
+                reader.diagnostics.push(
+                    diagnostic.line.map(|line| line - 1 + lines_before),
+                    diagnostic.message,
+                );
+            }
+            reader.diagnostics.n_not_kept += part_reader.diagnostics.n_not_kept;
+            reader.n_data_lines += part_reader.n_data_lines;
+            reader.row_times = reader.row_times.then(part_reader.row_times);
+            reader.recording.append(part_reader.recording);
+            lines_before += n_lines;
+        }
+        Some(lines_before - n_lines_before)
     }
 
     /// The data bytes cut into about `n_parts` parts that end just after a newline. A
@@ -985,6 +1038,10 @@ impl DelimitedReader {
     /// whole does; returns how many lines there were. For a file read in chunks
     /// ([`super::import::ChunkedImport`]), which keeps an unfinished line for the next.
     pub(crate) fn read_lines_block(&mut self, bytes: &[u8], n_lines_before: usize) -> usize {
+        #[cfg(any(not(target_arch = "wasm32"), target_feature = "atomics"))]
+        if let Some(n_lines) = parallel::read_lines_block(self, bytes, n_lines_before) {
+            return n_lines;
+        }
         self.read_data_bytes(bytes, n_lines_before)
     }
 }
@@ -2322,8 +2379,8 @@ mod tests {
         }
     }
 
-    #[test]
-    fn a_large_file_with_every_kind_of_line_read_in_parts_equals_line_by_line() {
+    /// About 5 MiB of data lines with a tricky line after a lone CR every 10,007 rows.
+    fn large_text_with_every_kind_of_line() -> Vec<u8> {
         let header: &[u8] = b"t_s,mag_x_ut,mag_y_ut,mag_z_ut,colour,ref_heading_deg\n";
         let mut text = header.to_vec();
         let mut row_idx = 0usize;
@@ -2350,10 +2407,41 @@ mod tests {
                 b"\n"
             });
         }
+        text
+    }
+
+    #[test]
+    fn a_large_file_with_every_kind_of_line_read_in_parts_equals_line_by_line() {
+        let text = large_text_with_every_kind_of_line();
         let in_parts = read_raw("f.csv", &text).expect("readable");
         let line_by_line = read_line_by_line(&text).expect("readable");
         assert!(!line_by_line.report.diagnostics.is_empty());
         assert_eq!(in_parts, line_by_line);
+    }
+
+    #[test]
+    fn large_blocks_read_in_parts_equal_line_by_line() {
+        let text = large_text_with_every_kind_of_line();
+        let (mut reader, data_offset, n_header_lines) =
+            read_up_to_header(&text, None, None).expect("a header");
+        // Blocks of whole lines, as a file read in chunks gives them: the first two
+        // large enough to be read in parts, the rest whole.
+        let data = text.get(data_offset..).expect("data");
+        let mut n_lines = n_header_lines;
+        let mut start = 0usize;
+        for block_bytes in [3 << 20, 1_200_000, 1 << 30] {
+            let tentative = (start + block_bytes).min(data.len());
+            let end = data
+                .get(tentative..)
+                .and_then(|tail| memchr::memchr(b'\n', tail))
+                .map_or(data.len(), |newline| tentative + newline + 1);
+            n_lines += reader.read_lines_block(data.get(start..end).expect("a block"), n_lines);
+            start = end;
+        }
+        let in_blocks = reader.finish("f.csv").expect("readable");
+        let line_by_line = read_line_by_line(&text).expect("readable");
+        assert!(!line_by_line.report.diagnostics.is_empty());
+        assert_eq!(in_blocks, line_by_line);
     }
 
     #[test]

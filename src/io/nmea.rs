@@ -1435,6 +1435,10 @@ impl NmeaReader {
     /// many lines there were. For a file read in chunks
     /// ([`super::import::ChunkedImport`]), which keeps an unfinished line for the next.
     pub(crate) fn read_lines_block(&mut self, bytes: &[u8], n_lines_before: usize) -> usize {
+        #[cfg(any(not(target_arch = "wasm32"), target_feature = "atomics"))]
+        if let Some(n_lines) = parallel::read_lines_block(self, bytes, n_lines_before) {
+            return n_lines;
+        }
         for_each_line(bytes, |line_number, content| {
             self.apply(n_lines_before + line_number, LineEvent::of(content));
         })

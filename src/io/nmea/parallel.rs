@@ -21,6 +21,9 @@ use crate::io::{ImportError, ImportReport};
 /// Below this size one thread is as fast.
 const MIN_PARALLEL_BYTES: usize = 4 << 20;
 
+/// A block (see [`read_lines_block`]) below this size is read on one thread.
+const MIN_PARALLEL_BLOCK_BYTES: usize = 1 << 20;
+
 /// Bytes per batch: large enough that handing a batch over costs nothing next to
 /// parsing it, small enough that a batch's events (about three times its bytes) are
 /// still in cache when the applying thread reads them: with 512 KiB batches a
@@ -85,20 +88,60 @@ fn cut_batches(bytes: &[u8], batch_bytes: usize) -> Vec<&[u8]> {
 
 /// Reads `bytes` as [`super::read`] does, in batches of about `batch_bytes` on
 /// `n_threads` threads (this one included).
-///
-/// This thread applies the batches in order; the others ([`crate::par::on_each_part`])
-/// parse them. Nothing here makes this thread block on another: in the browser it is
-/// the page's main thread, which may not, so it spins where it must wait (only when it
-/// has caught up with the parsers and has nothing left to parse itself), and takes
-/// locks only with `try_lock`. The parsers wait (spinning, and yielding natively) when
-/// they are a batch per thread and [`MAX_BATCHES_WAITING`] more ahead of the applying, so that parsed
-/// events never hold more than a few batches' worth of memory.
 pub(super) fn read_in_batches(
     file_name: &str,
     bytes: &[u8],
     n_threads: usize,
     batch_bytes: usize,
 ) -> Result<ImportReport, ImportError> {
+    let mut reader = NmeaReader::new();
+    apply_in_batches(&mut reader, bytes, 0, n_threads, batch_bytes, true);
+    reader.finish(file_name)
+}
+
+/// A block of whole lines (a chunk of a file read in chunks, as the page reads a dropped
+/// file) into `reader` on every thread, numbered on from `n_lines_before`; returns how
+/// many lines there were. `None` (nothing read) when one thread is as fast: a small
+/// block, or one thread.
+pub(super) fn read_lines_block(
+    reader: &mut NmeaReader,
+    bytes: &[u8],
+    n_lines_before: usize,
+) -> Option<usize> {
+    let n_threads = crate::par::n_threads();
+    if bytes.len() < MIN_PARALLEL_BLOCK_BYTES || n_threads < 2 {
+        return None;
+    }
+    Some(apply_in_batches(
+        reader,
+        bytes,
+        n_lines_before,
+        n_threads,
+        BATCH_BYTES,
+        false,
+    ))
+}
+
+/// The lines of `bytes`, parsed in batches of about `batch_bytes` on `n_threads`
+/// threads and applied to `reader` in order on this one, numbered on from
+/// `n_lines_before`; returns how many lines there were. `reserve`: the streams are
+/// given room for all of `bytes` once the first batch shows how dense it is.
+///
+/// This thread applies the batches in order; the others ([`crate::par::on_each_part`])
+/// parse them. Nothing here makes this thread block on another: in the browser it is
+/// the page's main thread, which may not, so it spins where it must wait (only when it
+/// has caught up with the parsers and has nothing left to parse itself), and takes
+/// locks only with `try_lock`. The parsers wait (spinning, and yielding natively) when
+/// they are a batch per thread and [`MAX_BATCHES_WAITING`] more ahead of the applying,
+/// so that parsed events never hold more than a few batches' worth of memory.
+fn apply_in_batches(
+    reader: &mut NmeaReader,
+    bytes: &[u8],
+    n_lines_before: usize,
+    n_threads: usize,
+    batch_bytes: usize,
+    reserve: bool,
+) -> usize {
     let batches = cut_batches(bytes, batch_bytes);
     let n_batches = batches.len();
     let slots: Vec<BatchSlot<'_>> = batches.iter().map(|_| BatchSlot::default()).collect();
@@ -137,14 +180,14 @@ pub(super) fn read_in_batches(
         }
     };
 
-    let mut reader = NmeaReader::new();
+    let mut lines_before = n_lines_before;
     // `None` when a parser panicked (natively): the applier has parsed what it left, so
     // the reading is whole all the same.
     let _ = crate::par::on_each_part(
-        std::iter::once(Role::Apply(&mut reader))
+        std::iter::once(Role::Apply(reader, &mut lines_before))
             .chain((1..n_threads.min(n_batches)).map(|_| Role::Parse)),
         |role| {
-            let Role::Apply(reader) = role else {
+            let Role::Apply(reader, lines_before) = role else {
                 // A parser: stops when every batch is claimed.
                 let _running = Running(&n_parsers_running);
                 loop {
@@ -157,7 +200,6 @@ pub(super) fn read_in_batches(
                 return;
             };
             // The applier (this thread).
-            let mut lines_before = 0usize;
             for (next_idx, slot) in slots.iter().enumerate() {
                 let parsed = loop {
                     if let Some(parsed) = slot.take() {
@@ -178,10 +220,10 @@ pub(super) fn read_in_batches(
                 };
                 let mut events = parsed.events;
                 for (line_number, event) in events.drain(..) {
-                    reader.apply(lines_before + line_number, event);
+                    reader.apply(*lines_before + line_number, event);
                 }
-                lines_before += parsed.n_lines;
-                if next_idx == 0 {
+                *lines_before += parsed.n_lines;
+                if next_idx == 0 && reserve {
                     let first_len = batches.first().map_or(0, |batch| batch.len());
                     reader.reserve_for(first_len, bytes.len());
                 }
@@ -192,12 +234,12 @@ pub(super) fn read_in_batches(
             }
         },
     );
-    reader.finish(file_name)
+    lines_before - n_lines_before
 }
 
-/// What a thread of [`read_in_batches`] does.
+/// What a thread of [`apply_in_batches`] does.
 enum Role<'a> {
-    Apply(&'a mut NmeaReader),
+    Apply(&'a mut NmeaReader, &'a mut usize),
     Parse,
 }
 
@@ -354,6 +396,29 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn large_blocks_of_a_file_read_in_chunks_read_as_one_thread_does() {
+        let mut bytes = Vec::new();
+        while bytes.len() < 5 << 19 {
+            bytes.extend_from_slice(&tricky_log());
+            bytes.extend_from_slice(b"\n");
+        }
+        let mut reader = NmeaReader::new();
+        decode_all(&bytes, super::super::MAX_LINE_BYTES, |line| {
+            reader.read_decoded(&line)
+        });
+        let sequential = reader.finish("tricky.nmea").expect("readable");
+        // Blocks of whole lines, as a file read in chunks gives them: two large enough
+        // to be parsed in batches on every thread, then a small one.
+        let mut reader = NmeaReader::new();
+        let mut n_lines = 0usize;
+        for block in cut_batches(&bytes, 1_100_000) {
+            n_lines += reader.read_lines_block(block, n_lines);
+        }
+        assert_eq!(n_lines, for_each_line(&bytes, |_, _| {}));
+        assert_eq!(reader.finish("tricky.nmea"), Ok(sequential));
     }
 
     #[test]
