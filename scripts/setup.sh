@@ -81,6 +81,44 @@ build_web() {
   log "wasm size: $(stat -c %s "$wasm") bytes raw, $(gzip -9 -c "$wasm" | wc -c) bytes gzip -9"
 }
 
+# The threaded module (www/pkg-threads) is built by a nightly compiler: WebAssembly
+# threads need the standard library rebuilt with atomics (-Z build-std), which stable
+# Rust cannot do. The page loads it when the browser allows shared memory (a
+# cross-origin isolated page) and otherwise uses www/pkg. Returns non-zero, with a
+# message, when no nightly with rust-src can be had: the page then runs on one thread.
+ensure_nightly() {
+  if rustup run nightly rustc --version >/dev/null 2>&1 \
+     && rustup component list --toolchain nightly --installed 2>/dev/null | grep -q '^rust-src'; then
+    return 0
+  fi
+  log "Installing a nightly Rust with rust-src (for the threaded module, once)"
+  rustup toolchain install nightly --profile minimal --component rust-src --target wasm32-unknown-unknown
+}
+
+THREADS_RUSTFLAGS="--cfg=web_sys_unstable_apis -C target-feature=+atomics,+bulk-memory,+mutable-globals,+simd128 \
+-C link-arg=--shared-memory -C link-arg=--import-memory -C link-arg=--max-memory=4294967296 \
+-C link-arg=--export=__wasm_init_tls -C link-arg=--export=__tls_size \
+-C link-arg=--export=__tls_align -C link-arg=--export=__tls_base"
+
+# Builds the threaded module into OUT_DIR (default www/pkg-threads; see ensure_nightly).
+build_web_threads() {
+  local out_dir="${1:-$ROOT/www/pkg-threads}"
+  if ! ensure_nightly; then
+    log "No nightly Rust: the page will read files on one thread"
+    rm -rf "$out_dir"
+    return 1
+  fi
+  log "Building the threaded page module (release wasm, nightly, shared memory)"
+  RUSTFLAGS="$THREADS_RUSTFLAGS" cargo +nightly build --manifest-path "$ROOT/Cargo.toml" \
+    --release --lib --target wasm32-unknown-unknown -Z build-std=std,panic_abort \
+    --target-dir "$ROOT/target/threads"
+  rm -rf "$out_dir"
+  wasm-bindgen --target web --no-typescript --out-dir "$out_dir" \
+    "$ROOT/target/threads/wasm32-unknown-unknown/release/compass_pdr.wasm"
+  local wasm="$out_dir/compass_pdr_bg.wasm"
+  log "threaded wasm size: $(stat -c %s "$wasm") bytes raw, $(gzip -9 -c "$wasm" | wc -c) bytes gzip -9"
+}
+
 # Waits until a local URL answers, for at most 20 s.
 wait_for_url() {
   local url="$1"

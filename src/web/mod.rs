@@ -17,6 +17,8 @@ mod nn_bench;
 mod page;
 mod pdr_bench;
 mod storage;
+#[cfg(target_feature = "atomics")]
+mod threads;
 
 #[cfg(test)]
 mod tests;

@@ -4,9 +4,11 @@ import { before, after } from 'node:test';
 import { chromium } from 'playwright-core';
 
 export const baseUrl = process.env.E2E_BASE_URL;
+/** The same site served without the cross-origin isolation headers: one thread. */
+export const plainUrl = process.env.E2E_PLAIN_URL;
 export const out = process.env.E2E_OUT;
-if (!baseUrl || !out) {
-  throw new Error('E2E_BASE_URL and E2E_OUT must be set: run the end-to-end tests through ./test');
+if (!baseUrl || !plainUrl || !out) {
+  throw new Error('E2E_BASE_URL, E2E_PLAIN_URL and E2E_OUT must be set: run the end-to-end tests through ./test');
 }
 
 let browser;
@@ -21,14 +23,14 @@ after(async () => { await browser?.close(); });
 
 /** A fresh page at the site, with console errors and page errors collected.
  * `initScript` (a function and its argument) runs in the page before its own scripts. */
-export async function openPage({ initScript, initArg, acceptDownloads = false, viewport = { width: 1360, height: 1000 }, deviceScaleFactor = 1 } = {}) {
+export async function openPage({ initScript, initArg, acceptDownloads = false, viewport = { width: 1360, height: 1000 }, deviceScaleFactor = 1, url = baseUrl } = {}) {
   const context = await browser.newContext({ viewport, acceptDownloads, deviceScaleFactor });
   const page = await context.newPage();
   if (initScript) await page.addInitScript(initScript, initArg);
   const problems = [];
   page.on('pageerror', (error) => problems.push(`page error: ${error.message}`));
   page.on('console', (message) => { if (message.type() === 'error') problems.push(`console: ${message.text()}`); });
-  await page.goto(baseUrl);
+  await page.goto(url);
   return { page, context, problems, close: () => context.close() };
 }
 
