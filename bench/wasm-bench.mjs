@@ -4,8 +4,10 @@
 // playwright-core driving /usr/bin/chromium, waits for its results and prints them as
 // JSON on stdout.
 //
-// Usage: node bench/wasm-bench.mjs [--runs N] [--page PAGE]   (bench/run builds the
-// module and the inputs first). PAGE is index.html (import, the default),
+// Usage: node bench/wasm-bench.mjs [--runs N] [--page PAGE] [--threads [--workers N]]   (bench/run
+// builds the modules and the inputs first). --threads: the threaded module
+// (target/bench-wasm/pkg-threads/ as pkg-threads/, with www/threads.js and
+// www/pool-worker.js); the server always sends the COOP/COEP headers that allow it. PAGE is index.html (import, the default),
 // ellipsoid.html (ellipsoid fit), mlp.html (MLP training; bench/mlp.sh) or pdr.html (PDR EKF
 // and pipeline; bench/pdr.sh).
 import { createServer } from 'node:http';
@@ -21,6 +23,9 @@ const runsIdx = process.argv.indexOf('--runs');
 const runs = runsIdx > 0 ? Number(process.argv[runsIdx + 1]) : 5;
 const pageIdx = process.argv.indexOf('--page');
 const pageName = pageIdx > 0 ? process.argv[pageIdx + 1] : 'index.html';
+const threads = process.argv.includes('--threads');
+const workersIdx = process.argv.indexOf('--workers');
+const workers = workersIdx > 0 ? `&workers=${Number(process.argv[workersIdx + 1])}` : '';
 const INPUTS_OF_PAGE = {
   'index.html': ['target/bench-data/walk.csv', 'target/bench-data/track.nmea'],
   'ellipsoid.html': [1000, 10000, 100000, 1000000].map((n) => `target/bench-data/sphere_${n}.f64`),
@@ -34,6 +39,9 @@ if (!(pageName in INPUTS_OF_PAGE)) {
 
 const MOUNTS = [
   ['/pkg/', join(root, 'target/bench-wasm/pkg')],
+  ['/pkg-threads/', join(root, 'target/bench-wasm/pkg-threads')],
+  ['/threads.js', join(root, 'www/threads.js')],
+  ['/pool-worker.js', join(root, 'www/pool-worker.js')],
   ['/data/', join(root, 'target/bench-data')],
   ['/', join(here, 'wasm')],
 ];
@@ -43,7 +51,8 @@ const TYPES = {
   '.wasm': 'application/wasm',
 };
 
-for (const needed of ['target/bench-wasm/pkg/compass_pdr_bg.wasm', ...INPUTS_OF_PAGE[pageName]]) {
+const module = threads ? 'target/bench-wasm/pkg-threads/compass_pdr_bg.wasm' : 'target/bench-wasm/pkg/compass_pdr_bg.wasm';
+for (const needed of [module, ...INPUTS_OF_PAGE[pageName]]) {
   if (!existsSync(join(root, needed))) {
     console.error(`${needed} is missing: run bench/run (it builds the module and the inputs)`);
     process.exit(1);
@@ -54,7 +63,8 @@ for (const needed of ['target/bench-wasm/pkg/compass_pdr_bg.wasm', ...INPUTS_OF_
 function fileFor(urlPath) {
   const path = decodeURIComponent(urlPath === '/' ? '/index.html' : urlPath);
   for (const [prefix, dir] of MOUNTS) {
-    if (path.startsWith(prefix)) {
+    if (!prefix.endsWith('/') && path === prefix) return dir;
+    if (prefix.endsWith('/') && path.startsWith(prefix)) {
       const file = normalize(join(dir, path.slice(prefix.length)));
       return file.startsWith(dir + sep) ? file : null;
     }
@@ -72,11 +82,13 @@ const server = createServer((request, response) => {
     'Content-Type': TYPES[extname(file)] || 'application/octet-stream',
     'Content-Length': statSync(file).size,
     'Cache-Control': 'no-store',
+    ...(threads ? {'Cross-Origin-Opener-Policy': 'same-origin',
+    'Cross-Origin-Embedder-Policy': 'require-corp'} : {}),
   });
   createReadStream(file).pipe(response);
 });
 await new Promise((ready) => server.listen(0, '127.0.0.1', ready));
-const url = `http://127.0.0.1:${server.address().port}/${pageName}?runs=${runs}`;
+const url = `http://127.0.0.1:${server.address().port}/${pageName}?runs=${runs}${threads ? `&threads=1${workers}` : ''}`;
 
 const browser = await chromium.launch({
   executablePath: '/usr/bin/chromium',

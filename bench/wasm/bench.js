@@ -6,8 +6,11 @@
 // the whole-file one). One warm-up call, then `runs` timed calls; the median is
 // reported. The result is left in `window.benchResults` (or `window.benchError`) for
 // bench/wasm-bench.mjs, and shown in the page.
+//
+// `?threads=1`: the threaded module (pkg-threads/, what the page loads when it is
+// cross-origin isolated) with its workers started as the page starts them (threads.js,
+// served from www/), timed once every worker waits for work.
 import { report } from './report.js';
-import init, { ImportBench, inspect_blob, inspect_file } from './pkg/compass_pdr.js';
 
 const INPUTS = [
   { name: 'walk.csv', url: 'data/walk.csv' },
@@ -23,8 +26,19 @@ function median(values) {
 async function run() {
   const params = new URLSearchParams(location.search);
   const runs = Math.max(1, Number(params.get('runs') || 5));
-  await init();
-  const results = { runs, inputs: {} };
+  const threaded = params.get('threads') === '1';
+  const wasm = await import(threaded ? './pkg-threads/compass_pdr.js' : './pkg/compass_pdr.js');
+  await wasm.default();
+  const { ImportBench, inspect_blob, inspect_file } = wasm;
+  let nThreads = 1;
+  if (threaded) {
+    if (!self.crossOriginIsolated) throw new Error('?threads=1 needs a cross-origin isolated page (COOP/COEP headers)');
+    const { startWorkers, whenWorkersReady } = await import('./threads.js');
+    const nWorkers = startWorkers(wasm, Number(params.get('workers') ?? Infinity));
+    nThreads = await whenWorkersReady(wasm, nWorkers);
+    if (nThreads !== nWorkers + 1) throw new Error(`only ${nThreads - 1} of ${nWorkers} workers started`);
+  }
+  const results = { runs, threaded, n_threads: nThreads, inputs: {} };
   for (const input of INPUTS) {
     const response = await fetch(input.url);
     if (!response.ok) throw new Error(`${input.url}: HTTP ${response.status}`);
