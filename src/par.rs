@@ -14,7 +14,11 @@
 //!   `src/web/threads.rs`) and waits there for parts. The browser's main thread may
 //!   not block, so it never waits on a lock or a futex for the workers: it spins on
 //!   each part's state once its own part is done (the parts are cut to take about
-//!   equal time). This pool is the crate's one piece of global state outside `web`:
+//!   equal time). A worker that panics traps (the build aborts on panic); its page
+//!   script reports it ([`pool::fail`]), the work is then done again on one thread,
+//!   and the worker gets no more. (Were it to trap while holding the allocator's
+//!   lock, the page would hang: the importers' tests, proptest included, find no
+//!   panic to make that happen.) This pool is the crate's one piece of global state outside `web`:
 //!   like the allocator, it is the runtime's, not the algorithms'.
 
 /// How many threads [`on_each_part`] can use now, this one included: the parts a
@@ -31,6 +35,22 @@ pub fn n_threads() -> usize {
     #[cfg(all(target_arch = "wasm32", not(target_feature = "atomics")))]
     {
         1
+    }
+}
+
+/// How many worker threads have failed (trapped) so far: always 0 natively, where a
+/// panicking thread unwinds (its drop guards run) and [`on_each_part`] reports it. In the
+/// threaded browser build a panic aborts its worker with no unwinding; code that waits
+/// for a worker's part by other means than [`on_each_part`] (`io::nmea::parallel`)
+/// compares this count to tell a lost part from a slow one.
+pub fn n_failures() -> usize {
+    #[cfg(all(target_arch = "wasm32", target_feature = "atomics"))]
+    {
+        pool::n_failures()
+    }
+    #[cfg(not(all(target_arch = "wasm32", target_feature = "atomics")))]
+    {
+        0
     }
 }
 
@@ -100,11 +120,19 @@ pub mod pool {
     /// Bit `i` set: worker `i` waits in [`serve`] for work.
     static READY: AtomicU32 = AtomicU32::new(0);
 
+    /// Workers that trapped so far.
+    static FAILURES: AtomicUsize = AtomicUsize::new(0);
+
     /// Set while a thread hands out parts; a second caller (or a worker) works alone.
     static IN_USE: AtomicBool = AtomicBool::new(false);
 
     thread_local! {
         static IS_WORKER: Cell<bool> = const { Cell::new(false) };
+    }
+
+    /// Workers that trapped so far.
+    pub fn n_failures() -> usize {
+        FAILURES.load(Ordering::Acquire)
     }
 
     /// Workers waiting for work now.
@@ -150,6 +178,7 @@ pub mod pool {
         };
         READY.fetch_and(!(1u32 << worker_idx), Ordering::AcqRel);
         slot.state.store(FAILED, Ordering::Release);
+        FAILURES.fetch_add(1, Ordering::AcqRel);
     }
 
     /// Gives up [`IN_USE`] when dropped.

@@ -181,6 +181,7 @@ fn apply_in_batches(
     };
 
     let mut lines_before = n_lines_before;
+    let failures_before = crate::par::n_failures();
     // `None` when a parser panicked (natively): the applier has parsed what it left, so
     // the reading is whole all the same.
     let _ = crate::par::on_each_part(
@@ -208,8 +209,12 @@ fn apply_in_batches(
                     match claim(next_idx) {
                         Claim::Batch(batch_idx) => parse_into_slot(batch_idx),
                         // Claimed by a parser that stopped without parsing it (it
-                        // panicked, natively): parse it here.
-                        Claim::NotNow(_) if n_parsers_running.load(Ordering::Acquire) == 0 => {
+                        // panicked: natively it has counted itself out, in the browser
+                        // its worker is counted failed): parse it here.
+                        Claim::NotNow(_)
+                            if n_parsers_running.load(Ordering::Acquire) == 0
+                                || crate::par::n_failures() != failures_before =>
+                        {
                             break parse_batch(
                                 batches.get(next_idx).copied().unwrap_or_default(),
                                 Vec::new(),
