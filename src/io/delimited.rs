@@ -344,18 +344,7 @@ mod parallel {
         let results = crate::par::on_each_part(
             columns.shares(&max_rows).into_iter().zip(&parts),
             |(share, part)| {
-                let mut part_reader = DelimitedReader {
-                    header: Some(header.clone()),
-                    plan: Plan::of(&header),
-                    row: vec![f64::NAN; header.columns.len()],
-                    recording: share,
-                    diagnostics: Diagnostics::default(),
-                    n_data_lines: 0,
-                    size_hint_bytes: None,
-                    mapping: None,
-                    problems: Vec::new(),
-                    row_times: RowTimes::default(),
-                };
+                let mut part_reader = part_reader(&header, share);
                 // Numbered from 2, so that no part's first line is taken for the file's
                 // first (where a byte-order mark is dropped).
                 let n_lines = part_reader.read_data_bytes(part, 1);
@@ -371,16 +360,13 @@ mod parallel {
         // Join in order; each part's line numbers count on from the lines before it.
         let mut lines_before = n_header_lines;
         for result in results {
-            for diagnostic in result.diagnostics.kept {
-                reader.diagnostics.push(
-                    diagnostic.line.map(|line| line - 1 + lines_before),
-                    diagnostic.message,
-                );
-            }
-            reader.diagnostics.n_not_kept += result.diagnostics.n_not_kept;
-            reader.n_data_lines += result.n_data_lines;
-            reader.row_times = reader.row_times.then(result.row_times);
-            reader.recording.append(result.sparse);
+            let part = Joined {
+                diagnostics: result.diagnostics,
+                n_data_lines: result.n_data_lines,
+                row_times: result.row_times,
+                recording: result.sparse,
+            };
+            part.join_into(&mut reader, lines_before);
             lines_before += result.n_lines;
         }
         Some(reader.finish(file_name))
@@ -403,37 +389,67 @@ mod parallel {
         let header = reader.header.clone()?;
         let parts = cut_into_parts(bytes, n_threads);
         let results = crate::par::on_each_part(parts.iter(), |part| {
-            let mut part_reader = DelimitedReader {
-                header: Some(header.clone()),
-                plan: Plan::of(&header),
-                row: vec![f64::NAN; header.columns.len()],
-                recording: Recording::default(),
-                diagnostics: Diagnostics::default(),
-                n_data_lines: 0,
-                size_hint_bytes: None,
-                mapping: None,
-                problems: Vec::new(),
-                row_times: RowTimes::default(),
-            };
+            let mut part_reader = part_reader(&header, Recording::default());
             // Numbered from 2, as in `read_raw`.
             let n_lines = part_reader.read_data_bytes(part, 1);
             (part_reader, n_lines)
         })?;
         let mut lines_before = n_lines_before;
         for (part_reader, n_lines) in results {
-            for diagnostic in part_reader.diagnostics.kept {
+            let part = Joined {
+                diagnostics: part_reader.diagnostics,
+                n_data_lines: part_reader.n_data_lines,
+                row_times: part_reader.row_times,
+                recording: part_reader.recording,
+            };
+            part.join_into(reader, lines_before);
+            lines_before += n_lines;
+        }
+        Some(lines_before - n_lines_before)
+    }
+
+    /// A reader of one part's data lines, under the file's header, writing into
+    /// `recording`.
+    fn part_reader<S>(header: &Header, recording: S) -> DelimitedReader<S> {
+        DelimitedReader {
+            header: Some(header.clone()),
+            plan: Plan::of(header),
+            row: vec![f64::NAN; header.columns.len()],
+            recording,
+            diagnostics: Diagnostics::default(),
+            n_data_lines: 0,
+            size_hint_bytes: None,
+            mapping: None,
+            problems: Vec::new(),
+            row_times: RowTimes::default(),
+        }
+    }
+
+    /// What a part adds to the whole file's reader once it is read.
+    struct Joined {
+        diagnostics: Diagnostics,
+        n_data_lines: usize,
+        row_times: RowTimes,
+        /// Samples to append (a whole file's parts: only their GNSS fixes and
+        /// attitudes; the dense streams are in the shared columns already).
+        recording: Recording,
+    }
+
+    impl Joined {
+        /// Joins the part after the ones before it, its line numbers (counted from 2 in
+        /// the part) counted on from the `lines_before` lines before it.
+        fn join_into(self, reader: &mut DelimitedReader, lines_before: usize) {
+            for diagnostic in self.diagnostics.kept {
                 reader.diagnostics.push(
                     diagnostic.line.map(|line| line - 1 + lines_before),
                     diagnostic.message,
                 );
             }
-            reader.diagnostics.n_not_kept += part_reader.diagnostics.n_not_kept;
-            reader.n_data_lines += part_reader.n_data_lines;
-            reader.row_times = reader.row_times.then(part_reader.row_times);
-            reader.recording.append(part_reader.recording);
-            lines_before += n_lines;
+            reader.diagnostics.n_not_kept += self.diagnostics.n_not_kept;
+            reader.n_data_lines += self.n_data_lines;
+            reader.row_times = reader.row_times.then(self.row_times);
+            reader.recording.append(self.recording);
         }
-        Some(lines_before - n_lines_before)
     }
 
     /// The data bytes cut into about `n_parts` parts that end just after a newline. A
