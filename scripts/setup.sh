@@ -109,12 +109,18 @@ build_web_threads() {
     return 1
   fi
   log "Building the threaded page module (release wasm, nightly, shared memory)"
-  RUSTFLAGS="$THREADS_RUSTFLAGS" cargo +nightly build --manifest-path "$ROOT/Cargo.toml" \
-    --release --lib --target wasm32-unknown-unknown -Z build-std=std,panic_abort \
-    --target-dir "$ROOT/target/threads"
+  # Checked step by step: a caller may run this with errexit off (`./run` goes on
+  # without threads), and a failed build must not leave an older module in place.
   rm -rf "$out_dir"
-  wasm-bindgen --target web --no-typescript --out-dir "$out_dir" \
-    "$ROOT/target/threads/wasm32-unknown-unknown/release/compass_pdr.wasm"
+  if ! RUSTFLAGS="$THREADS_RUSTFLAGS" cargo +nightly build --manifest-path "$ROOT/Cargo.toml" \
+      --release --lib --target wasm32-unknown-unknown -Z build-std=std,panic_abort \
+      --target-dir "$ROOT/target/threads" \
+    || ! wasm-bindgen --target web --no-typescript --out-dir "$out_dir" \
+      "$ROOT/target/threads/wasm32-unknown-unknown/release/compass_pdr.wasm"; then
+    log "The threaded module did not build: the page will read files on one thread"
+    rm -rf "$out_dir"
+    return 1
+  fi
   local wasm="$out_dir/compass_pdr_bg.wasm"
   log "threaded wasm size: $(stat -c %s "$wasm") bytes raw, $(gzip -9 -c "$wasm" | wc -c) bytes gzip -9"
 }
