@@ -37,9 +37,11 @@
 //! ## Layers
 //!
 //! Everything in this crate except `web` is pure: it takes bytes, text or samples and
-//! returns values. It reads no clock, file, global or DOM. The CLI (`src/main.rs`,
-//! `src/cli/`) owns files and argv; `web` (wasm32 only) owns the DOM. See
-//! `ARCHITECTURE.md`.
+//! returns values. It reads no clock, file, global or DOM; the one exception is
+//! [`par`], which asks how many threads there are and, in the threaded browser build,
+//! holds the Web Worker pool (the runtime's state, not the algorithms'; results never
+//! depend on it). The CLI (`src/main.rs`, `src/cli/`) owns files and argv; `web`
+//! (wasm32 only) owns the DOM. See `ARCHITECTURE.md`.
 //!
 //! ## Limits (today)
 //!

@@ -416,20 +416,20 @@ fn pdr_dead_reckons_the_demo_and_writes_the_track_and_figure() {
 fn simulate_writes_the_calibration_dance_as_motioncal_lines_with_its_truth() {
     let dir = scratch_dir("dance");
     let (out, truth) = (dir.join("dance.txt"), dir.join("dance.json"));
-    let output = compass_pdr(&[
-        "simulate",
+    let dance = [
         "--scenario",
         "dance",
         "--duration-s",
         "30",
         "--sample-rate-hz",
         "100",
-        "--out",
-        out.to_str().unwrap_or_default(),
-        "--truth",
-        truth.to_str().unwrap_or_default(),
-    ]);
-    assert!(output.status.success(), "{}", stderr(&output));
+    ];
+    let with_truth: Vec<&str> = dance
+        .iter()
+        .copied()
+        .chain(["--truth", truth.to_str().unwrap_or_default()])
+        .collect();
+    simulate_to(&out, &with_truth);
     let text = std::fs::read_to_string(&out).expect("written");
     assert_eq!(text.lines().count(), 3000);
     assert!(text.lines().all(|line| line.starts_with("Raw:")));
@@ -439,17 +439,7 @@ fn simulate_writes_the_calibration_dance_as_motioncal_lines_with_its_truth() {
     assert_eq!(truth["hard_iron_ut"].as_array().map(Vec::len), Some(3));
     // The same seed gives the same lines.
     let again = dir.join("again.txt");
-    simulate_to(
-        &again,
-        &[
-            "--scenario",
-            "dance",
-            "--duration-s",
-            "30",
-            "--sample-rate-hz",
-            "100",
-        ],
-    );
+    simulate_to(&again, &dance);
     assert_eq!(std::fs::read(&again).expect("written"), text.into_bytes());
 }
 
