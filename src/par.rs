@@ -10,12 +10,12 @@
 //! - **WebAssembly with threads** (`target_feature = "atomics"`: the page's second module,
 //!   loaded when the page is cross-origin isolated): the first part on this thread,
 //!   the others on Web Workers that share the module's memory. The page starts the
-//!   workers (`www/pool-worker.js`); each calls [`pool::serve`] (through
+//!   workers (`www/pool-worker.js`); each calls `pool::serve` (through
 //!   `src/web/threads.rs`) and waits there for parts. The browser's main thread may
 //!   not block, so it never waits on a lock or a futex for the workers: it spins on
 //!   each part's state once its own part is done (the parts are cut to take about
 //!   equal time). A worker that panics traps (the build aborts on panic); its page
-//!   script reports it ([`pool::fail`]), the work is then done again on one thread,
+//!   script reports it (`pool::fail`), the work is then done again on one thread,
 //!   and the worker gets no more. (Were it to trap while holding the allocator's
 //!   lock, the page would hang: the importers' tests, proptest included, find no
 //!   panic to make that happen.) This pool is the crate's one piece of global state outside `web`:
