@@ -31,7 +31,7 @@ use crate::calib::refls::{fit_reference_ls, RefLsFit, RefLsOptions};
 use crate::calib::sphere_coverage::sphere_coverage;
 use crate::calib::tilt::Tilt;
 use crate::calib::wmm::{date_of_unix_s, expected_field, ExpectedField};
-use crate::io::{Diagnostics, ImportReport};
+use crate::io::{Diagnostics, ImportReport, SensorFrame};
 use crate::recording::Recording;
 use crate::reference::{choose_reference, ReferenceOptions, ReferenceSource};
 use crate::stats::HeadingErrorStats;
@@ -211,6 +211,10 @@ pub struct CalibrationReport {
     pub best: Option<Method>,
     pub notes: Vec<String>,
     pub diagnostics: Diagnostics,
+    /// How the log's raw magnetometer values became the body-axes µT every method is
+    /// fitted in: what an exported calibration is turned back with
+    /// ([`crate::calib::export::SensorCalibration`]).
+    pub mag_frame: Option<SensorFrame>,
 }
 
 /// An ellipse as (centre, the matrix mapping a circle of the radius onto it, radius).
@@ -318,6 +322,7 @@ pub fn calibrate(
         header,
         n_data_lines,
         notes: import_notes,
+        mag_frame,
     } = report;
     let mut notes: Vec<String> = import_notes;
     let samples = crate::analysis::tilted_samples(
@@ -751,6 +756,7 @@ pub fn calibrate(
             best,
             notes,
             diagnostics,
+            mag_frame,
         },
         t_s: samples.t_s,
         level_raw_ut,
@@ -895,6 +901,7 @@ mod tests {
             header: None,
             n_data_lines: 0,
             notes: Vec::new(),
+            mag_frame: None,
         };
         let options = CalibrationOptions {
             methods: vec![Method::Ellipsoid],

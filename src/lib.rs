@@ -25,7 +25,9 @@
 //! ## Conventions used throughout
 //!
 //! - **Body frame**: x forward, y right, z down (the canonical CSV uses it; importers
-//!   convert other devices' axes to it at one place).
+//!   convert other devices' axes to it at one place, and record how in an
+//!   [`io::SensorFrame`], so that a calibration fitted in body axes is exported in the
+//!   sensor's own axes and units: [`calib::export::SensorCalibration`]).
 //! - **Navigation frame**: north-east-down for vectors; positions in a local east-north
 //!   plane in metres.
 //! - **Headings** are clockwise from north. Angles are radians inside the core and

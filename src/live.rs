@@ -31,13 +31,13 @@ use nalgebra::Vector3;
 use serde::Serialize;
 
 use crate::calib::ellipsoid::{EllipsoidAccumulator, EllipsoidError, EllipsoidModel};
-use crate::calib::export::{motioncal_packet, MOTIONCAL_PACKET_LEN};
+use crate::calib::export::{motioncal_packet, SensorCalibration, MOTIONCAL_PACKET_LEN};
 use crate::calib::model::FieldCalibration;
 use crate::calib::sphere_coverage::{sphere_coverage, SphereCoverage};
 use crate::calib::tilt::Tilt;
 use crate::io::lines::LineDecoder;
 use crate::io::serial_lines::{sensor_to_body, EchoKind, EchoSeen, LineFormat, SerialReader};
-use crate::io::{nmea, Diagnostics};
+use crate::io::{nmea, Diagnostics, MagUnit, SensorFrame};
 
 /// Lines longer than this are cut and reported (no sensor line is near it).
 const MAX_LINE_BYTES: usize = 4096;
@@ -110,6 +110,17 @@ pub struct LiveQuality {
     /// `(fitted − expected) / expected`, percent.
     pub field_difference_pct: Option<f64>,
     pub verdict: Verdict,
+}
+
+impl LiveQuality {
+    /// The fit as every export writes it: in the board's own axes as printed and in µT,
+    /// the readings the board applies its calibration to.
+    pub fn sensor_calibration(&self) -> SensorCalibration {
+        SensorCalibration::from_frame_ut(
+            &self.calibration,
+            &SensorFrame::serial_board(MagUnit::MICROTESLA),
+        )
+    }
 }
 
 /// Good enough to send, or the reasons it is not (each says what to do).
@@ -613,6 +624,14 @@ mod tests {
             quality.coverage.gap_pct
         );
         assert!(quality.verdict.good_enough, "{:?}", quality.verdict);
+        // Exported as fitted: the board's axes as printed, µT.
+        let exported = quality.sensor_calibration();
+        assert_eq!(exported.hard_iron, calibration.hard_iron_ut);
+        assert_eq!(exported.frame.unit, MagUnit::MICROTESLA);
+        assert_eq!(
+            exported.frame.axes,
+            crate::io::frame::SENSOR_AXES_AS_PRINTED
+        );
         // The fitted field is the distorted ellipsoid's mean radius: within a few
         // percent of the true 48 µT (the distortion's determinant is 1.047).
         let difference_pct = quality

@@ -9,8 +9,12 @@ use std::fmt::Write as _;
 
 use plotters::prelude::*;
 
-use crate::calibration::{CalibrationAnalysis, CalibrationReport};
+use serde::Serialize;
+
+use crate::calib::export::{CalibrationExport, SensorCalibration};
+use crate::calibration::{CalibrationAnalysis, CalibrationReport, Method};
 use crate::deviation::{HeadingAnalysis, HeadingReport};
+use crate::io::SensorFrame;
 use crate::pdr::PdrAnalysis;
 use crate::plot::{draw_calibration_figure, draw_deviation_figure, draw_pdr_figure};
 
@@ -71,35 +75,109 @@ pub fn stream_lines(format: &str, streams: &[crate::io::summary::StreamSummary])
     lines
 }
 
-/// The calibration to store in the device, as numbers a person can copy.
+/// The calibration to store in a device, in both forms: in the magnetometer's own axes
+/// and unit (what every export writes and a device applies to its raw readings) and in
+/// body axes and µT (what the analysis fitted and uses itself).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct DeviceExport {
+    pub method: Method,
+    /// In the raw values' axes and unit, as the log writes them.
+    pub sensor: CalibrationExport,
+    /// In body axes (x forward, y right, z down) and µT.
+    pub body_ut: CalibrationExport,
+    #[serde(skip)]
+    pub calibration: SensorCalibration,
+}
+
+/// The device calibration the analysis chose
+/// ([`CalibrationAnalysis::device_calibration`]), turned into the magnetometer's own axes
+/// and unit with the importer's frame (body axes and µT where the import gave none).
+pub fn device_export(analysis: &CalibrationAnalysis) -> Option<DeviceExport> {
+    let (method, body_ut) = analysis.device_calibration()?;
+    let frame = analysis
+        .report
+        .mag_frame
+        .unwrap_or_else(SensorFrame::body_ut);
+    let calibration = SensorCalibration::from_body(&body_ut, &frame);
+    Some(DeviceExport {
+        method,
+        sensor: CalibrationExport::from(&calibration),
+        body_ut: CalibrationExport::body_ut(&body_ut),
+        calibration,
+    })
+}
+
+/// Decimals that show a field value in a unit of `ut_per_unit` µT to about 0.01 µT.
+pub fn decimals_for_unit(ut_per_unit: f64) -> usize {
+    if ut_per_unit.is_finite() && ut_per_unit > 0.0 {
+        (2.0 + ut_per_unit.log10()).round().clamp(0.0, 8.0) as usize
+    } else {
+        2
+    }
+}
+
+/// The calibration to store in the device, as numbers a person can copy: in the
+/// magnetometer's own axes and unit, with how to apply it, then (where they differ) the
+/// MotionCal packet's µT and the analysis's own body axes.
 pub fn device_calibration_lines(analysis: &CalibrationAnalysis) -> Vec<String> {
-    match analysis.device_calibration() {
-        Some((method, calibration)) => {
-            let hard = calibration.hard_iron_ut;
-            let soft = calibration.soft_iron;
-            vec![
-                format!("From the {} method", method.label()),
-                format!("Hard iron ({:.2}, {:.2}, {:.2}) µT", hard.x, hard.y, hard.z),
-                format!(
-                    "Soft iron [[{:.4}, {:.4}, {:.4}], [{:.4}, {:.4}, {:.4}], [{:.4}, {:.4}, {:.4}]]",
-                    soft[(0, 0)],
-                    soft[(0, 1)],
-                    soft[(0, 2)],
-                    soft[(1, 0)],
-                    soft[(1, 1)],
-                    soft[(1, 2)],
-                    soft[(2, 0)],
-                    soft[(2, 1)],
-                    soft[(2, 2)]
-                ),
-                format!("Field {:.2} µT after correction", calibration.field_ut),
-            ]
-        }
-        None => vec![
+    let Some(export) = device_export(analysis) else {
+        return vec![
             "No 3D calibration: the ellipse and ellipsoid methods both failed (see the table)."
                 .to_string(),
-        ],
+        ];
+    };
+    let calibration = &export.calibration;
+    let frame = &calibration.frame;
+    let unit = frame.unit.name;
+    let decimals = decimals_for_unit(frame.unit.ut_per_unit);
+    let vector = |v: &nalgebra::Vector3<f64>, decimals: usize| {
+        format!(
+            "({:.decimals$}, {:.decimals$}, {:.decimals$})",
+            v.x, v.y, v.z
+        )
+    };
+    let soft = calibration.soft_iron;
+    let mut lines = vec![
+        format!(
+            "From the {} method, in the magnetometer's own axes and unit: {}, raw values in {}",
+            export.method.label(),
+            frame.axes,
+            frame.unit.label()
+        ),
+        "Apply it to every raw reading as the log writes it: corrected = S · (raw − h), S row by row"
+            .to_string(),
+        format!("Hard iron {} {unit}", vector(&calibration.hard_iron, decimals)),
+        format!(
+            "Soft iron [[{:.4}, {:.4}, {:.4}], [{:.4}, {:.4}, {:.4}], [{:.4}, {:.4}, {:.4}]]",
+            soft[(0, 0)],
+            soft[(0, 1)],
+            soft[(0, 2)],
+            soft[(1, 0)],
+            soft[(1, 1)],
+            soft[(1, 2)],
+            soft[(2, 0)],
+            soft[(2, 1)],
+            soft[(2, 2)]
+        ),
+        format!("Field {:.decimals$} {unit} after correction", calibration.field),
+    ];
+    if frame.unit.ut_per_unit != 1.0 {
+        let in_ut = calibration.in_ut();
+        lines.push(format!(
+            "The same in µT, as MotionCal's packet carries it (same axes): hard iron {} µT, field {:.2} µT",
+            vector(&in_ut.hard_iron_ut, 2),
+            in_ut.field_ut
+        ));
     }
+    if !frame.is_body_ut() {
+        if let Some((_, body_ut)) = analysis.device_calibration() {
+            lines.push(format!(
+                "In body axes (x forward, y right, z down) and µT, as the analysis fitted it: hard iron {} µT",
+                vector(&body_ut.hard_iron_ut, 2)
+            ));
+        }
+    }
+    lines
 }
 
 /// The Fourier deviation models as the PDR paper's Table II, the networks, the online
@@ -488,6 +566,48 @@ mod tests {
     use crate::calibration::CalibrationOptions;
     use crate::deviation::{compare, HeadingOptions};
     use crate::sim::walk::{simulate, WalkConfig};
+
+    #[test]
+    fn the_device_calibration_is_shown_in_the_board_s_axes_and_unit_with_the_formula() {
+        use crate::sim::dance::{motioncal_raw_lines, DanceConfig};
+        let (text, truth) = motioncal_raw_lines(&DanceConfig::from_seed(5, 60.0));
+        let analysis = analyse_file("dance.txt", text.as_bytes(), &CalibrationOptions::default())
+            .expect("the dance calibrates");
+        let lines = device_calibration_lines(&analysis);
+        assert!(
+            lines[0].contains("the sensor's own x, y, z as printed")
+                && lines[0].contains("raw values in MotionCal count (0.1 µT)"),
+            "{lines:?}"
+        );
+        assert!(lines[1].contains("corrected = S · (raw − h)"), "{lines:?}");
+        // The hard iron in counts along the board's axes: ten times the truth's µT.
+        let shown: Vec<f64> = lines[2]
+            .trim_start_matches("Hard iron (")
+            .trim_end_matches(") MotionCal count")
+            .split(", ")
+            .filter_map(|value| value.parse().ok())
+            .collect();
+        assert_eq!(shown.len(), 3, "{}", lines[2]);
+        for (shown, truth_ut) in shown.iter().zip(truth.hard_iron_ut) {
+            assert!(
+                (shown - 10.0 * truth_ut).abs() < 2.0,
+                "{} vs {truth_ut} µT",
+                lines[2]
+            );
+        }
+        assert!(
+            lines.iter().any(|line| line.starts_with("The same in µT")),
+            "{lines:?}"
+        );
+        assert!(
+            lines.iter().any(|line| line.starts_with("In body axes")),
+            "{lines:?}"
+        );
+        let export = device_export(&analysis).expect("a device calibration");
+        assert_eq!(export.sensor.unit, "MotionCal count");
+        assert!((export.sensor.hard_iron[1] * 0.1 - truth.hard_iron_ut[1]).abs() < 0.2);
+        assert!((export.body_ut.hard_iron[1] + truth.hard_iron_ut[1]).abs() < 0.2);
+    }
 
     #[test]
     fn escaping_keeps_markup_from_a_log_as_text() {

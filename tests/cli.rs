@@ -444,6 +444,105 @@ fn simulate_writes_the_calibration_dance_as_motioncal_lines_with_its_truth() {
 }
 
 #[test]
+fn calibrate_exports_a_board_s_dance_in_the_board_s_axes_and_units() {
+    let dir = scratch_dir("dance-exports");
+    let (out, truth_path) = (dir.join("dance.txt"), dir.join("dance.json"));
+    simulate_to(
+        &out,
+        &[
+            "--scenario",
+            "dance",
+            "--truth",
+            truth_path.to_str().unwrap_or_default(),
+        ],
+    );
+    let truth: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&truth_path).expect("written"))
+            .expect("JSON");
+    let truth_ut: Vec<f64> = (0..3)
+        .map(|idx| truth["hard_iron_ut"][idx].as_f64().unwrap_or(f64::NAN))
+        .collect();
+    let (c_path, packet_path) = (dir.join("board.h"), dir.join("board.bin"));
+    let args = [
+        "calibrate",
+        out.to_str().unwrap_or_default(),
+        "--export-c",
+        c_path.to_str().unwrap_or_default(),
+        "--export-packet",
+        packet_path.to_str().unwrap_or_default(),
+    ];
+    let output = compass_pdr(&args);
+    assert!(output.status.success(), "{}", stderr(&output));
+    let text = String::from_utf8_lossy(&output.stdout);
+    for expected in [
+        "in the magnetometer's own axes and unit: the sensor's own x, y, z as printed",
+        "raw values in MotionCal count (0.1 µT)",
+        "corrected = S · (raw − h)",
+        "MotionCal packet written to",
+        "in µT along the sensor's own x, y, z as printed",
+    ] {
+        assert!(text.contains(expected), "{expected} in {text}");
+    }
+    let snippet = std::fs::read_to_string(&c_path).expect("written");
+    assert!(
+        snippet.contains("// Unit: MotionCal count (0.1 uT)"),
+        "{snippet}"
+    );
+    assert!(
+        snippet.contains("float mag_ut_per_unit = 0.1f;"),
+        "{snippet}"
+    );
+    // The packet's hard iron: µT, the board's axes.
+    let packet = std::fs::read(&packet_path).expect("written");
+    let float = |idx: usize| {
+        let at = 2 + 4 * idx;
+        f64::from(f32::from_le_bytes([
+            packet[at],
+            packet[at + 1],
+            packet[at + 2],
+            packet[at + 3],
+        ]))
+    };
+    for (axis, truth_ut) in truth_ut.iter().enumerate() {
+        let packet_ut = float(6 + axis);
+        assert!(
+            (packet_ut - truth_ut).abs() < 0.2,
+            "axis {axis}: {packet_ut} vs {truth_ut}"
+        );
+    }
+    // The JSON: the sensor's calibration in counts, and the body-axes one in µT.
+    let output = compass_pdr(&[args[0], args[1], "--json"]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    let json: serde_json::Value = serde_json::from_slice(&output.stdout).expect("JSON");
+    let device = &json["device_calibration"];
+    assert_eq!(device["sensor"]["axes"], "sensor");
+    assert_eq!(device["sensor"]["unit"], "MotionCal count");
+    assert_eq!(device["body_ut"]["axes"], "body");
+    let signs = [1.0, -1.0, -1.0];
+    for (axis, (truth_ut, sign)) in truth_ut.iter().zip(signs).enumerate() {
+        let counts = device["sensor"]["hard_iron"][axis]
+            .as_f64()
+            .unwrap_or(f64::NAN);
+        let body_ut = device["body_ut"]["hard_iron"][axis]
+            .as_f64()
+            .unwrap_or(f64::NAN);
+        assert!(
+            (counts * 0.1 - truth_ut).abs() < 0.2,
+            "axis {axis}: {counts}"
+        );
+        assert!(
+            (body_ut - sign * truth_ut).abs() < 0.2,
+            "axis {axis}: {body_ut}"
+        );
+    }
+    assert_eq!(json["mag_frame"]["unit"]["name"], "MotionCal count");
+    assert_eq!(
+        json["mag_frame"]["body_from_sensor"],
+        serde_json::json!([[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]])
+    );
+}
+
+#[test]
 fn report_writes_the_page_s_html_report_with_svg_figures() {
     let dir = scratch_dir("report");
     let out = dir.join("demo-report.html");

@@ -445,3 +445,53 @@ fn msft_indoor_hard_iron_against_the_os_estimate() {
         );
     }
 }
+
+#[test]
+fn hmc5883l_full_sphere_export_applied_to_the_raw_gauss_values_gives_the_fit_s_spread() {
+    use compass_pdr::calibration::{CalibrationOptions, MethodParameters};
+    let Some(data) = shared_data() else { return };
+    let paths = hmc_run(&data, "full-sphere");
+    let analysis = calibrate_paths(&paths, &CalibrationOptions::default());
+    let export = compass_pdr::report::device_export(&analysis).expect("a device calibration");
+    let snippet = compass_pdr::calib::export::c_snippet(&export.calibration);
+    assert!(snippet.contains("// Unit: gauss (100 uT)"), "{snippet}");
+    let parsed = common::parse_c_snippet(&snippet);
+    assert_eq!(parsed.ut_per_unit, 100.0);
+    // The raw gauss values, read here from the magnetometer's CSV.
+    let text = std::fs::read_to_string(&paths[0]).expect("readable");
+    let raw: Vec<nalgebra::Vector3<f64>> = text
+        .lines()
+        .skip(1)
+        .filter_map(|line| {
+            let cells: Vec<f64> = line
+                .split(',')
+                .filter_map(|cell| cell.trim().parse().ok())
+                .collect();
+            (cells.len() == 4).then(|| nalgebra::Vector3::new(cells[1], cells[2], cells[3]))
+        })
+        .collect();
+    let spread_after_pct = common::spread_pct(raw.iter().map(|r| parsed.apply(r)));
+    let spread_raw_pct = common::spread_pct(raw.iter().copied());
+    let fit_spread_pct = match analysis
+        .report
+        .method(export.method)
+        .and_then(|report| report.parameters.as_ref())
+    {
+        Some(MethodParameters::Ellipsoid(fit)) => fit.field_spread_pct,
+        other => panic!("the device calibration is not the ellipsoid's: {other:?}"),
+    };
+    eprintln!(
+        "full-sphere: {} raw gauss values, |B| spread raw {spread_raw_pct:.2} %, after the exported \
+         C snippet {spread_after_pct:.3} %, in the fit {fit_spread_pct:.3} %; hard iron \
+         ({:.4}, {:.4}, {:.4}) gauss",
+        raw.len(),
+        parsed.hard_iron.x,
+        parsed.hard_iron.y,
+        parsed.hard_iron.z
+    );
+    assert!(
+        (spread_after_pct - fit_spread_pct).abs() < 0.2,
+        "{spread_after_pct} vs {fit_spread_pct}"
+    );
+    assert!(spread_after_pct < 1.0 && spread_raw_pct > 5.0);
+}

@@ -1,8 +1,13 @@
-//! A [`FieldCalibration`] in the forms other tools read: JSON, a C/Arduino snippet, and
-//! the MotionCal calibration packet.
+//! A calibration in the forms other tools read: JSON, a C/Arduino snippet, and the
+//! MotionCal calibration packet.
 //!
-//! Every form means the same correction, `corrected = soft_iron · (raw − hard_iron)`
-//! with the field in µT (see [`crate::calib::model`]).
+//! The fits work in body axes and µT ([`FieldCalibration`]), but a device applies its
+//! calibration to its own raw readings, in its own axes and units. So every export is a
+//! [`SensorCalibration`]: the body-axes fit turned back through the importer's
+//! [`SensorFrame`] into the axes and unit the log's raw values are written in, and each
+//! form says which, with the formula `corrected = soft_iron · (raw − hard_iron)` for raw
+//! values as the log writes them. The MotionCal packet carries µT (its floats are µT by
+//! definition) in the raw values' axes.
 //!
 //! The MotionCal packet is the one PJRC's MotionCal sends to a board over the serial
 //! port, and which Adafruit's `Adafruit_Sensor_Calibration` examples and PJRC's
@@ -34,6 +39,7 @@ use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 use super::model::FieldCalibration;
+use crate::io::frame::{SensorFrame, BODY_AXES};
 
 /// The length of a MotionCal calibration packet.
 pub const MOTIONCAL_PACKET_LEN: usize = 68;
@@ -85,50 +91,205 @@ pub enum ExportError {
     FieldNotPositive { field_ut: f64 },
 
     #[error(
-        "could not read the calibration JSON: {reason}. It should look like {{\"hard_iron_ut\": \
-         [x, y, z], \"soft_iron\": [[a, b, c], [d, e, f], [g, h, i]], \"field_ut\": B}}, \
-         as compass-pdr writes it."
+        "the calibration's ut_per_unit is {ut_per_unit}; it must be a positive number of µT \
+         per unit. Export the calibration again, or fix ut_per_unit in the file."
+    )]
+    UnitScale { ut_per_unit: f64 },
+
+    #[error(
+        "could not read the calibration JSON: {reason}. It should look like {{\"unit\": \"µT\", \
+         \"hard_iron\": [x, y, z], \"soft_iron\": [[a, b, c], [d, e, f], [g, h, i]], \
+         \"field\": B}}, as compass-pdr writes it."
     )]
     Json { reason: String },
 }
 
-/// A calibration as JSON-friendly arrays: `soft_iron` row by row, so that
-/// `corrected[i] = Σ_j soft_iron[i][j] · (raw[j] − hard_iron_ut[j])`.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct CalibrationExport {
-    pub hard_iron_ut: [f64; 3],
-    pub soft_iron: [[f64; 3]; 3],
-    pub field_ut: f64,
+/// A calibration in the axes and unit of a magnetometer's raw values, as a device
+/// applies it: `corrected = soft_iron · (raw − hard_iron)`, with `raw` as the log writes
+/// it. `corrected` comes out in the same axes and unit, of magnitude `field`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SensorCalibration {
+    /// In `frame.unit`, along the raw values' axes.
+    pub hard_iron: Vector3<f64>,
+    /// Dimensionless.
+    pub soft_iron: Matrix3<f64>,
+    /// The field strength after correction, in `frame.unit`.
+    pub field: f64,
+    /// The raw values' axes and unit.
+    pub frame: SensorFrame,
 }
 
-impl From<&FieldCalibration> for CalibrationExport {
-    fn from(cal: &FieldCalibration) -> Self {
+impl SensorCalibration {
+    /// A body-axes µT calibration in the raw values' axes and unit.
+    ///
+    /// The log's raw values `r` became `m_b = B·u·r` (`B` = `body_from_sensor`, a
+    /// rotation, `u` µT per raw unit), and the fit corrects `c_b = S_b·(m_b − h_b)`. Then
+    /// `c_b = S_b·(B·u·r − h_b) = u·S_b·B·(r − Bᵀ·h_b/u)`, and the same correction in the
+    /// raw axes and unit, `c = Bᵀ·c_b/u`, is `c = Bᵀ·S_b·B·(r − Bᵀ·h_b/u)`: hard iron
+    /// `Bᵀ·h_b/u`, soft iron `Bᵀ·S_b·B`, field `F/u` (a rotation keeps the magnitude).
+    pub fn from_body(body_ut: &FieldCalibration, frame: &SensorFrame) -> SensorCalibration {
+        let b = frame.body_from_sensor;
+        let u = frame.unit.ut_per_unit;
+        SensorCalibration {
+            hard_iron: b.transpose() * body_ut.hard_iron_ut / u,
+            soft_iron: b.transpose() * body_ut.soft_iron * b,
+            field: body_ut.field_ut / u,
+            frame: *frame,
+        }
+    }
+
+    /// A calibration fitted in the frame's own axes, in µT (the live session fits the
+    /// board's readings as printed): only the unit changes.
+    pub fn from_frame_ut(cal_ut: &FieldCalibration, frame: &SensorFrame) -> SensorCalibration {
+        let u = frame.unit.ut_per_unit;
+        SensorCalibration {
+            hard_iron: cal_ut.hard_iron_ut / u,
+            soft_iron: cal_ut.soft_iron,
+            field: cal_ut.field_ut / u,
+            frame: *frame,
+        }
+    }
+
+    /// The same correction for readings in µT along the same axes (what MotionCal's
+    /// packet carries).
+    pub fn in_ut(&self) -> FieldCalibration {
+        let u = self.frame.unit.ut_per_unit;
+        FieldCalibration {
+            hard_iron_ut: self.hard_iron * u,
+            soft_iron: self.soft_iron,
+            field_ut: self.field * u,
+        }
+    }
+
+    /// A raw reading (as the log writes it) corrected, in the same axes and unit.
+    pub fn apply(&self, raw: Vector3<f64>) -> Vector3<f64> {
+        self.soft_iron * (raw - self.hard_iron)
+    }
+
+    /// How to apply it, in one sentence that names the axes and the unit.
+    pub fn formula(&self) -> String {
+        let unit = self.frame.unit.label();
+        format!(
+            "corrected = soft_iron · (raw − hard_iron), with raw the magnetometer's values as \
+             the log writes them, in {unit}, along {}; soft_iron row by row, so corrected[i] = \
+             Σ_j soft_iron[i][j] · (raw[j] − hard_iron[j]); hard_iron and field are in {}, and \
+             corrected comes out in the same unit and axes",
+            self.frame.axes, self.frame.unit.name
+        )
+    }
+}
+
+/// Which axes an exported calibration is in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ExportAxes {
+    /// The magnetometer's raw values' own axes, as the log writes them.
+    Sensor,
+    /// Body axes (x forward, y right, z down): the analysis's own frame, and how a
+    /// calibration file without an `axes` key (written before they said) is read.
+    #[default]
+    Body,
+}
+
+/// A calibration as JSON-friendly arrays, with the axes and unit it is in: `soft_iron`
+/// row by row, so that `corrected[i] = Σ_j soft_iron[i][j] · (raw[j] − hard_iron[j])`.
+///
+/// Files written before calibrations stated their axes (`hard_iron_ut`, `field_ut`, no
+/// `axes` or `unit`) still read, as body axes and µT.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CalibrationExport {
+    #[serde(default)]
+    pub axes: ExportAxes,
+    /// The axes in words.
+    #[serde(default = "unstated_axes")]
+    pub axes_description: String,
+    /// The unit of the raw values, `hard_iron` and `field`: "µT", "gauss", …
+    #[serde(default = "microtesla")]
+    pub unit: String,
+    /// Microtesla per unit.
+    #[serde(default = "one")]
+    pub ut_per_unit: f64,
+    /// How the unit is known ("stated", "guessed", "assumed").
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub unit_origin: String,
+    /// How to apply it, in words.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub formula: String,
+    #[serde(alias = "hard_iron_ut")]
+    pub hard_iron: [f64; 3],
+    pub soft_iron: [[f64; 3]; 3],
+    #[serde(alias = "field_ut")]
+    pub field: f64,
+}
+
+fn unstated_axes() -> String {
+    format!("not stated (read as {BODY_AXES})")
+}
+
+fn microtesla() -> String {
+    "µT".to_string()
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+impl From<&SensorCalibration> for CalibrationExport {
+    fn from(cal: &SensorCalibration) -> Self {
         let soft_iron = &cal.soft_iron;
         let row = |i: usize| [soft_iron[(i, 0)], soft_iron[(i, 1)], soft_iron[(i, 2)]];
+        let unit = cal.frame.unit;
         CalibrationExport {
-            hard_iron_ut: [cal.hard_iron_ut.x, cal.hard_iron_ut.y, cal.hard_iron_ut.z],
+            axes: if cal.frame.axes == BODY_AXES {
+                ExportAxes::Body
+            } else {
+                ExportAxes::Sensor
+            },
+            axes_description: cal.frame.axes.to_string(),
+            unit: unit.name.to_string(),
+            ut_per_unit: unit.ut_per_unit,
+            unit_origin: match unit.origin {
+                crate::io::UnitOrigin::Stated => "stated",
+                crate::io::UnitOrigin::Guessed => "guessed",
+                crate::io::UnitOrigin::Assumed => "assumed",
+            }
+            .to_string(),
+            formula: cal.formula(),
+            hard_iron: [cal.hard_iron.x, cal.hard_iron.y, cal.hard_iron.z],
             soft_iron: [row(0), row(1), row(2)],
-            field_ut: cal.field_ut,
+            field: cal.field,
         }
     }
 }
 
 impl CalibrationExport {
-    /// The calibration these arrays describe, checked: every number finite and the
-    /// field strength positive.
+    /// A body-axes µT calibration as the analysis itself uses it (`axes: body`).
+    pub fn body_ut(cal: &FieldCalibration) -> CalibrationExport {
+        CalibrationExport::from(&SensorCalibration::from_body(cal, &SensorFrame::body_ut()))
+    }
+
+    /// The correction these arrays describe for readings in µT along the export's axes,
+    /// checked: every number finite, the field strength and the unit's scale positive.
     pub fn to_calibration(&self) -> Result<FieldCalibration, ExportError> {
-        let hard_iron_ut = Vector3::from(self.hard_iron_ut);
+        if !(self.ut_per_unit.is_finite() && self.ut_per_unit > 0.0) {
+            return Err(ExportError::UnitScale {
+                ut_per_unit: self.ut_per_unit,
+            });
+        }
+        let u = self.ut_per_unit;
+        let hard_iron_ut = Vector3::from(self.hard_iron) * u;
         let soft_iron = Matrix3::from_fn(|i, j| self.soft_iron[i][j]);
-        checked(hard_iron_ut, soft_iron, self.field_ut)
+        checked(hard_iron_ut, soft_iron, self.field * u)
     }
 }
 
 /// The JSON-friendly form of `cal`.
-pub fn calibration_export(cal: &FieldCalibration) -> CalibrationExport {
+pub fn calibration_export(cal: &SensorCalibration) -> CalibrationExport {
     CalibrationExport::from(cal)
 }
 
-/// Reads a calibration saved as JSON (a [`CalibrationExport`]; other keys are ignored).
+/// Reads a calibration saved as JSON (a [`CalibrationExport`]; other keys are ignored),
+/// as the correction of readings in µT along the file's axes.
 ///
 /// Native builds only: the page reads JSON with the browser's parser and passes the
 /// parsed [`CalibrationExport`] to [`CalibrationExport::to_calibration`].
@@ -141,9 +302,10 @@ pub fn calibration_from_json(text: &str) -> Result<FieldCalibration, ExportError
     export.to_calibration()
 }
 
-/// The calibration as C (Arduino) declarations, with a comment saying how to apply it.
-/// Numbers are written with the shortest digits that give back the same `float`.
-pub fn c_snippet(cal: &FieldCalibration) -> String {
+/// The calibration as C (Arduino) declarations, with comments saying which axes and unit
+/// it is in and how to apply it. Numbers are written with the shortest digits that give
+/// back the same `float`.
+pub fn c_snippet(cal: &SensorCalibration) -> String {
     let export = calibration_export(cal);
     let row = |values: &[f64; 3]| {
         format!(
@@ -153,21 +315,44 @@ pub fn c_snippet(cal: &FieldCalibration) -> String {
             c_float(values[2])
         )
     };
+    let unit = ascii(cal.frame.unit.name);
     format!(
         "// Magnetometer calibration made by compass-pdr.\n\
-         // Apply it to every raw reading, in microtesla (uT):\n\
+         // Axes: {axes}.\n\
+         // Unit: {unit_label}, as the log writes the raw values.\n\
+         // Apply it to every raw reading exactly as the log writes it (same axes, same unit):\n\
          //   corrected = soft_iron * (raw - hard_iron)\n\
          // that is, for each i: corrected[i] = sum over j of soft_iron[i][j] * (raw[j] - hard_iron[j]).\n\
-         // mag_field is the field strength after correction, in uT.\n\
+         // hard_iron and mag_field are in {unit}; corrected comes out in {unit}, in the same axes.\n\
+         // mag_field is the field strength after correction; mag_ut_per_unit is uT per {unit}.\n\
          float hard_iron[3] = {hard_iron};\n\
          float soft_iron[3][3] = {{\n  {row_0},\n  {row_1},\n  {row_2}\n}};\n\
-         float mag_field = {field};\n",
-        hard_iron = row(&export.hard_iron_ut),
+         float mag_field = {field};\n\
+         float mag_ut_per_unit = {ut_per_unit};\n",
+        axes = ascii(cal.frame.axes),
+        unit_label = ascii(&cal.frame.unit.label()),
+        hard_iron = row(&export.hard_iron),
         row_0 = row(&export.soft_iron[0]),
         row_1 = row(&export.soft_iron[1]),
         row_2 = row(&export.soft_iron[2]),
-        field = c_float(export.field_ut),
+        field = c_float(export.field),
+        ut_per_unit = c_float(export.ut_per_unit),
     )
+}
+
+/// Text for a C comment, in ASCII: µ as u, the minus sign as -, other symbols spelt.
+fn ascii(text: &str) -> String {
+    text.chars()
+        .map(|c| match c {
+            'µ' | 'μ' => "u".to_string(),
+            '−' | '–' => "-".to_string(),
+            '·' => "*".to_string(),
+            '²' => "^2".to_string(),
+            '°' => " deg".to_string(),
+            c if c.is_ascii() => c.to_string(),
+            _ => "?".to_string(),
+        })
+        .collect()
 }
 
 /// The MotionCal calibration packet for `cal` (layout in the module header).
@@ -429,40 +614,129 @@ mod tests {
         assert!((read.soft_iron[(1, 0)] - 0.015).abs() < 1e-7);
     }
 
+    /// A frame of every kind an importer makes.
+    fn frames() -> Vec<SensorFrame> {
+        use crate::io::axes::PhoneMount;
+        use crate::io::MagUnit;
+        vec![
+            SensorFrame::body_ut(),
+            SensorFrame::serial_board(MagUnit::MOTIONCAL_COUNT),
+            SensorFrame::serial_board(MagUnit::assumed_microtesla()),
+            SensorFrame::android_device(PhoneMount::Flat, MagUnit::MICROTESLA),
+            SensorFrame::android_device(PhoneMount::Upright, MagUnit::MICROTESLA),
+            SensorFrame::columns_as_body(MagUnit::GAUSS),
+            SensorFrame::columns_as_body(MagUnit::NANOTESLA.guessed()),
+        ]
+    }
+
+    #[test]
+    fn the_sensor_calibration_corrects_raw_values_as_the_body_one_corrects_imported_ones() {
+        let body = known_calibration();
+        let raw_values = [
+            Vector3::new(40.0, -20.0, 10.0),
+            Vector3::new(-3.0, 0.25, 61.0),
+            Vector3::new(0.0, 0.0, 0.0),
+        ];
+        for frame in frames() {
+            let sensor = SensorCalibration::from_body(&body, &frame);
+            let (b, u) = (frame.body_from_sensor, frame.unit.ut_per_unit);
+            for raw in raw_values {
+                // What the importer made of the raw value, corrected in body axes and µT…
+                let corrected_body_ut = body.apply(b * (raw * u));
+                // …is the sensor calibration's correction of the raw value, turned the
+                // same way.
+                let corrected_raw = sensor.apply(raw);
+                assert!(
+                    (b * corrected_raw * u - corrected_body_ut).amax() < 1e-9,
+                    "{frame:?}"
+                );
+            }
+            assert!((sensor.field * u - body.field_ut).abs() < 1e-9);
+            // In µT along the sensor's axes (the MotionCal packet's form).
+            let in_ut = sensor.in_ut();
+            assert!((in_ut.hard_iron_ut - b.transpose() * body.hard_iron_ut).amax() < 1e-9);
+            assert!((in_ut.field_ut - body.field_ut).abs() < 1e-9);
+        }
+        // The serial board: y and z change sign, so the soft iron's x-y and x-z terms do.
+        let board = SensorCalibration::from_body(
+            &body,
+            &SensorFrame::serial_board(crate::io::MagUnit::MOTIONCAL_COUNT),
+        );
+        assert!((board.hard_iron - Vector3::new(125.0, 72.5, -300.0)).amax() < 1e-9);
+        assert!((board.soft_iron[(0, 1)] + 0.015).abs() < 1e-12);
+        assert!((board.soft_iron[(1, 2)] - 0.005).abs() < 1e-12);
+    }
+
     // serde_json is a native-only dependency.
     #[cfg(not(target_arch = "wasm32"))]
     #[test]
-    fn json_is_row_major_and_reads_back_exactly() {
-        let cal = known_calibration();
-        let export = calibration_export(&cal);
+    fn json_says_its_axes_and_unit_is_row_major_and_reads_back_in_microtesla() {
+        let sensor = SensorCalibration::from_body(
+            &known_calibration(),
+            &SensorFrame::columns_as_body(crate::io::MagUnit::GAUSS),
+        );
+        let export = calibration_export(&sensor);
+        assert_eq!(export.axes, ExportAxes::Sensor);
+        assert_eq!(export.unit, "gauss");
+        assert_eq!(export.ut_per_unit, 100.0);
         assert_eq!(export.soft_iron[0], [1.02, 0.015, -0.01]);
         assert_eq!(export.soft_iron[2], [-0.01, 0.005, 1.01]);
-        assert_eq!(export.hard_iron_ut, [12.5, -7.25, 30.0]);
+        assert_eq!(export.hard_iron, [0.125, -0.0725, 0.3]);
+        assert!(export
+            .formula
+            .contains("in gauss (100 µT), along the log's x, y, z columns"));
 
         let text = serde_json::to_string(&export).expect("serialisable");
-        assert_eq!(
-            text,
-            "{\"hard_iron_ut\":[12.5,-7.25,30.0],\"soft_iron\":[[1.02,0.015,-0.01],\
-             [0.015,0.98,0.005],[-0.01,0.005,1.01]],\"field_ut\":48.3}"
+        assert!(
+            text.starts_with(
+                "{\"axes\":\"sensor\",\"axes_description\":\"the log's x, y, z columns"
+            ),
+            "{text}"
         );
-        assert_eq!(calibration_from_json(&text), Ok(cal));
+        assert!(
+            text.contains("\"unit\":\"gauss\",\"ut_per_unit\":100.0,\"unit_origin\":\"stated\""),
+            "{text}"
+        );
+        let read_back: CalibrationExport = serde_json::from_str(&text).expect("reads back");
+        assert_eq!(read_back, export);
+        // Read as µT along the file's axes: the body calibration again (no rotation here).
+        let in_ut = calibration_from_json(&text).expect("a calibration");
+        assert!((in_ut.hard_iron_ut - known_calibration().hard_iron_ut).amax() < 1e-12);
+        assert!((in_ut.field_ut - 48.3).abs() < 1e-12);
 
         // The row-major arrays mean the same correction as the matrix.
-        let raw_ut = Vector3::new(40.0, -20.0, 10.0);
-        let centred = raw_ut - Vector3::from(export.hard_iron_ut);
+        let raw = Vector3::new(0.40, -0.20, 0.10);
+        let centred = raw - Vector3::from(export.hard_iron);
         let by_rows = Vector3::from_fn(|i, _| {
             (0..3)
                 .map(|j| export.soft_iron[i][j] * centred[j])
                 .sum::<f64>()
         });
-        assert!((by_rows - cal.apply(raw_ut)).amax() < 1e-12);
+        assert!((by_rows - sensor.apply(raw)).amax() < 1e-12);
+    }
+
+    // serde_json is a native-only dependency.
+    #[cfg(not(target_arch = "wasm32"))]
+    #[test]
+    fn an_old_file_without_axes_or_unit_reads_as_body_axes_and_microtesla() {
+        let old = "{\"hard_iron_ut\":[12.5,-7.25,30.0],\"soft_iron\":[[1.02,0.015,-0.01],\
+                   [0.015,0.98,0.005],[-0.01,0.005,1.01]],\"field_ut\":48.3}";
+        let export: CalibrationExport = serde_json::from_str(old).expect("an old file reads");
+        assert_eq!(export.axes, ExportAxes::Body);
+        assert_eq!(export.unit, "µT");
+        assert_eq!(export.ut_per_unit, 1.0);
+        assert!(export.axes_description.starts_with("not stated"));
+        assert_eq!(calibration_from_json(old), Ok(known_calibration()));
+        let body = CalibrationExport::body_ut(&known_calibration());
+        assert_eq!(body.axes, ExportAxes::Body);
+        assert_eq!(body.hard_iron, [12.5, -7.25, 30.0]);
     }
 
     // serde_json is a native-only dependency.
     #[cfg(not(target_arch = "wasm32"))]
     #[test]
     fn bad_json_is_refused_with_the_expected_shape() {
-        let error = calibration_from_json("{\"hard_iron_ut\": [1, 2]}").expect_err("refused");
+        let error = calibration_from_json("{\"hard_iron\": [1, 2]}").expect_err("refused");
         assert!(matches!(error, ExportError::Json { .. }));
         assert!(error.to_string().contains("\"soft_iron\": [[a, b, c]"));
         assert_eq!(
@@ -471,6 +745,13 @@ mod tests {
                  \"field_ut\":-3}"
             ),
             Err(ExportError::FieldNotPositive { field_ut: -3.0 })
+        );
+        assert_eq!(
+            calibration_from_json(
+                "{\"hard_iron\":[0,0,0],\"soft_iron\":[[1,0,0],[0,1,0],[0,0,1]],\
+                 \"field\":0.5,\"unit\":\"gauss\",\"ut_per_unit\":0}"
+            ),
+            Err(ExportError::UnitScale { ut_per_unit: 0.0 })
         );
         // Extra keys (a summary around the calibration) are ignored.
         assert!(calibration_from_json(
@@ -481,23 +762,32 @@ mod tests {
     }
 
     #[test]
-    fn the_c_snippet_declares_the_arrays_and_says_how_to_apply_them() {
-        let snippet = c_snippet(&known_calibration());
+    fn the_c_snippet_says_its_axes_and_unit_and_how_to_apply_it() {
+        let sensor = SensorCalibration::from_body(
+            &known_calibration(),
+            &SensorFrame::serial_board(crate::io::MagUnit::MOTIONCAL_COUNT),
+        );
+        let snippet = c_snippet(&sensor);
         let expected = "\
 // Magnetometer calibration made by compass-pdr.
-// Apply it to every raw reading, in microtesla (uT):
+// Axes: the sensor's own x, y, z as printed (z up out of the board).
+// Unit: MotionCal count (0.1 uT), as the log writes the raw values.
+// Apply it to every raw reading exactly as the log writes it (same axes, same unit):
 //   corrected = soft_iron * (raw - hard_iron)
 // that is, for each i: corrected[i] = sum over j of soft_iron[i][j] * (raw[j] - hard_iron[j]).
-// mag_field is the field strength after correction, in uT.
-float hard_iron[3] = { 12.5f, -7.25f, 30.0f };
+// hard_iron and mag_field are in MotionCal count; corrected comes out in MotionCal count, in the same axes.
+// mag_field is the field strength after correction; mag_ut_per_unit is uT per MotionCal count.
+float hard_iron[3] = { 125.0f, 72.5f, -300.0f };
 float soft_iron[3][3] = {
-  { 1.02f, 0.015f, -0.01f },
-  { 0.015f, 0.98f, 0.005f },
-  { -0.01f, 0.005f, 1.01f }
+  { 1.02f, -0.015f, 0.01f },
+  { -0.015f, 0.98f, 0.005f },
+  { 0.01f, 0.005f, 1.01f }
 };
-float mag_field = 48.3f;
+float mag_field = 483.0f;
+float mag_ut_per_unit = 0.1f;
 ";
         assert_eq!(snippet, expected);
+        assert!(snippet.is_ascii());
     }
 
     #[test]

@@ -21,7 +21,9 @@ use compass_pdr::pdr::step_length::StepModelKind;
 use compass_pdr::pdr::{self, HeadingChoice, PdrOptions, PdrReport};
 use compass_pdr::plot::{draw_calibration_figure, draw_deviation_figure, draw_pdr_figure};
 use compass_pdr::reference::{ReferenceChoice, ReferenceOptions};
-use compass_pdr::report::{html_report, svg_figures};
+use compass_pdr::report::{
+    device_calibration_lines, device_export, html_report, svg_figures, DeviceExport,
+};
 use compass_pdr::sim::dance::{motioncal_raw_lines, DanceConfig};
 use compass_pdr::sim::gait::StepTruth;
 use compass_pdr::sim::walk::{simulate_with_truth, WalkConfig};
@@ -652,6 +654,9 @@ fn run_inspect(input: &ImportArgs, json: bool) -> Result<(), String> {
                 )),
         );
     }
+    if let Some(frame) = &inspection.mag_frame {
+        let _ = writeln!(text, "  {}", frame.describe());
+    }
     for note in &inspection.notes {
         let _ = writeln!(text, "  note: {note}");
     }
@@ -713,26 +718,68 @@ fn run_calibrate(
         draw_calibration_figure(&root, &analysis)
             .map_err(|error| format!("{error} ({})", plot.display()))?;
     }
+    let export = device_export(&analysis);
+    let mut written = Vec::new();
     if outputs.export_c.is_some() || outputs.export_packet.is_some() {
-        let Some((method, calibration)) = analysis.device_calibration() else {
+        let Some(export) = &export else {
             return Err("no 3D calibration to export: the ellipse and ellipsoid methods both failed (see above)".to_string());
         };
+        let frame = &export.calibration.frame;
         if let Some(path) = outputs.export_c {
             let text = format!(
                 "// {} calibration of {}\n{}",
-                method.label(),
+                export.method.label(),
                 report.file_name,
-                c_snippet(&calibration)
+                c_snippet(&export.calibration)
             );
             std::fs::write(path, text)
                 .map_err(|error| format!("cannot write {}: {error}", path.display()))?;
+            written.push(format!(
+                "C snippet written to {}: {}, raw values in {}",
+                path.display(),
+                frame.axes,
+                frame.unit.label()
+            ));
         }
         if let Some(path) = outputs.export_packet {
-            std::fs::write(path, motioncal_packet(&calibration))
+            // MotionCal's floats are µT by definition: the raw axes, in µT.
+            std::fs::write(path, motioncal_packet(&export.calibration.in_ut()))
                 .map_err(|error| format!("cannot write {}: {error}", path.display()))?;
+            written.push(format!(
+                "MotionCal packet written to {}: in µT along {}",
+                path.display(),
+                frame.axes
+            ));
         }
     }
-    print_report(report, outputs.json, calibration_text)
+    if outputs.json {
+        let output = CalibrateOutput {
+            report,
+            device_calibration: export.as_ref(),
+            written: &written,
+        };
+        return print_report(&output, true, |_| String::new());
+    }
+    let mut text = calibration_text(report);
+    text.push_str("  device calibration:\n");
+    for line in device_calibration_lines(&analysis) {
+        text.push_str(&format!("    {line}\n"));
+    }
+    for line in &written {
+        text.push_str(&format!("  {line}\n"));
+    }
+    print_out(&text)
+}
+
+/// What `calibrate --json` prints: the report, the device calibration in the sensor's
+/// own axes and unit (and in body axes and µT), and the files written.
+#[derive(serde::Serialize)]
+struct CalibrateOutput<'a> {
+    #[serde(flatten)]
+    report: &'a CalibrationReport,
+    device_calibration: Option<&'a DeviceExport>,
+    #[serde(skip_serializing_if = "<[String]>::is_empty")]
+    written: &'a [String],
 }
 
 fn run_heading(

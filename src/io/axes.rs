@@ -39,6 +39,13 @@ impl PhoneMount {
         }
     }
 
+    /// The matrix of [`PhoneMount::device_to_body`]: body = M · device.
+    pub fn body_from_device(self) -> nalgebra::Matrix3<f64> {
+        nalgebra::Matrix3::from_columns(
+            &[Vector3::x(), Vector3::y(), Vector3::z()].map(|axis| self.device_to_body(axis)),
+        )
+    }
+
     /// The mount whose "up" axis carries most of the mean specific force (device
     /// axes): z for a flat phone, y for an upright one. `None` without a clear answer
     /// (no data, or the force mostly along x: a phone on its side).

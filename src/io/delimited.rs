@@ -33,7 +33,9 @@ use nalgebra::{Vector2, Vector3};
 use super::axes::PhoneMount;
 use super::lines::{decode_all, Line, LineDecoder};
 use super::number::{parse_f64, parse_prefix, parse_prefix_at};
-use super::{ensure_text, shorten, Diagnostics, HeaderInfo, ImportError, ImportReport};
+use super::{
+    ensure_text, shorten, Diagnostics, HeaderInfo, ImportError, ImportReport, MagUnit, SensorFrame,
+};
 use crate::recording::{Attitude, GnssFix, Recording, Stream};
 
 pub const FORMAT_NAME: &str = "delimited text";
@@ -88,6 +90,9 @@ pub enum SensorAxes {
 pub struct RawImport {
     pub report: ImportReport,
     pub axes: SensorAxes,
+    /// The unit the magnetometer columns were written in (already converted to µT in the
+    /// report); `None` without magnetometer samples.
+    pub mag_unit: Option<MagUnit>,
 }
 
 /// A user's mapping of a file's column names to names this reader knows, for files whose
@@ -828,7 +833,12 @@ impl RawImport {
     /// Converts device axes to body axes, choosing the phone mount from the mean
     /// specific force, and says what was done in the notes.
     pub fn into_report(self) -> ImportReport {
-        let RawImport { mut report, axes } = self;
+        let RawImport {
+            mut report,
+            axes,
+            mag_unit,
+        } = self;
+        let has_mag = !report.recording.mag_in_body_ut.is_empty();
         if axes == SensorAxes::AndroidDevice {
             let recording = &mut report.recording;
             let acc = &recording.acc_in_body_mps2.values;
@@ -853,12 +863,20 @@ impl RawImport {
             report
                 .notes
                 .push(format!("Android device axes, {}", mount.describe()));
+            report.mag_frame = mag_unit
+                .filter(|_| has_mag)
+                .map(|unit| SensorFrame::android_device(mount, unit));
         } else if !report.recording.mag_in_body_ut.is_empty()
             || !report.recording.acc_in_body_mps2.is_empty()
         {
             report
                 .notes
                 .push("vectors taken as body axes (x forward, y right, z down)".to_string());
+        }
+        if axes == SensorAxes::Body {
+            report.mag_frame = mag_unit
+                .filter(|_| has_mag)
+                .map(SensorFrame::columns_as_body);
         }
         report
     }
@@ -1477,6 +1495,15 @@ impl DelimitedReader {
             &recording.mag_in_body_ut.values,
             guess_mag_scale,
         );
+        // The unit the field was written in, for calibrations exported in it.
+        let mag_unit = (!recording.mag_in_body_ut.is_empty()).then(|| {
+            let unit = mag_unit_of_scale(mag_scale);
+            if scale_of(Quantity::Mag).is_some() {
+                unit
+            } else {
+                unit.guessed()
+            }
+        });
         notes.extend([acc_note, gyro_note, mag_note].into_iter().flatten());
         for (stream, scale) in [
             (&mut recording.acc_in_body_mps2, acc_scale),
@@ -1546,8 +1573,11 @@ impl DelimitedReader {
                 }),
                 n_data_lines: self.n_data_lines,
                 notes,
+                // Set with the axes, by `RawImport::into_report`.
+                mag_frame: None,
             },
             axes: header.axes,
+            mag_unit,
         })
     }
 }
@@ -2090,6 +2120,24 @@ fn guess_mag_scale(median: f64) -> (f64, &'static str) {
     }
 }
 
+/// The magnetometer unit whose factor to µT is `scale` (one of [`unit_scale`]'s).
+fn mag_unit_of_scale(scale: f64) -> MagUnit {
+    [
+        MagUnit::MICROTESLA,
+        MagUnit::GAUSS,
+        MagUnit::MILLIGAUSS,
+        MagUnit::NANOTESLA,
+        MagUnit::TESLA,
+    ]
+    .into_iter()
+    .find(|unit| unit.ut_per_unit == scale)
+    .unwrap_or(MagUnit {
+        name: "the log's unit",
+        ut_per_unit: scale,
+        origin: crate::io::UnitOrigin::Stated,
+    })
+}
+
 /// Accelerometer unit from the median specific force: about 1 in g, 9.8 in m/s².
 fn guess_acc_scale(median: f64) -> (f64, &'static str) {
     if median < 3.0 {
@@ -2217,6 +2265,16 @@ mod tests {
             .notes
             .iter()
             .any(|note| note.contains("Android device axes")));
+        // The frame turns the file's own values into the body ones.
+        let frame = report.mag_frame.expect("a magnetometer frame");
+        assert_eq!(
+            frame,
+            SensorFrame::android_device(PhoneMount::Flat, MagUnit::MICROTESLA)
+        );
+        assert_eq!(
+            frame.body_from_sensor * Vector3::new(18.0, 3.5, -35.0),
+            mag.values[0]
+        );
     }
 
     #[test]
@@ -2231,12 +2289,28 @@ mod tests {
             (recording.gyro_in_body_radps.values[0].x - std::f64::consts::FRAC_PI_2).abs() < 1e-12
         );
         assert!(report.notes.iter().any(|note| note.contains("body axes")));
+        assert_eq!(
+            report.mag_frame,
+            Some(SensorFrame::columns_as_body(MagUnit::GAUSS))
+        );
     }
 
     #[test]
     fn missing_units_are_guessed_and_said() {
         let report = read_text("x,y,z\n0.2,0.1,-0.4\n0.25,0.1,-0.4\n");
         assert!((report.recording.mag_in_body_ut.values[0].x - 20.0).abs() < 1e-9);
+        assert_eq!(
+            report.mag_frame,
+            Some(SensorFrame::columns_as_body(MagUnit::GAUSS.guessed()))
+        );
+        let microtesla = read_text("x,y,z\n20,10,-40\n");
+        let frame = microtesla.mag_frame.expect("a frame");
+        assert_eq!(frame.unit.label(), "assumed µT (the log gives no unit)");
+        // No magnetometer, no frame.
+        assert_eq!(
+            read_text("t_s,acc_x_mps2,acc_y_mps2,acc_z_mps2\n0,0,0,-9.8\n").mag_frame,
+            None
+        );
         assert!(
             report
                 .notes

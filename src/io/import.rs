@@ -12,7 +12,7 @@ use super::summary::{summarize, StreamSummary};
 use super::tagged_lines::LineReader as _;
 use super::{
     ensure_text, first_binary_offset, nmea, serial_lines, tagged_lines, Diagnostics, ImportError,
-    ImportReport,
+    ImportReport, SensorFrame,
 };
 use crate::recording::Recording;
 
@@ -176,15 +176,29 @@ pub fn merge(
         header: None,
         n_data_lines: 0,
         notes: Vec::new(),
+        mag_frame: None,
     };
     let mut formats: Vec<&'static str> = Vec::new();
     let mut device_recording: Option<Recording> = None;
+    // The unit of the first device-axes file with a magnetometer: its frame is known
+    // once the mount is.
+    let mut device_mag_unit = None;
+    // Every file's magnetometer frame, in file order, to keep the first and note others.
+    let mut mag_frames: Vec<(String, SensorFrame)> = Vec::new();
     for (file_name, import) in imports {
         let (report, in_device_axes) = match import {
-            FileImport::Raw(raw) if raw.axes == SensorAxes::AndroidDevice => (raw.report, true),
+            FileImport::Raw(raw) if raw.axes == SensorAxes::AndroidDevice => {
+                if device_mag_unit.is_none() && !raw.report.recording.mag_in_body_ut.is_empty() {
+                    device_mag_unit = raw.mag_unit;
+                }
+                (raw.report, true)
+            }
             FileImport::Raw(raw) => (raw.into_report(), false),
             FileImport::Final(report) => (report, false),
         };
+        if let Some(frame) = report.mag_frame {
+            mag_frames.push((file_name.clone(), frame));
+        }
         let recording = merge_into_parts(&mut merged, report, &file_name, &mut formats);
         let target = if in_device_axes {
             device_recording.get_or_insert_with(Recording::default)
@@ -200,10 +214,29 @@ pub fn merge(
                 ..empty_like(&merged)
             },
             axes: SensorAxes::AndroidDevice,
+            mag_unit: device_mag_unit,
         };
         let converted = raw.into_report();
         merged.notes.extend(converted.notes);
         merged.recording.append(converted.recording);
+        if let Some(frame) = converted.mag_frame {
+            mag_frames.push(("the phone's files".to_string(), frame));
+        }
+    }
+    // The magnetometer's frame survives the merge; a second magnetometer in other axes
+    // or units is named, since one calibration cannot be exported for both.
+    if let Some((first_name, first)) = mag_frames.first() {
+        merged.mag_frame = Some(*first);
+        for (name, frame) in mag_frames.iter().skip(1) {
+            if !frame.same_conversion(first) {
+                merged.notes.push(format!(
+                    "{name} has a magnetometer in other axes or units than {first_name}'s; a \
+                     calibration is exported for {first_name}'s ({}, {})",
+                    first.axes,
+                    first.unit.label()
+                ));
+            }
+        }
     }
     for (file_name, error) in failures {
         merged.diagnostics.absorb(
@@ -262,6 +295,7 @@ fn empty_like(report: &ImportReport) -> ImportReport {
         header: None,
         n_data_lines: 0,
         notes: Vec::new(),
+        mag_frame: None,
     }
 }
 
@@ -577,6 +611,8 @@ pub struct Inspection {
     pub streams: Vec<StreamSummary>,
     pub notes: Vec<String>,
     pub diagnostics: Diagnostics,
+    /// The magnetometer's raw axes and unit, where the log has a magnetometer.
+    pub mag_frame: Option<SensorFrame>,
 }
 
 impl Inspection {
@@ -588,6 +624,7 @@ impl Inspection {
             streams: summarize(&report.recording),
             notes: report.notes.clone(),
             diagnostics: report.diagnostics.clone(),
+            mag_frame: report.mag_frame,
         }
     }
 }
@@ -696,6 +733,56 @@ mod tests {
             start = end;
         }
         merge(vec![(name.to_string(), chunked.finish())])
+    }
+
+    #[test]
+    fn the_magnetometer_frame_survives_a_merge_with_the_mount_of_the_phone_s_files() {
+        use crate::io::axes::PhoneMount;
+        use crate::io::MagUnit;
+        // phyphox: one file per sensor, held upright (gravity along device y).
+        let acc = "\"Time (s)\",\"X (m/s^2)\",\"Y (m/s^2)\",\"Z (m/s^2)\"\n0.0,0.1,9.8,0.2\n0.1,0.1,9.8,0.2\n";
+        let mag = "\"Time (s)\",\"X (µT)\",\"Y (µT)\",\"Z (µT)\"\n0.0,10,-20,30\n0.1,11,-20,30\n";
+        let temp = "t_s,temp_c\n0,20\n";
+        for files in [
+            vec![("Accelerometer.csv", acc), ("Magnetometer.csv", mag)],
+            vec![
+                ("Magnetometer.csv", mag),
+                ("t.csv", temp),
+                ("Accelerometer.csv", acc),
+            ],
+        ] {
+            let files: Vec<(&str, &[u8])> = files
+                .iter()
+                .map(|(name, text)| (*name, text.as_bytes()))
+                .collect();
+            let report = import_files(&files).expect("merged");
+            let frame = report.mag_frame.expect("the magnetometer's frame");
+            assert_eq!(
+                frame,
+                SensorFrame::android_device(PhoneMount::Upright, MagUnit::MICROTESLA)
+            );
+            assert_eq!(
+                frame.body_from_sensor * nalgebra::Vector3::new(10.0, -20.0, 30.0),
+                report.recording.mag_in_body_ut.values[0]
+            );
+        }
+        // A second magnetometer in other axes is named in the notes.
+        let serial = "Raw:0,0,8192,0,0,0,300,-150,450\nRaw:0,0,8192,0,0,0,301,-150,450\n";
+        let csv = "t_s,mag_x_ut,mag_y_ut,mag_z_ut\n0,1,2,3\n";
+        let report = import_files(&[("a.txt", serial.as_bytes()), ("b.csv", csv.as_bytes())])
+            .expect("merged");
+        assert_eq!(
+            report.mag_frame.map(|frame| frame.unit),
+            Some(MagUnit::MOTIONCAL_COUNT)
+        );
+        assert!(
+            report
+                .notes
+                .iter()
+                .any(|note| note.starts_with("b.csv has a magnetometer in other axes")),
+            "{:?}",
+            report.notes
+        );
     }
 
     #[test]

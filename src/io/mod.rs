@@ -7,6 +7,7 @@
 pub mod axes;
 pub mod canonical_csv;
 pub mod delimited;
+pub mod frame;
 pub mod import;
 pub mod lines;
 pub mod nmea;
@@ -17,6 +18,8 @@ pub mod tagged_lines;
 
 use serde::Serialize;
 use thiserror::Error;
+
+pub use frame::{MagUnit, SensorFrame, UnitOrigin};
 
 use crate::recording::Recording;
 
@@ -95,6 +98,9 @@ pub struct ImportReport {
     /// What the importer understood and assumed (units guessed, axes mapped), for the
     /// user to check.
     pub notes: Vec<String>,
+    /// How the magnetometer's body-axes µT values were made from the log's raw values;
+    /// `None` when the recording has no magnetometer.
+    pub mag_frame: Option<SensorFrame>,
 }
 
 /// The header of a delimited file: its column names as written and its line number.

@@ -1849,6 +1849,8 @@ impl NmeaReader {
             header: None,
             n_data_lines: self.n_data_lines,
             notes,
+            // NMEA carries headings, never a magnetometer vector.
+            mag_frame: None,
         })
     }
 

@@ -100,7 +100,9 @@ use nalgebra::{Matrix3, Vector3};
 use thiserror::Error;
 
 use super::lines::decode_all;
-use super::{ensure_text, shorten, Diagnostics, ImportError, ImportReport};
+use super::{
+    ensure_text, shorten, Diagnostics, ImportError, ImportReport, MagUnit, SensorFrame, UnitOrigin,
+};
 use crate::recording::Recording;
 
 pub const FORMAT_NAME: &str = "serial sensor lines";
@@ -117,7 +119,7 @@ const STANDARD_GRAVITY_MPS2: f64 = 9.80665;
 /// MotionCal's scale factors (`imuread.h`).
 const MOTIONCAL_G_PER_COUNT: f64 = 1.0 / 8192.0;
 const MOTIONCAL_DPS_PER_COUNT: f64 = 1.0 / 16.0;
-const MOTIONCAL_UT_PER_COUNT: f64 = 0.1;
+const MOTIONCAL_UT_PER_COUNT: f64 = MagUnit::MOTIONCAL_COUNT.ut_per_unit;
 /// The widest common gyroscope range, 2000 °/s, in rad/s.
 const MAX_PLAUSIBLE_RATE_RADPS: f64 = 35.0;
 
@@ -193,6 +195,8 @@ pub struct SensorSample {
     pub gyro_unit_assumed: bool,
     /// The line gave no unit for this sensor, so µT was assumed.
     pub mag_unit_assumed: bool,
+    /// The unit the magnetometer values were written in (before they became µT).
+    pub mag_unit: MagUnit,
     /// A MotionCal `Raw:` count outside ±32767 (MotionCal would drop the line).
     pub counts_beyond_16_bits: bool,
     /// Serial Plotter labels that named nothing this importer knows.
@@ -210,6 +214,7 @@ impl SensorSample {
             acc_unit_assumed: false,
             gyro_unit_assumed: false,
             mag_unit_assumed: false,
+            mag_unit: MagUnit::MICROTESLA,
             counts_beyond_16_bits: false,
             n_ignored_labels: 0,
         }
@@ -384,7 +389,7 @@ struct Frame {
     t_s: f64,
     acc: Option<(Vector3<f64>, bool)>,
     gyro: Option<(Vector3<f64>, bool)>,
-    mag: Option<(Vector3<f64>, bool)>,
+    mag: Option<(Vector3<f64>, bool, MagUnit)>,
     temp_c: Option<f64>,
     /// The frame is one MotionCal `Raw:` line, so a `Uni:` line right after it is the
     /// same reading.
@@ -408,7 +413,7 @@ impl Frame {
             self.gyro = Some((gyro, sample.gyro_unit_assumed));
         }
         if let Some(mag) = sample.mag_in_sensor_ut {
-            self.mag = Some((mag, sample.mag_unit_assumed));
+            self.mag = Some((mag, sample.mag_unit_assumed, sample.mag_unit));
         }
         if let Some(temp_c) = sample.temp_c {
             self.temp_c = Some(temp_c);
@@ -428,6 +433,8 @@ pub struct SerialReader {
     acc_unit_assumed: Vec<bool>,
     gyro_unit_assumed: Vec<bool>,
     mag_unit_assumed: Vec<bool>,
+    /// How many magnetometer samples came in each unit, in the order first met.
+    mag_units: Vec<(MagUnit, usize)>,
     diagnostics: Diagnostics,
     echoes: Vec<EchoSeen>,
     frame: Option<Frame>,
@@ -460,6 +467,7 @@ impl SerialReader {
             acc_unit_assumed: Vec::new(),
             gyro_unit_assumed: Vec::new(),
             mag_unit_assumed: Vec::new(),
+            mag_units: Vec::new(),
             diagnostics: Diagnostics::default(),
             echoes: Vec::new(),
             frame: None,
@@ -676,9 +684,13 @@ impl SerialReader {
             recording.gyro_in_body_radps.push(t_s, sensor_to_body(gyro));
             self.gyro_unit_assumed.push(assumed);
         }
-        if let Some((mag, assumed)) = frame.mag {
+        if let Some((mag, assumed, unit)) = frame.mag {
             recording.mag_in_body_ut.push(t_s, sensor_to_body(mag));
             self.mag_unit_assumed.push(assumed);
+            match self.mag_units.iter_mut().find(|(seen, _)| *seen == unit) {
+                Some((_, count)) => *count += 1,
+                None => self.mag_units.push((unit, 1)),
+            }
         }
         if let Some(temp_c) = frame.temp_c {
             recording.temp_c.push(t_s, temp_c);
@@ -749,6 +761,7 @@ impl SerialReader {
         }
         self.check_assumed_units(&mut notes);
         self.check_gravity_direction(&mut notes);
+        let mag_frame = self.mag_frame(&mut notes);
         if self.n_raw_replaced_by_uni > 0 {
             notes.push(format!(
                 "{} Raw: lines were each followed by a Uni: line of the same reading; the \
@@ -800,8 +813,34 @@ impl SerialReader {
             header: None,
             n_data_lines: self.n_data_lines,
             notes,
+            mag_frame,
         };
         Ok((report, self.echoes))
+    }
+
+    /// The magnetometer's frame: the board's axes as printed ([`sensor_to_body`] turned
+    /// them into body axes) and the unit most of its values were written in; a note when
+    /// they came in several.
+    fn mag_frame(&self, notes: &mut Vec<String>) -> Option<SensorFrame> {
+        let (unit, _) = self
+            .mag_units
+            .iter()
+            .copied()
+            .max_by_key(|&(_, count)| count)?;
+        if self.mag_units.len() > 1 {
+            let counts: Vec<String> = self
+                .mag_units
+                .iter()
+                .map(|(unit, count)| format!("{count} in {}", unit.label()))
+                .collect();
+            notes.push(format!(
+                "magnetometer values came in several units ({}); a calibration is exported for \
+                 values in {}, the most common",
+                counts.join(", "),
+                unit.label()
+            ));
+        }
+        Some(SensorFrame::serial_board(unit))
     }
 
     fn format_count(&self, format: LineFormat) -> usize {
@@ -1257,6 +1296,7 @@ fn parse_tagged(tag: Tag, body: &str) -> Result<SerialLine, LineError> {
                         .vector(0, MOTIONCAL_G_PER_COUNT * STANDARD_GRAVITY_MPS2),
                     gyro_in_sensor_radps: fields.vector(3, MOTIONCAL_DPS_PER_COUNT.to_radians()),
                     mag_in_sensor_ut: fields.vector(6, MOTIONCAL_UT_PER_COUNT),
+                    mag_unit: MagUnit::MOTIONCAL_COUNT,
                     counts_beyond_16_bits: fields.beyond_16_bits,
                     ..SensorSample::empty(LineFormat::MotionCalRaw)
                 }
@@ -1329,6 +1369,14 @@ fn set_vector(sample: &mut SensorSample, quantity: Quantity, v: Vector3<f64>, un
         Quantity::Mag => {
             sample.mag_in_sensor_ut = Some(scaled);
             sample.mag_unit_assumed = assumed;
+            sample.mag_unit = match unit {
+                Some(unit) => MagUnit {
+                    name: unit.name,
+                    ut_per_unit: unit.to_si,
+                    origin: UnitOrigin::Stated,
+                },
+                None => MagUnit::assumed_microtesla(),
+            };
         }
         // Callers never pass a temperature as a vector.
         Quantity::Temp => {}
@@ -2057,6 +2105,52 @@ mod tests {
 
     fn read_text(text: &str) -> Result<ImportReport, ImportError> {
         read("serial.txt", text.as_bytes())
+    }
+
+    #[test]
+    fn the_magnetometer_frame_is_the_board_s_axes_in_the_unit_the_lines_use() {
+        let frame_of = |text: &str| {
+            read_text(text)
+                .ok()
+                .and_then(|report| report.mag_frame)
+                .map(|frame| (frame.body_from_sensor, frame.unit))
+        };
+        let board = SensorFrame::serial_board(MagUnit::MICROTESLA).body_from_sensor;
+        assert_eq!(
+            frame_of("Raw:0,0,8192,0,0,0,300,-150,450\nRaw:0,0,8192,0,0,0,301,-150,450\n"),
+            Some((board, MagUnit::MOTIONCAL_COUNT))
+        );
+        // A Raw: line followed by its Uni: line is read in µT.
+        assert_eq!(
+            frame_of("Raw:0,0,8192,0,0,0,300,-150,450\nUni:0,0,9.8,0,0,0,30.01,-15.0,45.0\n"),
+            Some((board, MagUnit::MICROTESLA))
+        );
+        assert_eq!(
+            frame_of("Magnetometer (gauss): (0.25, -0.1, 0.4)\n"),
+            Some((board, MagUnit::GAUSS))
+        );
+        assert_eq!(
+            frame_of("12.5,-3.25,40.0\n12.6,-3.25,40.0\n"),
+            Some((board, MagUnit::assumed_microtesla()))
+        );
+        // Mixed units: the most common one, and a note.
+        let report =
+            read_text("X:1.0 Y:2.0 Z:3.0 uT\nRaw:0,0,8192,0,0,0,1,2,3\nRaw:0,0,8192,0,0,0,1,2,3\n")
+                .expect("readable");
+        assert_eq!(
+            report.mag_frame.map(|frame| frame.unit),
+            Some(MagUnit::MOTIONCAL_COUNT)
+        );
+        assert!(
+            report
+                .notes
+                .iter()
+                .any(|note| note.contains("several units") && note.contains("1 in µT")),
+            "{:?}",
+            report.notes
+        );
+        // Accelerometer only: no magnetometer frame.
+        assert_eq!(frame_of("Accel X: 0.1 Y: 0.2 Z: 9.8 m/s^2\n"), None);
     }
 
     #[test]

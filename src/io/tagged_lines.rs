@@ -98,7 +98,7 @@ use nalgebra::{Matrix3, Quaternion, Rotation3, UnitQuaternion, Vector2, Vector3}
 
 use super::axes::PhoneMount;
 use super::lines::decode_all;
-use super::{ensure_text, shorten, Diagnostics, ImportError, ImportReport};
+use super::{ensure_text, shorten, Diagnostics, ImportError, ImportReport, MagUnit, SensorFrame};
 use crate::angle::wrap_to_2pi;
 use crate::recording::{Attitude, GnssFix, Recording, Stream};
 
@@ -405,6 +405,9 @@ impl Collector {
                     .to_string(),
             );
         }
+        // Both formats write the field in µT (Android's `SensorEvent` unit), device axes.
+        let mag_frame = (!recording.mag_in_body_ut.is_empty())
+            .then(|| SensorFrame::android_device(mount, MagUnit::MICROTESLA));
         if !recording.attitude.is_empty() {
             notes.push(
                 "attitude: from the rotation vector (device to east-north-up), converted to \
@@ -453,6 +456,7 @@ impl Collector {
             header: None,
             n_data_lines: self.n_data_lines,
             notes,
+            mag_frame,
         })
     }
 }
@@ -518,9 +522,7 @@ fn attitude_from_rotation_vector(
     device_to_enu: &UnitQuaternion<f64>,
     mount: PhoneMount,
 ) -> Attitude {
-    let body_from_device = Matrix3::from_columns(
-        &[Vector3::x(), Vector3::y(), Vector3::z()].map(|axis| mount.device_to_body(axis)),
-    );
+    let body_from_device = mount.body_from_device();
     let ned_from_enu = Matrix3::new(0.0, 1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, -1.0);
     let ned_from_body =
         ned_from_enu * device_to_enu.to_rotation_matrix().matrix() * body_from_device.transpose();
@@ -1131,6 +1133,34 @@ POSI;0.600;1;40.31355012;-3.48318510;0;0\n";
 
     fn yaw_deg(attitude: &Attitude) -> f64 {
         attitude.yaw_rad.unwrap_or(f64::NAN).to_degrees()
+    }
+
+    #[test]
+    fn the_magnetometer_frame_is_android_device_axes_in_microtesla_with_the_mount() {
+        let dump = "1000\tTYPE_ACCELEROMETER\t0.1\t9.8\t0.2\t3\n\
+                    1000\tTYPE_MAGNETIC_FIELD\t10\t-20\t30\t3\n";
+        let report = read_android_dump("dump.txt", dump.as_bytes()).expect("readable");
+        let frame = report.mag_frame.expect("a magnetometer frame");
+        assert_eq!(
+            frame,
+            SensorFrame::android_device(PhoneMount::Upright, MagUnit::MICROTESLA)
+        );
+        assert_eq!(
+            frame.body_from_sensor * Vector3::new(10.0, -20.0, 30.0),
+            report.recording.mag_in_body_ut.values[0]
+        );
+        let gsd = "ACCE;0.01;1.0;0.0;0.1;9.8;3\nMAGN;0.02;1.0;-2.0;22.6;-40.4;3\n";
+        let report = read_get_sensor_data("gsd.txt", gsd.as_bytes()).expect("readable");
+        assert_eq!(
+            report.mag_frame,
+            Some(SensorFrame::android_device(
+                PhoneMount::Flat,
+                MagUnit::MICROTESLA
+            ))
+        );
+        let no_mag = "ACCE;0.01;1.0;0.0;0.1;9.8;3\n";
+        let report = read_get_sensor_data("gsd.txt", no_mag.as_bytes()).expect("readable");
+        assert_eq!(report.mag_frame, None);
     }
 
     #[test]

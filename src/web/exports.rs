@@ -12,9 +12,11 @@ use web_sys::{Document, HtmlButtonElement, HtmlCanvasElement};
 
 use super::dom::set_text;
 use super::page::{Page, Results};
-use crate::calib::export::{c_snippet, calibration_export, CalibrationExport};
+use crate::calib::export::{c_snippet, CalibrationExport};
 use crate::pdr::export::{track_text, TrackFormat};
-use crate::report::{corrected_csv, escape_html, html_report, ReportFigure, ReportSection};
+use crate::report::{
+    corrected_csv, device_export, escape_html, html_report, ReportFigure, ReportSection,
+};
 
 /// The analysis exports: button id, what it writes.
 const ANALYSIS_EXPORTS: [(&str, Export); 6] = [
@@ -115,11 +117,9 @@ fn write(document: &Document, results: &Results, export: Export) -> Result<(), S
     let stem = file_stem(&results.calibration.report.file_name);
     match export {
         Export::CalibrationJson => {
-            let (_, calibration) = results
-                .calibration
-                .device_calibration()
-                .ok_or("no 3D calibration to export")?;
-            let text = calibration_json(&calibration_export(&calibration))?;
+            let export =
+                device_export(&results.calibration).ok_or("no 3D calibration to export")?;
+            let text = calibration_json(&export.sensor)?;
             download_bytes(
                 document,
                 &format!("{stem}-calibration.json"),
@@ -128,14 +128,12 @@ fn write(document: &Document, results: &Results, export: Export) -> Result<(), S
             );
         }
         Export::CSnippet => {
-            let (_, calibration) = results
-                .calibration
-                .device_calibration()
-                .ok_or("no 3D calibration to export")?;
+            let export =
+                device_export(&results.calibration).ok_or("no 3D calibration to export")?;
             download_bytes(
                 document,
                 &format!("{stem}-calibration.h"),
-                c_snippet(&calibration).as_bytes(),
+                c_snippet(&export.calibration).as_bytes(),
                 "text/plain",
             );
         }

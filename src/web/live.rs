@@ -306,7 +306,7 @@ impl LivePanel {
             .session
             .borrow()
             .quality()
-            .map(|quality| quality.calibration);
+            .map(|quality| quality.sensor_calibration());
         if let Some(calibration) = calibration {
             self.keep(RecentCalibration {
                 source: "live session".to_string(),
@@ -359,15 +359,24 @@ impl LivePanel {
             });
         match parsed {
             Ok(export) => {
+                let conversion = if export.ut_per_unit == 1.0 {
+                    String::new()
+                } else {
+                    format!(
+                        " It is in {}; sending it converts it to µT, the unit of MotionCal's packet.",
+                        export.unit
+                    )
+                };
+                let message = format!(
+                    "Loaded the calibration in {name}: it is first in the list below. Its axes: {}.{conversion}",
+                    export.axes_description
+                );
                 self.keep(RecentCalibration {
                     source: name.clone(),
                     saved_at: String::from(js_sys::Date::new_0().to_iso_string()),
                     calibration: export,
                 });
-                self.set_text(
-                    "live-import-status",
-                    &format!("Loaded the calibration in {name}: it is first in the list below."),
-                );
+                self.set_text("live-import-status", &message);
             }
             Err(reason) => self.set_text(
                 "live-import-status",
@@ -396,15 +405,19 @@ impl LivePanel {
             let Ok(item) = self.document.create_element("li") else {
                 continue;
             };
-            let hard = entry.calibration.hard_iron_ut;
+            let saved = &entry.calibration;
+            let hard = saved.hard_iron;
             let when = entry
                 .saved_at
                 .get(..16)
                 .unwrap_or(&entry.saved_at)
                 .replace('T', " ");
+            let decimals = crate::report::decimals_for_unit(saved.ut_per_unit);
+            let unit = &saved.unit;
             let description = format!(
-                "{when} UTC, {}: hard iron ({:.2}, {:.2}, {:.2}) µT, field {:.2} µT ",
-                entry.source, hard[0], hard[1], hard[2], entry.calibration.field_ut
+                "{when} UTC, {}: hard iron ({:.decimals$}, {:.decimals$}, {:.decimals$}) {unit}, field \
+                 {:.decimals$} {unit}; axes: {} ",
+                entry.source, hard[0], hard[1], hard[2], saved.field, saved.axes_description
             );
             if let Ok(span) = self.document.create_element("span") {
                 span.set_text_content(Some(&description));
@@ -697,7 +710,7 @@ impl LivePanel {
         let Some(quality) = session.quality() else {
             return;
         };
-        let export = calibration_export(&quality.calibration);
+        let export = calibration_export(&quality.sensor_calibration());
         drop(session);
         self.keep_latest_fit();
         match calibration_json(&export) {
@@ -715,7 +728,7 @@ impl LivePanel {
         self.refit_if_behind();
         let session = self.session.borrow();
         if let Some(quality) = session.quality() {
-            let text = c_snippet(&quality.calibration);
+            let text = c_snippet(&quality.sensor_calibration());
             download_bytes(
                 &self.document,
                 "compass-pdr-calibration.h",

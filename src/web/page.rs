@@ -560,7 +560,8 @@ impl Page {
                     import.format,
                     &crate::io::summary::summarize(&import.recording),
                 )
-                .into_iter(),
+                .into_iter()
+                .chain(import.mag_frame.map(|frame| frame.describe())),
             );
         }
         // The table waits for the heading models; no stale rows meanwhile.

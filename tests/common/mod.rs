@@ -3,6 +3,8 @@
 
 use std::path::{Path, PathBuf};
 
+use nalgebra::{Matrix3, Vector3};
+
 /// `../shared/data`, or `None` with a message saying why the test is skipped.
 pub fn shared_data() -> Option<PathBuf> {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data");
@@ -106,4 +108,67 @@ pub fn fitted_k(data: &Path, floor: &str) -> f64 {
         .map(compass_pdr::pdr::step_length::weinberg_feature)
         .sum();
     errors.distance_m / sum
+}
+
+/// A calibration as parsed back from an export: `corrected = soft_iron · (raw − hard_iron)`.
+#[derive(Debug, Clone, Copy)]
+pub struct Parsed {
+    pub hard_iron: Vector3<f64>,
+    pub soft_iron: Matrix3<f64>,
+    pub field: f64,
+    /// µT per unit of `hard_iron`, `field` and the raw values.
+    pub ut_per_unit: f64,
+}
+
+impl Parsed {
+    pub fn apply(&self, raw: &Vector3<f64>) -> Vector3<f64> {
+        self.soft_iron * (raw - self.hard_iron)
+    }
+}
+
+/// The C floats between `start` and the next `end`.
+fn c_floats(text: &str, start: &str, end: &str) -> Vec<f64> {
+    let from = text.find(start).map(|at| at + start.len());
+    let body = from
+        .and_then(|from| {
+            let rest = text.get(from..)?;
+            rest.get(..rest.find(end)?)
+        })
+        .unwrap_or_else(|| panic!("no {start} … {end} in {text}"));
+    body.split(|c: char| c == ',' || c == '{' || c == '}' || c.is_whitespace())
+        .filter(|word| !word.is_empty())
+        .map(|word| {
+            word.trim_end_matches('f')
+                .parse::<f64>()
+                .unwrap_or_else(|_| panic!("{word:?} is not a C float"))
+        })
+        .collect()
+}
+
+/// The numbers of a C snippet, read as a C compiler would see them.
+pub fn parse_c_snippet(snippet: &str) -> Parsed {
+    let hard = c_floats(snippet, "float hard_iron[3] =", ";");
+    let soft = c_floats(snippet, "float soft_iron[3][3] =", ";");
+    let field = c_floats(snippet, "float mag_field =", ";");
+    let ut_per_unit = c_floats(snippet, "float mag_ut_per_unit =", ";");
+    assert_eq!(
+        (hard.len(), soft.len(), field.len()),
+        (3, 9, 1),
+        "{snippet}"
+    );
+    Parsed {
+        hard_iron: Vector3::from_column_slice(&hard),
+        soft_iron: Matrix3::from_row_slice(&soft),
+        field: field[0],
+        ut_per_unit: ut_per_unit[0],
+    }
+}
+
+/// Standard deviation of |v| over its mean, percent.
+pub fn spread_pct(values: impl Iterator<Item = Vector3<f64>>) -> f64 {
+    let norms: Vec<f64> = values.map(|v| v.norm()).collect();
+    let n = norms.len() as f64;
+    let mean = norms.iter().sum::<f64>() / n;
+    let variance = norms.iter().map(|norm| (norm - mean).powi(2)).sum::<f64>() / n;
+    100.0 * variance.sqrt() / mean
 }

@@ -18,22 +18,30 @@ test('every export of the demo analysis downloads and reads back', async () => {
   const json = await download(page, '#export-calibration');
   assert.equal(json.name, 'demo-walk-calibration.json');
   const calibration = JSON.parse(json.bytes.toString('utf8'));
-  assert.equal(calibration.hard_iron_ut.length, 3);
+  // In the log's own axes and unit: the demo's canonical columns, in µT.
+  assert.equal(calibration.axes, 'sensor');
+  assert.equal(calibration.unit, 'µT');
+  assert.equal(calibration.ut_per_unit, 1);
+  assert.match(calibration.axes_description, /the log's x, y, z columns/);
+  assert.match(calibration.formula, /corrected = soft_iron · \(raw − hard_iron\)/);
+  assert.equal(calibration.hard_iron.length, 3);
   assert.equal(calibration.soft_iron.flat().length, 9);
-  assert.ok(calibration.field_ut > 20 && calibration.field_ut < 70, `${calibration.field_ut}`);
+  assert.ok(calibration.field > 20 && calibration.field < 70, `${calibration.field}`);
   const shown = (await text(page, 'calibration')).match(/Hard iron \((-?[\d.]+), (-?[\d.]+), (-?[\d.]+)\) µT/);
   assert.ok(shown, 'the page lists the hard iron');
-  calibration.hard_iron_ut.forEach((ut, i) => assert.equal(ut.toFixed(2), shown[i + 1]));
+  calibration.hard_iron.forEach((ut, i) => assert.equal(ut.toFixed(2), shown[i + 1]));
 
   // C snippet: the same numbers as C declarations.
   const snippet = (await download(page, '#export-snippet')).bytes.toString('utf8');
   assert.match(snippet, /float hard_iron\[3\] = \{/);
+  assert.match(snippet, /\/\/ Axes: the log's x, y, z columns as written/);
+  assert.match(snippet, /\/\/ Unit: µT|\/\/ Unit: uT/);
   const hard = cFloats(snippet.match(/float hard_iron\[3\] = (\{[^}]*\})/)[1]);
   const soft = cFloats(snippet.match(/float soft_iron\[3\]\[3\] = \{([\s\S]*?)\};/)[1]);
   const field = parseFloat(snippet.match(/float mag_field = (-?[\d.e-]+)f?;/)[1]);
-  hard.forEach((value, i) => assert.ok(Math.abs(value - calibration.hard_iron_ut[i]) < 1e-5, `hard ${i}`));
+  hard.forEach((value, i) => assert.ok(Math.abs(value - calibration.hard_iron[i]) < 1e-5, `hard ${i}`));
   soft.forEach((value, i) => assert.ok(Math.abs(value - calibration.soft_iron.flat()[i]) < 1e-6, `soft ${i}`));
-  assert.ok(Math.abs(field - calibration.field_ut) < 1e-4);
+  assert.ok(Math.abs(field - calibration.field) < 1e-4);
 
   // Corrected data: one row per magnetometer sample used, every row as wide as the header.
   const csv = (await download(page, '#export-csv')).bytes.toString('utf8').trimEnd().split('\n');

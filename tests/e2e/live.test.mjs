@@ -150,7 +150,7 @@ function packetOf(calibration) {
   bytes[0] = 117;
   bytes[1] = 84;
   const s = calibration.soft_iron;
-  const floats = [0, 0, 0, 0, 0, 0, ...calibration.hard_iron_ut, calibration.field_ut,
+  const floats = [0, 0, 0, 0, 0, 0, ...calibration.hard_iron, calibration.field,
     s[0][0], s[1][1], s[2][2], (s[0][1] + s[1][0]) / 2, (s[0][2] + s[2][0]) / 2, (s[1][2] + s[2][1]) / 2];
   const view = new DataView(bytes.buffer);
   floats.forEach((value, i) => view.setFloat32(2 + 4 * i, value, true));
@@ -199,7 +199,10 @@ test('a live session at 1,000 lines/s for 30 s converges, loses no line, and the
   const { bytes: jsonBytes, name: jsonName } = await download(page, '#live-download-calibration');
   assert.equal(jsonName, 'compass-pdr-calibration.json');
   const calibration = JSON.parse(jsonBytes.toString('utf8'));
-  calibration.hard_iron_ut.forEach((ut, i) => assert.ok(Math.abs(ut - BOARD.hardIronUt[i]) < 0.3, `hard iron ${i}: ${ut}`));
+  // The board's own axes as printed, in µT: what it applies the calibration to.
+  assert.equal(calibration.axes, 'sensor');
+  assert.equal(calibration.unit, 'µT');
+  calibration.hard_iron.forEach((ut, i) => assert.ok(Math.abs(ut - BOARD.hardIronUt[i]) < 0.3, `hard iron ${i}: ${ut}`));
   assert.match(await text(page, 'live-fit'), /from the WMM's 4\d\.\d µT/);
   for (const id of ['live-clouds', 'live-coverage', 'live-dial']) {
     assert.ok(await drawnPixels(page, id) > 5_000, `#${id} is drawn`);
@@ -282,7 +285,7 @@ test('a browser without Web Serial says so, the rest of the page works, and a si
   assert.equal(await text(page, 'live-skipped-count'), '0');
   await page.waitForSelector('#live[data-good-enough="yes"]', { timeout: 5_000 });
   const calibration = JSON.parse((await download(page, '#live-download-calibration')).bytes.toString('utf8'));
-  calibration.hard_iron_ut.forEach((ut, i) => assert.ok(Math.abs(ut - Number(truth[i + 1])) < 1.0, `hard iron ${i}: ${ut} vs ${truth[i + 1]}`));
+  calibration.hard_iron.forEach((ut, i) => assert.ok(Math.abs(ut - Number(truth[i + 1])) < 1.0, `hard iron ${i}: ${ut} vs ${truth[i + 1]}`));
   for (const id of ['live-clouds', 'live-coverage', 'live-dial']) {
     assert.ok(await drawnPixels(page, id) > 5_000, `#${id} is drawn`);
   }
@@ -312,11 +315,12 @@ test('settings and recent calibrations are restored after a reload; a corrupt en
   await page.click('#live-disconnect');
   await page.waitForSelector('#live[data-live-state="disconnected"]');
   // The calibration downloaded is kept, as downloaded (and near the board's).
-  const shownHard = fitted.hard_iron_ut.map((ut) => ut.toFixed(2)).join(', ');
+  const shownHard = fitted.hard_iron.map((ut) => ut.toFixed(2)).join(', ');
   assert.ok((await text(page, 'live-recent')).includes(`live session: hard iron (${shownHard}) µT`), await text(page, 'live-recent'));
-  fitted.hard_iron_ut.forEach((ut, i) => assert.ok(Math.abs(ut - BOARD.hardIronUt[i]) < 0.3, `hard iron ${i}: ${ut}`));
+  fitted.hard_iron.forEach((ut, i) => assert.ok(Math.abs(ut - BOARD.hardIronUt[i]) < 0.3, `hard iron ${i}: ${ut}`));
 
-  // A calibration saved earlier is loaded from its file.
+  // A calibration saved earlier is loaded from its file (an older file: no axes, no unit,
+  // hard_iron_ut and field_ut; read as body axes and µT).
   const saved = { hard_iron_ut: [1.5, -2.25, 3], soft_iron: [[1, 0, 0], [0, 1, 0], [0, 0, 1]], field_ut: 50 };
   await page.setInputFiles('#live-import', { name: 'bench-board.json', mimeType: 'application/json', buffer: Buffer.from(JSON.stringify(saved)) });
   await page.waitForFunction(() => document.getElementById('live-import-status').textContent.startsWith('Loaded'));
