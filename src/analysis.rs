@@ -6,7 +6,8 @@ use nalgebra::Vector3;
 use serde::Serialize;
 use thiserror::Error;
 
-use crate::calib::tilt::{smooth_specific_force, Tilt};
+use crate::calib::gravity::{estimate_gravity, GravitySource};
+use crate::calib::tilt::Tilt;
 use crate::calibration::{calibrate, CalibrationAnalysis, CalibrationOptions};
 use crate::io::import::import_files;
 use crate::io::{Diagnostics, HeaderInfo, ImportError};
@@ -20,7 +21,9 @@ const MAX_INTERPOLATION_GAP_S: f64 = 0.5;
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Levelling {
-    /// Roll and pitch from the accelerometer, averaged over a window.
+    /// Roll and pitch from the accelerometer: carried by the gyroscope between its
+    /// samples and pulled towards it with time constant `window_s`, or, without a
+    /// usable gyroscope, averaged over `window_s` (see [`crate::calib::gravity`]).
     Accelerometer { window_s: f64 },
     /// No accelerometer in the log: the device was assumed level.
     AssumedLevel,
@@ -104,7 +107,8 @@ pub struct TiltedSamples {
 }
 
 /// The magnetometer samples of a recording with roll and pitch from the accelerometer
-/// (averaged over `gravity_window_s`), or level when the log has no accelerometer.
+/// and gyroscope ([`crate::calib::gravity`], time constant `gravity_window_s`), or level
+/// when the log has no accelerometer.
 /// Fails, saying why and what to do, when there is no usable magnetometer sample.
 pub fn tilted_samples(
     file_name: &str,
@@ -154,7 +158,13 @@ pub fn tilted_samples(
             }
         });
     }
-    let gravity = smooth_specific_force(&recording.acc_in_body_mps2, gravity_window_s);
+    let estimate = estimate_gravity(
+        &recording.acc_in_body_mps2,
+        &recording.gyro_in_body_radps,
+        &recording.gnss,
+        gravity_window_s,
+    );
+    let gravity = &estimate.specific_force_mps2;
     let levelling = if gravity.is_empty() {
         Levelling::AssumedLevel
     } else {
@@ -187,6 +197,24 @@ pub fn tilted_samples(
     }
     if levelling == Levelling::AssumedLevel {
         samples.notes.push("The log has no accelerometer, so the device was assumed level; tilt adds heading error.".to_string());
+    } else {
+        match &estimate.source {
+            GravitySource::Accelerometer { reason, .. }
+                if !recording.gyro_in_body_radps.is_empty() =>
+            {
+                samples.notes.push(format!(
+                    "tilt from the accelerometer alone (averaged over {gravity_window_s} s), not with the gyroscope: {reason}"
+                ));
+            }
+            GravitySource::GyroAided {
+                gyro_time_scale, ..
+            } if *gyro_time_scale != 1.0 => {
+                samples.notes.push(format!(
+                    "the gyroscope's turns match the accelerometer's only at {gyro_time_scale}× the log's time scale:                      the samples' times are probably wrong by that factor (a sample rate assumed, not read); the                      tilt used the corrected rate"
+                ));
+            }
+            _ => {}
+        }
     }
     let n_not_levelled = mag.len() - samples.t_s.len();
     if n_not_levelled > 0 {

@@ -28,7 +28,8 @@
 use serde::Serialize;
 
 use crate::angle::wrap_to_pi;
-use crate::calib::tilt::{smooth_specific_force, Tilt};
+use crate::calib::gravity::estimate_gravity;
+use crate::calib::tilt::Tilt;
 use crate::recording::{Recording, Stream};
 
 /// Gyro samples further apart than this (s), or than three of the log's typical
@@ -98,7 +99,13 @@ pub fn gyro_heading(
 ) -> Option<GyroHeading> {
     let gyro = &recording.gyro_in_body_radps;
     let max_gap_s = gap_limit_s(&gyro.t_s);
-    let gravity = smooth_specific_force(&recording.acc_in_body_mps2, gravity_window_s);
+    let gravity = estimate_gravity(
+        &recording.acc_in_body_mps2,
+        gyro,
+        &recording.gnss,
+        gravity_window_s,
+    )
+    .specific_force_mps2;
     let mut relative = Stream::default();
     let mut heading_rad = 0.0;
     let mut previous: Option<(f64, f64)> = None;

@@ -101,9 +101,11 @@ pub fn motioncal_raw_lines(config: &DanceConfig) -> (String, DanceTruth) {
         let mag_ut = truth.soft_iron * field + truth.hard_iron_ut + noise;
         // Specific force: up (−g in NED's down axis) in the sensor's axes.
         let acc_mps2 = sensor_from_ned * Vector3::new(0.0, 0.0, -G_MPS2);
-        // Rate of turn from the change of attitude over one line.
-        let next = attitude(config, t_s + dt_s);
-        let delta = ned_from_sensor.inverse() * next;
+        // Rate of turn at the line's time: the change of attitude over one line centred
+        // on it (a gyroscope samples the rate when the accelerometer samples gravity).
+        let before = attitude(config, t_s - dt_s / 2.0);
+        let after = attitude(config, t_s + dt_s / 2.0);
+        let delta = before.inverse() * after;
         let rate_dps = delta.scaled_axis() / dt_s * (180.0 / std::f64::consts::PI);
         let counts = |value: f64, per_unit: f64| (value * per_unit).round() as i64;
         let _ = std::fmt::Write::write_fmt(
