@@ -20,10 +20,10 @@
 use nalgebra::{Vector2, Vector3};
 use serde::Serialize;
 
-use crate::analysis::AnalysisError;
+use crate::analysis::{AnalysisError, Levelling};
 use crate::angle::heading_difference_rad;
-use crate::calib::ellipsoid::{fit_ellipsoid, EllipsoidFit, EllipsoidOptions};
 use crate::calib::heading::heading_rad;
+use crate::calib::inertial::{fit_inertial, FieldPrior, InertialFit, InertialOptions};
 use crate::calib::minmax::MinMaxCalibration;
 use crate::calib::model::FieldCalibration;
 use crate::calib::plane::{fit_plane, PlaneFit, PlaneOptions};
@@ -34,6 +34,7 @@ use crate::calib::wmm::{date_of_unix_s, expected_field, ExpectedField};
 use crate::io::{Diagnostics, ImportReport, SensorFrame};
 use crate::recording::Recording;
 use crate::reference::{choose_reference, ReferenceOptions, ReferenceSource};
+use crate::selection::{choose_by_reference, choose_without_reference, Choice, Scored, RAW_KEY};
 use crate::stats::HeadingErrorStats;
 
 /// A calibration method.
@@ -151,7 +152,7 @@ pub struct MethodReport {
 pub enum MethodParameters {
     MinMax(MinMaxCalibration),
     Ellipse(Box<PlaneFit>),
-    Ellipsoid(Box<EllipsoidFit>),
+    Ellipsoid(Box<InertialFit>),
     RefLs(RefLsFit),
 }
 
@@ -207,8 +208,12 @@ pub struct CalibrationReport {
     pub raw_heading_error_train: Option<HeadingErrorStats>,
     pub raw_heading_error_check: Option<HeadingErrorStats>,
     pub methods: Vec<MethodReport>,
-    /// The method with the lowest check RMS (train RMS without a check part).
+    /// The field calibration the analysis recommends ([`crate::selection`]): the lowest
+    /// check RMS, never worse than uncalibrated; without a reference, by the fits' own
+    /// figures. `None` when uncalibrated is the choice (see `choice`).
     pub best: Option<Method>,
+    /// That choice, with the uncalibrated heading as a possible answer and why.
+    pub choice: Option<Choice>,
     pub notes: Vec<String>,
     pub diagnostics: Diagnostics,
     /// How the log's raw magnetometer values became the body-axes µT every method is
@@ -225,6 +230,10 @@ pub type FittedEllipse = (Vector2<f64>, nalgebra::Matrix2<f64>, f64);
 pub struct CalibrationAnalysis {
     pub report: CalibrationReport,
     pub t_s: Vec<f64>,
+    /// The raw magnetometer samples (body axes, µT) and the tilt at each: what every
+    /// method corrects, for anyone who wants to score another calibration on them.
+    pub mag_ut: Vec<Vector3<f64>>,
+    pub tilt: Vec<Tilt>,
     /// Levelled raw field, and the same after the best level-plane correction (the
     /// ellipse method, else min/max).
     pub level_raw_ut: Vec<Vector2<f64>>,
@@ -254,58 +263,10 @@ impl CalibrationReport {
 }
 
 impl CalibrationAnalysis {
-    /// The 3D calibration to store in a device (C snippet, MotionCal packet): of the
-    /// ellipse and ellipsoid methods, the one with the lower check (else train) heading
-    /// RMS; without a reference, the ellipsoid unless it had to fall back.
+    /// The 3D calibration to store in a device (C snippet, MotionCal packet), chosen by
+    /// [`crate::selection::device_calibration`].
     pub fn device_calibration(&self) -> Option<(Method, FieldCalibration)> {
-        let rms_of = |report: &MethodReport| {
-            report
-                .heading_error_check
-                .or(report.heading_error_train)
-                .map(|stats| stats.rms_deg)
-        };
-        let candidates: Vec<(Method, FieldCalibration, Option<f64>, bool)> = self
-            .report
-            .methods
-            .iter()
-            .filter_map(|report| match &report.parameters {
-                Some(MethodParameters::Ellipsoid(fit)) => Some((
-                    report.method,
-                    fit.calibration,
-                    rms_of(report),
-                    fit.fallback.is_some(),
-                )),
-                Some(MethodParameters::Ellipse(fit)) => Some((
-                    report.method,
-                    FieldCalibration {
-                        hard_iron_ut: fit.hard_iron_ut,
-                        soft_iron: fit.soft_iron,
-                        field_ut: fit.horizontal_field_ut.hypot(fit.vertical_field_ut),
-                    },
-                    rms_of(report),
-                    false,
-                )),
-                _ => None,
-            })
-            .collect();
-        let by_rms = candidates
-            .iter()
-            .filter_map(|(method, calibration, rms_deg, _)| {
-                Some((*method, *calibration, (*rms_deg)?))
-            })
-            .min_by(|a, b| a.2.total_cmp(&b.2))
-            .map(|(method, calibration, _)| (method, calibration));
-        by_rms.or_else(|| {
-            let ellipsoid = candidates
-                .iter()
-                .find(|candidate| candidate.0 == Method::Ellipsoid && !candidate.3);
-            let ellipse = candidates
-                .iter()
-                .find(|candidate| candidate.0 == Method::Ellipse);
-            ellipsoid
-                .or(ellipse)
-                .map(|candidate| (candidate.0, candidate.1))
-        })
+        crate::selection::device_calibration(&self.report)
     }
 }
 
@@ -581,11 +542,17 @@ pub fn calibrate(
                     })
             }
             Method::Ellipsoid => {
-                let ellipsoid_options = EllipsoidOptions {
-                    expected_field_ut: expected.as_ref().map(|expected| expected.total_ut),
-                    ..EllipsoidOptions::default()
+                let inertial_options = InertialOptions {
+                    field: expected.as_ref().map(|expected| FieldPrior {
+                        total_ut: expected.total_ut,
+                        inclination_deg: expected.inclination_deg,
+                    }),
                 };
-                fit_ellipsoid(&mag_train, &ellipsoid_options)
+                // The dip-angle invariance needs the accelerometer's tilt; a log without
+                // one was only assumed level.
+                let tilt = matches!(samples.levelling, Levelling::Accelerometer { .. })
+                    .then_some(tilt_train.as_slice());
+                fit_inertial(&mag_train, tilt, &inertial_options)
                     .map_err(|error| error.to_string())
                     .map(|fit| {
                         let calibration = fit.calibration;
@@ -684,18 +651,21 @@ pub fn calibrate(
             reasons: reasons.join(" "),
         });
     }
-    let best = method_reports
-        .iter()
-        .filter_map(|report| {
-            let rms_deg = report
-                .heading_error_check
-                .or(report.heading_error_train)?
-                .rms_deg;
-            Some((report.method, rms_deg))
-        })
-        .min_by(|a, b| a.1.total_cmp(&b.1))
-        .map(|(method, _)| method);
-
+    let raw_train = stats_of(&raw_heading_rad, true);
+    let raw_check = stats_of(&raw_heading_rad, false);
+    let mut scored = vec![Scored {
+        key: RAW_KEY,
+        label: "uncalibrated",
+        train_rms_deg: raw_train.map(|stats| stats.rms_deg),
+        check_rms_deg: raw_check.map(|stats| stats.rms_deg),
+    }];
+    scored.extend(method_reports.iter().map(|report| Scored {
+        key: report.method.key(),
+        label: report.label,
+        train_rms_deg: report.heading_error_train.map(|stats| stats.rms_deg),
+        check_rms_deg: report.heading_error_check.map(|stats| stats.rms_deg),
+    }));
+    let by_reference = choose_by_reference(&scored);
     let field_raw_ut: Vec<f64> = samples.mag_ut.iter().map(|mag| mag.norm()).collect();
     let temp_c: Vec<Option<f64>> = samples
         .t_s
@@ -736,7 +706,7 @@ pub fn calibrate(
     }
     let (level_corrected_ut, fitted_ellipse) =
         plane_correction.unwrap_or_else(|| (level_raw_ut.clone(), None));
-    Ok(CalibrationAnalysis {
+    let mut analysis = CalibrationAnalysis {
         report: CalibrationReport {
             file_name,
             format,
@@ -750,15 +720,18 @@ pub fn calibrate(
             expected_field: expected,
             mean_raw_field_ut,
             device_hard_iron: DeviceHardIron::of(&recording),
-            raw_heading_error_train: stats_of(&raw_heading_rad, true),
-            raw_heading_error_check: stats_of(&raw_heading_rad, false),
+            raw_heading_error_train: raw_train,
+            raw_heading_error_check: raw_check,
             methods: method_reports,
-            best,
+            best: None,
+            choice: by_reference,
             notes,
             diagnostics,
             mag_frame,
         },
         t_s: samples.t_s,
+        mag_ut: samples.mag_ut,
+        tilt: samples.tilt,
         level_raw_ut,
         level_corrected_ut,
         fitted_ellipse,
@@ -775,7 +748,17 @@ pub fn calibrate(
         temp_c,
         gyro_heading_deg,
         field_raw_ut,
-    })
+    };
+    let report = &mut analysis.report;
+    let choice = report
+        .choice
+        .take()
+        .unwrap_or_else(|| choose_without_reference(report));
+    report.best = Method::ALL
+        .into_iter()
+        .find(|method| method.key() == choice.key);
+    report.choice = Some(choice);
+    Ok(analysis)
 }
 
 /// The expected field at the log's first position and date, with a note when there is
@@ -846,26 +829,29 @@ mod tests {
         let raw_rms = report
             .raw_heading_error_check
             .map_or(0.0, |stats| stats.rms_deg);
-        for method in [Method::MinMax, Method::Ellipse, Method::RefLs] {
+        for method in Method::ALL {
             let rms = check_rms(&analysis, method);
             assert!(
                 rms < 3.0 && rms < raw_rms / 5.0,
                 "{method:?}: {rms}° against {raw_rms}° uncalibrated"
             );
         }
-        // A walk held nearly level is no data for a 3D fit, and the report says why.
-        let ellipsoid = report.method(Method::Ellipsoid).expect("ran");
-        assert!(
-            ellipsoid
-                .error
-                .as_deref()
-                .is_some_and(|error| error.contains("plane")),
-            "{:?}",
-            ellipsoid.error
-        );
-        assert!(analysis
-            .device_calibration()
-            .is_some_and(|(method, _)| method == Method::Ellipse));
+        // A walk held nearly level: the 3D fit leans on the accelerometer's tilt and the
+        // model's field, and says what it could not see instead of refusing.
+        let Some(MethodParameters::Ellipsoid(fit)) =
+            &report.method(Method::Ellipsoid).expect("ran").parameters
+        else {
+            panic!("the ellipsoid fitted")
+        };
+        assert!(fit.uses_dip, "{fit:?}");
+        let device = analysis.device_calibration().map(|(method, _)| method);
+        let lower =
+            if check_rms(&analysis, Method::Ellipse) < check_rms(&analysis, Method::Ellipsoid) {
+                Method::Ellipse
+            } else {
+                Method::Ellipsoid
+            };
+        assert_eq!(device, Some(lower));
         assert_eq!(analysis.field_corrected_ut.len(), analysis.t_s.len());
     }
 

@@ -9,7 +9,9 @@
 
 pub mod ellipsoid;
 pub mod export;
+pub mod gravity;
 pub mod heading;
+pub mod inertial;
 pub mod minmax;
 pub mod model;
 pub mod plane;

@@ -1038,6 +1038,7 @@ fn heading_text(report: &HeadingReport) -> String {
             )),
         );
     }
+    let _ = writeln!(text, "  best: {}", report.choice.sentence());
     if !report.fourier.is_empty() {
         let _ = writeln!(
             text,
@@ -1242,8 +1243,8 @@ fn calibration_text(report: &CalibrationReport) -> String {
             }
         }
     }
-    if let Some(best) = report.best {
-        let _ = writeln!(text, "  best: {}", best.label());
+    if let Some(choice) = &report.choice {
+        let _ = writeln!(text, "  best: {}", choice.sentence());
     }
     for note in &report.notes {
         let _ = writeln!(text, "  note: {note}");

@@ -29,6 +29,7 @@ use crate::angle::heading_difference_rad;
 use crate::calibration::{calibrate, CalibrationAnalysis, CalibrationOptions, CalibrationReport};
 use crate::io::ImportReport;
 use crate::reference::ReferenceSource;
+use crate::selection::{choose_by_reference, choose_without_reference, Choice, Scored};
 use crate::stats::HeadingErrorStats;
 use fourier::{fit_fourier, FourierDeviation, FourierFit};
 use rls::{adapt_online, RlsSnapshot};
@@ -38,6 +39,11 @@ const PAIR_WINDOW_S: f64 = 1.0;
 /// A bin whose headings spread further than this (rad, either side of their mean) is in
 /// a turn and is left out.
 const MAX_BIN_SPREAD_RAD: f64 = 0.17;
+/// A bin is in a turn when the gyro heading spans more than this (degrees, peak to
+/// peak) over it and [`TURN_MARGIN_S`] either side: a walker's yaw sway spans 2-4°, a
+/// car's gentlest turn 10° a second.
+const MAX_BIN_TURN_DEG: f64 = 8.0;
+const TURN_MARGIN_S: f64 = 1.0;
 /// Online updates are spaced by at least this (s): a 50 Hz compass against a 1 Hz GPS
 /// course adds nothing faster.
 const ONLINE_UPDATE_SPACING_S: f64 = 0.2;
@@ -116,8 +122,12 @@ pub struct HeadingReport {
     /// method), with their inputs and training.
     pub neural: Vec<neural::NeuralReport>,
     pub online: Option<OnlineReport>,
-    /// The row with the lowest check RMS (train RMS without a check part).
+    /// The row the analysis recommends ([`crate::selection`]): the lowest check RMS
+    /// (train RMS without a check part), never worse than the uncalibrated heading;
+    /// without a reference, the field calibration the fits' own figures recommend.
     pub best: Option<String>,
+    /// That choice and why.
+    pub choice: Choice,
     pub notes: Vec<String>,
     /// The field-domain comparison it stands on.
     pub calibration: CalibrationReport,
@@ -290,6 +300,10 @@ pub fn compare(calibration: &CalibrationAnalysis, options: &HeadingOptions) -> H
             }
         }
     }
+    // A bin in a turn, or within a second of one, is left out when the gyro says so: a
+    // GNSS course lags the heading in a turn (it is the direction of the last second's
+    // motion), and a turn's bins would teach every model that lag.
+    bins.retain(|bin| !turning(bin, &t_s, gyro_heading_deg));
     let reference_values: Vec<f64> = reference_rad
         .iter()
         .map(|reference| reference.unwrap_or(f64::NAN))
@@ -478,11 +492,20 @@ pub fn compare(calibration: &CalibrationAnalysis, options: &HeadingOptions) -> H
         })
     });
 
-    let best = rows
+    // The one rule of `selection`: the lowest check RMS, never worse than uncalibrated;
+    // without a reference, the field calibration the fits' own figures recommend.
+    let scored: Vec<Scored> = rows
         .iter()
-        .filter_map(|row| Some((row.key.clone(), row.check.or(row.train)?.rms_deg)))
-        .min_by(|a, b| a.1.total_cmp(&b.1))
-        .map(|(key, _)| key);
+        .map(|row| Scored {
+            key: &row.key,
+            label: &row.label,
+            train_rms_deg: row.train.map(|stats| stats.rms_deg),
+            check_rms_deg: row.check.map(|stats| stats.rms_deg),
+        })
+        .collect();
+    let choice = choose_by_reference(&scored)
+        .unwrap_or_else(|| choose_without_reference(&calibration_report));
+    let best = Some(choice.key.clone());
     if calibration_report.reference.is_none() {
         notes.push(
             "the log has no reference heading (a reference column, GPS course, reference positions, or a closed \
@@ -503,6 +526,7 @@ pub fn compare(calibration: &CalibrationAnalysis, options: &HeadingOptions) -> H
             neural: neural_reports,
             online,
             best,
+            choice,
             notes,
             calibration: calibration_report,
         },
@@ -532,6 +556,31 @@ fn steady_mean(values_rad: &[f64], indices: &[usize]) -> Option<f64> {
         .fold(0.0, f64::max);
     (spread_rad <= MAX_BIN_SPREAD_RAD && !indices.is_empty())
         .then_some(crate::angle::wrap_to_2pi(mean_rad))
+}
+
+/// Whether the gyro heading turns by more than [`MAX_BIN_TURN_DEG`] (peak to peak) over
+/// the bin and [`TURN_MARGIN_S`] either side of it; `false` without a gyro there.
+fn turning(bin: &[usize], t_s: &[f64], gyro_heading_deg: &[Option<f64>]) -> bool {
+    let (Some(&first), Some(&last)) = (bin.first(), bin.last()) else {
+        return false;
+    };
+    let (Some(&start_s), Some(&end_s)) = (t_s.get(first), t_s.get(last)) else {
+        return false;
+    };
+    let lo = t_s.partition_point(|&t| t < start_s - TURN_MARGIN_S);
+    let hi = t_s.partition_point(|&t| t <= end_s + TURN_MARGIN_S);
+    let window = gyro_heading_deg.get(lo..hi).unwrap_or(&[]);
+    let Some(origin_deg) = window.iter().flatten().next().copied() else {
+        return false;
+    };
+    let (low, high) = window
+        .iter()
+        .flatten()
+        .fold((0.0f64, 0.0f64), |(low, high), &deg| {
+            let relative = crate::angle::wrap_to_pi((deg - origin_deg).to_radians()).to_degrees();
+            (low.min(relative), high.max(relative))
+        });
+    high - low > MAX_BIN_TURN_DEG
 }
 
 /// Adds a method's row (its errors on train and check) and its heading series.

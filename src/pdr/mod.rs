@@ -375,7 +375,7 @@ pub fn run(report: ImportReport, options: &PdrOptions) -> Result<PdrAnalysis, Pd
     let compass_key = match (&options.heading.base, &selection.report.best) {
         (HeadingBase::Model(key), _) => key.clone(),
         (_, Some(best)) if has_reference => best.clone(),
-        _ => best_field_domain_key(&selection.report),
+        _ => crate::selection::choose_without_reference(&selection.report.calibration).key,
     };
     // The split chose the model; the dead reckoning uses it trained on every sample
     // GNSS referenced (Fig. 2: the model trains while GNSS is good).
@@ -718,18 +718,6 @@ fn without_outages(
 
 /// The field-domain method to use without a reference: the 3D fit, else the ellipse,
 /// else min/max, else the raw heading.
-fn best_field_domain_key(report: &crate::deviation::HeadingReport) -> String {
-    ["ellipsoid", "ellipse", "min_max"]
-        .iter()
-        .find(|key| {
-            report
-                .rows
-                .iter()
-                .any(|row| row.key == **key && row.error.is_none())
-        })
-        .map_or_else(|| "raw".to_string(), |key| key.to_string())
-}
-
 fn label_of(report: &crate::deviation::HeadingReport, key: &str) -> String {
     report
         .rows

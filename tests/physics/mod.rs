@@ -75,6 +75,8 @@
 //!   is dated; the WMM is evaluated on that day.
 #![allow(dead_code)]
 
+pub mod scoring;
+
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
 
 use compass_pdr::calib::wmm;

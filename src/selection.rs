@@ -1,0 +1,289 @@
+//! The one choice of "best": which heading method a log's analysis recommends, and which
+//! field calibration goes to the device. Made here, by one rule, and used by every
+//! consumer (the CLI, the page, the report, dead reckoning, the exports).
+//!
+//! ## The rule
+//!
+//! - **With a reference heading**, the method with the lowest RMS heading error on the
+//!   check part (the train part when there is no check part), and **never one worse than
+//!   the uncalibrated heading**: when nothing beats it, the uncalibrated heading is the
+//!   choice, and the report says so.
+//! - **Without a reference**, nothing can be scored, so the choice rests on what each
+//!   fit says of itself: the 3D fit ([`crate::calib::inertial`]) when its own heading
+//!   uncertainty is within [`MAX_UNREFERENCED_HEADING_STD_DEG`], else the tilt-aware
+//!   ellipse, else min/max, else the uncalibrated heading.
+//!
+//! The device calibration is the field calibration chosen by the same rule among the
+//! methods that give a full 3D correction (the ellipse's and the ellipsoid's), so that
+//! what is exported is never a calibration the analysis found worse than another.
+
+use serde::Serialize;
+
+use crate::calib::model::FieldCalibration;
+use crate::calibration::{CalibrationReport, Method, MethodParameters, MethodReport};
+
+/// Without a reference, the 3D fit is trusted when its own heading uncertainty (from
+/// its parameters' covariance, at the log's attitudes) is within this many degrees.
+pub const MAX_UNREFERENCED_HEADING_STD_DEG: f64 = 5.0;
+
+/// The key of the uncalibrated heading's row.
+pub const RAW_KEY: &str = "raw";
+
+/// What a choice was made on.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum Basis {
+    /// The lowest RMS error on the check part (or, `on_train`, on the train part).
+    ReferenceRms {
+        rms_deg: f64,
+        raw_rms_deg: Option<f64>,
+        on_train: bool,
+    },
+    /// No reference heading: the fits' own figures.
+    WithoutReference { reason: String },
+}
+
+/// The method chosen, by its row key (`raw`, `ellipsoid`, `ellipsoid+fourier`, ...).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Choice {
+    pub key: String,
+    pub label: String,
+    pub basis: Basis,
+}
+
+impl Choice {
+    /// One sentence: what was chosen and why.
+    pub fn sentence(&self) -> String {
+        match &self.basis {
+            Basis::ReferenceRms {
+                rms_deg,
+                raw_rms_deg,
+                on_train,
+            } => {
+                let part = if *on_train { "train" } else { "check" };
+                match (self.key == RAW_KEY, raw_rms_deg) {
+                    (true, _) => format!(
+                        "{}: {rms_deg:.1}° RMS on the {part} part; no calibration beat it",
+                        self.label
+                    ),
+                    (false, Some(raw_deg)) => format!(
+                        "{}: {rms_deg:.1}° RMS on the {part} part (uncalibrated {raw_deg:.1}°)",
+                        self.label
+                    ),
+                    (false, None) => {
+                        format!("{}: {rms_deg:.1}° RMS on the {part} part", self.label)
+                    }
+                }
+            }
+            Basis::WithoutReference { reason } => format!("{}: {reason}", self.label),
+        }
+    }
+}
+
+/// One scored method.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Scored<'a> {
+    pub key: &'a str,
+    pub label: &'a str,
+    pub train_rms_deg: Option<f64>,
+    pub check_rms_deg: Option<f64>,
+}
+
+/// The method with the lowest check RMS (train RMS when no method has a check part),
+/// never worse than the row keyed [`RAW_KEY`]; `None` when nothing was scored.
+pub fn choose_by_reference(scored: &[Scored]) -> Option<Choice> {
+    let on_train = scored.iter().all(|row| row.check_rms_deg.is_none());
+    let metric = |row: &Scored| {
+        if on_train {
+            row.train_rms_deg
+        } else {
+            row.check_rms_deg
+        }
+    };
+    let raw = scored.iter().find(|row| row.key == RAW_KEY);
+    let raw_rms_deg = raw.and_then(metric);
+    let best = scored
+        .iter()
+        .filter_map(|row| Some((row, metric(row)?)))
+        .min_by(|a, b| {
+            a.1.total_cmp(&b.1)
+                .then_with(|| (a.0.key != RAW_KEY).cmp(&(b.0.key != RAW_KEY)))
+        })?;
+    let (row, rms_deg) = match (raw, raw_rms_deg) {
+        // Never worse than the uncalibrated heading: ties go to it too.
+        (Some(raw), Some(raw_deg)) if best.1 >= raw_deg => (raw, raw_deg),
+        _ => best,
+    };
+    Some(Choice {
+        key: row.key.to_string(),
+        label: row.label.to_string(),
+        basis: Basis::ReferenceRms {
+            rms_deg,
+            raw_rms_deg: raw_rms_deg.filter(|_| row.key != RAW_KEY),
+            on_train,
+        },
+    })
+}
+
+/// The field-domain method to use without a reference heading (see the module header).
+pub fn choose_without_reference(report: &CalibrationReport) -> Choice {
+    let fitted = |method: Method| {
+        report
+            .method(method)
+            .filter(|method| method.error.is_none())
+    };
+    if let Some(ellipsoid) = fitted(Method::Ellipsoid) {
+        if let Some(MethodParameters::Ellipsoid(fit)) = &ellipsoid.parameters {
+            if fit.heading_std_deg <= MAX_UNREFERENCED_HEADING_STD_DEG {
+                return Choice {
+                    key: Method::Ellipsoid.key().to_string(),
+                    label: Method::Ellipsoid.label().to_string(),
+                    basis: Basis::WithoutReference {
+                        reason: format!(
+                            "no reference heading; its own uncertainty is ±{:.1}° of heading",
+                            fit.heading_std_deg
+                        ),
+                    },
+                };
+            }
+        }
+    }
+    let uncertain_3d = fitted(Method::Ellipsoid).and_then(|report| match &report.parameters {
+        Some(MethodParameters::Ellipsoid(fit)) => Some(fit.heading_std_deg),
+        _ => None,
+    });
+    let because = uncertain_3d.map_or(String::new(), |std_deg| {
+        format!(" (the 3D fit's own heading uncertainty, ±{std_deg:.0}°, is too large)")
+    });
+    for method in [Method::Ellipse, Method::MinMax] {
+        if fitted(method).is_some() {
+            return Choice {
+                key: method.key().to_string(),
+                label: method.label().to_string(),
+                basis: Basis::WithoutReference {
+                    reason: format!("no reference heading{because}"),
+                },
+            };
+        }
+    }
+    Choice {
+        key: RAW_KEY.to_string(),
+        label: "uncalibrated".to_string(),
+        basis: Basis::WithoutReference {
+            reason: format!("no reference heading and no calibration fitted{because}"),
+        },
+    }
+}
+
+/// The 3D correction a method's parameters hold, if any: the ellipsoid's, or the
+/// ellipse's full model (`corrected = soft_iron · (raw − hard_iron)` before levelling).
+pub fn field_calibration_of(report: &MethodReport) -> Option<FieldCalibration> {
+    match &report.parameters {
+        Some(MethodParameters::Ellipsoid(fit)) => Some(fit.calibration),
+        Some(MethodParameters::Ellipse(fit)) => Some(FieldCalibration {
+            hard_iron_ut: fit.hard_iron_ut,
+            soft_iron: fit.soft_iron,
+            field_ut: fit.horizontal_field_ut.hypot(fit.vertical_field_ut),
+        }),
+        _ => None,
+    }
+}
+
+/// The calibration for the device: among the methods with a 3D correction, the one the
+/// rule chooses (by check RMS with a reference, by the fits' own figures without).
+pub fn device_calibration(report: &CalibrationReport) -> Option<(Method, FieldCalibration)> {
+    let three_d: Vec<&MethodReport> = report
+        .methods
+        .iter()
+        .filter(|method| field_calibration_of(method).is_some())
+        .collect();
+    let scored: Vec<Scored> = three_d
+        .iter()
+        .map(|method| Scored {
+            key: method.method.key(),
+            label: method.label,
+            train_rms_deg: method.heading_error_train.map(|stats| stats.rms_deg),
+            check_rms_deg: method.heading_error_check.map(|stats| stats.rms_deg),
+        })
+        .collect();
+    let key = match choose_by_reference(&scored) {
+        Some(choice) => choice.key,
+        None => choose_without_reference(report).key,
+    };
+    let chosen = three_d
+        .iter()
+        .find(|method| method.method.key() == key)
+        // Without a reference and with no trusted 3D fit, min/max (2D) may be the
+        // choice: the device still gets the best 3D correction there is.
+        .or_else(|| {
+            three_d
+                .iter()
+                .find(|method| method.method == Method::Ellipsoid)
+        })
+        .or_else(|| three_d.first())?;
+    Some((chosen.method, field_calibration_of(chosen)?))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scored<'a>(key: &'a str, train: Option<f64>, check: Option<f64>) -> Scored<'a> {
+        Scored {
+            key,
+            label: key,
+            train_rms_deg: train,
+            check_rms_deg: check,
+        }
+    }
+
+    #[test]
+    fn the_lowest_check_rms_wins() {
+        let choice = choose_by_reference(&[
+            scored("raw", Some(30.0), Some(40.0)),
+            scored("min_max", Some(3.0), Some(5.0)),
+            scored("ellipsoid", Some(4.0), Some(2.0)),
+        ])
+        .expect("a choice");
+        assert_eq!(choice.key, "ellipsoid");
+        assert_eq!(
+            choice.basis,
+            Basis::ReferenceRms {
+                rms_deg: 2.0,
+                raw_rms_deg: Some(40.0),
+                on_train: false
+            }
+        );
+    }
+
+    #[test]
+    fn nothing_worse_than_uncalibrated_is_chosen() {
+        let choice = choose_by_reference(&[
+            scored("raw", Some(20.0), Some(24.7)),
+            scored("min_max", Some(10.0), Some(38.0)),
+            scored("ellipse", None, None),
+        ])
+        .expect("a choice");
+        assert_eq!(choice.key, "raw");
+        assert!(
+            choice.sentence().contains("no calibration beat it"),
+            "{}",
+            choice.sentence()
+        );
+    }
+
+    #[test]
+    fn without_a_check_part_the_train_part_decides() {
+        let choice = choose_by_reference(&[
+            scored("raw", Some(20.0), None),
+            scored("min_max", Some(3.0), None),
+        ])
+        .expect("a choice");
+        assert_eq!(choice.key, "min_max");
+        assert!(matches!(
+            choice.basis,
+            Basis::ReferenceRms { on_train: true, .. }
+        ));
+        assert_eq!(choose_by_reference(&[scored("raw", None, None)]), None);
+    }
+}

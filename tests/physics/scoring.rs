@@ -1,0 +1,159 @@
+//! Scoring the crate's calibrations on the independent generator's logs: every method's
+//! check heading error beside the **true calibration's floor on the same samples** (the
+//! generator's own `b = S⁻¹·(m − h)`, levelled with the same tilt and turned by the same
+//! declination as the methods, so that the floor carries the tilt's and the reference's
+//! errors and nothing of the fit's).
+//!
+//! Shared by the property tests (`tests/independent.rs`) and the accuracy report
+//! (`benches/accuracy.rs`).
+
+use compass_pdr::angle::heading_difference_rad;
+use compass_pdr::calib::heading::heading_rad;
+use compass_pdr::calib::model::FieldCalibration;
+use compass_pdr::calibration::{calibrate, CalibrationAnalysis, CalibrationOptions};
+use compass_pdr::io::import::import;
+use compass_pdr::stats::HeadingErrorStats;
+
+use super::GeneratedLog;
+
+/// What one log gave.
+#[derive(Debug, Clone)]
+pub struct Scores {
+    pub name: String,
+    /// Check RMS of the true calibration (degrees), levelled with the log's own tilt
+    /// estimate, and with the true tilt.
+    pub floor_deg: f64,
+    pub true_tilt_floor_deg: Option<f64>,
+    /// Check RMS of the uncalibrated heading.
+    pub raw_deg: Option<f64>,
+    /// Each fitted method's check RMS, by its key, and the error of those that failed.
+    pub methods: Vec<(String, Option<f64>, Option<String>)>,
+    /// The method the crate chose, and its check RMS.
+    pub best: Option<(String, f64)>,
+}
+
+impl Scores {
+    pub fn method(&self, key: &str) -> Option<f64> {
+        self.methods
+            .iter()
+            .find(|(method, _, _)| method == key)
+            .and_then(|(_, rms, _)| *rms)
+    }
+
+    /// The chosen method's check RMS over the floor.
+    pub fn best_over_floor(&self) -> f64 {
+        self.best
+            .as_ref()
+            .map_or(f64::INFINITY, |(_, rms)| rms / self.floor_deg)
+    }
+}
+
+/// Imports the log and calibrates it with `options`.
+pub fn analyse(log: &GeneratedLog, options: &CalibrationOptions) -> CalibrationAnalysis {
+    let report = import(&format!("{}.csv", log.name), log.csv.as_bytes()).expect("imports");
+    calibrate(report, options).expect("calibrates")
+}
+
+/// The check RMS (degrees) of `calibration` on the analysis's own samples, tilt,
+/// declination, reference and split.
+pub fn check_rms_of(analysis: &CalibrationAnalysis, calibration: &FieldCalibration) -> Option<f64> {
+    let declination_rad = analysis.report.declination.declination_deg.to_radians();
+    let train_until_s = analysis.report.train_until_s;
+    let errors = analysis
+        .t_s
+        .iter()
+        .zip(&analysis.mag_ut)
+        .zip(&analysis.tilt)
+        .zip(&analysis.ref_heading_deg)
+        .filter(|(((&t_s, _), _), _)| train_until_s.is_some_and(|until_s| t_s > until_s))
+        .filter_map(|(((_, &mag_ut), tilt), reference_deg)| {
+            let heading = heading_rad(tilt.level(calibration.apply(mag_ut)), declination_rad);
+            Some(heading_difference_rad(
+                heading,
+                (*reference_deg)?.to_radians(),
+            ))
+        });
+    HeadingErrorStats::from_errors_rad(errors).map(|stats| stats.rms_deg)
+}
+
+/// The check RMS (degrees) of the true calibration levelled with the *true* attitude
+/// (and the true declination): what a perfect tilt would leave, the reference's own
+/// error and the hand's sway in heading.
+pub fn true_tilt_floor(log: &GeneratedLog, analysis: &CalibrationAnalysis) -> Option<f64> {
+    let train_until_s = analysis.report.train_until_s?;
+    let start_s = analysis.t_s.first().copied()? - log.true_t_s.first().copied()?;
+    let (hard_iron_ut, correction) = log.true_correction();
+    let errors = analysis
+        .t_s
+        .iter()
+        .zip(&analysis.mag_ut)
+        .zip(&analysis.ref_heading_deg)
+        .filter(|((&t_s, _), _)| t_s > train_until_s)
+        .filter_map(|((&t_s, &mag_ut), reference_deg)| {
+            let idx = log
+                .true_t_s
+                .partition_point(|&true_t_s| true_t_s + start_s < t_s - 1e-6);
+            let attitude = log.true_attitude.get(idx)?;
+            let (roll, pitch, _) = attitude.euler_angles();
+            let tilt = compass_pdr::calib::tilt::Tilt {
+                roll_rad: roll,
+                pitch_rad: pitch,
+            };
+            let heading = heading_rad(
+                tilt.level(correction * (mag_ut - hard_iron_ut)),
+                log.declination_deg.to_radians(),
+            );
+            Some(heading_difference_rad(
+                heading,
+                (*reference_deg)?.to_radians(),
+            ))
+        });
+    HeadingErrorStats::from_errors_rad(errors).map(|stats| stats.rms_deg)
+}
+
+/// Scores every method on one log against the true calibration's floor.
+pub fn score(log: &GeneratedLog, options: &CalibrationOptions) -> Scores {
+    let analysis = analyse(log, options);
+    let (hard_iron_ut, correction) = log.true_correction();
+    let truth = FieldCalibration {
+        hard_iron_ut,
+        soft_iron: correction,
+        field_ut: log.field_ned_ut.norm(),
+    };
+    let floor_deg = check_rms_of(&analysis, &truth).expect("the log has a reference on check");
+    let report = &analysis.report;
+    let methods = report
+        .methods
+        .iter()
+        .map(|method| {
+            (
+                method.method.key().to_string(),
+                method.heading_error_check.map(|stats| stats.rms_deg),
+                method.error.clone(),
+            )
+        })
+        .collect();
+    let best = report.best.and_then(|best| {
+        let rms = report.method(best)?.heading_error_check?.rms_deg;
+        Some((best.key().to_string(), rms))
+    });
+    Scores {
+        name: log.name.clone(),
+        floor_deg,
+        true_tilt_floor_deg: true_tilt_floor(log, &analysis),
+        raw_deg: report.raw_heading_error_check.map(|stats| stats.rms_deg),
+        methods,
+        best,
+    }
+}
+
+/// The `q`-quantile (0..1) of `values` (nearest rank).
+pub fn quantile(values: &[f64], q: f64) -> f64 {
+    let mut sorted: Vec<f64> = values.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    if sorted.is_empty() {
+        return f64::NAN;
+    }
+    let rank = ((q * sorted.len() as f64).ceil() as usize).clamp(1, sorted.len());
+    sorted[rank - 1]
+}
