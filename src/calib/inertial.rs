@@ -149,6 +149,15 @@ const MAX_CROSS_AXIS: f64 = 0.3;
 const MAX_ROTATION_RAD: f64 = 0.25;
 const MAX_DIP_OFF_PRIOR_DEG: f64 = 4.0 * INCLINATION_PRIOR_STD_DEG;
 
+/// Below this RMS tilt about the mean "down" (degrees), the band model is fitted (see
+/// `SampleSet::band_axis` and `FreeDirections::band`).
+const MIN_TILT_FOR_ROTATION_DEG: f64 = 3.0;
+
+/// Without an accelerometer, the band model is fitted when the samples lie within this
+/// many degrees of a plane (`atan(√3·σ₃ / √(σ₁² + σ₂²))` of their principal spreads: a
+/// level ring with noise gives 1-2°, a walk's sway 5-10°, a sphere about 50°).
+const MAX_LEVEL_BAND_DEG: f64 = 5.0;
+
 /// A sample whose final weight is below this counts as an outlier in the report.
 const OUTLIER_WEIGHT: f64 = 0.3;
 
@@ -373,12 +382,48 @@ pub fn fit_inertial(
             (SoftIronModel::Isotropic, solution.state)
         }
     };
-    let solution = solve(&fit_set, start, options, model).ok_or(InertialError::NoConvergence)?;
-    let mut fit = solution.report(&fit_set, mag_ut, options);
-    if model == SoftIronModel::Isotropic {
-        fit.model_reason = first_reason;
+    let mut solution =
+        solve(&fit_set, start, options, model).ok_or(InertialError::NoConvergence)?;
+    let reason = (model == SoftIronModel::Isotropic)
+        .then_some(first_reason)
+        .flatten();
+    // More samples can carry a full model further than the subset did, into a shape no
+    // material gives (weakly seen directions following a disturbance): then the
+    // subset's plausible solution stands, with the full set's weights and covariance.
+    if model == SoftIronModel::Full && implausibility(&solution.state, options).is_some() {
+        solution = settle(&fit_set, start, options, model).ok_or(InertialError::NoConvergence)?;
     }
+    let mut fit = solution.report(&fit_set, mag_ut, options);
+    fit.model_reason = reason;
     Ok(fit)
+}
+
+/// `state` as it is, with the weights and covariance of `set` (no step taken).
+fn settle(
+    set: &SampleSet,
+    state: State,
+    options: &InertialOptions,
+    model: SoftIronModel,
+) -> Option<Solution> {
+    let mut settled = None;
+    for reweighting in 0..N_REWEIGHTINGS {
+        let loss = if reweighting < 2 {
+            Loss::Huber
+        } else {
+            Loss::Cauchy
+        };
+        settled = Some(weights(set, &state, loss));
+    }
+    let weights = settled?;
+    let normal = normal_equations(set, &state, &weights, options, &state);
+    let covariance =
+        posterior_covariance(&normal, autocorrelation_inflation(set, &state, &weights));
+    Some(Solution {
+        state,
+        model,
+        weights,
+        covariance,
+    })
 }
 
 /// Why a full-model solution is not a magnetometer's distortion, if it is not: a shape
@@ -466,6 +511,44 @@ impl SampleSet {
         self.down_in_body
             .as_ref()
             .and_then(|down| down.get(idx).copied())
+    }
+
+    /// The axis of a band of data, when the samples form one: with the accelerometer,
+    /// the mean down when the tilt stays within [`MIN_TILT_FOR_ROTATION_DEG`] (RMS) of
+    /// it (a car in its mount, a level turn); without, the samples' own axis when they
+    /// lie within [`MAX_LEVEL_BAND_DEG`] of a plane (a level turn assumed level). On a
+    /// band, what only tilt shows of a 3D distortion (the band's lean and height, a
+    /// rotation about its axis) is decided by the accelerometer's own errors (what is
+    /// left of a car's accelerations, vibration, passing vehicles) more than by the
+    /// magnetometer: the band model is fitted instead ([`FreeDirections::band`]). A
+    /// hand's tilt while walking (3-10°) does show them.
+    fn band_axis(&self) -> Option<Vector3<f64>> {
+        match &self.down_in_body {
+            Some(down) => {
+                let mean_down = self.mean_down()?;
+                let mean_square = down
+                    .iter()
+                    .map(|u| u.cross(&mean_down).norm_squared())
+                    .sum::<f64>()
+                    / down.len().max(1) as f64;
+                (mean_square.sqrt().asin().to_degrees() < MIN_TILT_FOR_ROTATION_DEG)
+                    .then_some(mean_down)
+            }
+            None => {
+                let plane = principal_plane(&self.mag_ut)?;
+                let span_deg = (3f64.sqrt() * plane.spread_ut[2])
+                    .atan2(plane.spread_ut[0].hypot(plane.spread_ut[1]))
+                    .to_degrees();
+                // The field points down north of the magnetic equator: +z of a level
+                // device.
+                let normal = if plane.normal.z < 0.0 {
+                    -plane.normal
+                } else {
+                    plane.normal
+                };
+                (span_deg < MAX_LEVEL_BAND_DEG).then_some(normal)
+            }
+        }
     }
 
     /// The mean down direction (unit), if the dip is used.
@@ -1173,10 +1256,54 @@ fn solve(
             ..start
         },
     };
-    let mut state = start;
+    let model_directions = match (model, set.band_axis()) {
+        (SoftIronModel::Full, Some(axis)) => FreeDirections::band(axis),
+        (SoftIronModel::Full, None) => FreeDirections::all(),
+        (SoftIronModel::Isotropic, _) => FreeDirections::isotropic(),
+    };
+    // First every direction of the model; then only those the data see at the noise
+    // that fit leaves (judged before it, a start's misfit would pass for noise and hide
+    // what the data do see), the others back at the start's values, which come from
+    // the priors.
+    let (first, first_weights) = iterate(set, start, &start, options, &model_directions)?;
+    let normal = normal_equations(set, &first, &first_weights, options, &start);
+    let inflation = autocorrelation_inflation(set, &first, &first_weights);
+    let observed = observed_directions(&normal, inflation, model_directions.clone());
+    let (state, weights) = if observed.n_free < model_directions.n_free {
+        let restart = start.with_params(&observed.project(&start.params(), &first.params()));
+        iterate(set, restart, &start, options, &observed)?
+    } else {
+        (first, first_weights)
+    };
+    let det = state.correction.determinant();
+    if det.is_nan() || det <= 0.0 {
+        return None;
+    }
+    // The covariance at the end, with the final weights: the frozen directions keep
+    // their priors' uncertainty.
+    let normal = normal_equations(set, &state, &weights, options, &start);
+    let covariance =
+        posterior_covariance(&normal, autocorrelation_inflation(set, &state, &weights));
+    Some(Solution {
+        state,
+        model,
+        weights,
+        covariance,
+    })
+}
+
+/// Iteratively reweighted Levenberg-Marquardt from `from` along the `free` directions
+/// (the priors centred as for `start`): the state and the last weights.
+fn iterate(
+    set: &SampleSet,
+    from: State,
+    start: &State,
+    options: &InertialOptions,
+    free: &FreeDirections,
+) -> Option<(State, Weights)> {
+    let mut state = from;
     let mut lambda = 1e-3;
     let mut last = None;
-    let mut free: Option<FreeDirections> = None;
     for reweighting in 0..N_REWEIGHTINGS {
         let loss = if reweighting < 2 {
             Loss::Huber
@@ -1184,15 +1311,7 @@ fn solve(
             Loss::Cauchy
         };
         let weights = weights(set, &state, loss);
-        let mut normal = normal_equations(set, &state, &weights, options, &start);
-        let free = free.get_or_insert_with(|| {
-            let inflation = autocorrelation_inflation(set, &state, &weights);
-            let model_directions = match model {
-                SoftIronModel::Full => FreeDirections::all(),
-                SoftIronModel::Isotropic => FreeDirections::isotropic(),
-            };
-            observed_directions(&normal, inflation, model_directions)
-        });
+        let mut normal = normal_equations(set, &state, &weights, options, start);
         for _ in 0..MAX_LM_ITERATIONS {
             let mut damped = normal.jtj;
             for idx in 0..N_MAX {
@@ -1200,7 +1319,7 @@ fn solve(
             }
             let step = free.step(&damped, &normal.jtr)?;
             let trial = state.with_params(&(state.params() - step));
-            let trial_normal = normal_equations(set, &trial, &weights, options, &start);
+            let trial_normal = normal_equations(set, &trial, &weights, options, start);
             if trial_normal.cost.is_finite() && trial_normal.cost <= normal.cost {
                 let decrease = normal.cost - trial_normal.cost;
                 state = trial;
@@ -1216,42 +1335,94 @@ fn solve(
                 }
             }
         }
-        last = Some((weights, normal));
+        last = Some(weights);
     }
-    let det = state.correction.determinant();
-    if det.is_nan() || det <= 0.0 {
-        return None;
-    }
-    let (weights, _) = last?;
-    // The covariance at the end, with the final weights: the frozen directions keep
-    // their priors' uncertainty.
-    let normal = normal_equations(set, &state, &weights, options, &start);
-    let inflation = autocorrelation_inflation(set, &state, &weights);
-    let covariance = normal
-        .jtj
-        .try_inverse()
-        .map(|inverse| inverse * inflation)
-        .filter(|covariance| covariance.iter().all(|v| v.is_finite()));
-    Some(Solution {
-        state,
-        model,
-        weights,
-        covariance,
-    })
+    Some((state, last?))
 }
 
 /// The parameter directions the fit may move along: a basis of columns.
+#[derive(Clone)]
 struct FreeDirections {
     basis: SMatrix<f64, N_MAX, N_MAX>,
     n_free: usize,
 }
 
 impl FreeDirections {
+    /// `from` moved towards `to` along the free directions only: `from + B·α` with
+    /// `α` the least-squares coordinates of `to − from` in the basis `B`.
+    fn project(&self, from: &ParamVec, to: &ParamVec) -> ParamVec {
+        let basis = self.basis.columns(0, self.n_free);
+        let gram = basis.transpose() * basis;
+        let coordinates = gram
+            .cholesky()
+            .map(|cholesky| cholesky.solve(&(basis.transpose() * (to - from))));
+        match coordinates {
+            Some(coordinates) => from + basis * coordinates,
+            None => *from,
+        }
+    }
+
     fn all() -> FreeDirections {
         FreeDirections {
             basis: ParamMat::identity(),
             n_free: N_MAX,
         }
+    }
+
+    /// The band model, for a device that turns about `axis` (unit, body axes: the mean
+    /// down) with little tilt: the hard iron, the vertical field, and five directions
+    /// of `D`: its in-plane shape (the difference of the two in-plane gains, and their
+    /// cross term), one gain for all axes, and the leak of the in-plane field into the
+    /// corrected vertical. What the band hardly sees (the axis's own gain, the leak of
+    /// the axis into the plane, which a level turn cannot tell from hard iron, and a
+    /// rotation about the axis: an ellipsoid through a flat ring can stretch, lean and
+    /// turn almost freely) stays at the start's, which takes it from the priors, and the
+    /// covariance reports the priors' uncertainty there.
+    fn band(axis: Vector3<f64>) -> FreeDirections {
+        let helper = if axis.x.abs() < 0.9 {
+            Vector3::x()
+        } else {
+            Vector3::y()
+        };
+        let first = axis.cross(&helper).normalize();
+        let second = axis.cross(&first);
+        let as_params = |matrix: Matrix3<f64>| {
+            let mut params = ParamVec::zeros();
+            for row in 0..3 {
+                for col in 0..3 {
+                    params[D0 + 3 * row + col] = matrix[(row, col)];
+                }
+            }
+            params.normalize()
+        };
+        let mut free = FreeDirections {
+            basis: ParamMat::zeros(),
+            n_free: 0,
+        };
+        let mut add = |vector: ParamVec| {
+            free.basis.set_column(free.n_free, &vector);
+            free.n_free += 1;
+        };
+        for axis_idx in 0..3 {
+            let mut unit = ParamVec::zeros();
+            unit[H + axis_idx] = 1.0;
+            add(unit);
+        }
+        let mut vertical = ParamVec::zeros();
+        vertical[V] = 1.0;
+        add(vertical);
+        add(as_params(
+            first * first.transpose() - second * second.transpose(),
+        ));
+        add(as_params(
+            first * second.transpose() + second * first.transpose(),
+        ));
+        add(as_params(Matrix3::identity()));
+        // How the in-plane field leaks into the corrected vertical: a level turn sees
+        // it (the vertical must not swing with the heading).
+        add(as_params(axis * first.transpose()));
+        add(as_params(axis * second.transpose()));
+        free
     }
 
     /// The hard iron, one scale for every axis, and the vertical field.
@@ -1318,6 +1489,15 @@ fn observed_directions(normal: &Normal, inflation: f64, model: FreeDirections) -
     free
 }
 
+/// The posterior covariance `(J_dᵀWJ_d / inflation + P)⁻¹`: the data's information
+/// counted for its correlated samples, the priors' as they are.
+fn posterior_covariance(normal: &Normal, inflation: f64) -> Option<ParamMat> {
+    let data = normal.jtj - normal.prior_information;
+    (data / inflation.max(1.0) + normal.prior_information)
+        .try_inverse()
+        .filter(|covariance| covariance.iter().all(|v| v.is_finite()))
+}
+
 /// `(1 + ρ) / (1 − ρ)` for the lag-one autocorrelation `ρ` of the residuals in sample
 /// order (the larger of the two kinds, weighted): neighbouring samples share their tilt error and
 /// their disturbance, so they count for less than independent ones.
@@ -1359,6 +1539,12 @@ fn starts(set: &SampleSet, options: &InertialOptions) -> Vec<State> {
     let mut starts = Vec::new();
     let target_field = options.field.map(|prior| prior.total_ut);
     let with_vertical = |state: State| finish_start(set, state, target_field);
+    let band = band_starts(set, options);
+    // On a band, only the band starts: a 3D start there holds what the band cannot see
+    // at whatever values the noise gave it, and the band model would keep them.
+    if set.band_axis().is_some() && !band.is_empty() {
+        return band.into_iter().map(with_vertical).collect();
+    }
     let mut accumulator = EllipsoidAccumulator::new();
     accumulator.add_all(&set.mag_ut);
     if let Ok(fit) = accumulator.solve(EllipsoidModel::Full, None) {
@@ -1370,7 +1556,7 @@ fn starts(set: &SampleSet, options: &InertialOptions) -> Vec<State> {
             field_ut: calibration.field_ut,
         }));
     }
-    starts.extend(band_starts(set, options).into_iter().map(with_vertical));
+    starts.extend(band.into_iter().map(with_vertical));
     if let Some((centre_ut, radius_ut)) = kasa_sphere(&set.mag_ut) {
         starts.push(with_vertical(State {
             hard_iron_ut: centre_ut,
@@ -1380,6 +1566,38 @@ fn starts(set: &SampleSet, options: &InertialOptions) -> Vec<State> {
         }));
     }
     starts
+}
+
+/// The samples' principal plane (the two axes of largest spread): its normal.
+struct PrincipalPlane {
+    mean_ut: Vector3<f64>,
+    normal: Vector3<f64>,
+    /// Standard deviations along first, second and normal (µT).
+    spread_ut: [f64; 3],
+}
+
+fn principal_plane(mag_ut: &[Vector3<f64>]) -> Option<PrincipalPlane> {
+    let n = mag_ut.len() as f64;
+    if mag_ut.is_empty() {
+        return None;
+    }
+    let mean_ut: Vector3<f64> = mag_ut.iter().sum::<Vector3<f64>>() / n;
+    let covariance = mag_ut
+        .iter()
+        .map(|m| (m - mean_ut) * (m - mean_ut).transpose())
+        .sum::<Matrix3<f64>>()
+        / n;
+    let eigen = SymmetricEigen::new(covariance);
+    let mut order = [0usize, 1, 2];
+    order.sort_by(|&a, &b| eigen.eigenvalues[b].total_cmp(&eigen.eigenvalues[a]));
+    let axis = |idx: usize| eigen.eigenvectors.column(order[idx]).into_owned();
+    let (first, second) = (axis(0), axis(1));
+    let spread = |idx: usize| eigen.eigenvalues[order[idx]].max(0.0).sqrt();
+    Some(PrincipalPlane {
+        mean_ut,
+        normal: first.cross(&second),
+        spread_ut: [spread(0), spread(1), spread(2)],
+    })
 }
 
 /// Scales a start to the target field and sets its vertical field to the samples'
@@ -1414,30 +1632,35 @@ fn finish_start(set: &SampleSet, state: State, target_field_ut: Option<f64>) -> 
 /// ellipse fit in it, the same scale across it, and the vertical hard iron from the
 /// dip (the prior's, or a few guesses without one).
 fn band_starts(set: &SampleSet, options: &InertialOptions) -> Vec<State> {
-    let n = set.mag_ut.len() as f64;
-    let mean_ut: Vector3<f64> = set.mag_ut.iter().sum::<Vector3<f64>>() / n;
-    let covariance = set
-        .mag_ut
-        .iter()
-        .map(|m| (m - mean_ut) * (m - mean_ut).transpose())
-        .sum::<Matrix3<f64>>()
-        / n;
-    let eigen = SymmetricEigen::new(covariance);
-    let mut order = [0usize, 1, 2];
-    order.sort_by(|&a, &b| eigen.eigenvalues[b].total_cmp(&eigen.eigenvalues[a]));
-    let axis = |idx: usize| eigen.eigenvectors.column(order[idx]).into_owned();
-    let (first, second) = (axis(0), axis(1));
-    let mut normal = first.cross(&second);
-    // Without the accelerometer, the band's own axis is taken as the vertical (a level
-    // turn; the field points down north of the magnetic equator).
-    let mean_down = set.mean_down().unwrap_or(normal);
-    if normal.dot(&mean_down) < 0.0 {
-        normal = -normal;
-    }
+    let Some(principal) = principal_plane(&set.mag_ut) else {
+        return Vec::new();
+    };
+    let mean_ut = principal.mean_ut;
+    // The band's axis: the mean down on a band (so that the start is already of the
+    // band model), else the samples' own normal; without the accelerometer the normal
+    // is taken as the vertical (a level turn; the field points down north of the
+    // magnetic equator).
+    let (normal, mean_down) = match (set.band_axis(), set.mean_down()) {
+        (Some(axis), _) => (axis, axis),
+        (None, Some(mean_down)) => (principal.normal, mean_down),
+        (None, None) => (principal.normal, principal.normal),
+    };
+    let normal = if normal.dot(&mean_down) < 0.0 {
+        -normal
+    } else {
+        normal
+    };
     let cos_normal_down = normal.dot(&mean_down);
     if cos_normal_down < BAND_AXIS_MIN_COS {
         return Vec::new();
     }
+    let helper = if normal.x.abs() < 0.9 {
+        Vector3::x()
+    } else {
+        Vector3::y()
+    };
+    let first = normal.cross(&helper).normalize();
+    let second = normal.cross(&first);
     let projected: Vec<Vector2<f64>> = set
         .mag_ut
         .iter()

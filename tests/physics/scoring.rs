@@ -11,6 +11,7 @@ use compass_pdr::angle::heading_difference_rad;
 use compass_pdr::calib::heading::heading_rad;
 use compass_pdr::calib::model::FieldCalibration;
 use compass_pdr::calibration::{calibrate, CalibrationAnalysis, CalibrationOptions};
+use compass_pdr::deviation::{compare, HeadingOptions};
 use compass_pdr::io::import::import;
 use compass_pdr::stats::HeadingErrorStats;
 
@@ -28,8 +29,12 @@ pub struct Scores {
     pub raw_deg: Option<f64>,
     /// Each fitted method's check RMS, by its key, and the error of those that failed.
     pub methods: Vec<(String, Option<f64>, Option<String>)>,
-    /// The method the crate chose, and its check RMS.
+    /// The field calibration the crate chose, and its check RMS.
     pub best: Option<(String, f64)>,
+    /// The heading method the crate chose over every row of the heading comparison
+    /// (field calibrations, with the Fourier model on top, uncalibrated), and its check
+    /// RMS: what a user gets.
+    pub heading: Option<(String, f64)>,
 }
 
 impl Scores {
@@ -40,9 +45,16 @@ impl Scores {
             .and_then(|(_, rms, _)| *rms)
     }
 
-    /// The chosen method's check RMS over the floor.
+    /// The chosen field calibration's check RMS over the floor.
     pub fn best_over_floor(&self) -> f64 {
         self.best
+            .as_ref()
+            .map_or(f64::INFINITY, |(_, rms)| rms / self.floor_deg)
+    }
+
+    /// The chosen heading method's check RMS over the floor.
+    pub fn heading_over_floor(&self) -> f64 {
+        self.heading
             .as_ref()
             .map_or(f64::INFINITY, |(_, rms)| rms / self.floor_deg)
     }
@@ -137,6 +149,18 @@ pub fn score(log: &GeneratedLog, options: &CalibrationOptions) -> Scores {
         let rms = report.method(best)?.heading_error_check?.rms_deg;
         Some((best.key().to_string(), rms))
     });
+    let headings = compare(
+        &analysis,
+        &HeadingOptions {
+            calibration: options.clone(),
+            neural: false,
+            ..HeadingOptions::default()
+        },
+    );
+    let heading = headings.report.best.as_ref().and_then(|key| {
+        let row = headings.report.rows.iter().find(|row| &row.key == key)?;
+        Some((key.clone(), row.check?.rms_deg))
+    });
     Scores {
         name: log.name.clone(),
         floor_deg,
@@ -144,6 +168,7 @@ pub fn score(log: &GeneratedLog, options: &CalibrationOptions) -> Scores {
         raw_deg: report.raw_heading_error_check.map(|stats| stats.rms_deg),
         methods,
         best,
+        heading,
     }
 }
 
