@@ -40,10 +40,10 @@ const PAIR_WINDOW_S: f64 = 1.0;
 /// a turn and is left out.
 const MAX_BIN_SPREAD_RAD: f64 = 0.17;
 /// A bin is in a turn when the gyro heading spans more than this (degrees, peak to
-/// peak) over it and [`TURN_MARGIN_S`] either side: a walker's yaw sway spans 2-4°, a
-/// car's gentlest turn 10° a second.
-const MAX_BIN_TURN_DEG: f64 = 8.0;
-const TURN_MARGIN_S: f64 = 1.0;
+/// peak) over it and [`TURN_MARGIN_S`] either side: a walker's yaw sway and a hand's
+/// wander span a few degrees, a car's turn or a walker's corner 20° and more.
+const MAX_BIN_TURN_DEG: f64 = 15.0;
+const TURN_MARGIN_S: f64 = 0.5;
 /// Online updates are spaced by at least this (s): a 50 Hz compass against a 1 Hz GPS
 /// course adds nothing faster.
 const ONLINE_UPDATE_SPACING_S: f64 = 0.2;
