@@ -27,7 +27,7 @@ use crate::calib::inertial::{fit_inertial, FieldPrior, InertialFit, InertialOpti
 use crate::calib::minmax::MinMaxCalibration;
 use crate::calib::model::FieldCalibration;
 use crate::calib::plane::{fit_plane, PlaneFit, PlaneOptions};
-use crate::calib::refls::{fit_reference_ls, RefLsFit, RefLsOptions};
+use crate::calib::refls::{fit_reference_ls, PartialPrior, RefLsFit, RefLsOptions};
 use crate::calib::sphere_coverage::sphere_coverage;
 use crate::calib::tilt::Tilt;
 use crate::calib::wmm::{date_of_unix_s, expected_field, ExpectedField};
@@ -593,13 +593,68 @@ pub fn calibrate(
                         train.then_some((level, reference?))
                     })
                     .unzip();
+                let coverage = crate::calib::minmax::Coverage::of_headings(
+                    pairs.1.iter().map(|reference| reference.to_degrees()),
+                );
+                let refls_options = RefLsOptions {
+                    declination_rad: Some(declination_rad),
+                    ..RefLsOptions::default()
+                };
+                // References over a few headings only: Eq. 8 on top of the best 3D
+                // calibration so far (by its train error), its parameters held near the
+                // identity where the headings cannot see them.
+                let base = (coverage.largest_gap_deg > refls_options.max_heading_gap_deg)
+                    .then(|| {
+                        method_reports
+                            .iter()
+                            .filter_map(|report: &MethodReport| {
+                                let calibration = crate::selection::field_calibration_of(report)?;
+                                Some((
+                                    report.method,
+                                    calibration,
+                                    report.heading_error_train?.rms_deg,
+                                ))
+                            })
+                            .min_by(|a, b| a.2.total_cmp(&b.2))
+                    })
+                    .flatten();
                 if pairs.0.is_empty() {
                     Err("needs a reference heading (a ref_heading_deg column, or GPS course while moving)".to_string())
-                } else {
-                    let refls_options = RefLsOptions {
-                        declination_rad: Some(declination_rad),
-                        ..RefLsOptions::default()
+                } else if let Some((base_method, calibration, _)) = base {
+                    let level_base_ut: Vec<Vector2<f64>> = samples
+                        .mag_ut
+                        .iter()
+                        .zip(&samples.tilt)
+                        .map(|(&mag, tilt)| tilt.level(calibration.apply(mag)))
+                        .collect();
+                    let base_pairs: Vec<Vector2<f64>> = level_base_ut
+                        .iter()
+                        .zip(&ref_heading_rad)
+                        .zip(&is_fit)
+                        .filter_map(|((&level, reference), &fit)| {
+                            (fit && reference.is_some()).then_some(level)
+                        })
+                        .collect();
+                    let partial_options = RefLsOptions {
+                        prior: Some(PartialPrior::default()),
+                        ..refls_options
                     };
+                    fit_reference_ls(&base_pairs, &pairs.1, &partial_options)
+                        .map_err(|error| error.to_string())
+                        .map(|fit| {
+                            notes.push(format!(
+                                "reference LS: the reference headings cover too little of the circle for Eq. 8 alone \
+                                 (none between {:.0}° and {:.0}°), so it was fitted on top of the {} calibration, held \
+                                 near it where those headings cannot see",
+                                coverage.largest_gap_start_deg,
+                                (coverage.largest_gap_start_deg + coverage.largest_gap_deg).rem_euclid(360.0),
+                                base_method.label()
+                            ));
+                            let headings: Vec<f64> =
+                                level_base_ut.iter().map(|&level| fit.heading_rad(level)).collect();
+                            (MethodParameters::RefLs(fit), headings)
+                        })
+                } else {
                     fit_reference_ls(&pairs.0, &pairs.1, &refls_options)
                         .map_err(|error| error.to_string())
                         .map(|fit| {

@@ -138,8 +138,14 @@ pub struct RefLsOptions {
     /// reference headings are from true north and it is known; `None` estimates a
     /// constant heading offset instead (see the module header).
     pub declination_rad: Option<f64>,
-    /// The widest arc of reference heading without samples that the fit accepts.
+    /// The widest arc of reference heading without samples that the full fit accepts.
+    /// Beyond it, the fit is refused without a `prior`, and made with one.
     pub max_heading_gap_deg: f64,
+    /// For references over a few headings only: the fit starts from the identity (the
+    /// levelled field is then that of a calibration already made) and each parameter
+    /// is held near it by a prior, so that the headings fix what they can see and the
+    /// rest stays put. See [`PartialPrior`].
+    pub prior: Option<PartialPrior>,
 }
 
 impl Default for RefLsOptions {
@@ -147,6 +153,30 @@ impl Default for RefLsOptions {
         RefLsOptions {
             declination_rad: None,
             max_heading_gap_deg: 90.0,
+            prior: None,
+        }
+    }
+}
+
+/// The priors of a partial-coverage fit, about the identity (`Sx = Sy = 1`, `B = 0`)
+/// and the declination.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct PartialPrior {
+    /// Of `ln Sx` (a fraction of scale).
+    pub log_scale_std: f64,
+    /// Of each bias, as a fraction of the horizontal field.
+    pub bias_std_of_field: f64,
+    /// Of the heading offset about the declination (rad): it takes the misalignment
+    /// between device and direction of travel, which few headings see best of all.
+    pub offset_std_rad: f64,
+}
+
+impl Default for PartialPrior {
+    fn default() -> Self {
+        PartialPrior {
+            log_scale_std: 0.05,
+            bias_std_of_field: 0.05,
+            offset_std_rad: 10f64.to_radians(),
         }
     }
 }
@@ -168,6 +198,9 @@ pub struct RefLsFit {
     /// Coverage of the reference headings.
     pub coverage: Coverage,
     pub n_samples: usize,
+    /// Whether the references covered too little of the circle for the full fit, so
+    /// that the priors of [`RefLsOptions::prior`] held what they could not see.
+    pub partial: bool,
 }
 
 impl RefLsFit {
@@ -235,16 +268,21 @@ pub fn fit_reference_ls(
     }
     let coverage =
         Coverage::of_headings(ref_heading_rad.iter().map(|heading| heading.to_degrees()));
-    if coverage.largest_gap_deg > options.max_heading_gap_deg {
-        return Err(RefLsError::NoTurn {
-            gap_from_deg: coverage.largest_gap_start_deg,
-            gap_to_deg: (coverage.largest_gap_start_deg + coverage.largest_gap_deg)
-                .rem_euclid(360.0),
-        });
-    }
-
-    let start = two_step_start(level_ut, ref_heading_rad, options.declination_rad)?;
-    let (params, report) = refine(level_ut, ref_heading_rad, options.declination_rad, start);
+    let partial = coverage.largest_gap_deg > options.max_heading_gap_deg;
+    let (params, report) = match (partial, options.prior) {
+        (true, None) => {
+            return Err(RefLsError::NoTurn {
+                gap_from_deg: coverage.largest_gap_start_deg,
+                gap_to_deg: (coverage.largest_gap_start_deg + coverage.largest_gap_deg)
+                    .rem_euclid(360.0),
+            })
+        }
+        (true, Some(prior)) => refine_partial(level_ut, ref_heading_rad, options, prior),
+        (false, _) => {
+            let start = two_step_start(level_ut, ref_heading_rad, options.declination_rad)?;
+            refine(level_ut, ref_heading_rad, options.declination_rad, start)
+        }
+    };
     if !(report.termination.was_successful()
         || report.termination == levenberg_marquardt::TerminationReason::LostPatience)
     {
@@ -264,11 +302,12 @@ pub fn fit_reference_ls(
         bias_x_ut: params.bias_ut.x,
         bias_y_ut: params.bias_ut.y,
         heading_offset_rad: params.offset_rad,
-        heading_offset_estimated: options.declination_rad.is_none(),
+        heading_offset_estimated: options.declination_rad.is_none() || partial,
         horizontal_field_ut: 0.0,
         residual_rms_deg: 0.0,
         coverage,
         n_samples: level_ut.len(),
+        partial,
     };
     let n_samples = level_ut.len() as f64;
     fit.horizontal_field_ut = level_ut
@@ -524,6 +563,7 @@ fn refine(
             ..start
         },
         estimate_offset: declination_rad.is_none(),
+        priors: None,
     };
     let (problem, report) = LevenbergMarquardt::new().minimize(problem);
     let mut params = problem.params;
@@ -531,11 +571,68 @@ fn refine(
     (params, report)
 }
 
+/// A partial-coverage fit: from the identity and the declination (or no offset), the
+/// heading residuals with one prior row per parameter, `σ_ψ·(θ − θ₀)/σ_θ` (the heading
+/// rows are in radians; `σ_ψ`, their RMS at the start, puts the priors on their scale:
+/// the whole is the posterior's negative log, up to σ_ψ²). The offset is estimated.
+fn refine_partial(
+    level_ut: &[Vector2<f64>],
+    ref_heading_rad: &[f64],
+    options: &RefLsOptions,
+    prior: PartialPrior,
+) -> (Params, levenberg_marquardt::MinimizationReport<f64>) {
+    let start = Params {
+        log_scale_x: 0.0,
+        bias_ut: Vector2::zeros(),
+        offset_rad: options.declination_rad.unwrap_or(0.0),
+    };
+    let n = level_ut.len().max(1) as f64;
+    let heading_rms_rad = (level_ut
+        .iter()
+        .zip(ref_heading_rad)
+        .map(|(level, &reference)| wrap_to_pi(start.heading_rad(level) - reference).powi(2))
+        .sum::<f64>()
+        / n)
+        .sqrt()
+        .max(1e-3);
+    let field_ut = level_ut.iter().map(|level| level.norm()).sum::<f64>() / n;
+    let priors = Priors {
+        centre: start,
+        weight_log_scale: heading_rms_rad / prior.log_scale_std,
+        weight_bias: heading_rms_rad / (prior.bias_std_of_field * field_ut).max(1e-9),
+        weight_offset: heading_rms_rad / prior.offset_std_rad,
+    };
+    let problem = HeadingProblem {
+        level_ut,
+        ref_heading_rad,
+        params: start,
+        estimate_offset: true,
+        priors: Some(priors),
+    };
+    let (problem, report) = LevenbergMarquardt::new().minimize(problem);
+    let mut params = problem.params;
+    params.offset_rad = wrap_to_pi(params.offset_rad);
+    (params, report)
+}
+
+/// Prior rows of [`refine_partial`]: each parameter's distance from its centre, times
+/// its weight.
+#[derive(Debug, Clone, Copy)]
+struct Priors {
+    centre: Params,
+    weight_log_scale: f64,
+    weight_bias: f64,
+    weight_offset: f64,
+}
+
+const N_PRIOR_ROWS: usize = 4;
+
 struct HeadingProblem<'a> {
     level_ut: &'a [Vector2<f64>],
     ref_heading_rad: &'a [f64],
     params: Params,
     estimate_offset: bool,
+    priors: Option<Priors>,
 }
 
 impl LeastSquaresProblem<f64, Dyn, Dyn> for HeadingProblem<'_> {
@@ -565,19 +662,41 @@ impl LeastSquaresProblem<f64, Dyn, Dyn> for HeadingProblem<'_> {
     }
 
     fn residuals(&self) -> Option<DVector<f64>> {
+        let headings = self
+            .level_ut
+            .iter()
+            .zip(self.ref_heading_rad)
+            .map(|(level, &reference)| wrap_to_pi(self.params.heading_rad(level) - reference));
+        let prior_rows = self.priors.map(|priors| {
+            let (params, centre) = (&self.params, &priors.centre);
+            [
+                priors.weight_log_scale * (params.log_scale_x - centre.log_scale_x),
+                priors.weight_bias * (params.bias_ut.x - centre.bias_ut.x),
+                priors.weight_bias * (params.bias_ut.y - centre.bias_ut.y),
+                priors.weight_offset * wrap_to_pi(params.offset_rad - centre.offset_rad),
+            ]
+        });
+        let n_rows = self.level_ut.len() + prior_rows.map_or(0, |rows| rows.len());
         Some(DVector::from_iterator(
-            self.level_ut.len(),
-            self.level_ut
-                .iter()
-                .zip(self.ref_heading_rad)
-                .map(|(level, &reference)| wrap_to_pi(self.params.heading_rad(level) - reference)),
+            n_rows,
+            headings.chain(prior_rows.into_iter().flatten()),
         ))
     }
 
     fn jacobian(&self) -> Option<DMatrix<f64>> {
         let n_params = if self.estimate_offset { 4 } else { 3 };
         let (scale_x, scale_y) = (self.params.scale_x(), self.params.scale_y());
-        let mut jacobian = DMatrix::zeros(self.level_ut.len(), n_params);
+        let n_rows = self.level_ut.len() + self.priors.map_or(0, |_| N_PRIOR_ROWS);
+        let mut jacobian = DMatrix::zeros(n_rows, n_params);
+        if let Some(priors) = self.priors {
+            let first = self.level_ut.len();
+            jacobian[(first, 0)] = priors.weight_log_scale;
+            jacobian[(first + 1, 1)] = priors.weight_bias;
+            jacobian[(first + 2, 2)] = priors.weight_bias;
+            if self.estimate_offset {
+                jacobian[(first + 3, 3)] = priors.weight_offset;
+            }
+        }
         for (sample_idx, level) in self.level_ut.iter().enumerate() {
             // ψ = atan2(−Y', X'): ∂ψ/∂X' = Y'/r², ∂ψ/∂Y' = −X'/r²; at the origin the
             // heading has no derivative.
@@ -774,6 +893,56 @@ mod tests {
         assert!(n_identity_failures > 0);
     }
 
+    /// Three headings 90° apart (half the circle empty), a small residual distortion and
+    /// an offset: with the prior, the fit takes out what those headings show and leaves
+    /// the rest near the identity.
+    #[test]
+    fn three_headings_fit_what_they_show_and_keep_the_rest_near_the_identity() {
+        let truth = Truth {
+            scale: Vector2::new(1.02, 1.0 / 1.02),
+            bias_ut: Vector2::new(0.6, -0.4),
+            declination_rad: 3f64.to_radians(),
+        };
+        let mut rng = SplitMix64::new(4);
+        let (level_ut, reference): (Vec<Vector2<f64>>, Vec<f64>) = (0..400)
+            .map(|idx| {
+                let true_heading_rad = 0.3 + std::f64::consts::FRAC_PI_2 * (idx % 3) as f64;
+                let magnetic_rad = true_heading_rad - truth.declination_rad;
+                let corrected =
+                    Vector2::new(magnetic_rad.cos(), -magnetic_rad.sin()) * HORIZONTAL_FIELD_UT;
+                let level = (corrected - truth.bias_ut).component_div(&truth.scale);
+                (level, true_heading_rad + rng.gaussian() * 2f64.to_radians())
+            })
+            .unzip();
+        let options = RefLsOptions {
+            declination_rad: Some(0.0),
+            ..RefLsOptions::default()
+        };
+        assert!(matches!(
+            fit_reference_ls(&level_ut, &reference, &options),
+            Err(RefLsError::NoTurn { .. })
+        ));
+        let fit = fit_reference_ls(
+            &level_ut,
+            &reference,
+            &RefLsOptions {
+                prior: Some(PartialPrior::default()),
+                ..options
+            },
+        )
+        .expect("fits with the prior");
+        assert!(fit.partial);
+        let errors_deg: Vec<f64> = level_ut
+            .iter()
+            .zip(&reference)
+            .map(|(&level, &reference)| wrap_to_pi(fit.heading_rad(level) - reference).to_degrees())
+            .collect();
+        let mean_deg = errors_deg.iter().sum::<f64>() / errors_deg.len() as f64;
+        // Before: the declination's 3° and the bias's ±1.9° at these headings.
+        assert!(mean_deg.abs() < 0.3, "{mean_deg}° {fit:?}");
+        assert!((fit.scale_x - 1.0).abs() < 0.1, "{fit:?}");
+    }
+
     #[test]
     fn degenerate_inputs_are_errors_not_panics() {
         let truth = hard_iron_truth();
@@ -865,6 +1034,7 @@ mod tests {
                 let options = RefLsOptions {
                     declination_rad,
                     max_heading_gap_deg: 360.0,
+                    prior: None,
                 };
                 if let Ok(fit) = fit_reference_ls(&level_ut, &reference, &options) {
                     assert!(fit.residual_rms_deg.is_finite());
@@ -898,10 +1068,26 @@ mod tests {
                 offset_rad: -0.1,
             },
             estimate_offset: true,
+            priors: None,
         };
         let numerical = differentiate_numerically(&mut problem).expect("finite");
         let analytic = problem.jacobian().expect("finite");
         let worst = (numerical - &analytic).abs().max();
         assert!(worst < 1e-6, "worst difference {worst}");
+        // With the partial fit's prior rows too.
+        problem.priors = Some(Priors {
+            centre: Params {
+                log_scale_x: 0.0,
+                bias_ut: Vector2::zeros(),
+                offset_rad: 0.05,
+            },
+            weight_log_scale: 0.7,
+            weight_bias: 0.02,
+            weight_offset: 0.3,
+        });
+        let numerical = differentiate_numerically(&mut problem).expect("finite");
+        let analytic = problem.jacobian().expect("finite");
+        let worst = (numerical - &analytic).abs().max();
+        assert!(worst < 1e-6, "worst difference with priors {worst}");
     }
 }
