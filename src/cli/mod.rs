@@ -743,7 +743,14 @@ fn run_calibrate(
         }
         if let Some(path) = outputs.export_packet {
             // MotionCal's floats are µT by definition: the raw axes, in µT.
-            std::fs::write(path, motioncal_packet(&export.calibration.in_ut()))
+            let Some(in_ut) = export.calibration.in_ut() else {
+                return Err(format!(
+                    "no MotionCal packet: its floats are µT, but the magnetometer's raw values \
+                     are in {}; export the JSON or the C snippet, which are in the raw values' unit",
+                    frame.unit.label()
+                ));
+            };
+            std::fs::write(path, motioncal_packet(&in_ut))
                 .map_err(|error| format!("cannot write {}: {error}", path.display()))?;
             written.push(format!(
                 "MotionCal packet written to {}: in µT along {}",

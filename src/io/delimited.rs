@@ -2130,10 +2130,10 @@ fn mag_unit_of_scale(scale: f64) -> MagUnit {
         MagUnit::TESLA,
     ]
     .into_iter()
-    .find(|unit| unit.ut_per_unit == scale)
+    .find(|unit| unit.ut_per_unit == Some(scale))
     .unwrap_or(MagUnit {
         name: "the log's unit",
-        ut_per_unit: scale,
+        ut_per_unit: Some(scale),
         origin: crate::io::UnitOrigin::Stated,
     })
 }

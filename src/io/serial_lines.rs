@@ -119,7 +119,7 @@ const STANDARD_GRAVITY_MPS2: f64 = 9.80665;
 /// MotionCal's scale factors (`imuread.h`).
 const MOTIONCAL_G_PER_COUNT: f64 = 1.0 / 8192.0;
 const MOTIONCAL_DPS_PER_COUNT: f64 = 1.0 / 16.0;
-const MOTIONCAL_UT_PER_COUNT: f64 = MagUnit::MOTIONCAL_COUNT.ut_per_unit;
+use super::frame::MOTIONCAL_UT_PER_COUNT;
 /// The widest common gyroscope range, 2000 °/s, in rad/s.
 const MAX_PLAUSIBLE_RATE_RADPS: f64 = 35.0;
 
@@ -1372,7 +1372,7 @@ fn set_vector(sample: &mut SensorSample, quantity: Quantity, v: Vector3<f64>, un
             sample.mag_unit = match unit {
                 Some(unit) => MagUnit {
                     name: unit.name,
-                    ut_per_unit: unit.to_si,
+                    ut_per_unit: Some(unit.to_si),
                     origin: UnitOrigin::Stated,
                 },
                 None => MagUnit::assumed_microtesla(),
