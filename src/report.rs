@@ -168,8 +168,8 @@ pub fn device_calibration_lines(analysis: &CalibrationAnalysis) -> Vec<String> {
             in_ut.field_ut
         )),
         (None, _) => lines.push(format!(
-            "The log gives no µT per {unit}, so the calibration, its field strength and the fits \
-             are in {unit}, and there is no MotionCal packet (its floats are µT)"
+            "The log gives no µT per unit for its {unit}, so the calibration, its field strength \
+             and the fits are in {unit}, and there is no MotionCal packet (its floats are µT)"
         )),
         _ => {}
     }

@@ -334,7 +334,7 @@ pub fn c_snippet(cal: &SensorCalibration) -> String {
             format!("float mag_ut_per_unit = {};\n", c_float(ut_per_unit)),
         ),
         None => (
-            format!("the uT per {unit} is unknown, so there is no mag_ut_per_unit"),
+            format!("the uT per unit ({unit}) is unknown, so there is no mag_ut_per_unit"),
             String::new(),
         ),
     };

@@ -34,6 +34,13 @@ pub enum UnitOrigin {
     Assumed,
 }
 
+/// The median magnitudes of magnetometer values without a unit that are taken as raw
+/// counts: from 1000, above any µT reading (the Earth's 25-65 µT, a phone's hard iron
+/// several hundred µT), to 20,000, below the Earth's field in nT (25,000-65,000 nT). A
+/// QMC5883L at ±8 G gives 3000 counts per gauss, so the Earth's field reads 750-2000
+/// counts, and hard iron adds thousands.
+pub const RAW_COUNT_MAGNITUDES: std::ops::Range<f64> = 1_000.0..20_000.0;
+
 /// MotionCal's `Raw:` magnetometer count in µT (`imuread.h`: `UT_PER_COUNT`).
 pub const MOTIONCAL_UT_PER_COUNT: f64 = 0.1;
 
