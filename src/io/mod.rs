@@ -131,6 +131,17 @@ pub enum ImportError {
     NoHeader { file_name: String },
 
     #[error(
+        "{file_name} has no header line: line {line} is already {n_columns} numbers. Say \
+         which column is which: in the page's column dialog, or with --map, for example \
+         --map 'column 1=t_s,column 2=mag_x_ut,column 3=mag_y_ut,column 4=mag_z_ut'."
+    )]
+    NoHeaderLine {
+        file_name: String,
+        line: usize,
+        n_columns: usize,
+    },
+
+    #[error(
         "{file_name}, line {line}: the header names no column this tool knows \
          (found: {found}). Use the canonical names, such as t_s, acc_x_mps2, \
          mag_x_ut, mag_y_ut, mag_z_ut, ref_heading_deg."
