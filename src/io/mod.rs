@@ -12,6 +12,7 @@ pub mod import;
 pub mod lines;
 pub mod nmea;
 pub mod number;
+pub mod sensor_files;
 pub mod serial_lines;
 pub mod summary;
 pub mod tagged_lines;
