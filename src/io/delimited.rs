@@ -1012,14 +1012,24 @@ fn setting_of(text: &str, mapping: Option<&ColumnMapping>) -> Option<Setting> {
     })
 }
 
-/// Whether a line is only numbers (and so no header): every field, split as a header
-/// would be, is a number.
+/// Whether a line is only numbers (and so no header).
 fn is_number_line(text: &str) -> bool {
-    let fields = split_fields(text, delimiter_of(text));
-    !fields.is_empty()
-        && fields
-            .iter()
-            .all(|field| parse_f64(field.trim().trim_matches('"').trim()).is_some())
+    number_line_delimiter(text).is_some()
+}
+
+/// How a line of only numbers splits into them: as a header would, else on white space
+/// (`0.5  20.1\t-40` mixes spaces and a tab); `None` when it is not only numbers.
+fn number_line_delimiter(text: &str) -> Option<char> {
+    let all_numbers = |delimiter: char| {
+        let fields = split_fields(text, delimiter);
+        !fields.is_empty()
+            && fields
+                .iter()
+                .all(|field| parse_f64(field.trim().trim_matches('"').trim()).is_some())
+    };
+    [delimiter_of(text), WHITESPACE]
+        .into_iter()
+        .find(|&delimiter| all_numbers(delimiter))
 }
 
 /// What the x, y, z columns of a phone app's per-sensor file hold, told from its file
@@ -2131,8 +2141,7 @@ impl Header {
         mapping: Option<&ColumnMapping>,
         xyz_columns: Option<XyzColumns>,
     ) -> Header {
-        let delimiter = delimiter_of(text);
-        if is_number_line(text) {
+        if let Some(delimiter) = number_line_delimiter(text) {
             let n_columns = split_fields(text, delimiter).len();
             let names = (1..=n_columns).map(|idx| format!("column {idx}")).collect();
             Header {
@@ -2140,6 +2149,7 @@ impl Header {
                 ..Header::of_names(line, delimiter, names, mapping, None)
             }
         } else {
+            let delimiter = delimiter_of(text);
             let names = split_fields(text, delimiter)
                 .into_iter()
                 .map(|name| name.trim().trim_matches('"').trim().to_string())
