@@ -530,10 +530,10 @@ impl SensorFileReader {
                 kind: LoggerFile::Metadata,
                 ..
             }
-            | SensorFile::RecordProperties => {
-                if self.kept_lines.len() < MAX_KEPT_LINES {
-                    self.kept_lines.push(text.to_string());
-                }
+            | SensorFile::RecordProperties
+                if self.kept_lines.len() < MAX_KEPT_LINES =>
+            {
+                self.kept_lines.push(text.to_string());
             }
             _ => {}
         }
@@ -896,7 +896,7 @@ fn clock_notes(files: &[(String, SensorImport)]) -> Vec<String> {
             .filter(move |(_, import)| import.raw.report.format == format)
             .map(|(_, import)| &import.raw.report.recording)
     };
-    if of_format(SENSOR_LOGGER).any(|recording| has_samples(recording)) {
+    if of_format(SENSOR_LOGGER).any(has_samples) {
         let start = of_format(SENSOR_LOGGER).find_map(|recording| recording.start_unix_s);
         notes.push(format!(
             "Sensor Logger: times are seconds_elapsed, the clock the app's files share{}",
@@ -906,7 +906,7 @@ fn clock_notes(files: &[(String, SensorImport)]) -> Vec<String> {
             ))
         ));
     }
-    if of_format(HEADERLESS_TEXT).any(|recording| has_samples(recording)) {
+    if of_format(HEADERLESS_TEXT).any(has_samples) {
         notes.push(
             "headerless sensor files: t in seconds on the phone's clock, which the files \
              share"
