@@ -880,7 +880,13 @@ impl RawImport {
             mag_unit,
         } = self;
         let has_mag = !report.recording.mag_in_body_ut.is_empty();
-        if axes == SensorAxes::AndroidDevice {
+        let recording = &report.recording;
+        let has_vectors = !(recording.acc_in_body_mps2.is_empty()
+            && recording.gyro_in_body_radps.is_empty()
+            && recording.mag_in_body_ut.is_empty()
+            && recording.mag_bias_in_body_ut.is_empty());
+        // A file with no vector (positions, pressure, notes) has no axes to turn.
+        if axes == SensorAxes::AndroidDevice && has_vectors {
             let recording = &mut report.recording;
             let acc = &recording.acc_in_body_mps2.values;
             let mean_acc = acc.iter().fold(Vector3::zeros(), |sum, value| sum + value)

@@ -2,7 +2,8 @@
 //! name alone never decides: phyphox also writes `Accelerometer.csv`), and the choices
 //! made when several of them are merged into one recording.
 //!
-//! ## Sensor Logger (Android and iOS app, per-sensor CSV export)
+//! ## Sensor Logger (per-sensor CSV export; the Android app's, whose axes and units are
+//! these; an iOS recording is read the same way, and its notes say so)
 //!
 //! One CSV per sensor, each with `time` (nanoseconds since 1970, UTC) and
 //! `seconds_elapsed` (seconds since the recording started, one clock for every file),
@@ -637,6 +638,13 @@ fn metadata_notes(lines: &[String]) -> Vec<String> {
         shorten(value_of("device name")),
         shorten(value_of("recording time")),
     )];
+    if value_of("platform").eq_ignore_ascii_case("ios") {
+        notes.push(
+            "Sensor Logger on iOS: its files were read with Android's device axes and units, \
+             which this tool has only checked on Android recordings"
+                .to_string(),
+        );
+    }
     let sensors: Vec<&str> = value_of("sensors").split('|').collect();
     let periods: Vec<&str> = value_of("sampleRateMs").split('|').collect();
     if sensors.len() == periods.len() && sensors.len() > 1 {
