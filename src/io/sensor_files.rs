@@ -833,6 +833,11 @@ pub fn choose(files: Vec<(String, SensorImport)>) -> (Vec<(String, RawImport)>, 
     let raw_mag_name = raw_mag_idx
         .and_then(|idx| files.get(idx))
         .map(|(name, _)| base_name(name).to_string());
+    // Whether the raw magnetometer's file has the OS's bias beside it already (then the
+    // calibrated file gives nothing).
+    let raw_has_bias = raw_mag_idx
+        .and_then(|idx| files.get(idx))
+        .is_some_and(|(_, import)| !import.raw.report.recording.mag_bias_in_body_ut.is_empty());
 
     let mut chosen = Vec::with_capacity(files.len());
     for (idx, (name, mut import)) in files.into_iter().enumerate() {
@@ -882,6 +887,13 @@ pub fn choose(files: Vec<(String, SensorImport)>) -> (Vec<(String, RawImport)>, 
             Role::CalibratedMagnetometer if raw_mag_idx.is_some() => {
                 recording.mag_in_body_ut = Stream::default();
                 import.raw.mag_unit = None;
+                if raw_has_bias {
+                    notes.push(format!(
+                        "{}: not used, {} is the magnetometer and has the OS's bias beside it",
+                        base_name(&name),
+                        raw_mag_name.as_deref().unwrap_or_default()
+                    ));
+                }
             }
             Role::CalibratedMagnetometer => notes.push(format!(
                 "{}: the OS-calibrated field is the magnetometer (there is no raw one); the OS \
@@ -1165,6 +1177,10 @@ mod tests {
             ("gyroscope.txt", TYREX_GYRO.as_bytes()),
             ("rotation-vector.txt", TYREX_ROTATION.as_bytes()),
             (
+                "magnetometer-calibrated.txt",
+                b"0.511100381 -24.249268 3.2989502 -36.177063\n",
+            ),
+            (
                 "record.properties",
                 b"[Device]\nManufacturer = LGE\nModel = Nexus 5\nOSVersion = 23\n\n[Time]\nStartTime = 1464686052",
             ),
@@ -1192,6 +1208,12 @@ mod tests {
         let notes = report.notes.join("\n");
         assert!(
             notes.contains("rotation-vector.txt: the phone's own attitude"),
+            "{notes}"
+        );
+        assert!(
+            notes.contains(
+                "magnetometer-calibrated.txt: not used, magnetometer.txt is the magnetometer"
+            ),
             "{notes}"
         );
         assert!(
