@@ -89,7 +89,7 @@ fn streams_found(recording: &Recording) -> String {
         .map(|(count, what)| format!("{} {what}", crate::report::thousands(*count)))
         .collect();
     match found.as_slice() {
-        [] => "nothing it could read".to_string(),
+        [] => "notes on what it is (no samples this tool uses)".to_string(),
         [one] => one.clone(),
         [rest @ .., last] => format!("{} and {last}", rest.join(", ")),
     }

@@ -30,7 +30,7 @@ use crate::calib::plane::{fit_plane, PlaneFit, PlaneOptions};
 use crate::calib::refls::{fit_reference_ls, PartialPrior, RefLsFit, RefLsOptions};
 use crate::calib::sphere_coverage::sphere_coverage;
 use crate::calib::tilt::Tilt;
-use crate::calib::wmm::{date_of_unix_s, expected_field, ExpectedField};
+use crate::calib::wmm::{date_of_unix_s, expected_field, CalendarDate, ExpectedField};
 use crate::io::{Diagnostics, ImportReport, SensorFrame};
 use crate::recording::Recording;
 use crate::reference::{choose_reference, ReferenceOptions, ReferenceSource};
@@ -816,24 +816,50 @@ pub fn calibrate(
     Ok(analysis)
 }
 
-/// The expected field at the log's first position and date, with a note when there is
-/// none or the model warns.
+/// The day the model is evaluated on when the log has a position but no date: the
+/// current model's epoch (WMM2025). The field changes by well under 1° and 1 % in the
+/// five years a model covers, less than a compass's other errors.
+const MODEL_EPOCH_WITHOUT_DATE: CalendarDate = CalendarDate {
+    year: 2025,
+    month: 1,
+    day: 1,
+};
+
+/// The expected field at the log's first position (the user's, else the first GNSS fix,
+/// else the first reference position given as latitude and longitude) and date (the
+/// model's epoch when the log has none, with a note), with a note when the model warns.
 fn expected_field_of(
     recording: &Recording,
     position_deg: Option<(f64, f64)>,
     notes: &mut Vec<String>,
 ) -> Option<ExpectedField> {
     let given = position_deg.map(|(lat_deg, lon_deg)| (lat_deg, lon_deg, 0.0));
-    let position = given.or_else(|| {
-        recording
-            .gnss
-            .values
-            .iter()
-            .find_map(|fix| Some((fix.lat_deg?, fix.lon_deg?, fix.alt_m.unwrap_or(0.0))))
-    });
-    let date = recording.start_unix_s.and_then(date_of_unix_s);
-    let (Some((lat_deg, lon_deg, alt_m)), Some(date)) = (position, date) else {
-        return None;
+    let position = given
+        .or_else(|| {
+            recording
+                .gnss
+                .values
+                .iter()
+                .find_map(|fix| Some((fix.lat_deg?, fix.lon_deg?, fix.alt_m.unwrap_or(0.0))))
+        })
+        .or_else(|| {
+            recording
+                .ref_position_lat_lon_deg
+                .values
+                .first()
+                .map(|lat_lon| (lat_lon.x, lat_lon.y, 0.0))
+        });
+    let (lat_deg, lon_deg, alt_m) = position?;
+    let date = match recording.start_unix_s.and_then(date_of_unix_s) {
+        Some(date) => date,
+        None => {
+            notes.push(format!(
+                "the log gives a position but no date: the magnetic model was evaluated at \
+                 its epoch, {MODEL_EPOCH_WITHOUT_DATE}; the field changes by well under 1° and \
+                 1 % in five years"
+            ));
+            MODEL_EPOCH_WITHOUT_DATE
+        }
     };
     match expected_field(lat_deg, lon_deg, alt_m, date) {
         Ok(expected) => {

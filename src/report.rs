@@ -129,7 +129,7 @@ pub fn device_calibration_lines(analysis: &CalibrationAnalysis) -> Vec<String> {
     let calibration = &export.calibration;
     let frame = &calibration.frame;
     let unit = frame.unit.name;
-    let decimals = decimals_for_unit(frame.unit.ut_per_unit);
+    let decimals = decimals_for_unit(frame.unit.factor());
     let vector = |v: &nalgebra::Vector3<f64>, decimals: usize| {
         format!(
             "({:.decimals$}, {:.decimals$}, {:.decimals$})",
@@ -161,18 +161,28 @@ pub fn device_calibration_lines(analysis: &CalibrationAnalysis) -> Vec<String> {
         ),
         format!("Field {:.decimals$} {unit} after correction", calibration.field),
     ];
-    if frame.unit.ut_per_unit != 1.0 {
-        let in_ut = calibration.in_ut();
-        lines.push(format!(
+    match (frame.unit.ut_per_unit, calibration.in_ut()) {
+        (Some(ut_per_unit), Some(in_ut)) if ut_per_unit != 1.0 => lines.push(format!(
             "The same in µT, as MotionCal's packet carries it (same axes): hard iron {} µT, field {:.2} µT",
             vector(&in_ut.hard_iron_ut, 2),
             in_ut.field_ut
-        ));
+        )),
+        (None, _) => lines.push(format!(
+            "The log gives no µT per unit for its {unit}, so the calibration, its field strength \
+             and the fits are in {unit}, and there is no MotionCal packet (its floats are µT)"
+        )),
+        _ => {}
     }
     if !frame.is_body_ut() {
         if let Some((_, body_ut)) = analysis.device_calibration() {
+            // Raw counts of unknown sensitivity were fitted as they are.
+            let fitted_unit = if frame.unit.ut_per_unit.is_some() {
+                "µT"
+            } else {
+                unit
+            };
             lines.push(format!(
-                "In body axes (x forward, y right, z down) and µT, as the analysis fitted it: hard iron {} µT",
+                "In body axes (x forward, y right, z down) and {fitted_unit}, as the analysis fitted it: hard iron {} {fitted_unit}",
                 vector(&body_ut.hard_iron_ut, 2)
             ));
         }

@@ -718,3 +718,70 @@ fn a_column_mapping_reads_an_unknown_header_and_is_remembered() {
         stderr(&remembered)
     );
 }
+
+#[test]
+fn numbers_without_a_header_line_are_read_through_a_mapping_of_their_columns() {
+    let dir = scratch_dir("headerless");
+    let config_dir = dir.join("config");
+    let _ = std::fs::remove_dir_all(&config_dir);
+    let path = dir.join("mag.txt");
+    let mut text = String::new();
+    for idx in 0..200 {
+        let angle_rad = (idx as f64 * 1.8).to_radians();
+        text.push_str(&format!(
+            "{:.2}  {:.4} {:.4}\t-40\n",
+            idx as f64 * 0.02,
+            20.0 * angle_rad.cos(),
+            20.0 * angle_rad.sin()
+        ));
+    }
+    std::fs::write(&path, text).expect("written");
+    let path_text = path.to_str().unwrap_or_default();
+    let run = |args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_compass-pdr"))
+            .args(args)
+            .env("XDG_CONFIG_HOME", &config_dir)
+            .output()
+            .expect("the CLI runs")
+    };
+    let refused = run(&["inspect", path_text]);
+    assert_eq!(refused.status.code(), Some(1), "{}", stderr(&refused));
+    assert!(
+        stderr(&refused).contains("has no header line: line 1 is already 4 numbers"),
+        "{}",
+        stderr(&refused)
+    );
+    let mapped = run(&[
+        "inspect",
+        path_text,
+        "--json",
+        "--map",
+        "column 1=t_s,column 2=mag_x_ut,column 3=mag_y_ut,column 4=mag_z_ut",
+    ]);
+    assert!(mapped.status.success(), "{}", stderr(&mapped));
+    let json: serde_json::Value = serde_json::from_slice(&mapped.stdout).expect("JSON");
+    assert_eq!(json["streams"][0]["stream"], "magnetometer");
+    assert_eq!(json["streams"][0]["n_samples"], 200);
+}
+
+#[test]
+fn the_qmc5883l_file_calibrates_at_50_hz_in_counts_without_warnings() {
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data");
+    if !data.is_dir() {
+        eprintln!("skipped: {} not found (CI has it)", data.display());
+        return;
+    }
+    let path = data.join("qmc5883l-calibration/filtered_raw_data.csv");
+    let output = compass_pdr(&["calibrate", path.to_str().unwrap_or_default()]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    assert!(!stderr(&output).contains("warning"), "{}", stderr(&output));
+    let text = String::from_utf8_lossy(&output.stdout);
+    for expected in [
+        "the samples are spaced at 50 Hz, the rate on line 1 (Fs,50.00)",
+        "field: measured 7401.5 counts raw",
+        "Hard iron (",
+        ") counts",
+    ] {
+        assert!(text.contains(expected), "{expected}\n{text}");
+    }
+}

@@ -167,7 +167,7 @@ fn round_trip(
         "{family}: {snippet}"
     );
     let json = serde_json::to_string_pretty(&export.sensor).expect("JSON");
-    let packet = motioncal_packet(&export.calibration.in_ut());
+    let packet = motioncal_packet(&export.calibration.in_ut().expect("a unit with its µT"));
 
     let from_snippet = parse_c_snippet(&snippet);
     let (from_json, axes, unit) = parse_json(&json);
@@ -249,7 +249,7 @@ fn applied_in_body_axes(
     truth_hard_iron_ut: Vector3<f64>,
 ) -> (f64, f64) {
     let body = export.body_ut.to_calibration().expect("valid");
-    let u = export.calibration.frame.unit.ut_per_unit;
+    let u = export.calibration.frame.unit.factor();
     let spread = spread_pct(raw.iter().map(|r| body.apply(r * u)));
     ((body.hard_iron_ut - truth_hard_iron_ut).norm(), spread)
 }

@@ -497,3 +497,241 @@ fn hmc5883l_full_sphere_export_applied_to_the_raw_gauss_values_gives_the_fit_s_s
     );
     assert!(spread_after_pct < 1.0 && spread_raw_pct > 5.0);
 }
+
+/// The Sensor Logger folder's files, as a user drops them all (or types `DIR/*.csv`).
+fn sensor_logger_files(data: &Path) -> Vec<PathBuf> {
+    common::files_in(&data.join("sensorlogger-walk-ethz"), "csv")
+}
+
+/// The mean |(x, y, z)| of a Sensor Logger vector file, read here from its text.
+fn mean_norm_of_logger_file(path: &Path) -> f64 {
+    let text = std::fs::read_to_string(path).expect("readable");
+    let norms: Vec<f64> = text
+        .lines()
+        .skip(1)
+        .filter_map(|line| {
+            let cells: Vec<f64> = line
+                .split(',')
+                .skip(2)
+                .filter_map(|cell| cell.trim().parse().ok())
+                .collect();
+            (cells.len() == 3).then(|| nalgebra::Vector3::new(cells[0], cells[1], cells[2]).norm())
+        })
+        .collect();
+    norms.iter().sum::<f64>() / norms.len() as f64
+}
+
+#[test]
+fn sensor_logger_folder_reads_each_file_as_the_app_means_it() {
+    let Some(data) = shared_data() else { return };
+    let paths = sensor_logger_files(&data);
+    assert_eq!(paths.len(), 10, "{paths:?}");
+    let contents = read_named(&paths);
+    let report = import_files(&as_slices(&contents)).expect("imports");
+    let inspection = Inspection::of(&report);
+    assert!(
+        inspection.diagnostics.is_empty(),
+        "{:?}",
+        inspection.diagnostics
+    );
+    let notes = inspection.notes.join("\n");
+    assert!(!notes.contains("guessed"), "{notes}");
+    // TotalAcceleration is the accelerometer: |f| ≈ g, at 50 Hz.
+    let acc = stream(&inspection, "accelerometer");
+    assert_eq!(acc.n_samples, 34_667);
+    assert_near(acc.rate_hz.unwrap_or(0.0), 50.0, 1.0, "accelerometer rate");
+    assert_near(acc.mean_magnitude.unwrap_or(0.0), 9.8, 0.2, "|f|");
+    assert_eq!(stream(&inspection, "gyroscope").n_samples, 34_648);
+    // The raw field of MagnetometerUncalibrated.csv, with the OS's hard iron beside it.
+    let mag = stream(&inspection, "magnetometer");
+    assert_eq!(mag.n_samples, 34_649);
+    let raw_field_ut =
+        mean_norm_of_logger_file(&data.join("sensorlogger-walk-ethz/MagnetometerUncalibrated.csv"));
+    assert_near(
+        mag.mean_magnitude.unwrap_or(0.0),
+        raw_field_ut,
+        1e-6,
+        "|B| of the raw file",
+    );
+    let recording = &report.recording;
+    assert_eq!(recording.mag_bias_in_body_ut.len(), 34_649);
+    // One OS estimate all along: device (x, y, z) = (15.96, 60.42, 22.68) µT, flat in
+    // hand, so body (60.42, 15.96, −22.68).
+    for bias in &recording.mag_bias_in_body_ut.values {
+        assert!(
+            (bias - nalgebra::Vector3::new(60.42, 15.96, -22.68)).amax() < 0.01,
+            "{bias}"
+        );
+    }
+    assert!(notes.contains("phone held flat"), "{notes}");
+    assert_eq!(
+        report.mag_frame,
+        Some(compass_pdr::io::SensorFrame::android_device(
+            compass_pdr::io::axes::PhoneMount::Flat,
+            compass_pdr::io::MagUnit::MICROTESLA
+        ))
+    );
+    // GNSS fixes with positions; dated 17 March 2023 by the nanosecond times.
+    assert_eq!(stream(&inspection, "GNSS").n_samples, 1091);
+    assert!(recording
+        .gnss
+        .values
+        .iter()
+        .all(|fix| fix.lat_deg.is_some() && fix.lon_deg.is_some()));
+    let start_unix_s = recording.start_unix_s.expect("dated");
+    assert_eq!(
+        compass_pdr::calib::wmm::date_of_unix_s(start_unix_s).map(|date| date.to_string()),
+        Some("2023-03-17".to_string())
+    );
+    assert_eq!(stream(&inspection, "pressure").n_samples, 3853);
+
+    // The CLI's and the page's way, in 1 MiB chunks, gives the same.
+    let chunked: Vec<_> = contents
+        .iter()
+        .map(|(name, bytes)| {
+            let mut import = compass_pdr::io::import::ChunkedImport::new(name, Some(bytes.len()));
+            for chunk in bytes.chunks(1 << 20) {
+                import.feed(chunk).expect("text");
+            }
+            (name.clone(), import.finish())
+        })
+        .collect();
+    assert_eq!(
+        compass_pdr::io::import::merge(chunked).expect("merges"),
+        report
+    );
+}
+
+#[test]
+fn sensor_logger_walk_has_the_world_magnetic_model_s_field_near_zurich() {
+    use compass_pdr::calibration::CalibrationOptions;
+    let Some(data) = shared_data() else { return };
+    let analysis = calibrate_paths(&sensor_logger_files(&data), &CalibrationOptions::default());
+    let expected = analysis
+        .report
+        .expected_field
+        .as_ref()
+        .expect("a position and a date");
+    eprintln!(
+        "Sensor Logger walk: {} on {}: {:.1} µT, inclination {:.1}°, declination {:.2}°",
+        expected.model,
+        expected.model_date,
+        expected.total_ut,
+        expected.inclination_deg,
+        expected.declination_deg
+    );
+    assert_eq!(expected.model_date.to_string(), "2023-03-17");
+    assert_near(expected.total_ut, 48.0, 1.0, "|B| (µT)");
+    assert_near(expected.inclination_deg, 63.0, 1.0, "inclination (°)");
+    assert!(
+        analysis.report.device_hard_iron.is_some(),
+        "the OS's estimate"
+    );
+}
+
+#[test]
+fn tyrex_trial_folders_import_acc_gyro_mag_and_the_os_bias() {
+    let Some(data) = shared_data() else { return };
+    let root = data.join("tyrex-attitude");
+    let mut trials: Vec<PathBuf> = std::fs::read_dir(&root)
+        .expect("readable directory")
+        .filter_map(|entry| Some(entry.ok()?.path()))
+        .filter(|path| path.is_dir())
+        .collect();
+    trials.sort();
+    assert_eq!(trials.len(), 5);
+    for trial in trials {
+        let name = trial
+            .file_name()
+            .map(|name| name.to_string_lossy().into_owned());
+        let mut paths = common::files_in(&trial, "txt");
+        paths.push(trial.join("record.properties"));
+        let contents = read_named(&paths);
+        let report = import_files(&as_slices(&contents)).expect("imports");
+        let inspection = Inspection::of(&report);
+        assert!(
+            inspection.diagnostics.is_empty(),
+            "{name:?}: {:?}",
+            inspection.diagnostics
+        );
+        let acc = stream(&inspection, "accelerometer");
+        assert!(acc.n_samples > 20_000, "{name:?}: {acc:?}");
+        assert_near(acc.rate_hz.unwrap_or(0.0), 195.0, 5.0, "accelerometer rate");
+        assert!(
+            (9.0..16.0).contains(&acc.mean_magnitude.unwrap_or(0.0)),
+            "{name:?}: {acc:?}"
+        );
+        assert!(stream(&inspection, "gyroscope").n_samples > 20_000);
+        // magnetometer.txt (50 Hz), not the rotation vector's 6 columns.
+        let mag = stream(&inspection, "magnetometer");
+        assert!(mag.n_samples > 5_900, "{name:?}: {mag:?}");
+        assert_near(mag.rate_hz.unwrap_or(0.0), 49.0, 1.5, "magnetometer rate");
+        let recording = &report.recording;
+        assert_eq!(
+            recording.mag_bias_in_body_ut.t_s,
+            recording.mag_in_body_ut.t_s
+        );
+        // Raw − the OS's bias is the Earth's field (with the trials' disturbances).
+        let mut calibrated_ut: Vec<f64> = recording
+            .mag_in_body_ut
+            .values
+            .iter()
+            .zip(&recording.mag_bias_in_body_ut.values)
+            .map(|(raw, bias)| (raw - bias).norm())
+            .collect();
+        calibrated_ut.sort_by(f64::total_cmp);
+        let median_ut = calibrated_ut[calibrated_ut.len() / 2];
+        eprintln!(
+            "{name:?}: |raw| {:.1} µT, median |raw − OS bias| {median_ut:.1} µT",
+            mag.mean_magnitude.unwrap_or(0.0)
+        );
+        assert!((30.0..70.0).contains(&median_ut), "{name:?}: {median_ut}");
+        // StartTime dates the trial (2016, before the bundled magnetic models).
+        let start = recording.start_unix_s.expect("dated by record.properties");
+        assert!(
+            compass_pdr::calib::wmm::date_of_unix_s(start).is_some_and(|date| date.year == 2016),
+            "{name:?}: {start}"
+        );
+    }
+}
+
+#[test]
+fn qmc5883l_files_are_50_hz_raw_counts_with_their_settings_lines_read() {
+    use compass_pdr::calibration::CalibrationOptions;
+    let Some(data) = shared_data() else { return };
+    for file in ["filtered_raw_data.csv", "noisy_raw_data.csv"] {
+        let path = data.join("qmc5883l-calibration").join(file);
+        let inspection = inspect(std::slice::from_ref(&path));
+        assert!(
+            inspection.diagnostics.is_empty(),
+            "{file}: {:?}",
+            inspection.diagnostics
+        );
+        let mag = stream(&inspection, "magnetometer");
+        assert_eq!(mag.unit, "counts", "{file}");
+        assert_near(mag.rate_hz.unwrap_or(0.0), 50.0, 1e-6, file);
+        assert!(
+            inspection.notes.iter().any(|note| note.contains("Fs = 50")),
+            "{file}: {:?}",
+            inspection.notes
+        );
+        assert_eq!(
+            inspection.mag_frame.map(|frame| frame.unit),
+            Some(compass_pdr::io::MagUnit::COUNTS)
+        );
+        // The exported calibration is in counts, and finds the author's hard iron
+        // (−A⁻¹B ≈ (6159, 253, 3446) counts) within 1 %.
+        let analysis = calibrate_paths(&[path], &CalibrationOptions::default());
+        let export = compass_pdr::report::device_export(&analysis).expect("a device calibration");
+        assert_eq!(export.sensor.unit, "counts");
+        assert_eq!(export.sensor.ut_per_unit, None);
+        assert!(compass_pdr::calib::export::c_snippet(&export.calibration)
+            .contains("hard_iron and mag_field are in counts"));
+        let hard_iron = nalgebra::Vector3::from(export.sensor.hard_iron);
+        eprintln!("{file}: hard iron {hard_iron:?} counts");
+        assert!(
+            (hard_iron - nalgebra::Vector3::new(6159.0, 253.0, 3446.0)).amax() < 40.0,
+            "{file}: {hard_iron:?}"
+        );
+    }
+}

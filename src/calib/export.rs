@@ -97,6 +97,13 @@ pub enum ExportError {
     UnitScale { ut_per_unit: f64 },
 
     #[error(
+        "the calibration is in {unit} whose µT per unit is unknown (ut_per_unit is null), so \
+         it cannot be turned into µT. Apply it to the raw values as they are, or give the \
+         unit when importing the log."
+    )]
+    UnitUnknown { unit: String },
+
+    #[error(
         "could not read the calibration JSON: {reason}. It should look like {{\"unit\": \"µT\", \
          \"hard_iron\": [x, y, z], \"soft_iron\": [[a, b, c], [d, e, f], [g, h, i]], \
          \"field\": B}}, as compass-pdr writes it."
@@ -127,9 +134,11 @@ impl SensorCalibration {
     /// `c_b = S_b·(B·u·r − h_b) = u·S_b·B·(r − Bᵀ·h_b/u)`, and the same correction in the
     /// raw axes and unit, `c = Bᵀ·c_b/u`, is `c = Bᵀ·S_b·B·(r − Bᵀ·h_b/u)`: hard iron
     /// `Bᵀ·h_b/u`, soft iron `Bᵀ·S_b·B`, field `F/u` (a rotation keeps the magnitude).
+    /// Raw counts of unknown sensitivity were kept as they are (`u` = 1, see
+    /// [`crate::io::MagUnit::factor`]): the "µT" fit is then in counts.
     pub fn from_body(body_ut: &FieldCalibration, frame: &SensorFrame) -> SensorCalibration {
         let b = frame.body_from_sensor;
-        let u = frame.unit.ut_per_unit;
+        let u = frame.unit.factor();
         SensorCalibration {
             hard_iron: b.transpose() * body_ut.hard_iron_ut / u,
             soft_iron: b.transpose() * body_ut.soft_iron * b,
@@ -141,7 +150,7 @@ impl SensorCalibration {
     /// A calibration fitted in the frame's own axes, in µT (the live session fits the
     /// board's readings as printed): only the unit changes.
     pub fn from_frame_ut(cal_ut: &FieldCalibration, frame: &SensorFrame) -> SensorCalibration {
-        let u = frame.unit.ut_per_unit;
+        let u = frame.unit.factor();
         SensorCalibration {
             hard_iron: cal_ut.hard_iron_ut / u,
             soft_iron: cal_ut.soft_iron,
@@ -151,14 +160,14 @@ impl SensorCalibration {
     }
 
     /// The same correction for readings in µT along the same axes (what MotionCal's
-    /// packet carries).
-    pub fn in_ut(&self) -> FieldCalibration {
-        let u = self.frame.unit.ut_per_unit;
-        FieldCalibration {
+    /// packet carries); `None` for raw counts whose µT per count is unknown.
+    pub fn in_ut(&self) -> Option<FieldCalibration> {
+        let u = self.frame.unit.ut_per_unit?;
+        Some(FieldCalibration {
             hard_iron_ut: self.hard_iron * u,
             soft_iron: self.soft_iron,
             field_ut: self.field * u,
-        }
+        })
     }
 
     /// A raw reading (as the log writes it) corrected, in the same axes and unit.
@@ -206,9 +215,9 @@ pub struct CalibrationExport {
     /// The unit of the raw values, `hard_iron` and `field`: "µT", "gauss", …
     #[serde(default = "microtesla")]
     pub unit: String,
-    /// Microtesla per unit.
+    /// Microtesla per unit; `null` for raw counts whose µT per count is unknown.
     #[serde(default = "one")]
-    pub ut_per_unit: f64,
+    pub ut_per_unit: Option<f64>,
     /// How the unit is known ("stated", "guessed", "assumed").
     #[serde(default, skip_serializing_if = "String::is_empty")]
     pub unit_origin: String,
@@ -230,8 +239,8 @@ fn microtesla() -> String {
     "µT".to_string()
 }
 
-fn one() -> f64 {
-    1.0
+fn one() -> Option<f64> {
+    Some(1.0)
 }
 
 impl From<&SensorCalibration> for CalibrationExport {
@@ -271,12 +280,14 @@ impl CalibrationExport {
     /// The correction these arrays describe for readings in µT along the export's axes,
     /// checked: every number finite, the field strength and the unit's scale positive.
     pub fn to_calibration(&self) -> Result<FieldCalibration, ExportError> {
-        if !(self.ut_per_unit.is_finite() && self.ut_per_unit > 0.0) {
-            return Err(ExportError::UnitScale {
-                ut_per_unit: self.ut_per_unit,
+        let Some(u) = self.ut_per_unit else {
+            return Err(ExportError::UnitUnknown {
+                unit: self.unit.clone(),
             });
+        };
+        if !(u.is_finite() && u > 0.0) {
+            return Err(ExportError::UnitScale { ut_per_unit: u });
         }
-        let u = self.ut_per_unit;
         let hard_iron_ut = Vector3::from(self.hard_iron) * u;
         let soft_iron = Matrix3::from_fn(|i, j| self.soft_iron[i][j]);
         checked(hard_iron_ut, soft_iron, self.field * u)
@@ -316,6 +327,17 @@ pub fn c_snippet(cal: &SensorCalibration) -> String {
         )
     };
     let unit = ascii(cal.frame.unit.name);
+    // Raw counts of unknown sensitivity have no µT per unit to declare.
+    let (per_unit_comment, ut_per_unit) = match export.ut_per_unit {
+        Some(ut_per_unit) => (
+            format!("mag_ut_per_unit is uT per {unit}"),
+            format!("float mag_ut_per_unit = {};\n", c_float(ut_per_unit)),
+        ),
+        None => (
+            format!("the uT per unit ({unit}) is unknown, so there is no mag_ut_per_unit"),
+            String::new(),
+        ),
+    };
     format!(
         "// Magnetometer calibration made by compass-pdr.\n\
          // Axes: {axes}.\n\
@@ -324,11 +346,11 @@ pub fn c_snippet(cal: &SensorCalibration) -> String {
          //   corrected = soft_iron * (raw - hard_iron)\n\
          // that is, for each i: corrected[i] = sum over j of soft_iron[i][j] * (raw[j] - hard_iron[j]).\n\
          // hard_iron and mag_field are in {unit}; corrected comes out in {unit}, in the same axes.\n\
-         // mag_field is the field strength after correction; mag_ut_per_unit is uT per {unit}.\n\
+         // mag_field is the field strength after correction; {per_unit_comment}.\n\
          float hard_iron[3] = {hard_iron};\n\
          float soft_iron[3][3] = {{\n  {row_0},\n  {row_1},\n  {row_2}\n}};\n\
          float mag_field = {field};\n\
-         float mag_ut_per_unit = {ut_per_unit};\n",
+         {ut_per_unit}",
         axes = ascii(cal.frame.axes),
         unit_label = ascii(&cal.frame.unit.label()),
         hard_iron = row(&export.hard_iron),
@@ -336,7 +358,6 @@ pub fn c_snippet(cal: &SensorCalibration) -> String {
         row_1 = row(&export.soft_iron[1]),
         row_2 = row(&export.soft_iron[2]),
         field = c_float(export.field),
-        ut_per_unit = c_float(export.ut_per_unit),
     )
 }
 
@@ -626,6 +647,7 @@ mod tests {
             SensorFrame::android_device(PhoneMount::Upright, MagUnit::MICROTESLA),
             SensorFrame::columns_as_body(MagUnit::GAUSS),
             SensorFrame::columns_as_body(MagUnit::NANOTESLA.guessed()),
+            SensorFrame::columns_as_body(MagUnit::COUNTS),
         ]
     }
 
@@ -639,7 +661,7 @@ mod tests {
         ];
         for frame in frames() {
             let sensor = SensorCalibration::from_body(&body, &frame);
-            let (b, u) = (frame.body_from_sensor, frame.unit.ut_per_unit);
+            let (b, u) = (frame.body_from_sensor, frame.unit.factor());
             for raw in raw_values {
                 // What the importer made of the raw value, corrected in body axes and µT…
                 let corrected_body_ut = body.apply(b * (raw * u));
@@ -653,7 +675,10 @@ mod tests {
             }
             assert!((sensor.field * u - body.field_ut).abs() < 1e-9);
             // In µT along the sensor's axes (the MotionCal packet's form).
-            let in_ut = sensor.in_ut();
+            let Some(in_ut) = sensor.in_ut() else {
+                assert_eq!(frame.unit.ut_per_unit, None);
+                continue;
+            };
             assert!((in_ut.hard_iron_ut - b.transpose() * body.hard_iron_ut).amax() < 1e-9);
             assert!((in_ut.field_ut - body.field_ut).abs() < 1e-9);
         }
@@ -678,7 +703,7 @@ mod tests {
         let export = calibration_export(&sensor);
         assert_eq!(export.axes, ExportAxes::Sensor);
         assert_eq!(export.unit, "gauss");
-        assert_eq!(export.ut_per_unit, 100.0);
+        assert_eq!(export.ut_per_unit, Some(100.0));
         assert_eq!(export.soft_iron[0], [1.02, 0.015, -0.01]);
         assert_eq!(export.soft_iron[2], [-0.01, 0.005, 1.01]);
         assert_eq!(export.hard_iron, [0.125, -0.0725, 0.3]);
@@ -724,7 +749,7 @@ mod tests {
         let export: CalibrationExport = serde_json::from_str(old).expect("an old file reads");
         assert_eq!(export.axes, ExportAxes::Body);
         assert_eq!(export.unit, "µT");
-        assert_eq!(export.ut_per_unit, 1.0);
+        assert_eq!(export.ut_per_unit, Some(1.0));
         assert!(export.axes_description.starts_with("not stated"));
         assert_eq!(calibration_from_json(old), Ok(known_calibration()));
         let body = CalibrationExport::body_ut(&known_calibration());

@@ -743,7 +743,14 @@ fn run_calibrate(
         }
         if let Some(path) = outputs.export_packet {
             // MotionCal's floats are µT by definition: the raw axes, in µT.
-            std::fs::write(path, motioncal_packet(&export.calibration.in_ut()))
+            let Some(in_ut) = export.calibration.in_ut() else {
+                return Err(format!(
+                    "no MotionCal packet: its floats are µT, but the magnetometer's raw values \
+                     are in {}; export the JSON or the C snippet, which are in the raw values' unit",
+                    frame.unit.label()
+                ));
+            };
+            std::fs::write(path, motioncal_packet(&in_ut))
                 .map_err(|error| format!("cannot write {}: {error}", path.display()))?;
             written.push(format!(
                 "MotionCal packet written to {}: in µT along {}",
@@ -1153,18 +1160,25 @@ fn calibration_text(report: &CalibrationReport) -> String {
         "  declination: {:.2}° ({})",
         report.declination.declination_deg, report.declination.source
     );
+    // Raw counts of unknown sensitivity were kept as they are: the measured field is in
+    // counts.
+    let raw_unit = report
+        .mag_frame
+        .map(|frame| frame.unit)
+        .filter(|unit| unit.ut_per_unit.is_none())
+        .map_or("µT", |unit| unit.name);
     match &report.expected_field {
         Some(expected) => {
             let _ = writeln!(
                 text,
-                "  field: measured {:.1} µT raw, expected {:.1} µT (inclination {:.1}°)",
+                "  field: measured {:.1} {raw_unit} raw, expected {:.1} µT (inclination {:.1}°)",
                 report.mean_raw_field_ut, expected.total_ut, expected.inclination_deg
             );
         }
         None => {
             let _ = writeln!(
                 text,
-                "  field: measured {:.1} µT raw (no model value: no position or date)",
+                "  field: measured {:.1} {raw_unit} raw (no model value: no position or date)",
                 report.mean_raw_field_ut
             );
         }

@@ -31,6 +31,7 @@
 use nalgebra::{Vector2, Vector3};
 
 use super::axes::PhoneMount;
+use super::frame::RAW_COUNT_MAGNITUDES;
 use super::lines::{decode_all, Line, LineDecoder};
 use super::number::{parse_f64, parse_prefix, parse_prefix_at};
 use super::{
@@ -212,16 +213,25 @@ pub struct Preview {
     pub first_values: Vec<String>,
 }
 
-/// A preview of delimited text from its first lines; `None` when there is no header.
+/// A preview of delimited text from its first lines (settings lines before the header
+/// skipped); `None` when there is no line at all. A file without a header line (its
+/// first line is numbers) shows its columns as "column 1", "column 2", … with that
+/// line's values.
 pub fn preview(sample_lines: &[&str]) -> Option<Preview> {
     let mut lines = sample_lines
         .iter()
         .map(|line| line.trim())
-        .filter(|line| !line.is_empty() && !line.starts_with('#'));
-    let header = Header::parse(1, lines.next()?, None);
+        .filter(|line| !line.is_empty() && !line.starts_with('#'))
+        .skip_while(|line| setting_of(line, None).is_some())
+        .peekable();
+    let first = *lines.peek()?;
+    let header = Header::of_first_line(1, first, None, None);
+    if !header.headerless {
+        lines.next();
+    }
     let first_values: Vec<String> = match lines.next() {
-        Some(line) => line
-            .split(header.delimiter)
+        Some(line) => split_fields(line, header.delimiter)
+            .into_iter()
             .map(|field| field.trim().trim_matches('"').to_string())
             .collect(),
         None => Vec::new(),
@@ -236,13 +246,29 @@ pub fn preview(sample_lines: &[&str]) -> Option<Preview> {
 }
 
 /// The header's column names, as written, of delimited text (its first non-comment
-/// line), for a mapping dialog and for remembering mappings by header.
+/// line after any settings lines), for a mapping dialog and for remembering mappings by
+/// header. `None` without a header line (a file whose first line is numbers: its
+/// "column N" names say nothing about it).
 pub fn header_columns(sample_lines: &[&str]) -> Option<Vec<String>> {
-    let first = sample_lines
+    let header = Header::of_first_line(1, header_line(sample_lines)?, None, None);
+    (!header.headerless).then_some(header.names)
+}
+
+/// The first line that is neither blank, a comment nor a settings line (`Fs,50.00`):
+/// the header, where there is one.
+fn header_line<'a>(sample_lines: &[&'a str]) -> Option<&'a str> {
+    sample_lines
         .iter()
         .map(|line| line.trim())
-        .find(|line| !line.is_empty() && !line.starts_with('#'))?;
-    Some(Header::parse(1, first, None).names)
+        .filter(|line| !line.is_empty() && !line.starts_with('#'))
+        .find(|line| setting_of(line, None).is_none())
+}
+
+/// Whether the first lines are delimited numbers without a header line (the first line
+/// after any settings is numbers): read as delimited text when the user maps its
+/// columns.
+pub fn looks_headerless(sample_lines: &[&str]) -> bool {
+    header_line(sample_lines).is_some_and(is_number_line)
 }
 
 /// Reads one delimited file and turns it into body axes and this crate's units.
@@ -285,7 +311,17 @@ pub(crate) fn read_up_to_header(
     mapping: Option<&ColumnMapping>,
     size_hint_bytes: Option<usize>,
 ) -> Option<(DelimitedReader, usize, usize)> {
-    let mut reader = DelimitedReader::new(size_hint_bytes).with_mapping(mapping.cloned());
+    read_up_to_header_with(
+        DelimitedReader::new(size_hint_bytes).with_mapping(mapping.cloned()),
+        bytes,
+    )
+}
+
+/// [`read_up_to_header`] with a reader made beforehand.
+pub(crate) fn read_up_to_header_with(
+    mut reader: DelimitedReader,
+    bytes: &[u8],
+) -> Option<(DelimitedReader, usize, usize)> {
     let mut decoder = LineDecoder::new(MAX_LINE_BYTES);
     let mut offset = 0usize;
     while reader.header.is_none() {
@@ -427,6 +463,8 @@ mod parallel {
             mapping: None,
             problems: Vec::new(),
             row_times: RowTimes::default(),
+            settings: Vec::new(),
+            xyz_columns: None,
         }
     }
 
@@ -818,15 +856,18 @@ mod parallel {
 /// True when the first non-comment line of a sample reads as a header with at least one
 /// recognised column.
 pub fn looks_like(sample_lines: &[&str]) -> bool {
-    let Some(first) = sample_lines
-        .iter()
-        .map(|line| line.trim())
-        .find(|line| !line.is_empty() && !line.starts_with('#'))
-    else {
+    let Some(first) = header_line(sample_lines) else {
         return false;
     };
-    let header = Header::parse(1, first, None);
-    header.columns.iter().any(Option::is_some) && first.chars().any(|c| c.is_ascii_alphabetic())
+    let header = Header::of_first_line(1, first, None, None);
+    let n_recognised = header.columns.iter().flatten().count();
+    // Names split on white space must all be names: "x 1.5" is a serial line.
+    let plausible = header.delimiter != WHITESPACE
+        || (n_recognised >= 2 && header.names.iter().all(|name| parse_f64(name).is_none()));
+    !header.headerless
+        && n_recognised > 0
+        && plausible
+        && first.chars().any(|c| c.is_ascii_alphabetic())
 }
 
 impl RawImport {
@@ -839,7 +880,13 @@ impl RawImport {
             mag_unit,
         } = self;
         let has_mag = !report.recording.mag_in_body_ut.is_empty();
-        if axes == SensorAxes::AndroidDevice {
+        let recording = &report.recording;
+        let has_vectors = !(recording.acc_in_body_mps2.is_empty()
+            && recording.gyro_in_body_radps.is_empty()
+            && recording.mag_in_body_ut.is_empty()
+            && recording.mag_bias_in_body_ut.is_empty());
+        // A file with no vector (positions, pressure, notes) has no axes to turn.
+        if axes == SensorAxes::AndroidDevice && has_vectors {
             let recording = &mut report.recording;
             let acc = &recording.acc_in_body_mps2.values;
             let mean_acc = acc.iter().fold(Vector3::zeros(), |sum, value| sum + value)
@@ -855,6 +902,7 @@ impl RawImport {
                 &mut recording.acc_in_body_mps2,
                 &mut recording.gyro_in_body_radps,
                 &mut recording.mag_in_body_ut,
+                &mut recording.mag_bias_in_body_ut,
             ] {
                 for value in &mut stream.values {
                     *value = mount.device_to_body(*value);
@@ -901,6 +949,103 @@ pub struct DelimitedReader<S = Recording> {
     /// The current line's problems (kept between lines for its room).
     problems: Vec<String>,
     row_times: RowTimes,
+    /// `key,value` lines before the header (`Fs,50.00`), with their line numbers.
+    settings: Vec<(usize, Setting)>,
+    /// What bare x, y, z columns are, where the file's name told it.
+    xyz_columns: Option<XyzColumns>,
+}
+
+/// A `key,value` line before the header, such as `Fs,50.00` or `Initialization time,60`:
+/// a data logger's settings.
+#[derive(Debug, Clone, PartialEq)]
+struct Setting {
+    key: String,
+    value: f64,
+    /// The line as written, for the notes.
+    text: String,
+}
+
+impl Setting {
+    /// The sample rate in Hz, where the key names one (`Fs`, `sample rate`, `ODR`, …)
+    /// and the value is a plausible rate.
+    fn sample_rate_hz(&self) -> Option<f64> {
+        let key: String = self
+            .key
+            .to_lowercase()
+            .chars()
+            .filter(char::is_ascii_alphanumeric)
+            .collect();
+        let key = key.strip_suffix("hz").unwrap_or(&key);
+        let names_a_rate = matches!(
+            key,
+            "fs" | "samplerate"
+                | "samplingrate"
+                | "samplefrequency"
+                | "samplingfrequency"
+                | "rate"
+                | "frequency"
+                | "odr"
+                | "outputdatarate"
+                | "datarate"
+        );
+        (names_a_rate && self.value > 0.0 && self.value <= MAX_SAMPLE_RATE_HZ).then_some(self.value)
+    }
+}
+
+/// How many settings lines the notes list.
+const MAX_SETTINGS_NOTED: usize = 8;
+
+/// The highest sample rate a settings line is believed to give.
+const MAX_SAMPLE_RATE_HZ: f64 = 100_000.0;
+
+/// A settings line (`key,value` before the header): two fields, a key with a letter that
+/// names no column, and a number. `None` for any other line.
+fn setting_of(text: &str, mapping: Option<&ColumnMapping>) -> Option<Setting> {
+    let delimiter = [',', ';', '\t'].into_iter().find(|&c| text.contains(c))?;
+    let mut fields = text
+        .split(delimiter)
+        .map(|field| field.trim().trim_matches('"').trim());
+    let (key, value, None) = (fields.next()?, fields.next()?, fields.next()) else {
+        return None;
+    };
+    let value = parse_f64(value).filter(|value| value.is_finite())?;
+    let names_a_column =
+        mapping.is_some_and(|mapping| mapping.target_of(key).is_some()) || resolve(key).is_some();
+    (key.chars().any(|c| c.is_alphabetic()) && !names_a_column).then(|| Setting {
+        key: key.to_string(),
+        value,
+        text: text.to_string(),
+    })
+}
+
+/// Whether a line is only numbers (and so no header).
+fn is_number_line(text: &str) -> bool {
+    number_line_delimiter(text).is_some()
+}
+
+/// How a line of only numbers splits into them: as a header would, else on white space
+/// (`0.5  20.1\t-40` mixes spaces and a tab); `None` when it is not only numbers.
+fn number_line_delimiter(text: &str) -> Option<char> {
+    let all_numbers = |delimiter: char| {
+        let fields = split_fields(text, delimiter);
+        !fields.is_empty()
+            && fields
+                .iter()
+                .all(|field| parse_f64(field.trim().trim_matches('"').trim()).is_some())
+    };
+    [delimiter_of(text), WHITESPACE]
+        .into_iter()
+        .find(|&delimiter| all_numbers(delimiter))
+}
+
+/// What the x, y, z columns of a phone app's per-sensor file hold, told from its file
+/// name (see `io::sensor_files`): that sensor, in Android device axes and the app's own
+/// unit (m/s², rad/s, µT).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum XyzColumns {
+    Accelerometer,
+    Gyroscope,
+    Magnetometer,
 }
 
 /// Whether the times of the rows read so far ever went back.
@@ -1054,12 +1199,21 @@ impl DelimitedReader {
             mapping: None,
             problems: Vec::new(),
             row_times: RowTimes::default(),
+            settings: Vec::new(),
+            xyz_columns: None,
         }
     }
 
     /// Reads the header through the user's mapping.
     pub fn with_mapping(mut self, mapping: Option<ColumnMapping>) -> Self {
         self.mapping = mapping;
+        self
+    }
+
+    /// Reads bare `x`, `y`, `z` columns as this sensor, in Android device axes and the
+    /// app's unit (a phone app's per-sensor file, told by its name).
+    pub fn with_xyz_columns(mut self, xyz_columns: Option<XyzColumns>) -> Self {
+        self.xyz_columns = xyz_columns;
         self
     }
 
@@ -1103,10 +1257,25 @@ impl<S: SampleSinks> DelimitedReader<S> {
         }
         match &self.header {
             None => {
-                let header = Header::parse(line.number, trimmed, self.mapping.as_ref());
+                if let Some(setting) = setting_of(trimmed, self.mapping.as_ref()) {
+                    self.settings.push((line.number, setting));
+                    return;
+                }
+                let header = Header::of_first_line(
+                    line.number,
+                    trimmed,
+                    self.mapping.as_ref(),
+                    self.xyz_columns,
+                );
+                let headerless = header.headerless;
                 self.plan = Plan::of(&header);
                 self.row = vec![f64::NAN; header.columns.len()];
                 self.header = Some(header);
+                // Without a header line, the first line is data.
+                if headerless {
+                    self.n_data_lines += 1;
+                    self.read_data_line(line.number, trimmed);
+                }
             }
             Some(_) => {
                 if self.n_data_lines == 0 {
@@ -1182,7 +1351,7 @@ impl<S: SampleSinks> DelimitedReader<S> {
         line_number: usize,
     ) -> Option<usize> {
         let first = *bytes.get(line_start)?;
-        if first.is_ascii_whitespace() || first == b'#' {
+        if first.is_ascii_whitespace() || first == b'#' || delimiter == WHITESPACE as u8 {
             return None;
         }
         let mut pos = line_start;
@@ -1242,6 +1411,34 @@ impl<S: SampleSinks> DelimitedReader<S> {
         let delimiter = header.delimiter as u8;
         let mut problems = std::mem::take(&mut self.problems);
         self.row.fill(f64::NAN);
+        if header.delimiter == WHITESPACE {
+            let mut n_fields = 0usize;
+            for (field_idx, field) in text.split_ascii_whitespace().enumerate() {
+                n_fields += 1;
+                if self.plan.used.get(field_idx).copied().unwrap_or(false) {
+                    let is_time = self.plan.time == Some(field_idx);
+                    read_field_slowly(
+                        header,
+                        is_time,
+                        field_idx,
+                        field,
+                        &mut self.row,
+                        &mut problems,
+                    );
+                }
+            }
+            if n_fields > header.columns.len() {
+                problems.push(format!(
+                    "{n_fields} fields where the first line (line {}) has {}; the extra fields \
+                     were ignored",
+                    header.line,
+                    header.columns.len()
+                ));
+            }
+            self.problems = problems;
+            self.record_row(line_number);
+            return;
+        }
         let bytes = text.as_bytes();
         let mut field_start = 0usize;
         let mut n_fields = 0usize;
@@ -1403,6 +1600,13 @@ impl DelimitedReader {
             return Err(ImportError::NoHeader { file_name });
         };
         if header.columns.iter().all(Option::is_none) {
+            if header.headerless {
+                return Err(ImportError::NoHeaderLine {
+                    file_name,
+                    line: header.line,
+                    n_columns: header.names.len(),
+                });
+            }
             return Err(ImportError::UnknownHeader {
                 file_name,
                 line: header.line,
@@ -1410,6 +1614,59 @@ impl DelimitedReader {
             });
         }
         let mut notes = Vec::new();
+        if header.headerless {
+            notes.push(format!(
+                "no header line: the {} columns{} are named column 1 to column {} and read \
+                 as the mapping says",
+                header.names.len(),
+                if header.delimiter == WHITESPACE {
+                    ", split on white space,"
+                } else {
+                    ""
+                },
+                header.names.len()
+            ));
+        }
+        // The first settings line that gives a sample rate times the samples when there is
+        // no time column.
+        let rate = self
+            .settings
+            .iter()
+            .find_map(|(line, setting)| Some((*line, setting, setting.sample_rate_hz()?)));
+        if !self.settings.is_empty() {
+            let described: Vec<String> = self
+                .settings
+                .iter()
+                .map(|(line, setting)| {
+                    let role = match rate {
+                        Some((rate_line, _, _)) if rate_line == *line => {
+                            if header.time_field.is_none() {
+                                "the sample rate in Hz, used for the times"
+                            } else {
+                                "a sample rate; the time column is used instead"
+                            }
+                        }
+                        _ => "not used",
+                    };
+                    format!(
+                        "{} = {} (line {line}: {role})",
+                        shorten(&setting.key),
+                        setting.value
+                    )
+                })
+                .take(MAX_SETTINGS_NOTED)
+                .collect();
+            let more = self.settings.len().saturating_sub(MAX_SETTINGS_NOTED);
+            notes.push(format!(
+                "settings lines before the header: {}{}",
+                described.join("; "),
+                if more > 0 {
+                    format!("; and {more} more")
+                } else {
+                    String::new()
+                }
+            ));
+        }
         // Ignored columns and a missing time are facts about the file, not problems of a
         // line: they are notes.
         let unknown: Vec<&str> = header
@@ -1431,21 +1688,40 @@ impl DelimitedReader {
             ));
         }
         if header.time_field.is_none() {
-            notes.push("no time column: the sample number is used as time".to_string());
+            notes.push(match rate {
+                Some((line, setting, rate_hz)) => format!(
+                    "no time column: the samples are spaced at {rate_hz} Hz, the rate on line \
+                     {line} ({})",
+                    shorten(&setting.text)
+                ),
+                None => "no time column: the sample number is used as time".to_string(),
+            });
         }
 
         let scale_of = |quantity: Quantity| {
-            header
-                .columns
-                .iter()
-                .flatten()
-                .find(|column| column.quantity == quantity)
+            // The time column used, where a file has several (`time` and
+            // `seconds_elapsed`); the first of its quantity for the others.
+            let time_column = header
+                .time_field
+                .and_then(|idx| header.columns.get(idx).copied().flatten())
+                .filter(|_| quantity == Quantity::Time);
+            time_column
+                .or_else(|| {
+                    header
+                        .columns
+                        .iter()
+                        .flatten()
+                        .find(|column| column.quantity == quantity)
+                        .copied()
+                })
                 .and_then(|column| column.scale)
         };
         let recording = &mut self.recording;
-        let time_scale = match scale_of(Quantity::Time) {
-            Some(scale) => scale,
-            None => {
+        let time_scale = match (header.time_field, scale_of(Quantity::Time)) {
+            // Sample numbers, at the rate the settings give.
+            (None, _) => rate.map_or(1.0, |(_, _, rate_hz)| 1.0 / rate_hz),
+            (Some(_), Some(scale)) => scale,
+            (Some(_), None) => {
                 let (scale, guess) = guess_time_scale(recording);
                 if header.time_field.is_some() {
                     notes.push(format!("time unit guessed from the values: {guess}"));
@@ -1490,20 +1766,24 @@ impl DelimitedReader {
             &recording.gyro_in_body_radps.values,
             guess_gyro_scale,
         );
-        let (mag_scale, mag_note) = unit_or_guess(
-            scale_of(Quantity::Mag),
-            &recording.mag_in_body_ut.values,
-            guess_mag_scale,
-        );
         // The unit the field was written in, for calibrations exported in it.
-        let mag_unit = (!recording.mag_in_body_ut.is_empty()).then(|| {
-            let unit = mag_unit_of_scale(mag_scale);
-            if scale_of(Quantity::Mag).is_some() {
-                unit
-            } else {
-                unit.guessed()
+        let mag_values = &recording.mag_in_body_ut.values;
+        let (mag_unit, mag_note) = match scale_of(Quantity::Mag) {
+            Some(scale) => (Some(mag_unit_of_scale(scale)), None),
+            None if mag_values.is_empty() => (None, None),
+            None => {
+                let median = median_norm(mag_values);
+                let (unit, description) = guess_mag_unit(median);
+                (
+                    Some(unit),
+                    Some(format!(
+                        "{description} (median magnitude {median:.3}); override the unit if \
+                         this is wrong"
+                    )),
+                )
             }
-        });
+        };
+        let mag_scale = mag_unit.map_or(1.0, |unit| unit.factor());
         notes.extend([acc_note, gyro_note, mag_note].into_iter().flatten());
         for (stream, scale) in [
             (&mut recording.acc_in_body_mps2, acc_scale),
@@ -1813,6 +2093,35 @@ const DEG_TO_RAD: f64 = std::f64::consts::PI / 180.0;
 /// Standard gravity (CGPM 1901), for accelerometers that report in g.
 const STANDARD_GRAVITY_MPS2: f64 = 9.806_65;
 
+/// The delimiter that stands for "runs of spaces and tabs" (a line with no comma, tab
+/// or semicolon, split on white space).
+const WHITESPACE: char = ' ';
+
+/// How a header (or a first line) is split: comma, else tab, else semicolon, else white
+/// space where that gives several fields.
+fn delimiter_of(text: &str) -> char {
+    if text.contains(',') {
+        ','
+    } else if text.contains('\t') {
+        '\t'
+    } else if text.contains(';') {
+        ';'
+    } else if text.split_ascii_whitespace().nth(1).is_some() {
+        WHITESPACE
+    } else {
+        ','
+    }
+}
+
+/// A line's fields, split by `delimiter` ([`WHITESPACE`]: runs of spaces and tabs).
+fn split_fields(text: &str, delimiter: char) -> Vec<&str> {
+    if delimiter == WHITESPACE {
+        text.split_ascii_whitespace().collect()
+    } else {
+        text.split(delimiter).collect()
+    }
+}
+
 /// The header line, resolved.
 #[derive(Debug, Clone)]
 struct Header {
@@ -1823,30 +2132,55 @@ struct Header {
     axes: SensorAxes,
     /// The time column, if any: a preferred one (seconds elapsed) wins over others.
     time_field: Option<usize>,
+    /// The file has no header line: `line` is its first data line, and the columns are
+    /// named "column 1", "column 2", ….
+    headerless: bool,
 }
 
 impl Header {
-    fn parse(line: usize, text: &str, mapping: Option<&ColumnMapping>) -> Header {
-        let delimiter = if text.contains(',') {
-            ','
-        } else if text.contains('\t') {
-            '\t'
-        } else if text.contains(';') {
-            ';'
+    /// The header from the first line that is not a comment or a setting: the line
+    /// itself, or, when it is only numbers, columns named "column 1", "column 2", …
+    /// (the file has no header line, and that line is data).
+    fn of_first_line(
+        line: usize,
+        text: &str,
+        mapping: Option<&ColumnMapping>,
+        xyz_columns: Option<XyzColumns>,
+    ) -> Header {
+        if let Some(delimiter) = number_line_delimiter(text) {
+            let n_columns = split_fields(text, delimiter).len();
+            let names = (1..=n_columns).map(|idx| format!("column {idx}")).collect();
+            Header {
+                headerless: true,
+                ..Header::of_names(line, delimiter, names, mapping, None)
+            }
         } else {
-            ','
-        };
-        let names: Vec<String> = text
-            .split(delimiter)
-            .map(|name| name.trim().trim_matches('"').trim().to_string())
-            .collect();
+            let delimiter = delimiter_of(text);
+            let names = split_fields(text, delimiter)
+                .into_iter()
+                .map(|name| name.trim().trim_matches('"').trim().to_string())
+                .collect();
+            Header::of_names(line, delimiter, names, mapping, xyz_columns)
+        }
+    }
+
+    fn of_names(
+        line: usize,
+        delimiter: char,
+        names: Vec<String>,
+        mapping: Option<&ColumnMapping>,
+        xyz_columns: Option<XyzColumns>,
+    ) -> Header {
         let resolved: Vec<Option<(Column, Naming)>> = names
             .iter()
             .map(
                 |name| match mapping.and_then(|mapping| mapping.target_of(name)) {
                     Some(target) if target.eq_ignore_ascii_case(IGNORE) => None,
                     Some(target) => resolve(target),
-                    None => resolve(name),
+                    None => match xyz_columns {
+                        Some(sensor) => resolve_xyz(name, sensor).or_else(|| resolve(name)),
+                        None => resolve(name),
+                    },
                 },
             )
             .collect();
@@ -1885,8 +2219,33 @@ impl Header {
             columns,
             axes,
             time_field,
+            headerless: false,
         }
     }
+}
+
+/// A bare `x`, `y` or `z` column of a phone app's per-sensor file: that sensor, in
+/// Android device axes and the app's unit (m/s², rad/s, µT: factor 1).
+fn resolve_xyz(raw_name: &str, sensor: XyzColumns) -> Option<(Column, Naming)> {
+    let axis = match raw_name.trim().trim_matches('"').to_lowercase().as_str() {
+        "x" => 0,
+        "y" => 1,
+        "z" => 2,
+        _ => return None,
+    };
+    let quantity = match sensor {
+        XyzColumns::Accelerometer => Quantity::Acc,
+        XyzColumns::Gyroscope => Quantity::Gyro,
+        XyzColumns::Magnetometer => Quantity::Mag,
+    };
+    Some((
+        Column {
+            quantity,
+            axis,
+            scale: Some(1.0),
+        },
+        Naming::PhoneApp,
+    ))
 }
 
 /// How a column was named, which tells the axes it is in.
@@ -2090,13 +2449,7 @@ fn unit_or_guess(
     if values.is_empty() {
         return (1.0, None);
     }
-    let mut norms: Vec<f64> = values
-        .iter()
-        .map(|value| value.norm())
-        .filter(|norm| norm.is_finite())
-        .collect();
-    norms.sort_by(f64::total_cmp);
-    let median = norms.get(norms.len() / 2).copied().unwrap_or(0.0);
+    let median = median_norm(values);
     let (scale, description) = guess(median);
     (
         scale,
@@ -2106,17 +2459,48 @@ fn unit_or_guess(
     )
 }
 
+/// The median magnitude of finite vectors (0 without any).
+fn median_norm(values: &[Vector3<f64>]) -> f64 {
+    let mut norms: Vec<f64> = values
+        .iter()
+        .map(|value| value.norm())
+        .filter(|norm| norm.is_finite())
+        .collect();
+    norms.sort_by(f64::total_cmp);
+    norms.get(norms.len() / 2).copied().unwrap_or(0.0)
+}
+
 /// Magnetometer unit from the median field magnitude. Earth's field is 25-65 µT; hard
-/// iron can multiply a raw reading several times, so the bands are wide.
-fn guess_mag_scale(median: f64) -> (f64, &'static str) {
+/// iron can multiply a raw reading several times, so the bands are wide; between µT and
+/// nT lie raw counts ([`RAW_COUNT_MAGNITUDES`]).
+fn guess_mag_unit(median: f64) -> (MagUnit, &'static str) {
     if median < 1e-3 {
-        (1e6, "magnetometer unit guessed as tesla")
+        (
+            MagUnit::TESLA.guessed(),
+            "magnetometer unit guessed as tesla",
+        )
     } else if median < 5.0 {
-        (100.0, "magnetometer unit guessed as gauss")
-    } else if median < 5_000.0 {
-        (1.0, "magnetometer unit guessed as µT")
+        (
+            MagUnit::GAUSS.guessed(),
+            "magnetometer unit guessed as gauss",
+        )
+    } else if median < RAW_COUNT_MAGNITUDES.start {
+        (
+            MagUnit::MICROTESLA.guessed(),
+            "magnetometer unit guessed as µT",
+        )
+    } else if RAW_COUNT_MAGNITUDES.contains(&median) {
+        (
+            MagUnit::COUNTS,
+            "magnetometer values without a unit, far from the Earth's field in µT, gauss or \
+             nT: read as raw counts, kept as they are (the µT per count is unknown, so field \
+             strengths are in counts)",
+        )
     } else {
-        (1e-3, "magnetometer unit guessed as nT")
+        (
+            MagUnit::NANOTESLA.guessed(),
+            "magnetometer unit guessed as nT",
+        )
     }
 }
 
@@ -2130,10 +2514,10 @@ fn mag_unit_of_scale(scale: f64) -> MagUnit {
         MagUnit::TESLA,
     ]
     .into_iter()
-    .find(|unit| unit.ut_per_unit == scale)
+    .find(|unit| unit.ut_per_unit == Some(scale))
     .unwrap_or(MagUnit {
         name: "the log's unit",
-        ut_per_unit: scale,
+        ut_per_unit: Some(scale),
         origin: crate::io::UnitOrigin::Stated,
     })
 }
@@ -2586,6 +2970,98 @@ mod tests {
         let preview = preview(&["# a comment", "t;ch1;ch2", "0.5;1.25"]).expect("a header");
         assert_eq!(preview.columns, vec!["t", "ch1", "ch2"]);
         assert_eq!(preview.first_values, vec!["0.5", "1.25", ""]);
+    }
+
+    #[test]
+    fn settings_lines_before_the_header_give_the_rate_and_raw_counts_are_counts() {
+        let text = "Fs,50.00\nInitialization time,60\nmx,my,mz\n6202,682,4812\n6177,682,4827\n6190,690,4800\n";
+        let report = read_text(text);
+        assert!(report.diagnostics.is_empty(), "{:?}", report.diagnostics);
+        let mag = &report.recording.mag_in_body_ut;
+        assert_eq!(mag.t_s, vec![0.0, 0.02, 0.04]);
+        // Kept as they are, in counts.
+        assert_eq!(mag.values[0], Vector3::new(6202.0, 682.0, 4812.0));
+        assert_eq!(
+            report.mag_frame,
+            Some(SensorFrame::columns_as_body(MagUnit::COUNTS))
+        );
+        let notes = report.notes.join("\n");
+        for expected in [
+            "Fs = 50 (line 1: the sample rate in Hz, used for the times)",
+            "Initialization time = 60 (line 2: not used)",
+            "no time column: the samples are spaced at 50 Hz, the rate on line 1 (Fs,50.00)",
+            "read as raw counts",
+        ] {
+            assert!(notes.contains(expected), "{expected}\n{notes}");
+        }
+        assert!(looks_like(&[
+            "Fs,50.00",
+            "Initialization time,60",
+            "mx,my,mz",
+            "1,2,3"
+        ]));
+        assert_eq!(
+            header_columns(&["Fs,50.00", "mx,my,mz"]),
+            Some(vec!["mx".to_string(), "my".to_string(), "mz".to_string()])
+        );
+        // With a time column, the rate is only noted.
+        let timed = read_text("rate,100\nt_s,mx,my,mz\n0,20,0,-40\n0.5,21,0,-40\n");
+        assert_eq!(timed.recording.mag_in_body_ut.t_s, vec![0.0, 0.5]);
+        assert!(timed
+            .notes
+            .iter()
+            .any(|note| note.contains("the time column is used instead")));
+        // The guess's bands: µT below 1000, counts to 20,000, nT above.
+        assert_eq!(guess_mag_unit(600.0).0, MagUnit::MICROTESLA.guessed());
+        assert_eq!(guess_mag_unit(7000.0).0, MagUnit::COUNTS);
+        assert_eq!(guess_mag_unit(48_000.0).0, MagUnit::NANOTESLA.guessed());
+    }
+
+    #[test]
+    fn numbers_without_a_header_line_are_split_on_white_space_and_read_through_a_mapping() {
+        let text = "0.50 35.7 -71.3 375.9\n0.52   35.8\t-71.4 375.8\n0.54 oops -71.4 375.8\n";
+        let sample: Vec<&str> = text.lines().collect();
+        assert!(!looks_like(&sample));
+        assert!(looks_headerless(&sample));
+        assert_eq!(header_columns(&sample), None);
+        let shown = preview(&sample).expect("a preview");
+        assert_eq!(
+            shown.columns,
+            vec!["column 1", "column 2", "column 3", "column 4"]
+        );
+        assert_eq!(shown.first_values, vec!["0.50", "35.7", "-71.3", "375.9"]);
+        // Without a mapping: the error says there is no header line.
+        assert!(matches!(
+            read("m.txt", text.as_bytes()),
+            Err(ImportError::NoHeaderLine {
+                n_columns: 4,
+                line: 1,
+                ..
+            })
+        ));
+        let mapping = ColumnMapping::parse(
+            "column 1=t_s,column 2=mag_x_ut,column 3=mag_y_ut,column 4=mag_z_ut",
+        )
+        .expect("valid");
+        let report = read_raw_mapped("m.txt", text.as_bytes(), Some(&mapping))
+            .expect("readable")
+            .into_report();
+        let mag = &report.recording.mag_in_body_ut;
+        assert_eq!(mag.t_s, vec![0.5, 0.52]);
+        assert_eq!(mag.values[1], Vector3::new(35.8, -71.4, 375.8));
+        assert!(report
+            .diagnostics
+            .kept
+            .iter()
+            .any(|diagnostic| diagnostic.line == Some(3)));
+        assert!(report
+            .notes
+            .iter()
+            .any(|note| note.contains("no header line")));
+        // A header split on white space.
+        let spaced = read_text("t_s mag_x_ut mag_y_ut mag_z_ut\n0 1 2 3\n1 1 2 4\n");
+        assert_eq!(spaced.recording.mag_in_body_ut.len(), 2);
+        assert!(!looks_like(&["x 1.5"]));
     }
 
     #[test]

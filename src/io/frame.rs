@@ -4,7 +4,9 @@
 //!
 //! Every importer writes the field as `mag_in_body_ut = body_from_sensor · (u · raw)`:
 //! `raw` as written in the log, `u` the µT per raw unit (100 for gauss, 0.1 for milligauss
-//! and for MotionCal's `Raw:` counts, 0.001 for nanotesla), `body_from_sensor` a rotation
+//! and for MotionCal's `Raw:` counts, 0.001 for nanotesla; 1 for raw counts of a sensor
+//! whose sensitivity the log does not give, which are kept as they are, so that every
+//! field strength is then in counts), `body_from_sensor` a rotation
 //! from the raw values' axes to body axes (x forward, y right, z down). A
 //! [`SensorFrame`] records the three, next to where each importer does that
 //! conversion; [`crate::calib::export::SensorCalibration`] uses it to turn a body-axes
@@ -32,13 +34,24 @@ pub enum UnitOrigin {
     Assumed,
 }
 
+/// The median magnitudes of magnetometer values without a unit that are taken as raw
+/// counts: from 1000, above any µT reading (the Earth's 25-65 µT, a phone's hard iron
+/// several hundred µT), to 20,000, below the Earth's field in nT (25,000-65,000 nT). A
+/// QMC5883L at ±8 G gives 3000 counts per gauss, so the Earth's field reads 750-2000
+/// counts, and hard iron adds thousands.
+pub const RAW_COUNT_MAGNITUDES: std::ops::Range<f64> = 1_000.0..20_000.0;
+
+/// MotionCal's `Raw:` magnetometer count in µT (`imuread.h`: `UT_PER_COUNT`).
+pub const MOTIONCAL_UT_PER_COUNT: f64 = 0.1;
+
 /// The unit of a magnetometer's raw values as the log writes them.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct MagUnit {
-    /// The unit's name: "µT", "gauss", "mG", "nT", "T" or "MotionCal count".
+    /// The unit's name: "µT", "gauss", "mG", "nT", "T", "MotionCal count" or "counts".
     pub name: &'static str,
-    /// Microtesla per raw unit.
-    pub ut_per_unit: f64,
+    /// Microtesla per raw unit; `None` when it is unknown (raw counts of a sensor whose
+    /// sensitivity the log does not give). See [`MagUnit::factor`].
+    pub ut_per_unit: Option<f64>,
     pub origin: UnitOrigin,
 }
 
@@ -48,15 +61,30 @@ impl MagUnit {
     pub const MILLIGAUSS: MagUnit = MagUnit::stated("mG", 0.1);
     pub const NANOTESLA: MagUnit = MagUnit::stated("nT", 1e-3);
     pub const TESLA: MagUnit = MagUnit::stated("T", 1e6);
-    /// MotionCal's `Raw:` magnetometer count, 0.1 µT (`imuread.h`: `UT_PER_COUNT`).
-    pub const MOTIONCAL_COUNT: MagUnit = MagUnit::stated("MotionCal count", 0.1);
+    /// MotionCal's `Raw:` magnetometer count, 0.1 µT.
+    pub const MOTIONCAL_COUNT: MagUnit = MagUnit::stated("MotionCal count", MOTIONCAL_UT_PER_COUNT);
+    /// Raw counts whose µT per count is unknown, told from the values' size: thousands,
+    /// far from the Earth's field (25-65 µT) in µT, gauss or nT. The values are kept as
+    /// they are (factor 1), so the fits work in counts and every field strength is in
+    /// counts.
+    pub const COUNTS: MagUnit = MagUnit {
+        name: "counts",
+        ut_per_unit: None,
+        origin: UnitOrigin::Guessed,
+    };
 
     const fn stated(name: &'static str, ut_per_unit: f64) -> MagUnit {
         MagUnit {
             name,
-            ut_per_unit,
+            ut_per_unit: Some(ut_per_unit),
             origin: UnitOrigin::Stated,
         }
+    }
+
+    /// The factor the importer applied to the raw values: µT per unit, or 1 where that
+    /// is unknown (the values were kept as they are).
+    pub fn factor(&self) -> f64 {
+        self.ut_per_unit.unwrap_or(1.0)
     }
 
     /// The same unit, guessed from the values rather than read.
@@ -81,14 +109,28 @@ impl MagUnit {
     }
 
     /// The unit for people: "gauss", "MotionCal count (0.1 µT)", "assumed µT (the log
-    /// gives no unit)", "gauss (guessed from the field's size)".
+    /// gives no unit)", "gauss (guessed from the field's size)", "counts (µT per unit
+    /// unknown: …)".
     pub fn label(&self) -> String {
-        let scale = if self.name == "µT" || self.ut_per_unit == 1.0 {
+        let Some(ut_per_unit) = self.ut_per_unit else {
+            let origin = match self.origin {
+                UnitOrigin::Stated => "",
+                UnitOrigin::Guessed | UnitOrigin::Assumed => {
+                    ", told from the values' size (far from the Earth's field in µT, gauss or nT)"
+                }
+            };
+            return format!(
+                "{} (µT per unit unknown: the values are kept as they are and field strengths \
+                 are in {}){origin}",
+                self.name, self.name
+            );
+        };
+        let scale = if self.name == "µT" || ut_per_unit == 1.0 {
             String::new()
         } else {
-            format!(" ({} µT)", self.ut_per_unit)
+            format!(" ({ut_per_unit} µT)")
         };
-        match (self.origin, self.ut_per_unit == 1.0) {
+        match (self.origin, ut_per_unit == 1.0) {
             (UnitOrigin::Stated, _) => format!("{}{scale}", self.name),
             (_, true) => "assumed µT (the log gives no unit)".to_string(),
             (_, false) => format!("{}{scale}, guessed from the field's size", self.name),
@@ -163,7 +205,7 @@ impl SensorFrame {
     /// Whether the raw values are body axes in µT already (so a calibration reads the
     /// same in both).
     pub fn is_body_ut(&self) -> bool {
-        self.body_from_sensor == Matrix3::identity() && self.unit.ut_per_unit == 1.0
+        self.body_from_sensor == Matrix3::identity() && self.unit.ut_per_unit == Some(1.0)
     }
 
     /// The same rotation and unit, whatever the words or the unit's origin.
@@ -218,6 +260,7 @@ mod tests {
             SensorFrame::android_device(PhoneMount::Flat, MagUnit::MICROTESLA),
             SensorFrame::android_device(PhoneMount::Upright, MagUnit::MICROTESLA),
             SensorFrame::columns_as_body(MagUnit::GAUSS),
+            SensorFrame::columns_as_body(MagUnit::COUNTS),
             SensorFrame::body_ut(),
         ];
         for frame in frames {
@@ -261,6 +304,11 @@ mod tests {
             MagUnit::GAUSS.guessed().label(),
             "gauss (100 µT), guessed from the field's size"
         );
+        assert!(MagUnit::COUNTS
+            .label()
+            .starts_with("counts (µT per unit unknown: the values are kept as they are and field strengths are in counts), told from"));
+        assert_eq!(MagUnit::COUNTS.factor(), 1.0);
+        assert!(!SensorFrame::columns_as_body(MagUnit::COUNTS).is_body_ut());
         let described = SensorFrame::serial_board(MagUnit::MOTIONCAL_COUNT).describe();
         assert!(described.contains("= (x, −y, −z)"), "{described}");
     }

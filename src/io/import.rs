@@ -8,6 +8,7 @@
 
 use super::delimited::{self, ColumnMapping, DelimitedReader, RawImport, SensorAxes};
 use super::lines::{decode_all, Line, LineDecoder};
+use super::sensor_files::{self, SensorFile, SensorFileReader, SensorImport};
 use super::summary::{summarize, StreamSummary};
 use super::tagged_lines::LineReader as _;
 use super::{
@@ -31,24 +32,45 @@ pub enum Format {
     SerialLines,
 }
 
-/// The format of a file, told from its first lines; `None` when nothing fits.
-pub fn detect(bytes: &[u8]) -> Option<Format> {
+/// The first non-blank lines of a file's first bytes, trimmed, for telling its format.
+fn sample_lines(bytes: &[u8]) -> Vec<String> {
     let mut sample_lines: Vec<String> = Vec::new();
     decode_all(&bytes[..bytes.len().min(SAMPLE_BYTES)], 4096, |line| {
         if sample_lines.len() < N_SAMPLE_LINES && !line.text.trim().is_empty() {
             sample_lines.push(line.text.trim().to_string());
         }
     });
+    sample_lines
+}
+
+/// The format of a file, told from its first lines; `None` when nothing fits.
+pub fn detect(bytes: &[u8]) -> Option<Format> {
+    let sample_lines = sample_lines(bytes);
     let sample: Vec<&str> = sample_lines.iter().map(String::as_str).collect();
-    if nmea::looks_like(&sample) {
+    detect_lines(&sample)
+}
+
+/// The format to read a file as: [`detect`]'s, except that delimited numbers without a
+/// header line are read as delimited text when the user mapped their columns.
+fn format_for(sample: &[&str], mapping: Option<&ColumnMapping>) -> Option<Format> {
+    let format = detect_lines(sample);
+    let mapped_numbers = mapping.is_some() && delimited::looks_headerless(sample);
+    match format {
+        Some(Format::SerialLines) | None if mapped_numbers => Some(Format::Delimited),
+        format => format,
+    }
+}
+
+fn detect_lines(sample: &[&str]) -> Option<Format> {
+    if nmea::looks_like(sample) {
         Some(Format::Nmea)
-    } else if tagged_lines::looks_like_android_dump(&sample) {
+    } else if tagged_lines::looks_like_android_dump(sample) {
         Some(Format::AndroidDump)
-    } else if tagged_lines::looks_like_get_sensor_data(&sample) {
+    } else if tagged_lines::looks_like_get_sensor_data(sample) {
         Some(Format::GetSensorData)
-    } else if delimited::looks_like(&sample) {
+    } else if delimited::looks_like(sample) {
         Some(Format::Delimited)
-    } else if serial_lines::looks_like(&sample) {
+    } else if serial_lines::looks_like(sample) {
         Some(Format::SerialLines)
     } else {
         None
@@ -58,12 +80,7 @@ pub fn detect(bytes: &[u8]) -> Option<Format> {
 /// The header of a delimited file, as a key under which a column mapping can be
 /// remembered: its column names, lower-cased, in order. `None` for other formats.
 pub fn header_signature(prefix: &[u8]) -> Option<String> {
-    let mut sample_lines: Vec<String> = Vec::new();
-    decode_all(&prefix[..prefix.len().min(SAMPLE_BYTES)], 4096, |line| {
-        if sample_lines.len() < N_SAMPLE_LINES && !line.text.trim().is_empty() {
-            sample_lines.push(line.text.trim().to_string());
-        }
-    });
+    let sample_lines = sample_lines(prefix);
     let sample: Vec<&str> = sample_lines.iter().map(String::as_str).collect();
     if matches!(detect(prefix), Some(Format::Delimited) | None) {
         let columns = delimited::header_columns(&sample)?;
@@ -85,6 +102,9 @@ pub enum FileImport {
     /// that a phone's mount is judged from its accelerometer file.
     Raw(RawImport),
     Final(ImportReport),
+    /// A phone app's per-sensor file, in device axes, with what it gives the recording
+    /// (the merge chooses among alternatives: see [`sensor_files::choose`]).
+    Sensor(SensorImport),
 }
 
 fn import_one(
@@ -93,7 +113,15 @@ fn import_one(
     mapping: Option<&ColumnMapping>,
 ) -> Result<FileImport, ImportError> {
     ensure_text(file_name, bytes)?;
-    Ok(match detect(bytes) {
+    let sample_lines = sample_lines(bytes);
+    let sample: Vec<&str> = sample_lines.iter().map(String::as_str).collect();
+    if sensor_files::recognise(file_name, &sample).is_some() {
+        // The readers a file read in chunks uses, fed the whole file at once.
+        let mut chunked = ChunkedImport::new(file_name, Some(bytes.len()));
+        chunked.feed(bytes)?;
+        return chunked.finish();
+    }
+    Ok(match format_for(&sample, mapping) {
         Some(Format::Nmea) => FileImport::Final(nmea::read(file_name, bytes)?),
         Some(Format::AndroidDump) => {
             FileImport::Final(tagged_lines::read_android_dump(file_name, bytes)?)
@@ -149,6 +177,7 @@ pub fn merge(
             Err(error) => failures.push((file_name, error)),
         }
     }
+    let (mut imports, choice_notes) = choose_among_sensor_files(imports);
     if imports.is_empty() {
         return Err(failures
             .into_iter()
@@ -159,10 +188,14 @@ pub fn merge(
             }));
     }
     if imports.len() == 1 && failures.is_empty() {
-        return Ok(match imports.remove(0).1 {
-            FileImport::Raw(raw) => raw.into_report(),
+        let mut report = match imports.remove(0).1 {
+            FileImport::Raw(raw) | FileImport::Sensor(SensorImport { raw, .. }) => {
+                raw.into_report()
+            }
             FileImport::Final(report) => report,
-        });
+        };
+        report.notes.extend(choice_notes);
+        return Ok(report);
     }
 
     // Merge: delimited files with device axes first (their mount is judged together),
@@ -185,15 +218,21 @@ pub fn merge(
     let mut device_mag_unit = None;
     // Every file's magnetometer frame, in file order, to keep the first and note others.
     let mut mag_frames: Vec<(String, SensorFrame)> = Vec::new();
+    merged.notes.extend(choice_notes);
     for (file_name, import) in imports {
         let (report, in_device_axes) = match import {
-            FileImport::Raw(raw) if raw.axes == SensorAxes::AndroidDevice => {
+            // (Per-sensor files were turned into delimited imports above.)
+            FileImport::Raw(raw) | FileImport::Sensor(SensorImport { raw, .. })
+                if raw.axes == SensorAxes::AndroidDevice =>
+            {
                 if device_mag_unit.is_none() && !raw.report.recording.mag_in_body_ut.is_empty() {
                     device_mag_unit = raw.mag_unit;
                 }
                 (raw.report, true)
             }
-            FileImport::Raw(raw) => (raw.into_report(), false),
+            FileImport::Raw(raw) | FileImport::Sensor(SensorImport { raw, .. }) => {
+                (raw.into_report(), false)
+            }
             FileImport::Final(report) => (report, false),
         };
         if let Some(frame) = report.mag_frame {
@@ -263,6 +302,33 @@ pub fn merge(
     Ok(merged)
 }
 
+/// The per-sensor files among the imports chosen among ([`sensor_files::choose`]), in
+/// their places, as delimited imports in device axes; with notes on the choices.
+fn choose_among_sensor_files(
+    imports: Vec<(String, FileImport)>,
+) -> (Vec<(String, FileImport)>, Vec<String>) {
+    let mut kept: Vec<Option<(String, FileImport)>> = Vec::with_capacity(imports.len());
+    let mut sensor: Vec<(String, SensorImport)> = Vec::new();
+    let mut sensor_places: Vec<usize> = Vec::new();
+    for (file_name, import) in imports {
+        match import {
+            FileImport::Sensor(sensor_import) => {
+                sensor_places.push(kept.len());
+                sensor.push((file_name, sensor_import));
+                kept.push(None);
+            }
+            import => kept.push(Some((file_name, import))),
+        }
+    }
+    let (chosen, notes) = sensor_files::choose(sensor);
+    for (place, (file_name, raw)) in sensor_places.into_iter().zip(chosen) {
+        if let Some(slot) = kept.get_mut(place) {
+            *slot = Some((file_name, FileImport::Raw(raw)));
+        }
+    }
+    (kept.into_iter().flatten().collect(), notes)
+}
+
 /// Moves a file's diagnostics, notes and counts into the merged report and hands back
 /// its recording.
 fn merge_into_parts(
@@ -319,6 +385,8 @@ pub struct ChunkedImport {
     saw_text: bool,
     n_bytes_read: usize,
     mapping: Option<ColumnMapping>,
+    /// The phone app's per-sensor file this is, told from its name and first lines.
+    sensor_file: Option<SensorFile>,
 }
 
 /// How a chunked import reads, once the format is known.
@@ -435,6 +503,7 @@ impl Reading {
 
 enum FormatReader {
     Delimited(DelimitedReader),
+    SensorFile(SensorFileReader),
     Nmea(nmea::NmeaReader),
     Serial(serial_lines::SerialReader),
     Android(tagged_lines::AndroidReader),
@@ -445,6 +514,7 @@ impl FormatReader {
     fn read_line(&mut self, line: &Line<'_>) {
         match self {
             FormatReader::Delimited(reader) => reader.read_line(line),
+            FormatReader::SensorFile(reader) => reader.read_line(line),
             FormatReader::Nmea(reader) => reader.read_decoded(line),
             FormatReader::Serial(reader) => reader.read_line(line.number, &line.text, None),
             FormatReader::Android(reader) => {
@@ -459,6 +529,7 @@ impl FormatReader {
     fn finish(self, file_name: &str) -> Result<FileImport, ImportError> {
         Ok(match self {
             FormatReader::Delimited(reader) => FileImport::Raw(reader.finish(file_name)?),
+            FormatReader::SensorFile(reader) => FileImport::Sensor(reader.finish(file_name)?),
             FormatReader::Nmea(reader) => FileImport::Final(reader.finish(file_name)?),
             FormatReader::Serial(reader) => FileImport::Final(reader.finish(file_name)?),
             FormatReader::Android(reader) => {
@@ -482,6 +553,7 @@ impl ChunkedImport {
             saw_text: false,
             n_bytes_read: 0,
             mapping: None,
+            sensor_file: None,
         }
     }
 
@@ -527,7 +599,13 @@ impl ChunkedImport {
                 byte_offset,
             });
         }
-        let format = detect(&self.prefix);
+        let sample_lines = sample_lines(&self.prefix);
+        let sample: Vec<&str> = sample_lines.iter().map(String::as_str).collect();
+        if let Some(sensor_file) = sensor_files::recognise(&self.file_name, &sample) {
+            self.start_reading_sensor_file(sensor_file);
+            return Ok(());
+        }
+        let format = format_for(&sample, self.mapping.as_ref());
         if let Some((mut reading, data_start)) = self.blocks_for(format) {
             let prefix = std::mem::take(&mut self.prefix);
             reading.feed(prefix.get(data_start..).unwrap_or_default());
@@ -554,6 +632,53 @@ impl ChunkedImport {
         self.prefix = Vec::new();
         self.reader = Some(Reading::Lines(decoder, reader));
         Ok(())
+    }
+
+    /// A phone app's per-sensor file: Sensor Logger's CSVs that are read go through the
+    /// delimited reader (in blocks, as other delimited text), every other one through
+    /// [`SensorFileReader`], line by line.
+    fn start_reading_sensor_file(&mut self, sensor_file: SensorFile) {
+        let prefix = std::mem::take(&mut self.prefix);
+        let logger_reader = || match &sensor_file {
+            SensorFile::SensorLogger { kind, .. } => {
+                sensor_files::logger_reader(*kind, self.size_hint_bytes)
+            }
+            _ => None,
+        };
+        let reading = match logger_reader() {
+            Some(reader) => match delimited::read_up_to_header_with(reader, &prefix) {
+                Some((reader, data_start, n_lines)) => {
+                    let mut reading = Reading::Blocks {
+                        reader: BlockReader::Delimited(reader),
+                        carry: Vec::new(),
+                        n_lines,
+                    };
+                    reading.feed(prefix.get(data_start..).unwrap_or_default());
+                    reading
+                }
+                // No line ending after the header yet: line by line.
+                None => {
+                    let reader = logger_reader().map_or_else(
+                        || FormatReader::SensorFile(SensorFileReader::new(sensor_file.clone())),
+                        FormatReader::Delimited,
+                    );
+                    self.lines_of(reader, &prefix)
+                }
+            },
+            None => self.lines_of(
+                FormatReader::SensorFile(SensorFileReader::new(sensor_file.clone())),
+                &prefix,
+            ),
+        };
+        self.reader = Some(reading);
+        self.sensor_file = Some(sensor_file);
+    }
+
+    /// Line-by-line reading with `reader`, the prefix already fed.
+    fn lines_of(&self, mut reader: FormatReader, prefix: &[u8]) -> Reading {
+        let mut decoder = LineDecoder::new(MAX_LINE_BYTES);
+        decoder.feed(prefix, |line| reader.read_line(&line));
+        Reading::Lines(decoder, reader)
     }
 
     /// Block reading for NMEA, and for delimited text whose header ends in the prefix
@@ -594,7 +719,13 @@ impl ChunkedImport {
                 file_name: self.file_name,
             });
         };
-        reading.finish(&self.file_name)
+        let import = reading.finish(&self.file_name)?;
+        Ok(match (self.sensor_file, import) {
+            (Some(SensorFile::SensorLogger { kind, start_unix_s }), FileImport::Raw(raw)) => {
+                FileImport::Sensor(sensor_files::finish_logger(kind, start_unix_s, raw))
+            }
+            (_, import) => import,
+        })
     }
 }
 
@@ -617,11 +748,25 @@ pub struct Inspection {
 
 impl Inspection {
     pub fn of(report: &ImportReport) -> Inspection {
+        let mut streams = summarize(&report.recording);
+        // Raw counts of unknown sensitivity were kept as they are: their magnitudes are
+        // counts, not µT.
+        if let Some(unit) = report
+            .mag_frame
+            .map(|frame| frame.unit)
+            .filter(|unit| unit.ut_per_unit.is_none())
+        {
+            for summary in &mut streams {
+                if summary.stream.starts_with("magnetometer") {
+                    summary.unit = unit.name;
+                }
+            }
+        }
         Inspection {
             file_name: report.file_name.clone(),
             format: report.format,
             n_data_lines: report.n_data_lines,
-            streams: summarize(&report.recording),
+            streams,
             notes: report.notes.clone(),
             diagnostics: report.diagnostics.clone(),
             mag_frame: report.mag_frame,

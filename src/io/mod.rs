@@ -12,6 +12,7 @@ pub mod import;
 pub mod lines;
 pub mod nmea;
 pub mod number;
+pub mod sensor_files;
 pub mod serial_lines;
 pub mod summary;
 pub mod tagged_lines;
@@ -129,6 +130,17 @@ pub enum ImportError {
 
     #[error("{file_name} has no header line, only blank or comment lines. Add a header such as t_s,mag_x_ut,mag_y_ut,mag_z_ut.")]
     NoHeader { file_name: String },
+
+    #[error(
+        "{file_name} has no header line: line {line} is already {n_columns} numbers. Say \
+         which column is which: in the page's column dialog, or with --map, for example \
+         --map 'column 1=t_s,column 2=mag_x_ut,column 3=mag_y_ut,column 4=mag_z_ut'."
+    )]
+    NoHeaderLine {
+        file_name: String,
+        line: usize,
+        n_columns: usize,
+    },
 
     #[error(
         "{file_name}, line {line}: the header names no column this tool knows \

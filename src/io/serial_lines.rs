@@ -119,7 +119,7 @@ const STANDARD_GRAVITY_MPS2: f64 = 9.80665;
 /// MotionCal's scale factors (`imuread.h`).
 const MOTIONCAL_G_PER_COUNT: f64 = 1.0 / 8192.0;
 const MOTIONCAL_DPS_PER_COUNT: f64 = 1.0 / 16.0;
-const MOTIONCAL_UT_PER_COUNT: f64 = MagUnit::MOTIONCAL_COUNT.ut_per_unit;
+use super::frame::{MOTIONCAL_UT_PER_COUNT, RAW_COUNT_MAGNITUDES};
 /// The widest common gyroscope range, 2000 °/s, in rad/s.
 const MAX_PLAUSIBLE_RATE_RADPS: f64 = 35.0;
 
@@ -969,7 +969,20 @@ impl SerialReader {
             .map(|value| value.0.norm())
             .collect();
         if let Some(median) = median(mag_norms) {
-            if !(10.0..=200.0).contains(&median) {
+            if RAW_COUNT_MAGNITUDES.contains(&median) {
+                // Far from the Earth's field in any unit: raw counts, kept as they are.
+                for (unit, _) in &mut self.mag_units {
+                    if unit.origin == UnitOrigin::Assumed {
+                        *unit = MagUnit::COUNTS;
+                    }
+                }
+                notes.push(format!(
+                    "magnetometer values without a unit have a median magnitude of \
+                     {median:.0}, far from the Earth's field in µT, gauss or nT: read as raw \
+                     counts, kept as they are (the µT per count is unknown, so field strengths \
+                     are in counts)"
+                ));
+            } else if !(10.0..=200.0).contains(&median) {
                 notes.push(format!(
                     "magnetometer values without a unit have a median magnitude of \
                      {median:.3} µT, far from the Earth's 25-65 µT: check the unit (gauss \
@@ -1372,7 +1385,7 @@ fn set_vector(sample: &mut SensorSample, quantity: Quantity, v: Vector3<f64>, un
             sample.mag_unit = match unit {
                 Some(unit) => MagUnit {
                     name: unit.name,
-                    ut_per_unit: unit.to_si,
+                    ut_per_unit: Some(unit.to_si),
                     origin: UnitOrigin::Stated,
                 },
                 None => MagUnit::assumed_microtesla(),

@@ -78,8 +78,9 @@
 //!   the Android dump.
 //! - `GNSS;AppTimestamp;SensorTimeStamp;Latit(deg);Long(deg);Altitude(m);Bearing(deg);
 //!   Accuracy(m);Speed(m/s);SatInView;SatInUse`, where SensorTimeStamp is the fix time in
-//!   seconds since 1970. Older logs lack SensorTimeStamp; a time since 1970 is never a
-//!   latitude, so the third field tells the two layouts apart.
+//!   seconds since 1970 (`Location.getTime()`). Older logs lack SensorTimeStamp; a time
+//!   since 1970 is never a latitude, so the third field tells the two layouts apart. The
+//!   competitions' logs add `UTCTime(ms)` after Speed.
 //! - `POSI;Timestamp(s);Counter;Latitude(deg);Longitude(deg);FloorID;BuildingID`: a
 //!   ground-truth landmark on the app clock. The app itself writes 0, 0 when the user
 //!   marks a position, and the competition fills in the coordinates, so 0, 0 is
@@ -91,6 +92,10 @@
 //! sensor), and SensorTimestamp, each sensor's own clock. AppTimestamp is `t_s`, so that
 //! all streams share one timeline; the spread of SensorTimestamp − AppTimestamp per
 //! sensor is reported in the notes.
+//!
+//! The log is dated (for the magnetic model) by the first fix's UTC time (UTCTime, else
+//! SensorTimeStamp) minus its AppTimestamp, else by the header's `% Date of creation:`
+//! (Java's `Date.toString()`, `Fri Sep 20 10:18:41 GMT+02:00 2019`).
 
 use std::collections::BTreeMap;
 
@@ -778,13 +783,27 @@ pub struct GetSensorDataReader {
     collector: Collector,
     /// Per tag, the smallest and largest SensorTimestamp − AppTimestamp.
     clock_offsets_s: BTreeMap<&'static str, (f64, f64)>,
+    /// The first GNSS fix with a UTC time: (AppTimestamp, UTC seconds since 1970, where
+    /// the UTC time came from).
+    first_fix_utc: Option<(f64, f64, &'static str)>,
+    /// The header's `% Date of creation:` in seconds since 1970, and whether its zone
+    /// was understood.
+    creation_unix_s: Option<(f64, bool)>,
 }
 
 impl LineReader for GetSensorDataReader {
     fn read_line(&mut self, number: usize, text: &str, truncated: bool) {
         self.collector.n_lines = self.collector.n_lines.max(number);
         let trimmed = text.trim_start_matches('\u{feff}').trim();
-        if trimmed.is_empty() || trimmed.starts_with('%') {
+        if let Some(comment) = trimmed.strip_prefix('%') {
+            if let Some(date) = comment.trim().strip_prefix("Date of creation:") {
+                if self.creation_unix_s.is_none() {
+                    self.creation_unix_s = java_date_unix_s(date.trim());
+                }
+            }
+            return;
+        }
+        if trimmed.is_empty() {
             return;
         }
         self.collector.n_data_lines += 1;
@@ -825,7 +844,35 @@ impl LineReader for GetSensorDataReader {
                    since logging started); the sensors' own SensorTimestamp clocks are not used"
                 .to_string(),
         };
-        self.collector.finish(file_name, GET_SENSOR_DATA, clock)
+        // The start in UTC: a fix's UTC time minus its AppTimestamp, else the header's
+        // date of creation.
+        let start_unix_s = match (self.first_fix_utc, self.creation_unix_s) {
+            (Some((app_s, utc_s, source)), _) => {
+                self.collector.extra_notes.push(format!(
+                    "dated by the GNSS fixes' UTC time ({source} − AppTimestamp of the first \
+                     fix): logging started {} s after 1970",
+                    (utc_s - app_s).round()
+                ));
+                Some(utc_s - app_s)
+            }
+            (None, Some((creation_s, zone_known))) => {
+                self.collector.extra_notes.push(format!(
+                    "dated by the header's date of creation ({} s after 1970{}); no GNSS fix \
+                     gives a UTC time",
+                    creation_s.round(),
+                    if zone_known {
+                        ""
+                    } else {
+                        ", its time zone taken as UTC"
+                    }
+                ));
+                Some(creation_s)
+            }
+            (None, None) => None,
+        };
+        let mut report = self.collector.finish(file_name, GET_SENSOR_DATA, clock)?;
+        report.recording.start_unix_s = start_unix_s;
+        Ok(report)
     }
 }
 
@@ -988,6 +1035,20 @@ impl GetSensorDataReader {
         let lat_deg = number_at(fields, lat_idx, "Latit")?;
         let lon_deg = number_at(fields, lat_idx + 1, "Long")?;
         check_lat_lon(lat_deg, lon_deg)?;
+        // The fix's UTC time: UTCTime(ms) after Speed (the competitions' layout), else
+        // SensorTimeStamp, the app's `Location.getTime()` in seconds.
+        let utc_ms = fields
+            .get(lat_idx + 6)
+            .and_then(|field| field.parse::<f64>().ok())
+            .filter(|ms| ms.is_finite() && *ms > 1e11);
+        let utc = match utc_ms {
+            Some(ms) => Some((ms * 1e-3, "UTCTime")),
+            None => (lat_idx == 3 && third > 1e8 && third.is_finite())
+                .then_some((third, "SensorTimeStamp")),
+        };
+        if let (None, Some((utc_s, source))) = (self.first_fix_utc, utc) {
+            self.first_fix_utc = Some((t, utc_s, source));
+        }
         let alt_m = number_at(fields, lat_idx + 2, "Altitude")?;
         let bearing_deg = number_at(fields, lat_idx + 3, "Bearing")?;
         let accuracy_m = number_at(fields, lat_idx + 4, "Accuracy")?;
@@ -1047,6 +1108,47 @@ fn check_lat_lon(lat_deg: f64, lon_deg: f64) -> Result<(), String> {
         ));
     }
     Ok(())
+}
+
+/// Seconds since 1970 of a Java `Date.toString()`, `Fri Sep 20 10:18:41 GMT+02:00 2019`
+/// (the GetSensorData header's date of creation), and whether its zone was understood
+/// (`GMT`, `UTC`, `GMT±hh:mm`); another zone name is taken as UTC, hours off at most,
+/// which does not matter for the magnetic model's date.
+fn java_date_unix_s(text: &str) -> Option<(f64, bool)> {
+    let parts: Vec<&str> = text.split_whitespace().collect();
+    let [_, month, day, clock, zone, year] = parts.as_slice() else {
+        return None;
+    };
+    const MONTHS: [&str; 12] = [
+        "Jan", "Feb", "Mar", "Apr", "May", "Jun", "Jul", "Aug", "Sep", "Oct", "Nov", "Dec",
+    ];
+    let month = MONTHS.iter().position(|name| name == month)? as u32 + 1;
+    let day: u32 = day.parse().ok().filter(|day| (1..=31).contains(day))?;
+    let year: i64 = year.parse().ok()?;
+    let mut clock_parts = clock.split(':').map(|part| part.parse::<f64>().ok());
+    let (Some(Some(hours)), Some(Some(minutes)), Some(Some(seconds))) =
+        (clock_parts.next(), clock_parts.next(), clock_parts.next())
+    else {
+        return None;
+    };
+    let offset_s = match zone
+        .strip_prefix("GMT")
+        .or_else(|| zone.strip_prefix("UTC"))
+    {
+        Some("") => Some(0.0),
+        Some(offset) => {
+            let sign = if offset.starts_with('-') { -1.0 } else { 1.0 };
+            let (h, m) = offset
+                .get(1..)?
+                .split_once(':')
+                .unwrap_or((offset.get(1..)?, "0"));
+            Some(sign * (h.parse::<f64>().ok()? * 3600.0 + m.parse::<f64>().ok()? * 60.0))
+        }
+        None => None,
+    };
+    let days = crate::civil::days_from_civil(year, month, day) as f64;
+    let local_s = days * 86_400.0 + hours * 3600.0 + minutes * 60.0 + seconds;
+    Some((local_s - offset_s.unwrap_or(0.0), offset_s.is_some()))
 }
 
 /// A GetSensorData tag: a few capitals or digits, starting with a capital.
@@ -1551,6 +1653,33 @@ POSI;0.600;1;40.31355012;-3.48318510;0;0\n";
             "{messages:?}"
         );
         assert!(messages[8].contains("without coordinates"), "{messages:?}");
+    }
+
+    #[test]
+    fn get_sensor_data_logs_are_dated_by_fixes_else_by_the_header() {
+        // The competitions' layout: UTCTime(ms) after Speed wins over SensorTimeStamp.
+        let with_utc = "% Date of creation: Fri Sep 20 10:18:41 GMT+02:00 2019\n\
+                        ACCE;0.010;9635.4;0.07;0.11;9.81;3\n\
+                        GNSS;2.500;9700.0;40.3135;-3.4831;651.2;45.0;8.0;1.2;1568967124500;12;9\n";
+        let report = gsd(with_utc).expect("readable");
+        assert_eq!(report.recording.start_unix_s, Some(1_568_967_122.0));
+        assert!(report.notes.iter().any(|note| note.contains("UTCTime")));
+        // The app's own layout: SensorTimeStamp is the fix's UTC time in seconds.
+        let app = "GNSS;0.512;1568967124.000;40.313541;-3.483176;651.200;45.000;8.0;1.2;12;9\n";
+        let start = gsd(app).expect("readable").recording.start_unix_s;
+        assert!(start.is_some_and(|start| (start - 1_568_967_123.488).abs() < 1e-6));
+        // No fix: the header's date of creation, in its zone.
+        let header_only = "% Date of creation: Fri Sep 20 10:18:41 GMT+02:00 2019\n\
+                           ACCE;0.010;9635.4;0.07;0.11;9.81;3\n\
+                           POSI;0.600;1;40.31355012;-3.48318510;0;0\n";
+        let report = gsd(header_only).expect("readable");
+        // 2019-09-20 08:18:41 UTC.
+        assert_eq!(report.recording.start_unix_s, Some(1_568_967_521.0));
+        assert_eq!(
+            java_date_unix_s("Fri Sep 20 10:18:41 CEST 2019"),
+            Some((1_568_974_721.0, false))
+        );
+        assert_eq!(java_date_unix_s("yesterday"), None);
     }
 
     #[test]

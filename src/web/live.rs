@@ -359,7 +359,7 @@ impl LivePanel {
             });
         match parsed {
             Ok(export) => {
-                let conversion = if export.ut_per_unit == 1.0 {
+                let conversion = if export.ut_per_unit == Some(1.0) {
                     String::new()
                 } else {
                     format!(
@@ -412,7 +412,7 @@ impl LivePanel {
                 .get(..16)
                 .unwrap_or(&entry.saved_at)
                 .replace('T', " ");
-            let decimals = crate::report::decimals_for_unit(saved.ut_per_unit);
+            let decimals = crate::report::decimals_for_unit(saved.ut_per_unit.unwrap_or(1.0));
             let unit = &saved.unit;
             let description = format!(
                 "{when} UTC, {}: hard iron ({:.decimals$}, {:.decimals$}, {:.decimals$}) {unit}, field \

@@ -276,11 +276,14 @@ impl Page {
             page.set_state("loading", &format!("Analysing {}…", names.join(", ")));
             let merged = merge(results).map_err(AnalysisError::from);
             let (result, for_pdr) = page.calibrate_import(merged);
-            // A single delimited file whose columns were not understood: ask the user.
+            // A single delimited file whose columns were not understood, or numbers
+            // without a header line: ask the user.
             let unreadable_header = matches!(
                 result,
                 Err(AnalysisError::NoMagnetometerColumns { .. }
-                    | AnalysisError::Import(ImportError::UnknownHeader { .. }))
+                    | AnalysisError::Import(
+                        ImportError::UnknownHeader { .. } | ImportError::NoHeaderLine { .. }
+                    ))
             );
             if let (true, [file], [first_chunk]) =
                 (unreadable_header, files.as_slice(), first_chunks.as_slice())
