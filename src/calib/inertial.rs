@@ -880,37 +880,55 @@ fn normal_equations(
         cost: 0.0,
         prior_information: ParamMat::zeros(),
     };
-    let correction = state.correction;
-    // Each residual is `ρ = r / n` (see `normalisers`), with `∂ρ = (∂r − ρ·∂n) / n`.
     // The upper triangle is accumulated per sample in 13×13 blocks of rank one.
     for (idx, &m_ut) in set.mag_ut.iter().enumerate() {
-        let d_ut = m_ut - state.hard_iron_ut;
-        let corrected = correction * d_ut;
-        let magnitude = corrected.norm();
-        if let Some((n, n_gradient)) = magnitude_normaliser(&correction, d_ut) {
-            let unit = corrected / magnitude;
+        let down = set.down(idx).filter(|_| uses_dip);
+        let (magnitude, vertical) = sample_rows(state, m_ut, down, weights.kappa);
+        if let Some((rho, gradient)) = magnitude {
             let w = weights.magnitude.get(idx).copied().unwrap_or(0.0)
                 / weights.sigma_magnitude_ut.powi(2);
-            let rho = (magnitude - state.field_ut) / n;
-            let gradient = (row_gradient(&correction, unit, d_ut, 0.0) - n_gradient * rho) / n;
             accumulate(&mut normal, &gradient, rho, w);
         }
-        let down = set.down(idx).filter(|_| uses_dip);
-        if let Some((down, (n, n_gradient))) = down.and_then(|down| {
-            Some((
-                down,
-                vertical_normaliser(&correction, d_ut, down, weights.kappa)?,
-            ))
-        }) {
+        if let Some((rho, gradient)) = vertical {
             let w = weights.vertical.get(idx).copied().unwrap_or(0.0)
                 / weights.sigma_vertical_ut.powi(2);
-            let rho = (down.dot(&corrected) - state.vertical_ut) / n;
-            let gradient = (row_gradient(&correction, down, d_ut, -1.0) - n_gradient * rho) / n;
             accumulate(&mut normal, &gradient, rho, w);
         }
     }
     add_priors(&mut normal, state, options, start, uses_dip);
     normal
+}
+
+/// One sample's two normalised residuals `ρ = r / n` (see [`normalisers`]) and their
+/// gradients, `∂ρ = (∂r − ρ·∂n) / n`; the vertical one only with a down vector.
+type Row = Option<(f64, ParamVec)>;
+fn sample_rows(
+    state: &State,
+    m_ut: Vector3<f64>,
+    down: Option<Vector3<f64>>,
+    kappa: f64,
+) -> (Row, Row) {
+    let correction = state.correction;
+    let d_ut = m_ut - state.hard_iron_ut;
+    let corrected = correction * d_ut;
+    let magnitude = corrected.norm();
+    let magnitude_row = magnitude_normaliser(&correction, d_ut).map(|(n, n_gradient)| {
+        let unit = corrected / magnitude;
+        let rho = (magnitude - state.field_ut) / n;
+        (
+            rho,
+            (row_gradient(&correction, unit, d_ut, 0.0) - n_gradient * rho) / n,
+        )
+    });
+    let vertical_row = down.and_then(|down| {
+        let (n, n_gradient) = vertical_normaliser(&correction, d_ut, down, kappa)?;
+        let rho = (down.dot(&corrected) - state.vertical_ut) / n;
+        Some((
+            rho,
+            (row_gradient(&correction, down, d_ut, -1.0) - n_gradient * rho) / n,
+        ))
+    });
+    (magnitude_row, vertical_row)
 }
 
 /// The gradient of `aᵀ·D·(m − h) − v·V` (for a fixed direction `a`): `−Dᵀa` for `h`,
@@ -1258,7 +1276,8 @@ fn solve(
     };
     let model_directions = match (model, set.band_axis()) {
         (SoftIronModel::Full, Some(axis)) => FreeDirections::band(axis),
-        (SoftIronModel::Full, None) => FreeDirections::all(),
+        (SoftIronModel::Full, None) if set.uses_dip() => FreeDirections::all(),
+        (SoftIronModel::Full, None) => FreeDirections::symmetric(),
         (SoftIronModel::Isotropic, _) => FreeDirections::isotropic(),
     };
     // First every direction of the model; then only those the data see at the noise
@@ -1313,11 +1332,7 @@ fn iterate(
         let weights = weights(set, &state, loss);
         let mut normal = normal_equations(set, &state, &weights, options, start);
         for _ in 0..MAX_LM_ITERATIONS {
-            let mut damped = normal.jtj;
-            for idx in 0..N_MAX {
-                damped[(idx, idx)] += lambda * normal.jtj[(idx, idx)].max(1e-12);
-            }
-            let step = free.step(&damped, &normal.jtr)?;
+            let step = free.step(&normal.jtj, &normal.jtr, lambda)?;
             let trial = state.with_params(&(state.params() - step));
             let trial_normal = normal_equations(set, &trial, &weights, options, start);
             if trial_normal.cost.is_finite() && trial_normal.cost <= normal.cost {
@@ -1425,6 +1440,32 @@ impl FreeDirections {
         free
     }
 
+    /// Without the accelerometer: the hard iron and a symmetric `D` (the classic
+    /// ellipsoid; nothing sees a rotation, nor the vertical field). Held by a pinning
+    /// prior instead, those directions would also freeze their symmetric neighbours
+    /// through Marquardt's scaling of the damping.
+    fn symmetric() -> FreeDirections {
+        let mut free = FreeDirections {
+            basis: ParamMat::zeros(),
+            n_free: 0,
+        };
+        let mut add = |entries: &[(usize, f64)]| {
+            for &(idx, value) in entries {
+                free.basis[(idx, free.n_free)] = value;
+            }
+            free.n_free += 1;
+        };
+        for axis in 0..3 {
+            add(&[(H + axis, 1.0)]);
+            add(&[(D0 + 4 * axis, 1.0)]);
+        }
+        let half = std::f64::consts::FRAC_1_SQRT_2;
+        for (a, b) in [(0, 1), (0, 2), (1, 2)] {
+            add(&[(D0 + 3 * a + b, half), (D0 + 3 * b + a, half)]);
+        }
+        free
+    }
+
     /// The hard iron, one scale for every axis, and the vertical field.
     fn isotropic() -> FreeDirections {
         let mut basis = ParamMat::zeros();
@@ -1437,12 +1478,15 @@ impl FreeDirections {
     }
 
     /// The damped Gauss-Newton step restricted to the free directions.
-    fn step(&self, damped: &ParamMat, jtr: &ParamVec) -> Option<ParamVec> {
-        if self.n_free == N_MAX {
-            return damped.cholesky().map(|cholesky| cholesky.solve(jtr));
-        }
+    /// The Levenberg-Marquardt step restricted to the free directions: the normal
+    /// equations reduced to them, damped by `lambda` times their own diagonal (so that a
+    /// frozen direction's prior cannot damp the free ones that share its entries).
+    fn step(&self, jtj: &ParamMat, jtr: &ParamVec, lambda: f64) -> Option<ParamVec> {
         let basis = self.basis.columns(0, self.n_free);
-        let reduced = basis.transpose() * damped * basis;
+        let mut reduced = basis.transpose() * jtj * basis;
+        for idx in 0..self.n_free {
+            reduced[(idx, idx)] += lambda * reduced[(idx, idx)].max(1e-12);
+        }
         let rhs = basis.transpose() * jtr;
         let solution = reduced.cholesky()?.solve(&rhs);
         Some(basis * solution)
@@ -1958,6 +2002,43 @@ mod tests {
         let floor = heading_rms_deg(&case, &truth_calibration(&case));
         let got = heading_rms_deg(&case, &fit.calibration);
         assert!(got <= 1.3 * floor + 0.1, "{got}° against {floor}°");
+    }
+
+    #[test]
+    fn the_residuals_gradients_match_finite_differences() {
+        let state = State {
+            hard_iron_ut: Vector3::new(12.0, -30.0, 25.0),
+            correction: Matrix3::new(1.05, 0.04, -0.03, 0.02, 0.97, 0.06, -0.05, 0.01, 1.08),
+            vertical_ut: 40.0,
+            field_ut: 50.0,
+        };
+        let m_ut = Vector3::new(40.0, -5.0, 60.0);
+        let down = Vector3::new(0.1, -0.2, 0.97).normalize();
+        let (magnitude, vertical) = sample_rows(&state, m_ut, Some(down), 0.7);
+        let params = state.params();
+        for (which, (rho, gradient)) in [("magnitude", magnitude), ("vertical", vertical)]
+            .into_iter()
+            .map(|(which, row)| (which, row.expect("a row")))
+        {
+            for idx in 0..N_MAX {
+                let step = 1e-6 * params[idx].abs().max(1.0);
+                let mut shifted = params;
+                shifted[idx] += step;
+                let (magnitude, vertical) =
+                    sample_rows(&state.with_params(&shifted), m_ut, Some(down), 0.7);
+                let row = if which == "magnitude" {
+                    magnitude
+                } else {
+                    vertical
+                };
+                let numerical = (row.expect("a row").0 - rho) / step;
+                assert!(
+                    (numerical - gradient[idx]).abs() < 1e-4 * gradient[idx].abs().max(1e-2),
+                    "{which}, parameter {idx}: numerical {numerical}, analytic {}",
+                    gradient[idx]
+                );
+            }
+        }
     }
 
     #[test]
