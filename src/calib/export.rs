@@ -31,8 +31,12 @@
 //! MotionCal's `invW` is the correction matrix applied after subtracting `V`, exactly
 //! this crate's `soft_iron`. A receiver runs the CRC over all 68 bytes and accepts the
 //! packet when the result is 0, which is what appending the CRC low byte first gives.
-//! The packet holds only six soft-iron entries, so it carries a symmetric matrix; an
-//! asymmetric one (never produced by the fits here) is written as its symmetric part.
+//! The packet holds only six soft-iron entries, so it carries a symmetric matrix. A
+//! general correction `D` (the tilt-aided 3D fit's, which also turns the magnetometer's
+//! axes onto the accelerometer's) is written as the symmetric factor of its polar
+//! decomposition, `P = (DᵀD)^½` with `D = Q·P`: `|P·d| = |D·d|` for every `d`, so the
+//! corrected field's magnitude (all MotionCal and the boards' fusion check) is exactly
+//! ours, and only the small rotation `Q` is left out.
 
 use nalgebra::{Matrix3, Vector3};
 use serde::{Deserialize, Serialize};
@@ -376,6 +380,18 @@ fn ascii(text: &str) -> String {
         .collect()
 }
 
+/// The symmetric positive factor `P = (DᵀD)^½` of the polar decomposition `D = Q·P`
+/// (see the module header); `D` itself when that fails (not finite).
+pub fn symmetric_factor(correction: &Matrix3<f64>) -> Matrix3<f64> {
+    let gram = correction.transpose() * correction;
+    if !gram.iter().all(|v| v.is_finite()) {
+        return *correction;
+    }
+    let eigen = gram.symmetric_eigen();
+    let roots = eigen.eigenvalues.map(|value| value.max(0.0).sqrt());
+    eigen.eigenvectors * Matrix3::from_diagonal(&roots) * eigen.eigenvectors.transpose()
+}
+
 /// The MotionCal calibration packet for `cal` (layout in the module header).
 pub fn motioncal_packet(cal: &FieldCalibration) -> [u8; MOTIONCAL_PACKET_LEN] {
     let mut floats = [0.0f32; N_FLOATS];
@@ -383,9 +399,9 @@ pub fn motioncal_packet(cal: &FieldCalibration) -> [u8; MOTIONCAL_PACKET_LEN] {
         floats[HARD_IRON_FLOAT_IDX + axis_idx] = cal.hard_iron_ut[axis_idx] as f32;
     }
     floats[FIELD_FLOAT_IDX] = cal.field_ut as f32;
+    let symmetric = symmetric_factor(&cal.soft_iron);
     for (entry_idx, &(row, col)) in SOFT_IRON_ENTRIES.iter().enumerate() {
-        // The symmetric part: the matrix itself when it is symmetric, as it should be.
-        let value = 0.5 * (cal.soft_iron[(row, col)] + cal.soft_iron[(col, row)]);
+        let value = 0.5 * (symmetric[(row, col)] + symmetric[(col, row)]);
         floats[SOFT_IRON_FIRST_FLOAT_IDX + entry_idx] = value as f32;
     }
 
@@ -626,13 +642,24 @@ mod tests {
     }
 
     #[test]
-    fn an_asymmetric_soft_iron_is_written_as_its_symmetric_part() {
+    fn a_general_correction_is_written_as_its_symmetric_factor_with_the_same_magnitudes() {
         let mut cal = known_calibration();
-        cal.soft_iron[(0, 1)] = 0.02;
-        cal.soft_iron[(1, 0)] = 0.01;
+        cal.soft_iron[(0, 1)] = 0.05;
+        cal.soft_iron[(1, 0)] = -0.03;
+        cal.soft_iron[(2, 0)] = 0.04;
         let read = parse_motioncal_packet(&motioncal_packet(&cal)).expect("a valid packet");
-        assert!((read.soft_iron[(0, 1)] - 0.015).abs() < 1e-7);
-        assert!((read.soft_iron[(1, 0)] - 0.015).abs() < 1e-7);
+        assert_eq!(read.soft_iron, read.soft_iron.transpose());
+        for raw in [
+            Vector3::new(30.0, -10.0, 40.0),
+            Vector3::new(-20.0, 25.0, 5.0),
+            Vector3::new(0.0, 0.0, -45.0),
+        ] {
+            let (ours, packet) = (cal.apply(raw).norm(), read.apply(raw).norm());
+            assert!(
+                (ours - packet).abs() < 1e-4 * ours,
+                "{ours} against {packet}"
+            );
+        }
     }
 
     /// A frame of every kind an importer makes.

@@ -153,6 +153,11 @@ const MAX_DIP_OFF_PRIOR_DEG: f64 = 4.0 * INCLINATION_PRIOR_STD_DEG;
 /// `SampleSet::band_axis` and `FreeDirections::band`).
 const MIN_TILT_FOR_ROTATION_DEG: f64 = 3.0;
 
+/// With the accelerometer, the band model also needs the magnetometer's samples within
+/// this many degrees of a plane (see `MAX_LEVEL_BAND_DEG` for the measure): a car's
+/// band is 2-6°, a sphere about 50°.
+const MAX_MAG_BAND_DEG: f64 = 20.0;
+
 /// Without an accelerometer, the band model is fitted when the samples lie within this
 /// many degrees of a plane (`atan(√3·σ₃ / √(σ₁² + σ₂²))` of their principal spreads: a
 /// level ring with noise gives 1-2°, a walk's sway 5-10°, a sphere about 50°).
@@ -531,7 +536,14 @@ impl SampleSet {
                     .map(|u| u.cross(&mean_down).norm_squared())
                     .sum::<f64>()
                     / down.len().max(1) as f64;
-                (mean_square.sqrt().asin().to_degrees() < MIN_TILT_FOR_ROTATION_DEG)
+                // The magnetometer must agree: a field that sweeps the sphere while the
+                // accelerometer stays put is no band (the two are not on one body).
+                let plane = principal_plane(&self.mag_ut)?;
+                let mag_span_deg = (3f64.sqrt() * plane.spread_ut[2])
+                    .atan2(plane.spread_ut[0].hypot(plane.spread_ut[1]))
+                    .to_degrees();
+                (mean_square.sqrt().asin().to_degrees() < MIN_TILT_FOR_ROTATION_DEG
+                    && mag_span_deg < MAX_MAG_BAND_DEG)
                     .then_some(mean_down)
             }
             None => {
