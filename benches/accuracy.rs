@@ -13,6 +13,18 @@
 mod common;
 
 #[cfg(not(target_arch = "wasm32"))]
+#[path = "../tests/physics/mod.rs"]
+mod physics;
+
+#[cfg(not(target_arch = "wasm32"))]
+#[path = "accuracy_parts/real_recordings.rs"]
+mod real_recordings;
+
+#[cfg(not(target_arch = "wasm32"))]
+#[path = "accuracy_parts/independent.rs"]
+mod independent;
+
+#[cfg(not(target_arch = "wasm32"))]
 mod report {
     use std::fmt::Write as _;
     use std::path::Path;
@@ -444,6 +456,18 @@ mod report {
         } else {
             text.push_str("Skipped: `../shared/data` not found.\n");
         }
+        if have_data {
+            super::real_recordings::section(&mut text, &data);
+        } else {
+            text.push_str(
+                "## Every real recording
+
+Skipped: `../shared/data` not found.
+
+",
+            );
+        }
+        super::independent::section(&mut text);
         let path = root.join("ACCURACY.md");
         std::fs::write(&path, text).expect("ACCURACY.md can be written");
         eprintln!("wrote {}", path.display());

@@ -547,6 +547,11 @@ pub fn calibrate(
                         total_ut: expected.total_ut,
                         inclination_deg: expected.inclination_deg,
                     }),
+                    // Values in µT (or converted to µT) come with the sensor's factory
+                    // gains; raw counts do not.
+                    gain_known: mag_frame
+                        .as_ref()
+                        .is_none_or(|frame| frame.unit.ut_per_unit.is_some()),
                 };
                 // The dip-angle invariance needs the accelerometer's tilt; a log without
                 // one was only assumed level.

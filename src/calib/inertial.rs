@@ -191,7 +191,21 @@ pub struct FieldPrior {
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct InertialOptions {
     pub field: Option<FieldPrior>,
+    /// The samples are in µT as the sensor's own factory gains give them (a phone, a
+    /// board read in µT or gauss), not raw counts: the correction's overall gain is
+    /// then near one ([`GAIN_PRIOR_STD`]), and without a model the field is taken as
+    /// [`TYPICAL_FIELD_UT`]. Without either, a few minutes of a phone in a pocket
+    /// (a short arc of the sphere) fit a sphere of any size.
+    pub gain_known: bool,
 }
+
+/// The prior's standard deviation of the natural log of the correction's overall gain
+/// `det(D)^⅓` when the gain is known: factory-calibrated sensors are within 10-20 %,
+/// and without a field model the Earth's 22-67 µT add as much again.
+pub const GAIN_PRIOR_STD: f64 = 0.4;
+
+/// The field magnitude assumed without a model, in µT (the Earth's middle value).
+pub const TYPICAL_FIELD_UT: f64 = 45.0;
 
 /// A parameter the data could not see: its value is (mostly) the prior's.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -1016,6 +1030,10 @@ fn add_priors(
                 g_gradient[D0 + 3 * row + col] = inverse[(col, row)] / 3.0 * g;
             }
         }
+        if options.gain_known {
+            // ln g, with ∂(ln g)/∂D = G = D⁻ᵀ/3.
+            add_prior(normal, &(g_gradient / g), g.ln(), GAIN_PRIOR_STD);
+        }
         let mut shape_prior = |linear: ParamVec, centre: f64, std: f64| {
             let value = linear.dot(&params) / g;
             let gradient = (linear - g_gradient * value) / g;
@@ -1593,7 +1611,10 @@ fn autocorrelation_inflation(set: &SampleSet, state: &State, weights: &Weights) 
 /// The starts: the algebraic ellipsoid, the band start(s), the sphere.
 fn starts(set: &SampleSet, options: &InertialOptions) -> Vec<State> {
     let mut starts = Vec::new();
-    let target_field = options.field.map(|prior| prior.total_ut);
+    let target_field = options
+        .field
+        .map(|prior| prior.total_ut)
+        .or(options.gain_known.then_some(TYPICAL_FIELD_UT));
     let with_vertical = |state: State| finish_start(set, state, target_field);
     let band = band_starts(set, options);
     // On a band, only the band starts: a 3D start there holds what the band cannot see
@@ -1902,6 +1923,7 @@ mod tests {
                 total_ut: case.field_total_ut,
                 inclination_deg: case.inclination_deg,
             }),
+            gain_known: true,
         }
     }
 
