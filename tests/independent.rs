@@ -248,3 +248,64 @@ fn survey_pdr() {
         }
     }
 }
+
+#[test]
+#[ignore]
+fn debug_pdr_headings() {
+    use compass_pdr::deviation::{analyse_headings, HeadingOptions};
+    use compass_pdr::reference::{ReferenceChoice, ReferenceOptions};
+    let seed: u64 = std::env::var("SEED")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(5);
+    let log = physics::four_direction_walk(seed);
+    let report = compass_pdr::io::import::import("walk.csv", log.csv.as_bytes()).expect("imports");
+    let options = HeadingOptions {
+        calibration: CalibrationOptions {
+            reference: ReferenceOptions {
+                choice: ReferenceChoice::Gps,
+                ..ReferenceOptions::default()
+            },
+            ..CalibrationOptions::default()
+        },
+        neural: false,
+        ..HeadingOptions::default()
+    };
+    let analysis = analyse_headings(report, &options).expect("analyses");
+    // Truth: the walking direction's heading error of each row over the outage.
+    let t0 = log.true_t_s.first().copied().unwrap_or(0.0);
+    let start_offset = analysis.t_s.first().copied().unwrap_or(0.0);
+    let _ = start_offset;
+    for row in &analysis.report.rows {
+        let Some((_, series)) = analysis
+            .headings_deg
+            .iter()
+            .find(|(key, _)| *key == row.key)
+        else {
+            continue;
+        };
+        let mut errors = Vec::new();
+        for (&t_s, &heading_deg) in analysis.t_s.iter().zip(series) {
+            let rel = t_s - t0;
+            if !(240.0..840.0).contains(&rel) {
+                continue;
+            }
+            let idx = log.true_t_s.partition_point(|&tt| tt - t0 < rel);
+            if let Some(&truth) = log.true_heading_deg.get(idx) {
+                errors.push(
+                    compass_pdr::angle::wrap_to_pi((heading_deg - truth).to_radians()).to_degrees(),
+                );
+            }
+        }
+        let n = errors.len().max(1) as f64;
+        let mean = errors.iter().sum::<f64>() / n;
+        let rms = (errors.iter().map(|e| e * e).sum::<f64>() / n).sqrt();
+        eprintln!(
+            "{:<36} check {:>7} outage vs true heading: mean {mean:+.2}° rms {rms:.2}°",
+            row.key,
+            row.check
+                .map_or("—".to_string(), |s| format!("{:.2}", s.rms_deg))
+        );
+    }
+    eprintln!("best {:?}", analysis.report.best);
+}

@@ -379,23 +379,35 @@ pub fn run(report: ImportReport, options: &PdrOptions) -> Result<PdrAnalysis, Pd
     };
     // The split chose the model; the dead reckoning uses it trained on every sample
     // GNSS referenced (Fig. 2: the model trains while GNSS is good).
-    // Only the chosen model's field-domain method is fitted again.
+    // Only the chosen model's field-domain method is fitted again (with the 3D fits a
+    // reference least squares over a few headings stands on).
     let base_method = Method::ALL
         .into_iter()
         .find(|method| compass_key.split('+').next() == Some(method.key()));
+    let methods = match base_method.unwrap_or(Method::MinMax) {
+        Method::RefLs => vec![Method::Ellipse, Method::Ellipsoid, Method::RefLs],
+        method => vec![method],
+    };
     let headings = if has_reference && heading_options.calibration.train_until_s.is_none() {
         let everything = HeadingOptions {
             calibration: CalibrationOptions {
                 train_until_s: Some(f64::INFINITY),
-                methods: vec![base_method.unwrap_or(Method::MinMax)],
+                methods,
                 ..heading_options.calibration.clone()
             },
             ..heading_options.clone()
         };
-        compare(
-            &calibrate(refit_report, &everything.calibration)?,
-            &everything,
-        )
+        match calibrate(refit_report, &everything.calibration) {
+            Ok(refit) => compare(&refit, &everything),
+            // The split's own fit stands when every sample together does not fit.
+            Err(error) => {
+                notes.push(format!(
+                    "The heading model was not refitted on every GNSS-referenced sample ({error}); the one fitted \
+                     on the train part was used."
+                ));
+                selection
+            }
+        }
     } else {
         selection
     };
