@@ -171,3 +171,66 @@ fn the_hallway_loop_gyro_reference_closes_and_the_compass_follows_it() {
         check_rms(&analysis, best)
     );
 }
+
+/// On every recording with a reference, the chosen heading is never worse than the
+/// uncalibrated one, the 3D fit gives a heading (it no longer refuses the drive's magnet
+/// mount or the indoor walks), and the drive's chosen heading is within the 15° of its
+/// own scatter.
+#[test]
+fn no_recording_gets_a_best_worse_than_uncalibrated_and_the_3d_fit_answers() {
+    let Some(data) = common::shared_data() else {
+        return;
+    };
+    let indoor =
+        |floor: &str| common::files_in(&data.join("msft-indoor-2020/site1").join(floor), "txt");
+    let legs = ReferenceOptions {
+        choice: ReferenceChoice::Legs,
+        ..ReferenceOptions::default()
+    };
+    let gyro_loop = ReferenceOptions {
+        choice: ReferenceChoice::Gyro,
+        ..ReferenceOptions::default()
+    };
+    let cases = [
+        (
+            "vehicle-pixel6a",
+            vec![data.join("vehicle-pixel6a/2023-08-09_12-47-42.csv")],
+            ReferenceOptions::default(),
+            None,
+        ),
+        ("msft F1", indoor("F1"), legs, Some((30.3, 120.1))),
+        ("msft F4", indoor("F4"), legs, Some((30.3, 120.1))),
+        (
+            "phyphox loop",
+            common::files_in(&data.join("phyphox-hallway-loop"), "csv"),
+            gyro_loop,
+            None,
+        ),
+        (
+            "sensorlogger",
+            common::files_in(&data.join("sensorlogger-walk-ethz"), "csv"),
+            ReferenceOptions::default(),
+            None,
+        ),
+    ];
+    for (name, paths, reference, position_deg) in cases {
+        let analysis = analyse(&paths, reference, position_deg);
+        let report = &analysis.report;
+        let chosen = check_rms(&analysis, &report.choice.key);
+        let raw = check_rms(&analysis, "raw");
+        eprintln!(
+            "{name}: chosen {} at {chosen:.1}°, uncalibrated {raw:.1}°, 3D fit {:.1}°",
+            report.choice.key,
+            check_rms(&analysis, "ellipsoid")
+        );
+        assert!(chosen <= raw, "{name}: {chosen}° against {raw}°");
+        assert!(
+            row(&analysis, "ellipsoid").error.is_none(),
+            "{name}: {:?}",
+            row(&analysis, "ellipsoid").error
+        );
+        if name == "vehicle-pixel6a" {
+            assert!(chosen <= 15.0, "{name}: {chosen}°");
+        }
+    }
+}
