@@ -832,8 +832,10 @@ const MODEL_EPOCH_WITHOUT_DATE: CalendarDate = CalendarDate {
 
 /// The expected field at the log's first position (the user's, else the first GNSS fix,
 /// else the first reference position given as latitude and longitude) and date (the
-/// model's epoch when the log has none, with a note), with a note when the model warns.
-fn expected_field_of(
+/// model's epoch when the log has none, with a note), with a note when the model warns:
+/// what [`calibrate`] gives the fits as priors (public for the fit benchmark, which feeds
+/// the fits as `calibrate` does).
+pub fn expected_field_of(
     recording: &Recording,
     position_deg: Option<(f64, f64)>,
     notes: &mut Vec<String>,
