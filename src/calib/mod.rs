@@ -14,6 +14,7 @@ pub mod heading;
 pub mod inertial;
 pub mod minmax;
 pub mod model;
+mod normal_lm;
 pub mod plane;
 pub mod plane_isotropic;
 pub mod refls;

@@ -42,13 +42,13 @@
 //! the local field departs from the model by several µT, so `h_z` then carries that
 //! departure. The horizontal hard iron does not: it is set by the turn.
 //!
-//! The fit is Levenberg-Marquardt (the `levenberg-marquardt` crate) with the analytic
-//! Jacobian `∂l/∂h = −T`; the model is nearly linear in `h`, so a start from the
+//! The fit is Levenberg-Marquardt on the normal equations ([`super::normal_lm`]) with
+//! the analytic Jacobian `∂l/∂h = −T`; the model is nearly linear in `h`, so a start from the
 //! conic centre of the levelled raw field converges.
 
-use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt, TerminationReason};
-use nalgebra::{DMatrix, DVector, Dyn, Matrix3, Owned, Vector2, Vector3};
+use nalgebra::{Matrix3, Vector2, Vector3};
 
+use super::normal_lm::{self, Normal};
 use super::plane::PlaneError;
 
 /// How the vertical field is handled.
@@ -122,18 +122,18 @@ pub fn fit_isotropic(
         mag_ut,
         levelling,
         vertical,
-        params,
-        free,
     };
-    let (problem, report) = LevenbergMarquardt::new().minimize(problem);
-    if !(report.termination.was_successful()
-        || report.termination == TerminationReason::LostPatience)
-    {
-        return Err(PlaneError::NotConverged {
-            reason: format!("{:?}", report.termination),
-        });
-    }
-    let params = problem.params;
+    // Running out of steps still leaves the best parameters found.
+    normal_lm::minimize_thinned_then_all(
+        &mut params,
+        &free,
+        mag_ut.len(),
+        MAX_LM_STEPS,
+        |params, stride| problem.normal_equations(params, stride),
+    )
+    .map_err(|reason| PlaneError::NotConverged {
+        reason: reason.to_string(),
+    })?;
     if !params.iter().all(|value| value.is_finite()) {
         return Err(PlaneError::NotConverged {
             reason: "the parameters became infinite".to_string(),
@@ -142,7 +142,7 @@ pub fn fit_isotropic(
     Ok(IsotropicFit {
         hard_iron_ut: Vector3::new(params[H_X], params[H_Y], params[H_Z]),
         horizontal_field_ut: params[H],
-        vertical_field_ut: problem.vertical_field_ut(),
+        vertical_field_ut: vertical_field_ut(vertical, &params),
     })
 }
 
@@ -154,88 +154,74 @@ const H: usize = 3;
 const V_OR_UNUSED: usize = 4;
 const N_PARAMS: usize = 5;
 
-/// The residuals of the module header, two per sample; `free` lists the parameters the
-/// minimiser may move.
+/// Levenberg-Marquardt steps before the fit keeps the best parameters it found.
+const MAX_LM_STEPS: usize = 100;
+
+/// `V` for the parameters.
+fn vertical_field_ut(vertical: Vertical, params: &[f64; N_PARAMS]) -> f64 {
+    match vertical {
+        Vertical::ModelDip { tan_inclination } => params[H] * tan_inclination,
+        Vertical::Free | Vertical::Held => params[V_OR_UNUSED],
+    }
+}
+
+/// The residuals of the module header, two per sample.
 struct IsotropicProblem<'a> {
     mag_ut: &'a [Vector3<f64>],
     levelling: &'a [Matrix3<f64>],
     vertical: Vertical,
-    params: [f64; N_PARAMS],
-    free: Vec<usize>,
 }
 
 impl IsotropicProblem<'_> {
-    fn vertical_field_ut(&self) -> f64 {
-        match self.vertical {
-            Vertical::ModelDip { tan_inclination } => self.params[H] * tan_inclination,
-            Vertical::Free | Vertical::Held => self.params[V_OR_UNUSED],
-        }
-    }
-
-    fn level_ut(&self, mag_ut: &Vector3<f64>, levelling: &Matrix3<f64>) -> Vector3<f64> {
-        let hard_iron_ut = Vector3::new(self.params[H_X], self.params[H_Y], self.params[H_Z]);
-        levelling * (mag_ut - hard_iron_ut)
-    }
-}
-
-impl LeastSquaresProblem<f64, Dyn, Dyn> for IsotropicProblem<'_> {
-    type ResidualStorage = Owned<f64, Dyn>;
-    type JacobianStorage = Owned<f64, Dyn, Dyn>;
-    type ParameterStorage = Owned<f64, Dyn>;
-
-    fn set_params(&mut self, params: &DVector<f64>) {
-        super::plane::set_free(&mut self.params, &self.free, params);
-    }
-
-    fn params(&self) -> DVector<f64> {
-        super::plane::free_of(&self.params, &self.free)
-    }
-
-    fn residuals(&self) -> Option<DVector<f64>> {
-        let vertical_field_ut = self.vertical_field_ut();
-        let mut residuals = DVector::zeros(2 * self.mag_ut.len());
-        for (sample_idx, (mag, levelling)) in self.mag_ut.iter().zip(self.levelling).enumerate() {
-            let level = self.level_ut(mag, levelling);
-            residuals[2 * sample_idx] = level.xy().norm() - self.params[H];
-            residuals[2 * sample_idx + 1] = level.z - vertical_field_ut;
-        }
-        Some(residuals)
-    }
-
-    fn jacobian(&self) -> Option<DMatrix<f64>> {
-        let mut jacobian = DMatrix::zeros(2 * self.mag_ut.len(), self.free.len());
-        let dv_dh = match self.vertical {
-            Vertical::ModelDip { tan_inclination } => tan_inclination,
-            Vertical::Free | Vertical::Held => 0.0,
+    /// One sample's two residuals (horizontal, vertical) and their gradients with
+    /// respect to every parameter.
+    fn sample_rows(
+        &self,
+        params: &[f64; N_PARAMS],
+        mag_ut: &Vector3<f64>,
+        levelling: &Matrix3<f64>,
+    ) -> [(f64, [f64; N_PARAMS]); 2] {
+        let hard_iron_ut = Vector3::new(params[H_X], params[H_Y], params[H_Z]);
+        let level = levelling * (mag_ut - hard_iron_ut);
+        // The horizontal residual moves along the unit horizontal direction; at the
+        // origin it has no direction and no derivative.
+        let horizontal_norm = level.xy().norm();
+        let direction = if horizontal_norm > 0.0 {
+            level.xy() / horizontal_norm
+        } else {
+            Vector2::zeros()
         };
-        for (sample_idx, (mag, levelling)) in self.mag_ut.iter().zip(self.levelling).enumerate() {
-            let level = self.level_ut(mag, levelling);
-            // The horizontal residual moves along the unit horizontal direction; at the
-            // origin it has no direction and no derivative.
-            let horizontal_norm = level.xy().norm();
-            let direction = if horizontal_norm > 0.0 {
-                level.xy() / horizontal_norm
-            } else {
-                Vector2::zeros()
-            };
-            for (column, &param_idx) in self.free.iter().enumerate() {
-                let (horizontal, vertical) = match param_idx {
-                    // ∂l/∂h_j = −T·e_j, the j-th column of −T.
-                    H_X | H_Y | H_Z => {
-                        let column_of_t = levelling.column(param_idx);
-                        (
-                            -direction.dot(&Vector2::new(column_of_t[0], column_of_t[1])),
-                            -column_of_t[2],
-                        )
-                    }
-                    H => (-1.0, -dv_dh),
-                    _ => (0.0, -1.0),
-                };
-                jacobian[(2 * sample_idx, column)] = horizontal;
-                jacobian[(2 * sample_idx + 1, column)] = vertical;
-            }
+        let mut horizontal = [0.0; N_PARAMS];
+        let mut vertical = [0.0; N_PARAMS];
+        // ∂l/∂h_j = −T·e_j, the j-th column of −T.
+        for axis in [H_X, H_Y, H_Z] {
+            let column_of_t = levelling.column(axis);
+            horizontal[axis] = -direction.dot(&Vector2::new(column_of_t[0], column_of_t[1]));
+            vertical[axis] = -column_of_t[2];
         }
-        Some(jacobian)
+        horizontal[H] = -1.0;
+        match self.vertical {
+            Vertical::ModelDip { tan_inclination } => vertical[H] = -tan_inclination,
+            Vertical::Free | Vertical::Held => vertical[V_OR_UNUSED] = -1.0,
+        }
+        [
+            (horizontal_norm - params[H], horizontal),
+            (level.z - vertical_field_ut(self.vertical, params), vertical),
+        ]
+    }
+
+    /// The normal equations of every `stride`-th sample's residuals at `params`, in one
+    /// pass over the samples.
+    fn normal_equations(
+        &self,
+        params: &[f64; N_PARAMS],
+        stride: usize,
+    ) -> Option<Normal<N_PARAMS>> {
+        let mut normal = Normal::zeros();
+        for (mag_ut, levelling) in self.mag_ut.iter().zip(self.levelling).step_by(stride) {
+            normal.add_pair(&self.sample_rows(params, mag_ut, levelling));
+        }
+        normal.finished()
     }
 }
 
@@ -335,41 +321,36 @@ mod tests {
     fn the_jacobian_matches_numerical_differentiation() {
         let mut rng = SplitMix64::new(6);
         let (mag, levelling) = flat_walk(Vector3::new(5.0, -3.0, 40.0), 20.0, 40.0, 8.0, &mut rng);
-        for (vertical, free) in [
-            (Vertical::Free, vec![H_X, H_Y, H_Z, H, V_OR_UNUSED]),
-            (
-                Vertical::ModelDip {
-                    tan_inclination: 1.7,
-                },
-                vec![H_X, H_Y, H_Z, H],
-            ),
+        for vertical in [
+            Vertical::Free,
+            Vertical::ModelDip {
+                tan_inclination: 1.7,
+            },
         ] {
-            let mut problem = IsotropicProblem {
+            let problem = IsotropicProblem {
                 mag_ut: &mag,
                 levelling: &levelling,
                 vertical,
-                params: [4.0, -2.0, 30.0, 22.0, 35.0],
-                free,
             };
-            let analytic = problem.jacobian().expect("jacobian");
-            let params = problem.params();
+            let params = [4.0, -2.0, 30.0, 22.0, 35.0];
             let step = 1e-6;
-            for column in 0..params.len() {
-                let mut plus = params.clone();
-                plus[column] += step;
-                problem.set_params(&plus);
-                let residuals_plus = problem.residuals().expect("residuals");
-                let mut minus = params.clone();
-                minus[column] -= step;
-                problem.set_params(&minus);
-                let residuals_minus = problem.residuals().expect("residuals");
-                problem.set_params(&params);
-                let numeric = (residuals_plus - residuals_minus) / (2.0 * step);
-                let difference = (numeric - analytic.column(column)).abs().max();
-                assert!(
-                    difference < 1e-5,
-                    "{vertical:?} column {column}: {difference}"
-                );
+            for (mag_ut, levelling) in mag.iter().zip(&levelling) {
+                let analytic = problem.sample_rows(&params, mag_ut, levelling);
+                for param_idx in 0..N_PARAMS {
+                    let (mut plus, mut minus) = (params, params);
+                    plus[param_idx] += step;
+                    minus[param_idx] -= step;
+                    let plus = problem.sample_rows(&plus, mag_ut, levelling);
+                    let minus = problem.sample_rows(&minus, mag_ut, levelling);
+                    for residual_idx in 0..2 {
+                        let numeric = (plus[residual_idx].0 - minus[residual_idx].0) / (2.0 * step);
+                        let difference = (numeric - analytic[residual_idx].1[param_idx]).abs();
+                        assert!(
+                            difference < 1e-5,
+                            "{vertical:?} parameter {param_idx}: {difference}"
+                        );
+                    }
+                }
             }
         }
     }
