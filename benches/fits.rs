@@ -34,10 +34,12 @@ mod native {
     use std::time::{Duration, Instant};
 
     use compass_pdr::analysis::{tilted_samples, Levelling};
-    use compass_pdr::calib::inertial::{fit_inertial, FieldPrior, InertialOptions};
+    use compass_pdr::calib::inertial::{fit_inertial, InertialOptions};
     use compass_pdr::calib::plane::{fit_plane, PlaneOptions};
     use compass_pdr::calib::tilt::Tilt;
-    use compass_pdr::calibration::{expected_field_of, CalibrationOptions};
+    use compass_pdr::calibration::{
+        expected_field_of, inertial_options, plane_options, CalibrationOptions,
+    };
     use compass_pdr::io::canonical_csv;
     use compass_pdr::io::import::import_files;
     use compass_pdr::sim::walk::{simulate, WalkConfig};
@@ -51,7 +53,7 @@ mod native {
 
     /// One log's samples and the options `calibrate` would give the fits.
     struct Case {
-        name: &'static str,
+        name: String,
         /// Levelled samples in the log, before thinning or repeating.
         n_source: usize,
         mag_ut: Vec<Vector3<f64>>,
@@ -136,7 +138,7 @@ mod native {
     }
 
     /// The case of one imported recording, or why there is none.
-    fn case_of(name: &'static str, files: &[(String, Vec<u8>)]) -> Result<Case, String> {
+    fn case_of(name: String, files: &[(String, Vec<u8>)]) -> Result<Case, String> {
         let slices: Vec<(&str, &[u8])> = files
             .iter()
             .map(|(name, bytes)| (name.as_str(), bytes.as_slice()))
@@ -163,21 +165,13 @@ mod native {
                 .collect(),
             tilt: (0..N_SAMPLES).map(|idx| samples.tilt[pick(idx)]).collect(),
             tilt_from_accelerometer: matches!(samples.levelling, Levelling::Accelerometer { .. }),
-            plane_options: PlaneOptions {
-                inclination_deg: expected.as_ref().map(|expected| expected.inclination_deg),
-                ..PlaneOptions::default()
-            },
-            inertial_options: InertialOptions {
-                field: expected.as_ref().map(|expected| FieldPrior {
-                    total_ut: expected.total_ut,
-                    inclination_deg: expected.inclination_deg,
-                }),
-            },
+            plane_options: plane_options(expected.as_ref()),
+            inertial_options: inertial_options(expected.as_ref(), report.mag_frame.as_ref()),
         })
     }
 
     /// The real recordings: a name and the files of each, as a user drops them.
-    fn real_recordings(data: &Path) -> Vec<(&'static str, Vec<PathBuf>)> {
+    fn real_recordings(data: &Path) -> Vec<(String, Vec<PathBuf>)> {
         let hmc = |run: &str| -> Vec<PathBuf> {
             ["hmc5883l_compass.csv", "mpu6050_accelerometer.csv"]
                 .iter()
@@ -192,7 +186,7 @@ mod native {
                 vec![dir]
             }
         };
-        vec![
+        let mut recordings: Vec<(&str, Vec<PathBuf>)> = vec![
             (
                 "vehicle-pixel6a",
                 vec![data.join("vehicle-pixel6a/2023-08-09_12-47-42.csv")],
@@ -220,13 +214,37 @@ mod native {
                 "sensorlogger-walk-ethz",
                 all_in("sensorlogger-walk-ethz", "csv"),
             ),
-        ]
+        ];
+        let mut recordings: Vec<(String, Vec<PathBuf>)> = recordings
+            .drain(..)
+            .map(|(name, paths)| (name.to_string(), paths))
+            .collect();
+        // The TYREX trials: one folder of headerless per-sensor files each.
+        let mut trials: Vec<PathBuf> = std::fs::read_dir(data.join("tyrex-attitude"))
+            .map(|entries| {
+                entries
+                    .filter_map(|entry| entry.ok().map(|entry| entry.path()))
+                    .filter(|path| path.is_dir())
+                    .collect()
+            })
+            .unwrap_or_default();
+        trials.sort();
+        for trial in trials {
+            let mut paths = common::files_in(&trial, "txt");
+            paths.extend(common::files_in(&trial, "properties"));
+            let name = trial
+                .file_name()
+                .map(|name| name.to_string_lossy().into_owned())
+                .unwrap_or_default();
+            recordings.push((format!("tyrex-{name}"), paths));
+        }
+        recordings
     }
 
     fn cases() -> Vec<Case> {
         let mut cases = Vec::new();
         let mut add =
-            |name: &'static str, files: Vec<(String, Vec<u8>)>| match case_of(name, &files) {
+            |name: String, files: Vec<(String, Vec<u8>)>| match case_of(name.clone(), &files) {
                 Ok(case) => cases.push(case),
                 Err(error) => eprintln!("skipped {name}: {error}"),
             };
@@ -241,12 +259,12 @@ mod native {
         }
         let demo = canonical_csv::write(&simulate(&WalkConfig::demo(1, 240.0, 50.0)));
         add(
-            "simulator-demo-walk",
+            "simulator-demo-walk".to_string(),
             vec![("demo-walk.csv".to_string(), demo.into_bytes())],
         );
         let circle_walk = physics::circle_walk(1);
         add(
-            "independent-circle_walk-1",
+            "independent-circle_walk-1".to_string(),
             vec![("circle_walk.csv".to_string(), circle_walk.csv.into_bytes())],
         );
         cases
@@ -277,7 +295,7 @@ mod native {
             }
             entries.push(format!(
                 "    {}: {{ \"n_source\": {}, \"tilt_from_accelerometer\": {}, {} }}",
-                json_string(case.name),
+                json_string(&case.name),
                 case.n_source,
                 case.tilt_from_accelerometer,
                 outcomes.join(", ")
@@ -307,7 +325,7 @@ mod native {
                 .measurement_time(Duration::from_secs(1));
             for case in &cases {
                 group.bench_with_input(
-                    BenchmarkId::new("ellipse", case.name),
+                    BenchmarkId::new("ellipse", &case.name),
                     case,
                     |bencher, case| {
                         bencher.iter(|| {
@@ -320,7 +338,7 @@ mod native {
                     },
                 );
                 group.bench_with_input(
-                    BenchmarkId::new("ellipsoid", case.name),
+                    BenchmarkId::new("ellipsoid", &case.name),
                     case,
                     |bencher, case| {
                         let tilt = case.tilt_from_accelerometer.then_some(case.tilt.as_slice());

@@ -498,11 +498,7 @@ pub fn calibrate(
                     (MethodParameters::MinMax(calibration), headings)
                 }),
             Method::Ellipse => {
-                let plane_options = PlaneOptions {
-                    inclination_deg: expected.as_ref().map(|expected| expected.inclination_deg),
-                    ..PlaneOptions::default()
-                };
-                fit_plane(&mag_train, &tilt_train, &plane_options)
+                fit_plane(&mag_train, &tilt_train, &plane_options(expected.as_ref()))
                     .map_err(|error| error.to_string())
                     .map(|fit| {
                         let headings: Vec<f64> = samples
@@ -542,17 +538,7 @@ pub fn calibrate(
                     })
             }
             Method::Ellipsoid => {
-                let inertial_options = InertialOptions {
-                    field: expected.as_ref().map(|expected| FieldPrior {
-                        total_ut: expected.total_ut,
-                        inclination_deg: expected.inclination_deg,
-                    }),
-                    // Values in µT (or converted to µT) come with the sensor's factory
-                    // gains; raw counts do not.
-                    gain_known: mag_frame
-                        .as_ref()
-                        .is_none_or(|frame| frame.unit.ut_per_unit.is_some()),
-                };
+                let inertial_options = inertial_options(expected.as_ref(), mag_frame.as_ref());
                 // The dip-angle invariance needs the accelerometer's tilt; a log without
                 // one was only assumed level.
                 let tilt = matches!(samples.levelling, Levelling::Accelerometer { .. })
@@ -819,6 +805,30 @@ pub fn calibrate(
         .find(|method| method.key() == choice.key);
     report.choice = Some(choice);
     Ok(analysis)
+}
+
+/// What [`calibrate`] tells the tilt-aware ellipse fit: the model's dip at the log's place.
+pub fn plane_options(expected: Option<&ExpectedField>) -> PlaneOptions {
+    PlaneOptions {
+        inclination_deg: expected.map(|expected| expected.inclination_deg),
+        ..PlaneOptions::default()
+    }
+}
+
+/// What [`calibrate`] tells the 3D fit: the model's intensity and dip as priors, and
+/// whether the sensor's gain is known (values in µT, or converted to µT, come with the
+/// sensor's factory gains; raw counts do not).
+pub fn inertial_options(
+    expected: Option<&ExpectedField>,
+    mag_frame: Option<&SensorFrame>,
+) -> InertialOptions {
+    InertialOptions {
+        field: expected.map(|expected| FieldPrior {
+            total_ut: expected.total_ut,
+            inclination_deg: expected.inclination_deg,
+        }),
+        gain_known: mag_frame.is_none_or(|frame| frame.unit.ut_per_unit.is_some()),
+    }
 }
 
 /// The day the model is evaluated on when the log has a position but no date: the

@@ -122,18 +122,32 @@ const MIN_SPREAD_UT: f64 = 2.0;
 /// The starts are refined on at most this many evenly spaced samples.
 pub const MAX_START_SAMPLES: usize = 1_500;
 
+/// The starts that fit best as they are are solved, this many of them; more only while
+/// none of those led to a plausible solution. Starts that fit worse rarely end better
+/// (each start's solve is most of the fit's time).
+const MAX_SOLVED_STARTS: usize = 2;
+
 /// The final fit uses at most this many evenly spaced samples: the parameters' noise
 /// from 8,000 samples is far below what tilt errors leave.
-pub const MAX_FIT_SAMPLES: usize = 8_000;
+pub const MAX_FIT_SAMPLES: usize = 2_000;
 
 /// Huber's constant and Cauchy's (in robust standard deviations): 95 % efficiency on
 /// Gaussian residuals for each.
 const HUBER_K: f64 = 1.345;
 const CAUCHY_C: f64 = 2.385;
 
-/// Outer (reweighting) and inner (Levenberg-Marquardt) iterations.
+/// Outer (reweighting) and inner (Levenberg-Marquardt) iterations, at most.
 const N_REWEIGHTINGS: usize = 6;
 const MAX_LM_ITERATIONS: usize = 25;
+const MAX_LM_ITERATIONS_BEFORE_LAST: usize = 6;
+
+/// The inner iterations stop when a step lowers the cost by less than this share of it;
+/// the outer ones when a reweighting moved no parameter by more than
+/// [`STEADY_PARAMETER_SHARE`] of its scale (the field for `h` and `V`, the largest entry
+/// of `D` for `D`): 10⁻⁴ of a 50 µT field is 0.005 µT, a thousandth of a degree of
+/// heading.
+const STEADY_COST_SHARE: f64 = 1e-8;
+const STEADY_PARAMETER_SHARE: f64 = 1e-4;
 
 /// A parameter direction is fitted only where the data's information exceeds the
 /// priors' by this factor (after the residuals' correlation is counted); see
@@ -357,12 +371,22 @@ pub fn fit_inertial(
 
     let start_set = samples.evenly(MAX_START_SAMPLES);
     let fit_set = samples.evenly(MAX_FIT_SAMPLES);
-    let starts = starts(&start_set, options);
-    // The full model from every start; the plausible solution that fits best wins.
+    let starts = ranked(&start_set, starts(&start_set, options));
+    // The full model from the starts that fit best as they are; the plausible solution
+    // that fits best wins. Further starts are tried only while none was plausible.
     let mut best: Option<(f64, Solution)> = None;
     let mut first_reason = None;
-    for &start in &starts {
-        let Some(solution) = solve(&start_set, start, options, SoftIronModel::Full) else {
+    for (n_solved, &start) in starts.iter().enumerate() {
+        if n_solved >= MAX_SOLVED_STARTS && best.is_some() {
+            break;
+        }
+        let Some(solution) = solve(
+            &start_set,
+            start,
+            options,
+            SoftIronModel::Full,
+            Schedule::Cold,
+        ) else {
             continue;
         };
         if let Some(reason) = implausibility(&solution.state, options) {
@@ -384,9 +408,17 @@ pub fn fit_inertial(
             // field that changes, tilt the accelerometer got wrong). Hard iron, one scale
             // and the dip, which only a changing field can spoil.
             let mut best: Option<(f64, Solution)> = None;
-            for &start in &starts {
-                let Some(solution) = solve(&start_set, start, options, SoftIronModel::Isotropic)
-                else {
+            for (n_solved, &start) in starts.iter().enumerate() {
+                if n_solved >= MAX_SOLVED_STARTS && best.is_some() {
+                    break;
+                }
+                let Some(solution) = solve(
+                    &start_set,
+                    start,
+                    options,
+                    SoftIronModel::Isotropic,
+                    Schedule::Cold,
+                ) else {
                     continue;
                 };
                 let score = solution.score(&start_set);
@@ -401,8 +433,8 @@ pub fn fit_inertial(
             (SoftIronModel::Isotropic, solution.state)
         }
     };
-    let mut solution =
-        solve(&fit_set, start, options, model).ok_or(InertialError::NoConvergence)?;
+    let mut solution = solve(&fit_set, start, options, model, Schedule::Warm)
+        .ok_or(InertialError::NoConvergence)?;
     let reason = (model == SoftIronModel::Isotropic)
         .then_some(first_reason)
         .flatten();
@@ -424,16 +456,7 @@ fn settle(
     options: &InertialOptions,
     model: SoftIronModel,
 ) -> Option<Solution> {
-    let mut settled = None;
-    for reweighting in 0..N_REWEIGHTINGS {
-        let loss = if reweighting < 2 {
-            Loss::Huber
-        } else {
-            Loss::Cauchy
-        };
-        settled = Some(weights(set, &state, loss));
-    }
-    let weights = settled?;
+    let weights = weights(set, &state, Schedule::Warm.loss(0));
     let normal = normal_equations(set, &state, &weights, options, &state);
     let covariance =
         posterior_covariance(&normal, autocorrelation_inflation(set, &state, &weights));
@@ -629,6 +652,17 @@ impl State {
         }
     }
 
+    /// Whether no parameter moved by more than [`STEADY_PARAMETER_SHARE`] of its scale
+    /// between `self` and `other`.
+    fn is_steady_from(&self, other: &State) -> bool {
+        let field_scale = self.field_ut.abs().max(NORMALISER_FLOOR);
+        let correction_scale = self.correction.amax().max(NORMALISER_FLOOR);
+        (self.hard_iron_ut - other.hard_iron_ut).amax() <= STEADY_PARAMETER_SHARE * field_scale
+            && (self.vertical_ut - other.vertical_ut).abs() <= STEADY_PARAMETER_SHARE * field_scale
+            && (self.correction - other.correction).amax()
+                <= STEADY_PARAMETER_SHARE * correction_scale
+    }
+
     /// Rescales so that the corrected field's magnitude is `field_ut`.
     fn scaled_to(mut self, field_ut: f64) -> State {
         let factor = field_ut / self.field_ut;
@@ -653,6 +687,38 @@ struct Weights {
 enum Loss {
     Huber,
     Cauchy,
+}
+
+/// How a solve reweights.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Schedule {
+    /// From a start: Huber weights twice (a start's misfit is not yet noise, and
+    /// Cauchy's would set good samples aside), then Cauchy's.
+    Cold,
+    /// From a solution of the same model (on a subset, or with more directions free):
+    /// Cauchy's weights from the first reweighting.
+    Warm,
+}
+
+impl Schedule {
+    fn loss(self, reweighting: usize) -> Loss {
+        match self {
+            Schedule::Cold if reweighting < 2 => Loss::Huber,
+            _ => Loss::Cauchy,
+        }
+    }
+
+    /// Reweightings before the outer loop may stop: at least one with Cauchy's weights.
+    fn max_reweightings(self) -> usize {
+        N_REWEIGHTINGS
+    }
+
+    fn min_reweightings(self) -> usize {
+        match self {
+            Schedule::Cold => 3,
+            Schedule::Warm => 1,
+        }
+    }
 }
 
 impl Loss {
@@ -728,20 +794,23 @@ fn magnitude_normaliser(correction: &Matrix3<f64>, d_ut: Vector3<f64>) -> Option
     if !(c_norm > 0.0 && q_norm > 0.0) {
         return None;
     }
-    let (c_unit, q_unit) = (corrected / c_norm, q / q_norm);
-    let n = q_norm / c_norm;
+    // Reciprocals once: divisions cost ten times a multiplication in this loop.
+    let (inv_c_norm, inv_q_norm) = (1.0 / c_norm, 1.0 / q_norm);
+    let (c_unit, q_unit) = (corrected * inv_c_norm, q * inv_q_norm);
+    let n = q_norm * inv_c_norm;
     let d_q_unit = correction * q_unit;
     let mut gradient = ParamVec::zeros();
-    let hard = (correction.transpose() * c_unit * n - correction.transpose() * d_q_unit) / c_norm;
+    let hard = correction.transpose() * (c_unit * n - d_q_unit) * inv_c_norm;
     for axis in 0..3 {
         gradient[H + axis] = hard[axis];
     }
     for row in 0..3 {
+        let (a, b) = (
+            corrected[row] * inv_c_norm,
+            (d_q_unit[row] - n * c_unit[row]) * inv_c_norm,
+        );
         for col in 0..3 {
-            gradient[D0 + 3 * row + col] = (q_unit[col] * corrected[row]
-                + d_q_unit[row] * d_ut[col]
-                - n * c_unit[row] * d_ut[col])
-                / c_norm;
+            gradient[D0 + 3 * row + col] = q_unit[col] * a + b * d_ut[col];
         }
     }
     Some((n.max(NORMALISER_FLOOR), gradient))
@@ -768,15 +837,16 @@ fn vertical_normaliser(
     if n.is_nan() || n <= 0.0 {
         return None;
     }
+    let inv_n = 1.0 / n;
     let mut gradient = ParamVec::zeros();
-    let hard = -(correction.transpose() * perpendicular) * (kappa_sq / n);
+    let hard = -(correction.transpose() * perpendicular) * (kappa_sq * inv_n);
     for axis in 0..3 {
         gradient[H + axis] = hard[axis];
     }
     for row in 0..3 {
+        let (a, b) = (down[row] * inv_n, kappa_sq * perpendicular[row] * inv_n);
         for col in 0..3 {
-            gradient[D0 + 3 * row + col] =
-                (w[col] * down[row] + kappa_sq * perpendicular[row] * d_ut[col]) / n;
+            gradient[D0 + 3 * row + col] = w[col] * a + b * d_ut[col];
         }
     }
     Some((n.max(NORMALISER_FLOOR), gradient))
@@ -906,20 +976,26 @@ fn normal_equations(
         cost: 0.0,
         prior_information: ParamMat::zeros(),
     };
-    // The upper triangle is accumulated per sample in 13×13 blocks of rank one.
+    // The upper triangle is accumulated per sample in 13×13 blocks of rank two.
+    let inv_var_magnitude = 1.0 / weights.sigma_magnitude_ut.powi(2);
+    let inv_var_vertical = 1.0 / weights.sigma_vertical_ut.powi(2);
     for (idx, &m_ut) in set.mag_ut.iter().enumerate() {
         let down = set.down(idx).filter(|_| uses_dip);
         let (magnitude, vertical) = sample_rows(state, m_ut, down, weights.kappa);
-        if let Some((rho, gradient)) = magnitude {
-            let w = weights.magnitude.get(idx).copied().unwrap_or(0.0)
-                / weights.sigma_magnitude_ut.powi(2);
-            accumulate(&mut normal, &gradient, rho, w);
-        }
-        if let Some((rho, gradient)) = vertical {
-            let w = weights.vertical.get(idx).copied().unwrap_or(0.0)
-                / weights.sigma_vertical_ut.powi(2);
-            accumulate(&mut normal, &gradient, rho, w);
-        }
+        let weighted = |row: Row, weights: &[f64], inv_var: f64| {
+            row.map(|(rho, gradient)| {
+                (
+                    rho,
+                    gradient,
+                    weights.get(idx).copied().unwrap_or(0.0) * inv_var,
+                )
+            })
+        };
+        accumulate(
+            &mut normal,
+            weighted(magnitude, &weights.magnitude, inv_var_magnitude),
+            weighted(vertical, &weights.vertical, inv_var_vertical),
+        );
     }
     add_priors(&mut normal, state, options, start, uses_dip);
     normal
@@ -939,19 +1015,21 @@ fn sample_rows(
     let corrected = correction * d_ut;
     let magnitude = corrected.norm();
     let magnitude_row = magnitude_normaliser(&correction, d_ut).map(|(n, n_gradient)| {
-        let unit = corrected / magnitude;
-        let rho = (magnitude - state.field_ut) / n;
+        let unit = corrected * (1.0 / magnitude);
+        let inv_n = 1.0 / n;
+        let rho = (magnitude - state.field_ut) * inv_n;
         (
             rho,
-            (row_gradient(&correction, unit, d_ut, 0.0) - n_gradient * rho) / n,
+            (row_gradient(&correction, unit, d_ut, 0.0) - n_gradient * rho) * inv_n,
         )
     });
     let vertical_row = down.and_then(|down| {
         let (n, n_gradient) = vertical_normaliser(&correction, d_ut, down, kappa)?;
-        let rho = (down.dot(&corrected) - state.vertical_ut) / n;
+        let inv_n = 1.0 / n;
+        let rho = (down.dot(&corrected) - state.vertical_ut) * inv_n;
         Some((
             rho,
-            (row_gradient(&correction, down, d_ut, -1.0) - n_gradient * rho) / n,
+            (row_gradient(&correction, down, d_ut, -1.0) - n_gradient * rho) * inv_n,
         ))
     });
     (magnitude_row, vertical_row)
@@ -979,21 +1057,26 @@ fn row_gradient(
     gradient
 }
 
-fn accumulate(normal: &mut Normal, gradient: &ParamVec, residual: f64, weight: f64) {
-    if weight.is_nan() || weight <= 0.0 {
-        return;
-    }
+fn accumulate(
+    normal: &mut Normal,
+    first: Option<(f64, ParamVec, f64)>,
+    second: Option<(f64, ParamVec, f64)>,
+) {
+    // A row with no usable weight adds nothing (not even a NaN from its gradient).
+    let usable = |row: Option<(f64, ParamVec, f64)>| {
+        row.filter(|&(_, _, weight)| weight > 0.0)
+            .unwrap_or((0.0, ParamVec::zeros(), 0.0))
+    };
+    let (rho_a, g_a, w_a) = usable(first);
+    let (rho_b, g_b, w_b) = usable(second);
     for row in 0..N_MAX {
-        let g_row = gradient[row] * weight;
-        if g_row == 0.0 {
-            continue;
-        }
+        let (a, b) = (g_a[row] * w_a, g_b[row] * w_b);
         for col in row..N_MAX {
-            normal.jtj[(row, col)] += g_row * gradient[col];
+            normal.jtj[(row, col)] += a * g_a[col] + b * g_b[col];
         }
-        normal.jtr[row] += g_row * residual;
+        normal.jtr[row] += a * rho_a + b * rho_b;
     }
-    normal.cost += weight * residual * residual;
+    normal.cost += w_a * rho_a * rho_a + w_b * rho_b * rho_b;
 }
 
 /// The priors' residuals: the vertical field, the soft iron towards `s·I`, its rotation
@@ -1296,6 +1379,7 @@ fn solve(
     start: State,
     options: &InertialOptions,
     model: SoftIronModel,
+    schedule: Schedule,
 ) -> Option<Solution> {
     let start = match model {
         SoftIronModel::Full => start,
@@ -1314,13 +1398,13 @@ fn solve(
     // that fit leaves (judged before it, a start's misfit would pass for noise and hide
     // what the data do see), the others back at the start's values, which come from
     // the priors.
-    let (first, first_weights) = iterate(set, start, &start, options, &model_directions)?;
+    let (first, first_weights) = iterate(set, start, &start, options, &model_directions, schedule)?;
     let normal = normal_equations(set, &first, &first_weights, options, &start);
     let inflation = autocorrelation_inflation(set, &first, &first_weights);
     let observed = observed_directions(&normal, inflation, model_directions.clone());
     let (state, weights) = if observed.n_free < model_directions.n_free {
         let restart = start.with_params(&observed.project(&start.params(), &first.params()));
-        iterate(set, restart, &start, options, &observed)?
+        iterate(set, restart, &start, options, &observed, Schedule::Warm)?
     } else {
         (first, first_weights)
     };
@@ -1349,19 +1433,22 @@ fn iterate(
     start: &State,
     options: &InertialOptions,
     free: &FreeDirections,
+    schedule: Schedule,
 ) -> Option<(State, Weights)> {
     let mut state = from;
     let mut lambda = 1e-3;
     let mut last = None;
-    for reweighting in 0..N_REWEIGHTINGS {
-        let loss = if reweighting < 2 {
-            Loss::Huber
-        } else {
-            Loss::Cauchy
-        };
-        let weights = weights(set, &state, loss);
+    for reweighting in 0..schedule.max_reweightings() {
+        let before = state;
+        let weights = weights(set, &state, schedule.loss(reweighting));
         let mut normal = normal_equations(set, &state, &weights, options, start);
-        for _ in 0..MAX_LM_ITERATIONS {
+        // Weights that will change again need no exact minimum under them.
+        let max_iterations = if reweighting + 1 == schedule.max_reweightings() {
+            MAX_LM_ITERATIONS
+        } else {
+            MAX_LM_ITERATIONS_BEFORE_LAST
+        };
+        for _ in 0..max_iterations {
             let step = free.step(&normal.jtj, &normal.jtr, lambda)?;
             let trial = state.with_params(&(state.params() - step));
             let trial_normal = normal_equations(set, &trial, &weights, options, start);
@@ -1370,7 +1457,7 @@ fn iterate(
                 state = trial;
                 normal = trial_normal;
                 lambda = (lambda / 3.0).max(1e-9);
-                if decrease <= 1e-10 * normal.cost.max(1e-300) {
+                if decrease <= STEADY_COST_SHARE * normal.cost.max(1e-300) {
                     break;
                 }
             } else {
@@ -1381,6 +1468,9 @@ fn iterate(
             }
         }
         last = Some(weights);
+        if reweighting + 1 >= schedule.min_reweightings() && state.is_steady_from(&before) {
+            break;
+        }
     }
     Some((state, last?))
 }
@@ -1606,6 +1696,26 @@ fn autocorrelation_inflation(set: &SampleSet, state: &State, weights: &Weights) 
     };
     let rho = lag_one(&magnitude).max(lag_one(&vertical));
     (1.0 + rho) / (1.0 - rho)
+}
+
+/// `starts`, those that fit best as they are (median absolute residuals) first.
+fn ranked(set: &SampleSet, starts: Vec<State>) -> Vec<State> {
+    let mut scored: Vec<(f64, State)> = starts
+        .into_iter()
+        .map(|start| {
+            let (sigma_magnitude_ut, sigma_vertical_ut) =
+                robust_scales(set, &start, tilt_noise_ratio(set, &start));
+            let score = sigma_magnitude_ut
+                + if set.uses_dip() {
+                    sigma_vertical_ut
+                } else {
+                    0.0
+                };
+            (if score.is_nan() { f64::INFINITY } else { score }, start)
+        })
+        .collect();
+    scored.sort_by(|a, b| a.0.total_cmp(&b.0));
+    scored.into_iter().map(|(_, start)| start).collect()
 }
 
 /// The starts: the algebraic ellipsoid, the band start(s), the sphere.
