@@ -51,8 +51,10 @@
 //! 1. Starts: the algebraic ellipsoid of [`super::ellipsoid`] (Li and Griffiths; needs
 //!    a 3D spread), a band start for yaw-only data (the samples' principal plane, a
 //!    direct ellipse fit in it, the vertical hard iron from the prior's dip), and
-//!    Kåsa's sphere. Each is refined on an evenly spaced subset of at most
-//!    [`MAX_START_SAMPLES`], and the one with the smallest median residuals continues.
+//!    Kåsa's sphere. They are ranked by their median residuals as they stand; the
+//!    first [`MAX_SOLVED_STARTS`] (more while none is plausible) are refined on an
+//!    evenly spaced subset of at most [`MAX_START_SAMPLES`], and the plausible one with
+//!    the smallest median residuals continues, warm, on at most [`MAX_FIT_SAMPLES`].
 //! 2. Levenberg-Marquardt on the normal equations (13 parameters at most: the `N×13`
 //!    Jacobian is never formed, so 10⁴ samples take milliseconds), inside iteratively
 //!    reweighted least squares: Huber weights, then Cauchy weights, on residuals scaled
@@ -127,8 +129,10 @@ pub const MAX_START_SAMPLES: usize = 1_500;
 /// (each start's solve is most of the fit's time).
 const MAX_SOLVED_STARTS: usize = 2;
 
-/// The final fit uses at most this many evenly spaced samples: the parameters' noise
-/// from 8,000 samples is far below what tilt errors leave.
+/// The final fit uses at most this many evenly spaced samples: neighbouring samples
+/// share their tilt error and disturbance (see [`autocorrelation_inflation`]), so a log
+/// thinned to 2,000 keeps most of its independent information, and the parameters'
+/// noise from it is far below what tilt errors leave.
 pub const MAX_FIT_SAMPLES: usize = 2_000;
 
 /// Huber's constant and Cauchy's (in robust standard deviations): 95 % efficiency on
