@@ -620,12 +620,8 @@ impl Page {
             1 => " 1 line had a problem; see below.".to_string(),
             n => format!(" {n} lines had problems; see below."),
         };
-        let best = headings
-            .report
-            .best
-            .as_ref()
-            .and_then(|best| headings.report.rows.iter().find(|row| &row.key == best))
-            .map_or(String::new(), |row| format!(" Best: {}.", row.label));
+        // The CLI's `best:` line, word for word (crate::selection makes the choice once).
+        let best = format!(" Best: {}.", headings.report.choice.sentence());
         self.set_state(
             "loading",
             &format!("Calibrated {}; dead-reckoning the walk…", report.file_name),

@@ -13,7 +13,7 @@ use crate::sim::walk::{simulate, WalkConfig};
 wasm_bindgen_test_configure!(run_in_browser);
 
 fn simulated_csv() -> Vec<u8> {
-    canonical_csv::write(&simulate(&WalkConfig::from_seed(2, 60.0))).into_bytes()
+    canonical_csv::write(&simulate(&WalkConfig::from_seed(2, 120.0))).into_bytes()
 }
 
 fn new_canvas(width_px: u32, height_px: u32) -> HtmlCanvasElement {

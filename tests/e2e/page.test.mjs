@@ -28,6 +28,10 @@ async function assertStatsMatch(page, expected) {
     assert.equal(await text(page, `stat-${key}-check-p95`), fixed(check?.p95_abs_deg));
     assert.equal(await text(page, `stat-${key}-check-within5`), fixed(check?.within_5_deg_pct, ' %'));
   }
+  // One choice of "best" (crate::selection), the same row and the same sentence.
+  const bestRows = await page.$$eval('#methods-body tr.best', (rows) => rows.map((row) => row.id));
+  assert.deepEqual(bestRows, expected.best ? [`row-${expected.best.replaceAll('+', '-')}`] : [], 'the best row');
+  assert.ok((await text(page, 'status')).includes(`Best: ${expected.choice.label}: `), await text(page, 'status'));
 }
 
 /** The check RMS of one row in the CLI's report. */
@@ -190,8 +194,10 @@ test('an unknown CSV opens the column-mapping dialog, and the mapping is remembe
   await waitForState(page, 'ready', 'logger.csv');
   assert.match(await text(page, 'status'), /Analysed logger\.csv: 360 magnetometer samples\./);
   assert.equal(await page.$eval('#mapping-dialog', (dialog) => dialog.open), false);
-  // The hard iron is the offset written into the file, in µT.
-  assert.match(await text(page, 'calibration'), /Hard iron \(10\.0\d, -5\.0\d, /);
+  // The hard iron is the offset written into the file, in the file's own unit (gauss),
+  // and in µT as MotionCal's packet carries it.
+  assert.match(await text(page, 'calibration'), /Hard iron \(0\.100\d, -0\.050\d, [^)]*\) gauss/);
+  assert.match(await text(page, 'calibration'), /hard iron \(10\.0\d, -5\.0\d, [^)]*\) µT/);
 
   // After a reload the same columns are read without asking.
   await page.reload();
