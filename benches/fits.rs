@@ -15,9 +15,10 @@
 //!
 //! fits each case once, prints the time and the outcome and writes the outcomes to
 //! `target/bench-results/fits.json` (the hard iron, the soft iron and the residual in full
-//! precision, to compare runs), then measures; criterion's figures go to
-//! `target/criterion/fits/`, and `bench/run` turns both into BENCHMARKS.md's "Fits on real
-//! logs". Under `cargo test` (criterion's test mode) it stops after the outcomes.
+//! precision, to compare runs) and each case's samples to
+//! `target/bench-data/fits_<case>.f64` (for the peers, `bench/fits_peer.py`), then measures; criterion's figures go to
+//! `target/criterion/fits/`, and `bench/fits.sh` (which `bench/run` calls) turns both into
+//! BENCHMARKS.md's "Fits on real logs". Under `cargo test` (criterion's test mode) it stops after the outcomes.
 
 #[cfg(not(target_arch = "wasm32"))]
 #[path = "../tests/common/mod.rs"]
@@ -300,6 +301,19 @@ mod native {
                 case.tilt_from_accelerometer,
                 outcomes.join(", ")
             ));
+        }
+        // Each case's samples for the peers (bench/fits_peer.py): little-endian f64
+        // x, y, z triples, in the log's unit.
+        let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("target/bench-data");
+        std::fs::create_dir_all(&data).expect("target/bench-data can be made");
+        for case in &cases {
+            let bytes: Vec<u8> = case
+                .mag_ut
+                .iter()
+                .flat_map(|m| m.iter().flat_map(|v| v.to_le_bytes()).collect::<Vec<u8>>())
+                .collect();
+            std::fs::write(data.join(format!("fits_{}.f64", case.name)), bytes)
+                .expect("the samples can be written");
         }
         let results = Path::new(env!("CARGO_MANIFEST_DIR")).join("target/bench-results");
         std::fs::create_dir_all(&results).expect("target/bench-results can be made");
