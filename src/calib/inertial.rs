@@ -162,6 +162,9 @@ const MIN_DATA_OVER_PRIOR: f64 = 4.0;
 /// geometric mean, the symmetric cross-axis terms, the rotation, and how far the fitted
 /// dip may be from the model's (four of the prior's standard deviations).
 const MIN_AXIS_GAIN: f64 = 0.5;
+/// The overall gain a sensor read in µT may need: its factory gain is within tens of per
+/// cent, soft iron and a mount's steel change it by less than a factor of two.
+const MAX_OVERALL_GAIN: f64 = 4.0;
 const MAX_AXIS_GAIN: f64 = 2.0;
 const MAX_CROSS_AXIS: f64 = 0.3;
 const MAX_ROTATION_RAD: f64 = 0.25;
@@ -425,6 +428,10 @@ pub fn fit_inertial(
                 ) else {
                     continue;
                 };
+                if let Some(reason) = degeneracy(&solution.state, options) {
+                    first_reason.get_or_insert(reason);
+                    continue;
+                }
                 let score = solution.score(&start_set);
                 if best
                     .as_ref()
@@ -445,7 +452,11 @@ pub fn fit_inertial(
     // More samples can carry a full model further than the subset did, into a shape no
     // material gives (weakly seen directions following a disturbance): then the
     // subset's plausible solution stands, with the full set's weights and covariance.
-    if model == SoftIronModel::Full && implausibility(&solution.state, options).is_some() {
+    let implausible = match model {
+        SoftIronModel::Full => implausibility(&solution.state, options),
+        SoftIronModel::Isotropic => degeneracy(&solution.state, options),
+    };
+    if implausible.is_some() {
         solution = settle(&fit_set, start, options, model).ok_or(InertialError::NoConvergence)?;
     }
     let mut fit = solution.report(&fit_set, mag_ut, options);
@@ -472,16 +483,35 @@ fn settle(
     })
 }
 
+/// Why a solution of either model is no calibration at all, if it is not: a correction
+/// that mirrors the field, or, for a sensor read in µT (whose factory gain is known), an
+/// overall gain beyond [`MAX_OVERALL_GAIN`] either way: the fit shrank a sphere onto a
+/// patch of the samples (a hard iron among them and a gain of hundreds), which a band of
+/// data with a changing field allows.
+fn degeneracy(state: &State, options: &InertialOptions) -> Option<String> {
+    let det = state.correction.determinant();
+    if det.is_nan() || det <= 0.0 {
+        return Some("the fitted correction mirrors the field".to_string());
+    }
+    let gain = det.cbrt();
+    if options.gain_known && !(1.0 / MAX_OVERALL_GAIN..=MAX_OVERALL_GAIN).contains(&gain) {
+        return Some(format!(
+            "the fit would scale the sensor's µT by {gain:.2}, a sphere shrunk onto part of the samples"
+        ));
+    }
+    None
+}
+
 /// Why a full-model solution is not a magnetometer's distortion, if it is not: a shape
 /// no material gives (axis gains beyond 0.5-2× their mean, cross-axis terms beyond
 /// ±[`MAX_CROSS_AXIS`], a rotation beyond [`MAX_ROTATION_RAD`]), or a dip far from the
 /// model's. Such solutions come from fitting a changing field or a wrong tilt with the
 /// soft iron, typically on a band of data (a car's drive).
 fn implausibility(state: &State, options: &InertialOptions) -> Option<String> {
-    let det = state.correction.determinant();
-    if det.is_nan() || det <= 0.0 {
-        return Some("the fitted correction mirrors the field".to_string());
+    if let Some(reason) = degeneracy(state, options) {
+        return Some(reason);
     }
+    let det = state.correction.determinant();
     let shape = state.correction / det.cbrt();
     for axis in 0..3 {
         let gain = shape[(axis, axis)];

@@ -154,8 +154,9 @@ const H: usize = 3;
 const V_OR_UNUSED: usize = 4;
 const N_PARAMS: usize = 5;
 
-/// Levenberg-Marquardt steps before the fit keeps the best parameters it found.
-const MAX_LM_STEPS: usize = 100;
+/// Levenberg-Marquardt steps before the fit keeps the best parameters it found (see
+/// `plane::MAX_LM_STEPS`).
+const MAX_LM_STEPS: usize = 40;
 
 /// `V` for the parameters.
 fn vertical_field_ut(vertical: Vertical, params: &[f64; N_PARAMS]) -> f64 {
