@@ -156,7 +156,7 @@ const N_PARAMS: usize = 5;
 
 /// Levenberg-Marquardt steps before the fit keeps the best parameters it found (see
 /// `plane::MAX_LM_STEPS`).
-const MAX_LM_STEPS: usize = 40;
+const MAX_LM_STEPS: usize = 30;
 
 /// `V` for the parameters.
 fn vertical_field_ut(vertical: Vertical, params: &[f64; N_PARAMS]) -> f64 {
