@@ -249,6 +249,17 @@ pub enum SoftIronModel {
     Isotropic,
 }
 
+impl SoftIronModel {
+    /// Why `state` is no solution of this model, if it is not: the full model's shape
+    /// checks ([`implausibility`]); for either, a degenerate correction ([`degeneracy`]).
+    fn implausibility(self, state: &State, options: &InertialOptions) -> Option<String> {
+        match self {
+            SoftIronModel::Full => implausibility(state, options),
+            SoftIronModel::Isotropic => degeneracy(state, options),
+        }
+    }
+}
+
 /// A 3D calibration fitted with the tilt and priors, with how well the data supported it.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct InertialFit {
@@ -380,67 +391,28 @@ pub fn fit_inertial(
     let fit_set = samples.evenly(MAX_FIT_SAMPLES);
     let starts = ranked(&start_set, starts(&start_set, options));
     // The full model from the starts that fit best as they are; the plausible solution
-    // that fits best wins. Further starts are tried only while none was plausible.
-    let mut best: Option<(f64, Solution)> = None;
+    // that fits best wins.
     let mut first_reason = None;
-    for (n_solved, &start) in starts.iter().enumerate() {
-        if n_solved >= MAX_SOLVED_STARTS && best.is_some() {
-            break;
-        }
-        let Some(solution) = solve(
-            &start_set,
-            start,
-            options,
-            SoftIronModel::Full,
-            Schedule::Cold,
-        ) else {
-            continue;
-        };
-        if let Some(reason) = implausibility(&solution.state, options) {
-            first_reason.get_or_insert(reason);
-            continue;
-        }
-        let score = solution.score(&start_set);
-        if best
-            .as_ref()
-            .is_none_or(|(best_score, _)| score < *best_score)
-        {
-            best = Some((score, solution));
-        }
-    }
-    let (model, start) = match best {
-        Some((_, solution)) => (SoftIronModel::Full, solution.state),
+    let (model, start) = match best_solution(
+        &start_set,
+        &starts,
+        options,
+        SoftIronModel::Full,
+        &mut first_reason,
+    ) {
+        Some(solution) => (SoftIronModel::Full, solution.state),
         None => {
             // No plausible full model: the data cannot carry nine soft-iron entries (a
             // field that changes, tilt the accelerometer got wrong). Hard iron, one scale
             // and the dip, which only a changing field can spoil.
-            let mut best: Option<(f64, Solution)> = None;
-            for (n_solved, &start) in starts.iter().enumerate() {
-                if n_solved >= MAX_SOLVED_STARTS && best.is_some() {
-                    break;
-                }
-                let Some(solution) = solve(
-                    &start_set,
-                    start,
-                    options,
-                    SoftIronModel::Isotropic,
-                    Schedule::Cold,
-                ) else {
-                    continue;
-                };
-                if let Some(reason) = degeneracy(&solution.state, options) {
-                    first_reason.get_or_insert(reason);
-                    continue;
-                }
-                let score = solution.score(&start_set);
-                if best
-                    .as_ref()
-                    .is_none_or(|(best_score, _)| score < *best_score)
-                {
-                    best = Some((score, solution));
-                }
-            }
-            let (_, solution) = best.ok_or(InertialError::NoConvergence)?;
+            let solution = best_solution(
+                &start_set,
+                &starts,
+                options,
+                SoftIronModel::Isotropic,
+                &mut first_reason,
+            )
+            .ok_or(InertialError::NoConvergence)?;
             (SoftIronModel::Isotropic, solution.state)
         }
     };
@@ -452,16 +424,45 @@ pub fn fit_inertial(
     // More samples can carry a full model further than the subset did, into a shape no
     // material gives (weakly seen directions following a disturbance): then the
     // subset's plausible solution stands, with the full set's weights and covariance.
-    let implausible = match model {
-        SoftIronModel::Full => implausibility(&solution.state, options),
-        SoftIronModel::Isotropic => degeneracy(&solution.state, options),
-    };
-    if implausible.is_some() {
+    if model.implausibility(&solution.state, options).is_some() {
         solution = settle(&fit_set, start, options, model).ok_or(InertialError::NoConvergence)?;
     }
     let mut fit = solution.report(&fit_set, mag_ut, options);
     fit.model_reason = reason;
     Ok(fit)
+}
+
+/// The best-scoring plausible solution of `model` from the ranked `starts`: the first
+/// [`MAX_SOLVED_STARTS`] of them, more only while none was plausible. The first reason a
+/// solution was not plausible goes into `first_reason`.
+fn best_solution(
+    set: &SampleSet,
+    starts: &[State],
+    options: &InertialOptions,
+    model: SoftIronModel,
+    first_reason: &mut Option<String>,
+) -> Option<Solution> {
+    let mut best: Option<(f64, Solution)> = None;
+    for (n_solved, &start) in starts.iter().enumerate() {
+        if n_solved >= MAX_SOLVED_STARTS && best.is_some() {
+            break;
+        }
+        let Some(solution) = solve(set, start, options, model, Schedule::Cold) else {
+            continue;
+        };
+        if let Some(reason) = model.implausibility(&solution.state, options) {
+            first_reason.get_or_insert(reason);
+            continue;
+        }
+        let score = solution.score(set);
+        if best
+            .as_ref()
+            .is_none_or(|(best_score, _)| score < *best_score)
+        {
+            best = Some((score, solution));
+        }
+    }
+    best.map(|(_, solution)| solution)
 }
 
 /// `state` as it is, with the weights and covariance of `set` (no step taken).
