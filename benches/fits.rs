@@ -221,22 +221,7 @@ mod native {
             .map(|(name, paths)| (name.to_string(), paths))
             .collect();
         // The TYREX trials: one folder of headerless per-sensor files each.
-        let mut trials: Vec<PathBuf> = std::fs::read_dir(data.join("tyrex-attitude"))
-            .map(|entries| {
-                entries
-                    .filter_map(|entry| entry.ok().map(|entry| entry.path()))
-                    .filter(|path| path.is_dir())
-                    .collect()
-            })
-            .unwrap_or_default();
-        trials.sort();
-        for trial in trials {
-            let mut paths = common::files_in(&trial, "txt");
-            paths.extend(common::files_in(&trial, "properties"));
-            let name = trial
-                .file_name()
-                .map(|name| name.to_string_lossy().into_owned())
-                .unwrap_or_default();
+        for (name, paths) in common::tyrex_trials(data) {
             recordings.push((format!("tyrex-{name}"), paths));
         }
         recordings

@@ -632,20 +632,9 @@ fn sensor_logger_walk_has_the_world_magnetic_model_s_field_near_zurich() {
 #[test]
 fn tyrex_trial_folders_import_acc_gyro_mag_and_the_os_bias() {
     let Some(data) = shared_data() else { return };
-    let root = data.join("tyrex-attitude");
-    let mut trials: Vec<PathBuf> = std::fs::read_dir(&root)
-        .expect("readable directory")
-        .filter_map(|entry| Some(entry.ok()?.path()))
-        .filter(|path| path.is_dir())
-        .collect();
-    trials.sort();
+    let trials = common::tyrex_trials(&data);
     assert_eq!(trials.len(), 5);
-    for trial in trials {
-        let name = trial
-            .file_name()
-            .map(|name| name.to_string_lossy().into_owned());
-        let mut paths = common::files_in(&trial, "txt");
-        paths.push(trial.join("record.properties"));
+    for (name, paths) in trials {
         let contents = read_named(&paths);
         let report = import_files(&as_slices(&contents)).expect("imports");
         let inspection = Inspection::of(&report);

@@ -289,24 +289,8 @@ pub fn section(text: &mut String, data: &Path) {
             );
         }
     }
-    let tyrex = data.join("tyrex-attitude");
-    let mut trials: Vec<PathBuf> = std::fs::read_dir(&tyrex)
-        .map(|entries| {
-            entries
-                .filter_map(|entry| entry.ok().map(|entry| entry.path()))
-                .filter(|path| path.is_dir())
-                .collect()
-        })
-        .unwrap_or_default();
-    trials.sort();
-    for trial in trials {
-        let mut paths = common::files_in(&trial, "txt");
-        paths.extend(common::files_in(&trial, "properties"));
+    for (name, paths) in common::tyrex_trials(data) {
         if let Some(analysis) = analyse(&paths, &default) {
-            let name = trial
-                .file_name()
-                .map(|name| name.to_string_lossy().into_owned())
-                .unwrap_or_default();
             row(
                 text,
                 &format!("`tyrex-attitude` {name}"),

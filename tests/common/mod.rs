@@ -44,6 +44,33 @@ pub fn files_in(dir: &Path, ext: &str) -> Vec<PathBuf> {
     paths
 }
 
+/// The TYREX trials under `data/tyrex-attitude`, sorted by name: each trial's name and
+/// its files as a user drops the folder (the headerless per-sensor `.txt` files and
+/// `record.properties`). None when the folder is absent.
+pub fn tyrex_trials(data: &Path) -> Vec<(String, Vec<PathBuf>)> {
+    let mut trials: Vec<PathBuf> = std::fs::read_dir(data.join("tyrex-attitude"))
+        .map(|entries| {
+            entries
+                .filter_map(|entry| entry.ok().map(|entry| entry.path()))
+                .filter(|path| path.is_dir())
+                .collect()
+        })
+        .unwrap_or_default();
+    trials.sort();
+    trials
+        .into_iter()
+        .map(|trial| {
+            let name = trial
+                .file_name()
+                .map(|name| name.to_string_lossy().into_owned())
+                .unwrap_or_default();
+            let mut paths = files_in(&trial, "txt");
+            paths.extend(files_in(&trial, "properties"));
+            (name, paths)
+        })
+        .collect()
+}
+
 /// The files read and imported as one recording.
 pub fn import_paths(paths: &[PathBuf]) -> compass_pdr::io::ImportReport {
     let contents = read_named(paths);
