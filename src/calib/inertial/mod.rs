@@ -809,14 +809,42 @@ fn normalisers(
     kappa: f64,
 ) -> (f64, f64) {
     let d_ut = m_ut - state.hard_iron_ut;
-    let magnitude = magnitude_normaliser(&state.correction, d_ut).map_or(1.0, |(n, _)| n);
+    let magnitude = magnitude_norm(&state.correction, d_ut).unwrap_or(1.0);
     let vertical = down
-        .and_then(|down| vertical_normaliser(&state.correction, d_ut, down, kappa))
-        .map_or(1.0, |(n, _)| n);
+        .and_then(|down| vertical_norm(&state.correction, d_ut, down, kappa))
+        .unwrap_or(1.0);
     (magnitude, vertical)
 }
 
 const NORMALISER_FLOOR: f64 = 1e-9;
+
+/// [`magnitude_normaliser`]'s value alone (the same arithmetic, without the gradient).
+fn magnitude_norm(correction: &Matrix3<f64>, d_ut: Vector3<f64>) -> Option<f64> {
+    let corrected = correction * d_ut;
+    let c_norm = corrected.norm();
+    let q_norm = (correction.transpose() * corrected).norm();
+    if !(c_norm > 0.0 && q_norm > 0.0) {
+        return None;
+    }
+    Some((q_norm * (1.0 / c_norm)).max(NORMALISER_FLOOR))
+}
+
+/// [`vertical_normaliser`]'s value alone (the same arithmetic, without the gradient).
+fn vertical_norm(
+    correction: &Matrix3<f64>,
+    d_ut: Vector3<f64>,
+    down: Vector3<f64>,
+    kappa: f64,
+) -> Option<f64> {
+    let w = correction.transpose() * down;
+    let corrected = correction * d_ut;
+    let perpendicular = corrected - down * down.dot(&corrected);
+    let n = (w.norm_squared() + kappa * kappa * perpendicular.norm_squared()).sqrt();
+    if n.is_nan() || n <= 0.0 {
+        return None;
+    }
+    Some(n.max(NORMALISER_FLOOR))
+}
 
 /// The magnitude residual's normaliser `n = |Dᵀĉ| = |q|/|c|` (with `c = D·d`,
 /// `d = m − h`, `q = Dᵀc`) and its gradient:
@@ -936,7 +964,7 @@ fn tilt_noise_ratio(set: &SampleSet, state: &State) -> f64 {
         let (r_b, r_v) = residuals(state, m_ut, Some(down));
         magnitude.push(r_b);
         vertical.push(r_v.unwrap_or(0.0));
-        if let Some((n, _)) = magnitude_normaliser(&state.correction, d_ut) {
+        if let Some(n) = magnitude_norm(&state.correction, d_ut) {
             mag_gain_sq.push(n * n);
         }
         vertical_gain_sq.push((state.correction.transpose() * down).norm_squared());
@@ -1035,6 +1063,47 @@ fn normal_equations(
     }
     add_priors(&mut normal, state, options, start, uses_dip);
     normal
+}
+
+/// [`normal_equations`]'s cost alone (the same arithmetic, without the gradients): what
+/// a trial step needs to be accepted or refused.
+fn cost(
+    set: &SampleSet,
+    state: &State,
+    weights: &Weights,
+    options: &InertialOptions,
+    start: &State,
+) -> f64 {
+    let uses_dip = set.uses_dip();
+    let inv_var_magnitude = 1.0 / weights.sigma_magnitude_ut.powi(2);
+    let inv_var_vertical = 1.0 / weights.sigma_vertical_ut.powi(2);
+    let mut normal = Normal {
+        jtj: ParamMat::zeros(),
+        jtr: ParamVec::zeros(),
+        cost: 0.0,
+        prior_information: ParamMat::zeros(),
+    };
+    for (idx, &m_ut) in set.mag_ut.iter().enumerate() {
+        let d_ut = m_ut - state.hard_iron_ut;
+        let corrected = state.correction * d_ut;
+        let term = |rho: Option<f64>, weights: &[f64], inv_var: f64| {
+            let weight = weights.get(idx).copied().unwrap_or(0.0) * inv_var;
+            match rho {
+                Some(rho) if weight > 0.0 => weight * rho * rho,
+                _ => 0.0,
+            }
+        };
+        let magnitude = magnitude_norm(&state.correction, d_ut)
+            .map(|n| (corrected.norm() - state.field_ut) * (1.0 / n));
+        let vertical = set.down(idx).filter(|_| uses_dip).and_then(|down| {
+            let n = vertical_norm(&state.correction, d_ut, down, weights.kappa)?;
+            Some((down.dot(&corrected) - state.vertical_ut) * (1.0 / n))
+        });
+        normal.cost += term(magnitude, &weights.magnitude, inv_var_magnitude)
+            + term(vertical, &weights.vertical, inv_var_vertical);
+    }
+    add_priors(&mut normal, state, options, start, uses_dip);
+    normal.cost
 }
 
 /// One sample's two normalised residuals `ρ = r / n` (see [`normalisers`]) and their
@@ -1484,18 +1553,21 @@ fn iterate(
         } else {
             MAX_LM_ITERATIONS_BEFORE_LAST
         };
-        for _ in 0..max_iterations {
+        for iteration in 0..max_iterations {
             let step = free.step(&normal.jtj, &normal.jtr, lambda)?;
             let trial = state.with_params(&(state.params() - step));
-            let trial_normal = normal_equations(set, &trial, &weights, options, start);
-            if trial_normal.cost.is_finite() && trial_normal.cost <= normal.cost {
-                let decrease = normal.cost - trial_normal.cost;
+            // The cost decides; the gradients only where another step will use them.
+            let trial_cost = cost(set, &trial, &weights, options, start);
+            if trial_cost.is_finite() && trial_cost <= normal.cost {
+                let decrease = normal.cost - trial_cost;
                 state = trial;
-                normal = trial_normal;
                 lambda = (lambda / 3.0).max(1e-9);
-                if decrease <= STEADY_COST_SHARE * normal.cost.max(1e-300) {
+                if decrease <= STEADY_COST_SHARE * trial_cost.max(1e-300)
+                    || iteration + 1 == max_iterations
+                {
                     break;
                 }
+                normal = normal_equations(set, &state, &weights, options, start);
             } else {
                 lambda *= 4.0;
                 if lambda > 1e8 {
