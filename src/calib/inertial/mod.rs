@@ -436,6 +436,10 @@ pub fn fit_inertial(
 /// The best-scoring plausible solution of `model` from the ranked `starts`: the first
 /// [`MAX_SOLVED_STARTS`] of them, more only while none was plausible. The first reason a
 /// solution was not plausible goes into `first_reason`.
+///
+/// The starts are solved side by side on the machine's threads ([`crate::par`]), a few
+/// at a time, and judged in their order: the answer is the same on any number of
+/// threads (a start solved ahead of need is set aside unread).
 fn best_solution(
     set: &SampleSet,
     starts: &[State],
@@ -443,24 +447,37 @@ fn best_solution(
     model: SoftIronModel,
     first_reason: &mut Option<String>,
 ) -> Option<Solution> {
+    let n_threads = crate::par::n_threads().max(1);
     let mut best: Option<(f64, Solution)> = None;
-    for (n_solved, &start) in starts.iter().enumerate() {
-        if n_solved >= MAX_SOLVED_STARTS && best.is_some() {
-            break;
-        }
-        let Some(solution) = solve(set, start, options, model, Schedule::Cold) else {
-            continue;
-        };
-        if let Some(reason) = model.implausibility(&solution.state, options) {
-            first_reason.get_or_insert(reason);
-            continue;
-        }
-        let score = solution.score(set);
-        if best
-            .as_ref()
-            .is_none_or(|(best_score, _)| score < *best_score)
-        {
-            best = Some((score, solution));
+    let mut n_solved = 0;
+    while n_solved < starts.len() && !(n_solved >= MAX_SOLVED_STARTS && best.is_some()) {
+        // The starts certainly needed (the first MAX_SOLVED_STARTS, then one at a time),
+        // or as many as there are threads.
+        let needed = MAX_SOLVED_STARTS.saturating_sub(n_solved).max(1);
+        let width = needed.max(n_threads).min(starts.len() - n_solved);
+        let batch = &starts[n_solved..n_solved + width];
+        let solve_one = |start: &State| solve(set, *start, options, model, Schedule::Cold);
+        let solutions = crate::par::on_each_part(batch.iter(), solve_one)
+            .unwrap_or_else(|| batch.iter().map(solve_one).collect());
+        for solution in solutions {
+            if n_solved >= MAX_SOLVED_STARTS && best.is_some() {
+                break;
+            }
+            n_solved += 1;
+            let Some(solution) = solution else {
+                continue;
+            };
+            if let Some(reason) = model.implausibility(&solution.state, options) {
+                first_reason.get_or_insert(reason);
+                continue;
+            }
+            let score = solution.score(set);
+            if best
+                .as_ref()
+                .is_none_or(|(best_score, _)| score < *best_score)
+            {
+                best = Some((score, solution));
+            }
         }
     }
     best.map(|(_, solution)| solution)
