@@ -63,10 +63,9 @@ use std::borrow::Cow;
 use std::fmt;
 
 use super::lines::Line;
-use super::{ensure_text, shorten, Diagnostics, ImportError, ImportReport};
+use super::{ensure_text, shorten, thousands, Diagnostics, ImportError, ImportReport};
 use crate::angle::wrap_to_2pi;
 use crate::recording::{Attitude, DeviceHeading, GnssFix, North, Recording};
-use crate::report::thousands;
 
 #[cfg(any(not(target_arch = "wasm32"), target_feature = "atomics"))]
 mod parallel;
