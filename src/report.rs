@@ -18,6 +18,9 @@ use crate::io::SensorFrame;
 use crate::pdr::PdrAnalysis;
 use crate::plot::{draw_calibration_figure, draw_deviation_figure, draw_pdr_figure};
 
+// Counts are printed as the importers' notes print them.
+pub use crate::io::thousands;
+
 /// Where the reference, declination and expected field came from, and the split.
 pub fn context_lines(report: &CalibrationReport) -> Vec<String> {
     let reference = report
@@ -554,19 +557,6 @@ pub fn html_report(
     );
     html.push_str("</body>\n</html>\n");
     html
-}
-
-/// A count with thousands separators ("12,000"), as notes and messages print it.
-pub fn thousands(count: usize) -> String {
-    let digits = count.to_string();
-    let mut grouped = String::with_capacity(digits.len() + digits.len() / 3);
-    for (idx, digit) in digits.chars().enumerate() {
-        if idx > 0 && (digits.len() - idx).is_multiple_of(3) {
-            grouped.push(',');
-        }
-        grouped.push(digit);
-    }
-    grouped
 }
 
 #[cfg(test)]

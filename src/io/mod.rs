@@ -194,6 +194,19 @@ pub fn shorten(text: &str) -> String {
     }
 }
 
+/// A count with thousands separators ("12,000"), as notes and messages print it.
+pub fn thousands(count: usize) -> String {
+    let digits = count.to_string();
+    let mut grouped = String::with_capacity(digits.len() + digits.len() / 3);
+    for (idx, digit) in digits.chars().enumerate() {
+        if idx > 0 && (digits.len() - idx).is_multiple_of(3) {
+            grouped.push(',');
+        }
+        grouped.push(digit);
+    }
+    grouped
+}
+
 /// Whether `bytes` look like text, judged from their start. Returns the offset of the
 /// first byte that shows they are not: a NUL, or the point where more than 10% of the
 /// characters so far are control characters or invalid UTF-8.

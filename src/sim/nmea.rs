@@ -9,7 +9,7 @@
 //! compass module reports it — and `$HEHDT`, the true heading (the log's reference).
 //! The heading sentences carry no time, as in NMEA; the importer places them between
 //! the timed sentences around them. Sentences follow "NMEA Revealed" (the formats the
-//! importer documents in `io/nmea.rs`), with `*hh` checksums and CRLF endings.
+//! importer documents in `io/nmea/`), with `*hh` checksums and CRLF endings.
 //!
 //! Times are UTC: the rows' own when the config has a start, else from 2026-01-01 00:00.
 

@@ -15,7 +15,8 @@
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::Mutex;
 
-use super::{for_each_line, LineEvent, NmeaReader};
+use super::framing::{for_each_line, LineEvent};
+use super::NmeaReader;
 use crate::io::{ImportError, ImportReport};
 
 /// Below this size one thread is as fast.
