@@ -439,17 +439,18 @@ pub fn finish_logger(
 
 /// A date and time for people, `2023-03-17 14:50:47.2 UTC`.
 fn utc_text(unix_s: f64) -> String {
+    // Within a million years of 1970, where the calendar is meaningful.
+    const MAX_ABS_DAYS: f64 = 365.25 * 1e6;
     let days = (unix_s / 86_400.0).floor();
-    let seconds_of_day = unix_s - days * 86_400.0;
-    match crate::calib::wmm::date_of_unix_s(unix_s) {
-        Some(date) => {
-            let hours = (seconds_of_day / 3600.0).floor();
-            let minutes = ((seconds_of_day - hours * 3600.0) / 60.0).floor();
-            let seconds = seconds_of_day - hours * 3600.0 - minutes * 60.0;
-            format!("{date} {hours:02.0}:{minutes:02.0}:{seconds:04.1} UTC")
-        }
-        None => format!("{unix_s:.1} s after 1970"),
+    if !days.is_finite() || days.abs() > MAX_ABS_DAYS {
+        return format!("{unix_s:.1} s after 1970");
     }
+    let seconds_of_day = unix_s - days * 86_400.0;
+    let (year, month, day) = crate::civil::civil_from_days(days as i64);
+    let hours = (seconds_of_day / 3600.0).floor();
+    let minutes = ((seconds_of_day - hours * 3600.0) / 60.0).floor();
+    let seconds = seconds_of_day - hours * 3600.0 - minutes * 60.0;
+    format!("{year:04}-{month:02}-{day:02} {hours:02.0}:{minutes:02.0}:{seconds:04.1} UTC")
 }
 
 /// An import that gives only notes (a file that is recognised and not used, or one of

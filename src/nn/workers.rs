@@ -16,15 +16,16 @@
 use std::ops::Range;
 use std::sync::mpsc::{self, Receiver, Sender, TryRecvError};
 use std::sync::Arc;
-use std::time::{Duration, Instant};
 
 use super::activation::Activation;
 use super::kernels::{self, PartInput, Scratch};
 use super::loss::{Samples, Shape};
 
-/// How long a waiting thread spins, then yields, before it blocks.
-const SPIN: Duration = Duration::from_micros(20);
-const YIELD: Duration = Duration::from_micros(200);
+/// How many rounds of 64 polls a waiting thread spins (a round is a microsecond or two
+/// of polling, so some 20 µs), then how many more it yields between rounds (some
+/// 200 µs), before it blocks. Counted, not timed: the core reads no clock.
+const SPIN_ROUNDS: u32 = 16;
+const YIELD_ROUNDS: u32 = 160;
 
 /// What a helper evaluates, and where it writes.
 struct Job {
@@ -218,12 +219,11 @@ fn help(shape: Shape, activation: Activation, jobs: &Receiver<Job>, done: &Sende
     }
 }
 
-/// The next message, spinning for [`SPIN`] and then yielding to other threads until
-/// [`YIELD`] before blocking (a busy machine gets its core back); `None` when the other
-/// side has gone.
+/// The next message, spinning for [`SPIN_ROUNDS`] and then yielding to other threads
+/// for [`YIELD_ROUNDS`] before blocking (a busy machine gets its core back); `None` when
+/// the other side has gone.
 fn receive<T>(channel: &Receiver<T>) -> Option<T> {
-    let start = Instant::now();
-    loop {
+    for round in 0..SPIN_ROUNDS + YIELD_ROUNDS {
         for _ in 0..64 {
             match channel.try_recv() {
                 Ok(message) => return Some(message),
@@ -231,12 +231,9 @@ fn receive<T>(channel: &Receiver<T>) -> Option<T> {
                 Err(TryRecvError::Empty) => std::hint::spin_loop(),
             }
         }
-        let waited = start.elapsed();
-        if waited > YIELD {
-            return channel.recv().ok();
-        }
-        if waited > SPIN {
+        if round >= SPIN_ROUNDS {
             std::thread::yield_now();
         }
     }
+    channel.recv().ok()
 }

@@ -1,0 +1,136 @@
+//! ARCHITECTURE.md's invariants that the source text itself can show, checked on the
+//! crate's own files (always present, so these run in every clone):
+//!
+//! - the core (everything outside `src/web/`, `src/cli/` and `src/main.rs`) reads no
+//!   clock, file, environment variable, argv or standard stream, and knows nothing of
+//!   the browser (wasm-bindgen, web-sys, js-sys, gloo, plotters-canvas);
+//! - `io` imports nothing above it: only the leaf modules it is built on.
+//!
+//! Only code is read: comments are skipped, and so is test code (a `tests.rs` file, and
+//! a file's lines from its `#[cfg(test)]` module on), which may use the simulator or
+//! read `../shared/data`.
+
+use std::path::{Path, PathBuf};
+
+/// What the core must not name.
+const NOT_IN_THE_CORE: [&str; 17] = [
+    "std::fs",
+    "std::time",
+    "Instant::",
+    "SystemTime",
+    "std::env",
+    "std::process",
+    "std::io::stdout",
+    "std::io::stdin",
+    "println!",
+    "print!(",
+    "eprintln!",
+    "eprint!(",
+    "wasm_bindgen",
+    "web_sys",
+    "js_sys",
+    "gloo",
+    "plotters_canvas",
+];
+
+/// The modules `io` is built on (and `io` itself).
+const BELOW_IO: [&str; 7] = ["io", "recording", "angle", "civil", "par", "geo", "stats"];
+
+fn rust_files(dir: &Path, files: &mut Vec<PathBuf>) {
+    let entries = std::fs::read_dir(dir).expect("the source folder is readable");
+    for entry in entries {
+        let path = entry.expect("a directory entry").path();
+        if path.is_dir() {
+            rust_files(&path, files);
+        } else if path.extension().is_some_and(|ext| ext == "rs") {
+            files.push(path);
+        }
+    }
+}
+
+/// The file's code lines (1-based line numbers), without comments and without tests.
+fn code_lines(path: &Path) -> Vec<(usize, String)> {
+    if path.file_name().is_some_and(|name| name == "tests.rs") {
+        return Vec::new();
+    }
+    let text = std::fs::read_to_string(path).expect("a source file is UTF-8");
+    let mut lines = Vec::new();
+    for (idx, line) in text.lines().enumerate() {
+        let trimmed = line.trim_start();
+        if trimmed.starts_with("#[cfg(test)]") {
+            break;
+        }
+        if trimmed.starts_with("//") {
+            continue;
+        }
+        // A trailing comment is not code either (a `//` inside a string is rare enough
+        // in this crate to ignore: it would only hide a violation, never invent one).
+        let code = match line.find("//") {
+            Some(at) => &line[..at],
+            None => line,
+        };
+        lines.push((idx + 1, code.to_string()));
+    }
+    lines
+}
+
+fn src() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("src")
+}
+
+#[test]
+fn the_core_reads_no_clock_file_environment_or_stream_and_knows_no_browser() {
+    let src = src();
+    let mut files = Vec::new();
+    rust_files(&src, &mut files);
+    let edges = [src.join("web"), src.join("cli"), src.join("main.rs")];
+    let mut violations = Vec::new();
+    for path in files
+        .iter()
+        .filter(|path| !edges.iter().any(|edge| path.starts_with(edge)))
+    {
+        for (line_no, code) in code_lines(path) {
+            for name in NOT_IN_THE_CORE {
+                if code.contains(name) {
+                    violations.push(format!(
+                        "{}:{line_no}: {name}",
+                        path.strip_prefix(&src).unwrap_or(path).display()
+                    ));
+                }
+            }
+        }
+    }
+    assert!(
+        files.len() > 50,
+        "the source was not found ({} files)",
+        files.len()
+    );
+    assert!(violations.is_empty(), "{violations:#?}");
+}
+
+#[test]
+fn io_imports_nothing_above_it() {
+    let io = src().join("io");
+    let mut files = vec![src().join("io.rs")];
+    files.retain(|path| path.exists());
+    rust_files(&io, &mut files);
+    let mut violations = Vec::new();
+    for path in &files {
+        for (line_no, code) in code_lines(path) {
+            for (at, _) in code.match_indices("crate::") {
+                let module: String = code[at + "crate::".len()..]
+                    .chars()
+                    .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
+                    .collect();
+                if !BELOW_IO.contains(&module.as_str()) {
+                    violations.push(format!(
+                        "{}:{line_no}: crate::{module}",
+                        path.strip_prefix(src()).unwrap_or(path).display()
+                    ));
+                }
+            }
+        }
+    }
+    assert!(files.len() > 10, "io was not found ({} files)", files.len());
+    assert!(violations.is_empty(), "{violations:#?}");
+}
