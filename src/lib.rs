@@ -64,7 +64,6 @@
     feature(stdarch_wasm_atomic_wait)
 )]
 
-pub mod align;
 pub mod analysis;
 pub mod angle;
 pub mod calib;
