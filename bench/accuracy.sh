@@ -1,12 +1,12 @@
 #!/usr/bin/env bash
 # The accuracy report (issue 8): heading and PDR accuracy on the simulator's scenarios and
 # on the real recordings in ../shared/data, beside the papers' numbers. Writes
-# ACCURACY.md (benches/accuracy.rs). Takes about a minute; not part of ./test.
+# docs/ACCURACY.md (benches/accuracy.rs). Takes about a minute; not part of ./test.
 #
 #   bench/accuracy.sh
 set -euo pipefail
 source "$(dirname "$0")/../scripts/setup.sh"
 cd "$ROOT"
 ensure_rust
-log "cargo bench --bench accuracy --profile bench-import (writes ACCURACY.md)"
+log "cargo bench --bench accuracy --profile bench-import (writes docs/ACCURACY.md)"
 cargo bench --bench accuracy --profile bench-import

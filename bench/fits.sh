@@ -4,7 +4,7 @@
 # the simulator's demo walk and of the independent generator's circle walk, natively
 # (criterion, benches/fits.rs, which also writes the samples and the outcomes), and
 # numpy's Li-Griffiths fit and an ArduPilot-style scipy LM on the same samples
-# (bench/fits_peer.py). Prints the BENCHMARKS.md section; raw results in
+# (bench/fits_peer.py). Prints the docs/BENCHMARKS.md section; raw results in
 # target/bench-results/fits*. Idempotent (the venv and the builds are reused). Not part
 # of ./test; bench/run calls it.
 #

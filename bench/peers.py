@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The peers of compass-pdr's importer on the benchmark inputs, for BENCHMARKS.md.
+"""The peers of compass-pdr's importer on the benchmark inputs, for docs/BENCHMARKS.md.
 
 Reads the files `cargo bench --bench import` generates under target/bench-data/:
 pandas.read_csv on walk.csv (the canonical CSV) and pynmea2.parse on every line of

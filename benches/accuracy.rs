@@ -1,6 +1,6 @@
 //! The accuracy report (issue 8): heading and PDR accuracy on the simulator's scenarios
 //! and on the real recordings in `../shared/data`, laid out like the papers' tables with
-//! the papers' own numbers beside ours. Writes `ACCURACY.md` at the top of the project.
+//! the papers' own numbers beside ours. Writes `docs/ACCURACY.md`.
 //!
 //!   cargo bench --bench accuracy --profile bench-import
 //!
@@ -468,7 +468,7 @@ Skipped: `../shared/data` not found.
             );
         }
         super::independent::section(&mut text);
-        let path = root.join("ACCURACY.md");
+        let path = root.join("docs").join("ACCURACY.md");
         std::fs::write(&path, text).expect("ACCURACY.md can be written");
         eprintln!("wrote {}", path.display());
     }

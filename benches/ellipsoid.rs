@@ -2,7 +2,7 @@
 //! 10³, 10⁴, 10⁵ and 10⁶ full-sphere magnetometer samples from the crate's simulator
 //! (`sim::field`, fixed seed), algebraic only (`refine: false`, what Magneto 1.2 and
 //! `bench/ellipsoid_peer.py` do) and with the Levenberg-Marquardt refinement. Run by
-//! `bench/run`, which records the figures in BENCHMARKS.md beside numpy's Li-Griffiths
+//! `bench/run`, which records the figures in docs/BENCHMARKS.md beside numpy's Li-Griffiths
 //! fit and the same fit in WebAssembly.
 //!
 //! `cargo bench --bench ellipsoid --profile bench-import` writes each sample set as

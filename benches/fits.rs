@@ -18,7 +18,7 @@
 //! precision, to compare runs) and each case's samples to
 //! `target/bench-data/fits_<case>.f64` (for the peers, `bench/fits_peer.py`), then measures; criterion's figures go to
 //! `target/criterion/fits/`, and `bench/fits.sh` (which `bench/run` calls) turns both into
-//! BENCHMARKS.md's "Fits on real logs". Under `cargo test` (criterion's test mode) it stops after the outcomes.
+//! docs/BENCHMARKS.md's "Fits on real logs". Under `cargo test` (criterion's test mode) it stops after the outcomes.
 
 #[cfg(not(target_arch = "wasm32"))]
 #[path = "../tests/common/mod.rs"]

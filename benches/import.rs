@@ -1,6 +1,6 @@
 //! Import throughput: `compass_pdr::io::import::import` on a ~100 MB canonical CSV
 //! (the crate's own walk simulator) and a ~100 MB NMEA 0183 log (RMC, GGA, VTG and HDT
-//! at 10 Hz), in MB/s. Run by `bench/run`, which records the figures in BENCHMARKS.md
+//! at 10 Hz), in MB/s. Run by `bench/run`, which records the figures in docs/BENCHMARKS.md
 //! beside pandas, pynmea2 and the same import in WebAssembly.
 //!
 //! `cargo bench --bench import --profile bench-import` generates the inputs once under
@@ -149,7 +149,7 @@ mod native {
     }
 
     /// CPU time over wall time of a few imports of each input (above 1 where the
-    /// importer uses several threads), written to `native_cpu.json` for BENCHMARKS.md.
+    /// importer uses several threads), written to `native_cpu.json` for docs/BENCHMARKS.md.
     fn write_cpu_ratios(inputs: &[Input]) {
         const N_IMPORTS: usize = 3;
         let mut entries = Vec::new();

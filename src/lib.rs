@@ -43,7 +43,7 @@
 //! [`par`], which asks how many threads there are and, in the threaded browser build,
 //! holds the Web Worker pool (the runtime's state, not the algorithms'; results never
 //! depend on it). The CLI (`src/main.rs`, `src/cli/`) owns files and argv; `web`
-//! (wasm32 only) owns the DOM. See `ARCHITECTURE.md`.
+//! (wasm32 only) owns the DOM. See `docs/ARCHITECTURE.md`.
 //!
 //! ## Limits (today)
 //!

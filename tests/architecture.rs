@@ -1,4 +1,4 @@
-//! ARCHITECTURE.md's invariants that the source text itself can show, checked on the
+//! docs/ARCHITECTURE.md's invariants that the source text itself can show, checked on the
 //! crate's own files (always present, so these run in every clone):
 //!
 //! - the core (everything outside `src/web/`, `src/cli/` and `src/main.rs`) reads no

@@ -45,7 +45,7 @@ fn the_committed_demo_is_what_the_simulator_writes() {
             .expect("committed demo");
     assert!(
         regenerated == committed,
-        "assets/demo-walk.csv is stale: regenerate it with the command in README.md"
+        "assets/demo-walk.csv is stale: regenerate it with the command in docs/development.md"
     );
 }
 

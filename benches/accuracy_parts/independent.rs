@@ -1,4 +1,4 @@
-//! ACCURACY.md's section on the independent generator (`tests/physics`): distributions
+//! docs/ACCURACY.md's section on the independent generator (`tests/physics`): distributions
 //! over seeds of the chosen heading's check RMS against the true calibration's floor, and
 //! of the dead-reckoning drift over a GNSS outage on a four-direction walk.
 

@@ -1,4 +1,4 @@
-//! ACCURACY.md's section on every real recording in `../shared/data`: what each gives,
+//! docs/ACCURACY.md's section on every real recording in `../shared/data`: what each gives,
 //! beside the truth it carries (its README lists them).
 
 use std::fmt::Write as _;

@@ -144,7 +144,7 @@ const MAX_RELATIVE_RESIDUAL_ISOTROPIC: f64 = 0.25;
 /// subset; a quarter of them on all the samples): clean data settle in 5-30; data that
 /// follow no single field (a walk in a pocket, indoors) creep on for hundreds of steps
 /// at a few milliseconds each, and the residual check judges where they got. 30 keeps
-/// the fit under 50 ms on 10⁴ samples of every real log (BENCHMARKS.md).
+/// the fit under 50 ms on 10⁴ samples of every real log (docs/BENCHMARKS.md).
 const MAX_LM_STEPS: usize = 30;
 
 /// Inclinations steeper than this leave almost no horizontal field to steer by.

@@ -872,7 +872,7 @@ mod tests {
         let (rows, truth) = simulate_with_truth(&config);
         assert!(
             canonical_csv::write(&rows) == committed,
-            "WalkConfig::demo no longer writes assets/demo-walk.csv: regenerate it with the command in README.md"
+            "WalkConfig::demo no longer writes assets/demo-walk.csv: regenerate it with the command in docs/development.md"
         );
         assert!(truth.steps.len() > 300);
         // Dated, placed, with the WMM's field there.
