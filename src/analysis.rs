@@ -210,7 +210,9 @@ pub fn tilted_samples(
                 gyro_time_scale, ..
             } if *gyro_time_scale != 1.0 => {
                 samples.notes.push(format!(
-                    "the gyroscope's turns match the accelerometer's only at {gyro_time_scale}× the log's time scale:                      the samples' times are probably wrong by that factor (a sample rate assumed, not read); the                      tilt used the corrected rate"
+                    "the gyroscope's turns match the accelerometer's only at {gyro_time_scale}× the log's time scale: \
+                     the samples' times are probably wrong by that factor (a sample rate assumed, not read); \
+                     the tilt used the corrected rate"
                 ));
             }
             _ => {}

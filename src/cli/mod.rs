@@ -330,7 +330,7 @@ impl AnalysisArgs {
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 enum Scenario {
-    /// The demo log (`assets/demo-walk.csv`): a walk in Helsinki with hard iron, scale
+    /// The demo log (`assets/demo-walk.csv`): a walk in Seattle with hard iron, scale
     /// factors and their temperature drift, varied steps, GNSS with an outage and
     /// multipath, and a passage near iron.
     Demo,
