@@ -270,35 +270,7 @@ pub fn fit_plane(
     tilt: &[Tilt],
     options: &PlaneOptions,
 ) -> Result<PlaneFit, PlaneError> {
-    if mag_ut.len() != tilt.len() {
-        return Err(PlaneError::LengthMismatch {
-            n_mag: mag_ut.len(),
-            n_tilt: tilt.len(),
-        });
-    }
-    if mag_ut.len() < MIN_SAMPLES {
-        return Err(PlaneError::TooFewSamples {
-            n_samples: mag_ut.len(),
-            min: MIN_SAMPLES,
-        });
-    }
-    if let Some(sample_idx) = mag_ut.iter().zip(tilt).position(|(mag, tilt)| {
-        !(mag.iter().all(|value| value.is_finite())
-            && tilt.roll_rad.is_finite()
-            && tilt.pitch_rad.is_finite())
-    }) {
-        return Err(PlaneError::NonFinite { sample_idx });
-    }
-    let tan_inclination = match options.inclination_deg {
-        None => None,
-        Some(inclination_deg)
-            if inclination_deg.is_finite() && inclination_deg.abs() <= MAX_INCLINATION_DEG =>
-        {
-            Some(inclination_deg.to_radians().tan())
-        }
-        Some(inclination_deg) => return Err(PlaneError::InvalidInclination { inclination_deg }),
-    };
-
+    let tan_inclination = checked_inputs(mag_ut, tilt, options)?;
     let levelling: Vec<Matrix3<f64>> = tilt.iter().map(levelling_rotation).collect();
     let level_raw_ut: Vec<Vector2<f64>> = mag_ut
         .iter()
@@ -316,39 +288,13 @@ pub fn fit_plane(
     // Step 2: the tilt-aware model. The start's transform has determinant 1, so it is
     // the in-plane block of a dimensionless `A`; `H` is the start's radius.
     let horizontal_field_ut = start.radius_ut;
-    let mut full = [0.0; N_PARAMS];
-    full[A_XX] = start.transform[(0, 0)];
-    full[A_YY] = start.transform[(1, 1)];
-    full[A_XY] = start.transform[(0, 1)];
-    full[A_ZZ] = 1.0;
-    full[H_X] = start.center_ut.x;
-    full[H_Y] = start.center_ut.y;
-    let mut free: Vec<usize> = vec![A_XX, A_YY, A_XY, A_XZ, A_YZ, H_X, H_Y];
-    match tan_inclination {
-        Some(tan_inclination) => {
-            // With the dip known, the level part of the vertical residual fixes `h_z`
-            // from the mean levelled vertical field.
-            full[V] = horizontal_field_ut * tan_inclination;
-            let mean_level_z_ut = mag_ut
-                .iter()
-                .zip(&levelling)
-                .map(|(mag, levelling)| (levelling * mag).z)
-                .sum::<f64>()
-                / mag_ut.len() as f64;
-            full[H_Z] = mean_level_z_ut - full[V];
-            free.push(H_Z);
-        }
-        None => {
-            full[V] = mean_vertical_ut(mag_ut, &levelling, &full);
-            free.push(V);
-            if vertical_estimated {
-                free.push(H_Z);
-            }
-        }
-    }
-    if vertical_estimated {
-        free.push(A_ZZ);
-    }
+    let (mut full, free) = tilt_aware_start(
+        &start,
+        mag_ut,
+        &levelling,
+        tan_inclination,
+        vertical_estimated,
+    );
     let problem = TiltAwareProblem {
         mag_ut,
         levelling: &levelling,
@@ -387,42 +333,169 @@ pub fn fit_plane(
     let full_axis_ratio =
         positive_definite.then(|| eigen.eigenvalues.max() / eigen.eigenvalues.min());
     if full_axis_ratio.is_none_or(|axis_ratio| axis_ratio > MAX_AXIS_RATIO) {
-        let vertical = match (tan_inclination, vertical_estimated) {
-            (Some(tan_inclination), _) => Vertical::ModelDip { tan_inclination },
-            (None, true) => Vertical::Free,
-            (None, false) => Vertical::Held,
-        };
-        let isotropic = fit_isotropic(
+        let fit = isotropic_fit(
             mag_ut,
             &levelling,
-            Vector3::new(start.center_ut.x, start.center_ut.y, 0.0),
-            start.radius_ut,
-            vertical,
-        )?;
-        let fit = PlaneFit {
-            hard_iron_ut: isotropic.hard_iron_ut,
-            soft_iron: Matrix3::identity(),
-            plane: PlaneCalibration {
-                center_ut: Vector2::zeros(),
-                transform: Matrix2::identity(),
-                radius_ut: isotropic.horizontal_field_ut,
-            },
-            horizontal_field_ut: isotropic.horizontal_field_ut,
-            vertical_field_ut: isotropic.vertical_field_ut,
-            inclination_deg: isotropic
-                .vertical_field_ut
-                .atan2(isotropic.horizontal_field_ut)
-                .to_degrees(),
-            soft_iron_model: SoftIronModel::Isotropic { full_axis_ratio },
+            &start,
+            tan_inclination,
             vertical_estimated,
             tilt_spread_deg,
-            residual_rms_ut: 0.0,
-            horizontal_magnitude_std_ut: 0.0,
-            coverage: Coverage::of_headings(std::iter::empty()),
-            n_samples: mag_ut.len(),
-        };
+            full_axis_ratio,
+        )?;
         return checked(fit, mag_ut, &levelling, options);
     }
+    let fit = gauged_fit(
+        soft_iron,
+        &full,
+        horizontal_field_ut,
+        vertical_estimated,
+        tilt_spread_deg,
+        mag_ut.len(),
+    )?;
+    checked(fit, mag_ut, &levelling, options)
+}
+
+/// The inputs' checks: as many tilts as samples, enough samples, all finite, a usable
+/// inclination; the inclination's tangent when the model's dip is given.
+fn checked_inputs(
+    mag_ut: &[Vector3<f64>],
+    tilt: &[Tilt],
+    options: &PlaneOptions,
+) -> Result<Option<f64>, PlaneError> {
+    if mag_ut.len() != tilt.len() {
+        return Err(PlaneError::LengthMismatch {
+            n_mag: mag_ut.len(),
+            n_tilt: tilt.len(),
+        });
+    }
+    if mag_ut.len() < MIN_SAMPLES {
+        return Err(PlaneError::TooFewSamples {
+            n_samples: mag_ut.len(),
+            min: MIN_SAMPLES,
+        });
+    }
+    if let Some(sample_idx) = mag_ut.iter().zip(tilt).position(|(mag, tilt)| {
+        !(mag.iter().all(|value| value.is_finite())
+            && tilt.roll_rad.is_finite()
+            && tilt.pitch_rad.is_finite())
+    }) {
+        return Err(PlaneError::NonFinite { sample_idx });
+    }
+    match options.inclination_deg {
+        None => Ok(None),
+        Some(inclination_deg)
+            if inclination_deg.is_finite() && inclination_deg.abs() <= MAX_INCLINATION_DEG =>
+        {
+            Ok(Some(inclination_deg.to_radians().tan()))
+        }
+        Some(inclination_deg) => Err(PlaneError::InvalidInclination { inclination_deg }),
+    }
+}
+
+/// Step 2's start and free parameters: the conic's in-plane shape and centre, `A_zz = 1`,
+/// and the vertical from the model's dip when it is given (then `h_z` from the mean
+/// levelled vertical field), else from the samples.
+fn tilt_aware_start(
+    start: &PlaneCalibration,
+    mag_ut: &[Vector3<f64>],
+    levelling: &[Matrix3<f64>],
+    tan_inclination: Option<f64>,
+    vertical_estimated: bool,
+) -> ([f64; N_PARAMS], Vec<usize>) {
+    let horizontal_field_ut = start.radius_ut;
+    let mut full = [0.0; N_PARAMS];
+    full[A_XX] = start.transform[(0, 0)];
+    full[A_YY] = start.transform[(1, 1)];
+    full[A_XY] = start.transform[(0, 1)];
+    full[A_ZZ] = 1.0;
+    full[H_X] = start.center_ut.x;
+    full[H_Y] = start.center_ut.y;
+    let mut free: Vec<usize> = vec![A_XX, A_YY, A_XY, A_XZ, A_YZ, H_X, H_Y];
+    match tan_inclination {
+        Some(tan_inclination) => {
+            // With the dip known, the level part of the vertical residual fixes `h_z`
+            // from the mean levelled vertical field.
+            full[V] = horizontal_field_ut * tan_inclination;
+            let mean_level_z_ut = mag_ut
+                .iter()
+                .zip(levelling)
+                .map(|(mag, levelling)| (levelling * mag).z)
+                .sum::<f64>()
+                / mag_ut.len() as f64;
+            full[H_Z] = mean_level_z_ut - full[V];
+            free.push(H_Z);
+        }
+        None => {
+            full[V] = mean_vertical_ut(mag_ut, levelling, &full);
+            free.push(V);
+            if vertical_estimated {
+                free.push(H_Z);
+            }
+        }
+    }
+    if vertical_estimated {
+        free.push(A_ZZ);
+    }
+    (full, free)
+}
+
+/// The isotropic model's fit (see `plane_isotropic`), for when the full one scales one
+/// axis far more than another.
+fn isotropic_fit(
+    mag_ut: &[Vector3<f64>],
+    levelling: &[Matrix3<f64>],
+    start: &PlaneCalibration,
+    tan_inclination: Option<f64>,
+    vertical_estimated: bool,
+    tilt_spread_deg: f64,
+    full_axis_ratio: Option<f64>,
+) -> Result<PlaneFit, PlaneError> {
+    let vertical = match (tan_inclination, vertical_estimated) {
+        (Some(tan_inclination), _) => Vertical::ModelDip { tan_inclination },
+        (None, true) => Vertical::Free,
+        (None, false) => Vertical::Held,
+    };
+    let isotropic = fit_isotropic(
+        mag_ut,
+        levelling,
+        Vector3::new(start.center_ut.x, start.center_ut.y, 0.0),
+        start.radius_ut,
+        vertical,
+    )?;
+    Ok(PlaneFit {
+        hard_iron_ut: isotropic.hard_iron_ut,
+        soft_iron: Matrix3::identity(),
+        plane: PlaneCalibration {
+            center_ut: Vector2::zeros(),
+            transform: Matrix2::identity(),
+            radius_ut: isotropic.horizontal_field_ut,
+        },
+        horizontal_field_ut: isotropic.horizontal_field_ut,
+        vertical_field_ut: isotropic.vertical_field_ut,
+        inclination_deg: isotropic
+            .vertical_field_ut
+            .atan2(isotropic.horizontal_field_ut)
+            .to_degrees(),
+        soft_iron_model: SoftIronModel::Isotropic { full_axis_ratio },
+        vertical_estimated,
+        tilt_spread_deg,
+        residual_rms_ut: 0.0,
+        horizontal_magnitude_std_ut: 0.0,
+        coverage: Coverage::of_headings(std::iter::empty()),
+        n_samples: mag_ut.len(),
+    })
+}
+
+/// Step 3's result: the soft iron scaled so that the level-plane correction preserves
+/// area (`k = √det(S_hh)`), with the fields and the plane's calibration in that gauge.
+fn gauged_fit(
+    soft_iron: Matrix3<f64>,
+    full: &[f64; N_PARAMS],
+    horizontal_field_ut: f64,
+    vertical_estimated: bool,
+    tilt_spread_deg: f64,
+    n_samples: usize,
+) -> Result<PlaneFit, PlaneError> {
     let distortion = soft_iron.try_inverse().ok_or(PlaneError::DegenerateConic {
         reason: "the fitted soft iron is singular",
     })?;
@@ -445,7 +518,7 @@ pub fn fit_plane(
     let distortion_hz = Vector2::new(distortion[(0, 2)], distortion[(1, 2)]) / scale;
     let hard_iron_ut = Vector3::new(full[H_X], full[H_Y], full[H_Z]);
 
-    let fit = PlaneFit {
+    Ok(PlaneFit {
         hard_iron_ut,
         soft_iron,
         plane: PlaneCalibration {
@@ -462,9 +535,8 @@ pub fn fit_plane(
         residual_rms_ut: 0.0,
         horizontal_magnitude_std_ut: 0.0,
         coverage: Coverage::of_headings(std::iter::empty()),
-        n_samples: mag_ut.len(),
-    };
-    checked(fit, mag_ut, &levelling, options)
+        n_samples,
+    })
 }
 
 /// Fills in how well `fit` follows the samples, and refuses it when it does not (the
