@@ -13,7 +13,7 @@ use super::summary::{summarize, StreamSummary};
 use super::tagged_lines::LineReader as _;
 use super::{
     ensure_text, first_binary_offset, nmea, serial_lines, tagged_lines, Diagnostics, ImportError,
-    ImportReport, SensorFrame,
+    ImportReport, SensorFrame, MAX_LINE_BYTES,
 };
 use crate::recording::Recording;
 
@@ -728,9 +728,6 @@ impl ChunkedImport {
         })
     }
 }
-
-/// Lines longer than this are cut by the chunked reader (the readers report it).
-const MAX_LINE_BYTES: usize = 64 * 1024;
 
 /// An import with its stream summaries: what `compass-pdr inspect` prints and the page
 /// shows.

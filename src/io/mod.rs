@@ -28,6 +28,16 @@ use crate::recording::Recording;
 /// so that a huge file of bad lines cannot exhaust memory.
 pub const MAX_DIAGNOSTICS_KEPT: usize = 200;
 
+/// Lines longer than this are cut by the line decoder, and skipped or reported by the
+/// readers of delimited text, Android dumps and GetSensorData logs, and by the chunked
+/// import that feeds them: a sensor line is under 200 bytes, a Wi-Fi line with a long
+/// network name a few hundred. Serial sensor lines and NMEA have shorter limits of
+/// their own.
+const MAX_LINE_BYTES: usize = 64 * 1024;
+
+/// Standard gravity (CGPM 1901), for accelerometers that report in g.
+const STANDARD_GRAVITY_MPS2: f64 = 9.806_65;
+
 /// A line that was skipped or is suspect.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Diagnostic {

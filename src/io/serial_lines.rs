@@ -102,6 +102,7 @@ use thiserror::Error;
 use super::lines::decode_all;
 use super::{
     ensure_text, shorten, Diagnostics, ImportError, ImportReport, MagUnit, SensorFrame, UnitOrigin,
+    STANDARD_GRAVITY_MPS2,
 };
 use crate::recording::Recording;
 
@@ -115,7 +116,6 @@ pub const MAX_LINE_BYTES: usize = 4096;
 /// The sample rate [`read`] assumes, since serial logs have no timestamps.
 pub const ASSUMED_FILE_RATE_HZ: f64 = 100.0;
 
-const STANDARD_GRAVITY_MPS2: f64 = 9.80665;
 /// MotionCal's scale factors (`imuread.h`).
 const MOTIONCAL_G_PER_COUNT: f64 = 1.0 / 8192.0;
 const MOTIONCAL_DPS_PER_COUNT: f64 = 1.0 / 16.0;

@@ -103,16 +103,15 @@ use nalgebra::{Matrix3, Quaternion, Rotation3, UnitQuaternion, Vector2, Vector3}
 
 use super::axes::PhoneMount;
 use super::lines::decode_all;
-use super::{ensure_text, shorten, Diagnostics, ImportError, ImportReport, MagUnit, SensorFrame};
+use super::{
+    ensure_text, shorten, Diagnostics, ImportError, ImportReport, MagUnit, SensorFrame,
+    MAX_LINE_BYTES,
+};
 use crate::angle::wrap_to_2pi;
 use crate::recording::{Attitude, GnssFix, Recording, Stream};
 
 pub const ANDROID_DUMP: &str = "Android sensor dump";
 pub const GET_SENSOR_DATA: &str = "GetSensorData log";
-
-/// Lines longer than this are cut: a sensor line is under 200 bytes, a Wi-Fi line with
-/// a long network name a few hundred.
-const MAX_LINE_BYTES: usize = 64 * 1024;
 
 /// How many lines the format detectors look at.
 const DETECTION_LINES: usize = 20;

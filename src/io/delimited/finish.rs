@@ -6,10 +6,10 @@
 
 use nalgebra::Vector3;
 
-use super::header::{Header, Quantity, Setting, DEG_TO_RAD, STANDARD_GRAVITY_MPS2, WHITESPACE};
+use super::header::{Header, Quantity, Setting, DEG_TO_RAD, WHITESPACE};
 use super::{DelimitedReader, RawImport, SensorAxes, FORMAT_NAME};
 use crate::io::frame::RAW_COUNT_MAGNITUDES;
-use crate::io::{shorten, HeaderInfo, ImportError, ImportReport, MagUnit};
+use crate::io::{shorten, HeaderInfo, ImportError, ImportReport, MagUnit, STANDARD_GRAVITY_MPS2};
 use crate::recording::{Recording, Stream};
 
 /// How many settings lines the notes list.

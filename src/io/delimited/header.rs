@@ -8,6 +8,7 @@
 use super::mapping::{ColumnMapping, IGNORE};
 use super::{SensorAxes, XyzColumns};
 use crate::io::number::parse_f64;
+use crate::io::STANDARD_GRAVITY_MPS2;
 
 /// What one column holds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -123,8 +124,6 @@ fn number_line_delimiter(text: &str) -> Option<char> {
 
 pub(super) const N_QUANTITIES: usize = Quantity::Pressure as usize + 1;
 pub(super) const DEG_TO_RAD: f64 = std::f64::consts::PI / 180.0;
-/// Standard gravity (CGPM 1901), for accelerometers that report in g.
-pub(super) const STANDARD_GRAVITY_MPS2: f64 = 9.806_65;
 
 /// The delimiter that stands for "runs of spaces and tabs" (a line with no comma, tab
 /// or semicolon, split on white space).

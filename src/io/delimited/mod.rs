@@ -40,7 +40,7 @@ use self::header::{is_number_line, setting_of, split_fields, Header, WHITESPACE}
 use super::axes::PhoneMount;
 use super::lines::{decode_all, LineDecoder};
 use super::number::parse_f64;
-use super::{ensure_text, ImportError, ImportReport, MagUnit, SensorFrame};
+use super::{ensure_text, ImportError, ImportReport, MagUnit, SensorFrame, MAX_LINE_BYTES};
 
 mod finish;
 mod header;
@@ -56,9 +56,6 @@ pub use self::mapping::{suggested_target, ColumnMapping, MappingError, MAPPING_T
 pub use self::reader::{parse_datetime_s, DelimitedReader};
 
 pub const FORMAT_NAME: &str = "delimited text";
-
-/// Lines longer than this are cut.
-const MAX_LINE_BYTES: usize = 64 * 1024;
 
 /// The axes vector columns are written in.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -1,8 +1,8 @@
 //! Tests of the delimited reader ([`super`]) through its entry points: headers, units,
 //! phone apps' files, and large files read in parts equal to reading them line by line.
 
-use super::header::STANDARD_GRAVITY_MPS2;
 use super::*;
+use crate::io::STANDARD_GRAVITY_MPS2;
 
 pub(super) fn read_text(text: &str) -> ImportReport {
     read("test.csv", text.as_bytes()).expect("readable")
