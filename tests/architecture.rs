@@ -6,9 +6,9 @@
 //!   the browser (wasm-bindgen, web-sys, js-sys, gloo, plotters-canvas);
 //! - `io` imports nothing above it: only the leaf modules it is built on.
 //!
-//! Only code is read: comments are skipped, and so is test code (a `tests.rs` file, and
-//! a file's lines from its `#[cfg(test)]` module on), which may use the simulator or
-//! read `../shared/data`.
+//! Only code is read: comments are skipped, and so is test code (a `tests.rs` file, a
+//! `#[cfg(test)] mod …;` declaration, and a file's lines from an inline `#[cfg(test)]`
+//! module on), which may use the simulator or read `../shared/data`.
 
 use std::path::{Path, PathBuf};
 
@@ -55,9 +55,24 @@ fn code_lines(path: &Path) -> Vec<(usize, String)> {
     }
     let text = std::fs::read_to_string(path).expect("a source file is UTF-8");
     let mut lines = Vec::new();
-    for (idx, line) in text.lines().enumerate() {
+    let all: Vec<&str> = text.lines().collect();
+    let mut skip_next = false;
+    for (idx, line) in all.iter().enumerate() {
         let trimmed = line.trim_start();
+        if skip_next {
+            skip_next = false;
+            continue;
+        }
         if trimmed.starts_with("#[cfg(test)]") {
+            // `#[cfg(test)] mod tests;` declares a test file (read no further there); an
+            // inline test module runs to the end of the file.
+            let declares_a_file = all.get(idx + 1).is_some_and(|next| {
+                next.trim_start().starts_with("mod ") && next.trim_end().ends_with(';')
+            });
+            if declares_a_file {
+                skip_next = true;
+                continue;
+            }
             break;
         }
         if trimmed.starts_with("//") {
