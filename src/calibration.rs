@@ -314,83 +314,27 @@ pub fn calibrate(
         })
         .collect();
     let expected = expected_field_of(&recording, options.position_deg, &mut notes);
-    let declination = match (options.declination, &expected) {
-        (DeclinationChoice::Degrees(declination_deg), _) => DeclinationUsed {
-            declination_deg,
-            source: "given by the user".to_string(),
-        },
-        (DeclinationChoice::Auto, Some(expected)) => DeclinationUsed {
-            declination_deg: expected.declination_deg,
-            source: format!(
-                "{} on {} at the log's first position",
-                expected.model, expected.model_date
-            ),
-        },
-        (DeclinationChoice::Auto, None) => {
-            if reference
-                .as_ref()
-                .is_some_and(|reference| reference.source != ReferenceSource::Column)
-            {
-                notes.push(
-                    "no position and date for the magnetic model, so the declination is taken as 0°; give \
-                     --declination DEG for true headings"
-                        .to_string(),
-                );
-            }
-            DeclinationUsed {
-                declination_deg: 0.0,
-                source: "none known (0°)".to_string(),
-            }
-        }
-    };
+    let declination = declination_used(
+        options.declination,
+        expected.as_ref(),
+        reference.as_ref().map(|reference| reference.source),
+        &mut notes,
+    );
     let declination_rad = declination.declination_deg.to_radians();
 
     // The train/check split.
-    let train_until_s = options.train_until_s.or_else(|| {
-        let referenced: Vec<f64> = samples
-            .t_s
-            .iter()
-            .zip(&ref_heading_rad)
-            .filter(|(_, reference)| reference.is_some())
-            .map(|(&t_s, _)| t_s)
-            .collect();
-        // Half of the referenced samples on each side: a sparse tail of reference (a
-        // few fixes at the end of a drive) does not move the split.
-        let middle = referenced.len() / 2;
-        match (
-            referenced.first(),
-            referenced.get(middle),
-            referenced.last(),
-        ) {
-            (Some(first_s), Some(&middle_s), Some(last_s)) if last_s > first_s => Some(middle_s),
-            _ => None,
-        }
-    });
-    let is_train: Vec<bool> = samples
-        .t_s
-        .iter()
-        .map(|&t_s| train_until_s.is_none_or(|until_s| t_s <= until_s))
-        .collect();
-    let n_train = is_train.iter().filter(|&&train| train).count();
-    let n_check = is_train.len() - n_train;
-    // The fits see at most MAX_FIT_SAMPLES of the train samples, evenly spread: more add
-    // little to parameters fitted from thousands of samples, and cost the page seconds.
-    let fit_stride = n_train.div_ceil(MAX_FIT_SAMPLES).max(1);
-    let mut n_train_seen = 0usize;
-    let is_fit: Vec<bool> = is_train
-        .iter()
-        .map(|&train| {
-            let fit = train && n_train_seen.is_multiple_of(fit_stride);
-            n_train_seen += usize::from(train);
-            fit
-        })
-        .collect();
-    if fit_stride > 1 {
-        notes.push(format!(
-            "the methods were fitted to every {fit_stride}th train sample ({} of {n_train})",
-            n_train.div_ceil(fit_stride)
-        ));
-    }
+    let Split {
+        train_until_s,
+        is_train,
+        is_fit,
+        n_train,
+        n_check,
+    } = split(
+        &samples.t_s,
+        &ref_heading_rad,
+        options.train_until_s,
+        &mut notes,
+    );
     let train = |values: &[Vector3<f64>]| -> Vec<Vector3<f64>> {
         values
             .iter()
@@ -424,30 +368,15 @@ pub fn calibrate(
         .iter()
         .map(|&level| heading_rad(level, declination_rad))
         .collect();
-    // A relative reference (a gyro heading that does not know north) is turned onto the
-    // raw compass heading's circular mean: the methods are then compared on the shape of
-    // their heading, not on a constant offset that nothing here can observe.
     let mut ref_heading_rad = ref_heading_rad;
     if let Some(reference) = reference
         .as_ref()
         .filter(|reference| !reference.source.is_absolute())
     {
-        let (sum_sin, sum_cos) = raw_heading_rad
-            .iter()
-            .zip(&ref_heading_rad)
-            .filter_map(|(&raw_rad, &reference_rad)| Some(raw_rad - reference_rad?))
-            .fold((0.0, 0.0), |(sum_sin, sum_cos), offset_rad| {
-                (sum_sin + offset_rad.sin(), sum_cos + offset_rad.cos())
-            });
-        let offset_rad = sum_sin.atan2(sum_cos);
-        for reference_rad in ref_heading_rad.iter_mut().flatten() {
-            *reference_rad = crate::angle::wrap_to_2pi(*reference_rad + offset_rad);
-        }
-        notes.push(format!(
-            "the reference ({}) does not know north, so it was turned by {:.1}° onto the raw compass heading's \
-             mean: constant offsets (declination, misalignment) cannot be judged against it",
-            reference.source.label(),
-            offset_rad.to_degrees()
+        notes.push(turn_onto_raw_heading(
+            reference.source,
+            &raw_heading_rad,
+            &mut ref_heading_rad,
         ));
     }
 
@@ -537,57 +466,16 @@ pub fn calibrate(
     }
     let raw_train = stats_of(&raw_heading_rad, true);
     let raw_check = stats_of(&raw_heading_rad, false);
-    let mut scored = vec![Scored {
-        key: RAW_KEY,
-        label: "uncalibrated",
-        train_rms_deg: raw_train.map(|stats| stats.rms_deg),
-        check_rms_deg: raw_check.map(|stats| stats.rms_deg),
-    }];
-    scored.extend(method_reports.iter().map(|report| Scored {
-        key: report.method.key(),
-        label: report.label,
-        train_rms_deg: report.heading_error_train.map(|stats| stats.rms_deg),
-        check_rms_deg: report.heading_error_check.map(|stats| stats.rms_deg),
-    }));
+    let scored = scored_methods(raw_train, raw_check, &method_reports);
     let by_reference = choose_by_reference(&scored);
     let field_raw_ut: Vec<f64> = samples.mag_ut.iter().map(|mag| mag.norm()).collect();
-    let temp_c: Vec<Option<f64>> = samples
-        .t_s
-        .iter()
-        .map(|&t_s| recording.temp_c.interpolate_at(t_s, MAX_CONDITION_GAP_S))
-        .collect();
-    let gyro =
-        crate::reference::gyro::gyro_heading(&recording, options.gravity_window_s, None, false);
-    let gyro_heading_deg: Vec<Option<f64>> = samples
-        .t_s
-        .iter()
-        .map(|&t_s| {
-            gyro.as_ref()
-                .and_then(|gyro| {
-                    gyro.heading_rad
-                        .interpolate_angle_at(t_s, MAX_CONDITION_GAP_S)
-                })
-                .map(f64::to_degrees)
-        })
-        .collect();
+    let (temp_c, gyro_heading_deg) = conditions(&recording, &samples.t_s, options.gravity_window_s);
     let mean_raw_field_ut = field_raw_ut.iter().sum::<f64>() / field_raw_ut.len().max(1) as f64;
-    if let Some(expected) = &expected {
-        let ratio = mean_raw_field_ut / expected.total_ut;
-        if !(1.0 / FIELD_RATIO_WARNING..=FIELD_RATIO_WARNING).contains(&ratio) {
-            notes.push(format!(
-                "the raw field averages {mean_raw_field_ut:.1} µT where {:.1} µT is expected: wrong units, or a magnet \
-                 or iron close to the sensor",
-                expected.total_ut
-            ));
-        }
-    }
-    if reference.is_none() {
-        notes.push(
-            "the log has no reference heading (a ref_heading_deg column, or GPS course while moving), so heading \
-             errors cannot be computed"
-                .to_string(),
-        );
-    }
+    notes.extend(field_and_reference_notes(
+        mean_raw_field_ut,
+        expected.as_ref(),
+        reference.is_some(),
+    ));
     let (level_corrected_ut, fitted_ellipse) =
         plane_correction.unwrap_or_else(|| (level_raw_ut.clone(), None));
     let mut analysis = CalibrationAnalysis {
@@ -643,6 +531,212 @@ pub fn calibrate(
         .find(|method| method.key() == choice.key);
     report.choice = Some(choice);
     Ok(analysis)
+}
+
+/// Uncalibrated and every method, as the selection scores them.
+fn scored_methods(
+    raw_train: Option<HeadingErrorStats>,
+    raw_check: Option<HeadingErrorStats>,
+    method_reports: &[MethodReport],
+) -> Vec<Scored<'_>> {
+    let mut scored = vec![Scored {
+        key: RAW_KEY,
+        label: "uncalibrated",
+        train_rms_deg: raw_train.map(|stats| stats.rms_deg),
+        check_rms_deg: raw_check.map(|stats| stats.rms_deg),
+    }];
+    scored.extend(method_reports.iter().map(|report| Scored {
+        key: report.method.key(),
+        label: report.label,
+        train_rms_deg: report.heading_error_train.map(|stats| stats.rms_deg),
+        check_rms_deg: report.heading_error_check.map(|stats| stats.rms_deg),
+    }));
+    scored
+}
+
+/// The temperature and the gyro's heading at each sample, where the log has them: the
+/// conditions the neural heading model takes as inputs.
+fn conditions(
+    recording: &Recording,
+    t_s: &[f64],
+    gravity_window_s: f64,
+) -> (Vec<Option<f64>>, Vec<Option<f64>>) {
+    let temp_c: Vec<Option<f64>> = t_s
+        .iter()
+        .map(|&t_s| recording.temp_c.interpolate_at(t_s, MAX_CONDITION_GAP_S))
+        .collect();
+    let gyro = crate::reference::gyro::gyro_heading(recording, gravity_window_s, None, false);
+    let gyro_heading_deg: Vec<Option<f64>> = t_s
+        .iter()
+        .map(|&t_s| {
+            gyro.as_ref()
+                .and_then(|gyro| {
+                    gyro.heading_rad
+                        .interpolate_angle_at(t_s, MAX_CONDITION_GAP_S)
+                })
+                .map(f64::to_degrees)
+        })
+        .collect();
+    (temp_c, gyro_heading_deg)
+}
+
+/// What the user should know about the raw field's size and a missing reference.
+fn field_and_reference_notes(
+    mean_raw_field_ut: f64,
+    expected: Option<&ExpectedField>,
+    has_reference: bool,
+) -> Vec<String> {
+    let mut notes = Vec::new();
+    if let Some(expected) = expected {
+        let ratio = mean_raw_field_ut / expected.total_ut;
+        if !(1.0 / FIELD_RATIO_WARNING..=FIELD_RATIO_WARNING).contains(&ratio) {
+            notes.push(format!(
+                "the raw field averages {mean_raw_field_ut:.1} µT where {:.1} µT is expected: wrong units, or a magnet \
+                 or iron close to the sensor",
+                expected.total_ut
+            ));
+        }
+    }
+    if !has_reference {
+        notes.push(
+            "the log has no reference heading (a ref_heading_deg column, or GPS course while moving), so heading \
+             errors cannot be computed"
+                .to_string(),
+        );
+    }
+    notes
+}
+
+/// A relative reference (a gyro heading that does not know north) turned onto the raw
+/// compass heading's circular mean: the methods are then compared on the shape of their
+/// heading, not on a constant offset that nothing here can observe. The note says so.
+fn turn_onto_raw_heading(
+    source: ReferenceSource,
+    raw_heading_rad: &[f64],
+    ref_heading_rad: &mut [Option<f64>],
+) -> String {
+    let (sum_sin, sum_cos) = raw_heading_rad
+        .iter()
+        .zip(ref_heading_rad.iter())
+        .filter_map(|(&raw_rad, &reference_rad)| Some(raw_rad - reference_rad?))
+        .fold((0.0, 0.0), |(sum_sin, sum_cos), offset_rad| {
+            (sum_sin + offset_rad.sin(), sum_cos + offset_rad.cos())
+        });
+    let offset_rad = sum_sin.atan2(sum_cos);
+    for reference_rad in ref_heading_rad.iter_mut().flatten() {
+        *reference_rad = crate::angle::wrap_to_2pi(*reference_rad + offset_rad);
+    }
+    format!(
+        "the reference ({}) does not know north, so it was turned by {:.1}° onto the raw compass heading's \
+         mean: constant offsets (declination, misalignment) cannot be judged against it",
+        source.label(),
+        offset_rad.to_degrees()
+    )
+}
+
+/// The declination the headings use: the user's, else the model's at the log's place and
+/// date, else 0° (with a note when the reference is absolute, so that it matters).
+fn declination_used(
+    choice: DeclinationChoice,
+    expected: Option<&ExpectedField>,
+    reference_source: Option<ReferenceSource>,
+    notes: &mut Vec<String>,
+) -> DeclinationUsed {
+    match (choice, expected) {
+        (DeclinationChoice::Degrees(declination_deg), _) => DeclinationUsed {
+            declination_deg,
+            source: "given by the user".to_string(),
+        },
+        (DeclinationChoice::Auto, Some(expected)) => DeclinationUsed {
+            declination_deg: expected.declination_deg,
+            source: format!(
+                "{} on {} at the log's first position",
+                expected.model, expected.model_date
+            ),
+        },
+        (DeclinationChoice::Auto, None) => {
+            if reference_source.is_some_and(|source| source != ReferenceSource::Column) {
+                notes.push(
+                    "no position and date for the magnetic model, so the declination is taken as 0°; give \
+                     --declination DEG for true headings"
+                        .to_string(),
+                );
+            }
+            DeclinationUsed {
+                declination_deg: 0.0,
+                source: "none known (0°)".to_string(),
+            }
+        }
+    }
+}
+
+/// The train/check split and the train samples the fits see.
+struct Split {
+    train_until_s: Option<f64>,
+    is_train: Vec<bool>,
+    is_fit: Vec<bool>,
+    n_train: usize,
+    n_check: usize,
+}
+
+/// Train up to `train_until_s` (given, else the middle of the referenced samples), check
+/// after; the fits see at most [`MAX_FIT_SAMPLES`] of the train samples.
+fn split(
+    t_s: &[f64],
+    ref_heading_rad: &[Option<f64>],
+    train_until_s: Option<f64>,
+    notes: &mut Vec<String>,
+) -> Split {
+    let train_until_s = train_until_s.or_else(|| {
+        let referenced: Vec<f64> = t_s
+            .iter()
+            .zip(ref_heading_rad)
+            .filter(|(_, reference)| reference.is_some())
+            .map(|(&t_s, _)| t_s)
+            .collect();
+        // Half of the referenced samples on each side: a sparse tail of reference (a
+        // few fixes at the end of a drive) does not move the split.
+        let middle = referenced.len() / 2;
+        match (
+            referenced.first(),
+            referenced.get(middle),
+            referenced.last(),
+        ) {
+            (Some(first_s), Some(&middle_s), Some(last_s)) if last_s > first_s => Some(middle_s),
+            _ => None,
+        }
+    });
+    let is_train: Vec<bool> = t_s
+        .iter()
+        .map(|&t_s| train_until_s.is_none_or(|until_s| t_s <= until_s))
+        .collect();
+    let n_train = is_train.iter().filter(|&&train| train).count();
+    let n_check = is_train.len() - n_train;
+    // The fits see at most MAX_FIT_SAMPLES of the train samples, evenly spread: more add
+    // little to parameters fitted from thousands of samples, and cost the page seconds.
+    let fit_stride = n_train.div_ceil(MAX_FIT_SAMPLES).max(1);
+    let mut n_train_seen = 0usize;
+    let is_fit: Vec<bool> = is_train
+        .iter()
+        .map(|&train| {
+            let fit = train && n_train_seen.is_multiple_of(fit_stride);
+            n_train_seen += usize::from(train);
+            fit
+        })
+        .collect();
+    if fit_stride > 1 {
+        notes.push(format!(
+            "the methods were fitted to every {fit_stride}th train sample ({} of {n_train})",
+            n_train.div_ceil(fit_stride)
+        ));
+    }
+    Split {
+        train_until_s,
+        is_train,
+        is_fit,
+        n_train,
+        n_check,
+    }
 }
 
 /// What every method's fit reads: the samples, their levelled and train parts, the
