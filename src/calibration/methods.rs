@@ -1,0 +1,264 @@
+//! The four calibration methods as [`super::calibrate`] runs them on one log: each fits
+//! its train samples and gives its heading at every sample (min/max, Eq. 6-7; the
+//! tilt-aware ellipse, `calib::plane`; the 3D fit, `calib::inertial`; reference least
+//! squares, Eq. 8, `calib::refls`), or says why it was not fitted.
+
+use nalgebra::{Vector2, Vector3};
+
+use super::{
+    inertial_options, plane_options, FittedEllipse, MethodParameters, MethodReport,
+    MAX_SPHERE_GAP_PCT,
+};
+use crate::analysis::Levelling;
+use crate::calib::heading::heading_rad;
+use crate::calib::inertial::fit_inertial;
+use crate::calib::minmax::MinMaxCalibration;
+use crate::calib::plane::fit_plane;
+use crate::calib::refls::{fit_reference_ls, PartialPrior, RefLsOptions};
+use crate::calib::sphere_coverage::sphere_coverage;
+use crate::calib::tilt::Tilt;
+use crate::calib::wmm::ExpectedField;
+use crate::io::SensorFrame;
+
+/// What every method's fit reads: the samples, their levelled and train parts, the
+/// reference and the declination.
+pub(super) struct MethodInputs<'a> {
+    pub(super) samples: &'a crate::analysis::TiltedSamples,
+    pub(super) level_raw_ut: &'a [Vector2<f64>],
+    pub(super) level_train: &'a [Vector2<f64>],
+    pub(super) mag_train: &'a [Vector3<f64>],
+    pub(super) tilt_train: &'a [Tilt],
+    pub(super) ref_heading_rad: &'a [Option<f64>],
+    pub(super) is_fit: &'a [bool],
+    pub(super) declination_rad: f64,
+    pub(super) expected: Option<&'a ExpectedField>,
+    pub(super) mag_frame: Option<&'a SensorFrame>,
+}
+
+/// What the methods' fits leave besides their parameters: the correction the circle
+/// plot shows, the corrected |B|, and notes for the user.
+pub(super) struct MethodOutputs<'a> {
+    pub(super) plane_correction: Option<(Vec<Vector2<f64>>, Option<FittedEllipse>)>,
+    pub(super) field_corrected_ut: Option<Vec<f64>>,
+    pub(super) notes: &'a mut Vec<String>,
+}
+
+/// A method's parameters and its heading at every sample, or why it was not fitted.
+pub(super) type Fitted = Result<(MethodParameters, Vec<f64>), String>;
+
+/// Min/max (Eq. 6-7) on the levelled train samples.
+pub(super) fn fit_min_max(inputs: &MethodInputs, outputs: &mut MethodOutputs) -> Fitted {
+    MinMaxCalibration::fit(inputs.level_train)
+        .map_err(|error| error.to_string())
+        .map(|calibration| {
+            let headings: Vec<f64> = inputs
+                .level_raw_ut
+                .iter()
+                .map(|&level| heading_rad(calibration.apply(level), inputs.declination_rad))
+                .collect();
+            if outputs.plane_correction.is_none() {
+                let corrected = inputs
+                    .level_raw_ut
+                    .iter()
+                    .map(|&level| calibration.apply(level))
+                    .collect();
+                let ellipse = (
+                    Vector2::new(calibration.center_x_ut, calibration.center_y_ut),
+                    nalgebra::Matrix2::new(
+                        calibration.semi_axis_x_ut,
+                        0.0,
+                        0.0,
+                        calibration.semi_axis_y_ut,
+                    ) / calibration.corrected_radius_ut(),
+                    calibration.corrected_radius_ut(),
+                );
+                outputs.plane_correction = Some((corrected, Some(ellipse)));
+            }
+            (MethodParameters::MinMax(calibration), headings)
+        })
+}
+
+/// The tilt-aware level-plane ellipse (`calib::plane`).
+pub(super) fn fit_ellipse(inputs: &MethodInputs, outputs: &mut MethodOutputs) -> Fitted {
+    fit_plane(
+        inputs.mag_train,
+        inputs.tilt_train,
+        &plane_options(inputs.expected),
+    )
+    .map_err(|error| error.to_string())
+    .map(|fit| {
+        let headings: Vec<f64> = inputs
+            .samples
+            .mag_ut
+            .iter()
+            .zip(&inputs.samples.tilt)
+            .map(|(&mag, &tilt)| fit.heading_rad(mag, tilt, inputs.declination_rad))
+            .collect();
+        let corrected: Vec<Vector2<f64>> = inputs
+            .samples
+            .mag_ut
+            .iter()
+            .zip(&inputs.samples.tilt)
+            .map(|(&mag, &tilt)| fit.level_corrected_ut(mag, tilt))
+            .collect();
+        // `fit.plane` applies to level(mag − hard iron); over levelled raw
+        // points the same ellipse sits at its centre plus the level hard iron
+        // (exact for a level device, close for small tilts).
+        let center_ut = fit.plane.center_ut + Vector2::new(fit.hard_iron_ut.x, fit.hard_iron_ut.y);
+        let ellipse = fit
+            .plane
+            .transform
+            .try_inverse()
+            .map(|inverse| (center_ut, inverse, fit.plane.radius_ut));
+        // The ellipse method's correction is the one the circle plot shows.
+        outputs.plane_correction = Some((corrected, ellipse));
+        // The plane fit's 3D correction gives |B| too, until an ellipsoid
+        // fit (which sees the field in 3D) replaces it.
+        outputs.field_corrected_ut = Some(
+            inputs
+                .samples
+                .mag_ut
+                .iter()
+                .map(|&mag| (fit.soft_iron * (mag - fit.hard_iron_ut)).norm())
+                .collect(),
+        );
+        (MethodParameters::Ellipse(Box::new(fit)), headings)
+    })
+}
+
+/// The 3D fit (`calib::inertial`), with the accelerometer's tilt when the log has one.
+pub(super) fn fit_ellipsoid(inputs: &MethodInputs, outputs: &mut MethodOutputs) -> Fitted {
+    let inertial_options = inertial_options(inputs.expected, inputs.mag_frame);
+    // The dip-angle invariance needs the accelerometer's tilt; a log without
+    // one was only assumed level.
+    let tilt = matches!(inputs.samples.levelling, Levelling::Accelerometer { .. })
+        .then_some(inputs.tilt_train);
+    fit_inertial(inputs.mag_train, tilt, &inertial_options)
+        .map_err(|error| error.to_string())
+        .map(|fit| {
+            let calibration = fit.calibration;
+            let headings: Vec<f64> = inputs
+                .samples
+                .mag_ut
+                .iter()
+                .zip(&inputs.samples.tilt)
+                .map(|(&mag, tilt)| {
+                    heading_rad(tilt.level(calibration.apply(mag)), inputs.declination_rad)
+                })
+                .collect();
+            outputs.field_corrected_ut = Some(
+                inputs
+                    .samples
+                    .mag_ut
+                    .iter()
+                    .map(|&mag| calibration.apply(mag).norm())
+                    .collect(),
+            );
+            // Where the sphere of corrected directions is still empty, as
+            // MotionCal counts it, and which way to turn to fill it.
+            let coverage =
+                sphere_coverage(inputs.mag_train.iter().map(|&mag| calibration.apply(mag)));
+            if let Some(gap) = coverage
+                .largest_gap
+                .filter(|_| coverage.gap_pct > MAX_SPHERE_GAP_PCT)
+            {
+                outputs.notes.push(format!(
+                    "ellipsoid: {:.0} % of the sphere is uncovered (MotionCal's gaps); {}",
+                    coverage.gap_pct,
+                    gap.advice()
+                ));
+            }
+            (MethodParameters::Ellipsoid(Box::new(fit)), headings)
+        })
+}
+
+/// Reference least squares (Eq. 8), on top of the best 3D calibration so far when the
+/// references cover too little of the circle.
+pub(super) fn fit_ref_ls(
+    inputs: &MethodInputs,
+    outputs: &mut MethodOutputs,
+    method_reports: &[MethodReport],
+) -> Fitted {
+    let pairs: (Vec<Vector2<f64>>, Vec<f64>) = inputs
+        .level_raw_ut
+        .iter()
+        .zip(inputs.ref_heading_rad)
+        .zip(inputs.is_fit)
+        .filter_map(|((&level, &reference), &train)| train.then_some((level, reference?)))
+        .unzip();
+    let coverage = crate::calib::minmax::Coverage::of_headings(
+        pairs.1.iter().map(|reference| reference.to_degrees()),
+    );
+    let refls_options = RefLsOptions {
+        declination_rad: Some(inputs.declination_rad),
+        ..RefLsOptions::default()
+    };
+    // References over a few headings only: Eq. 8 on top of the best 3D
+    // calibration so far (by its train error), its parameters held near the
+    // identity where the headings cannot see them.
+    let base = (coverage.largest_gap_deg > refls_options.max_heading_gap_deg)
+        .then(|| {
+            method_reports
+                .iter()
+                .filter_map(|report: &MethodReport| {
+                    let calibration = crate::selection::field_calibration_of(report)?;
+                    Some((
+                        report.method,
+                        calibration,
+                        report.heading_error_train?.rms_deg,
+                    ))
+                })
+                .min_by(|a, b| a.2.total_cmp(&b.2))
+        })
+        .flatten();
+    if pairs.0.is_empty() {
+        Err(
+            "needs a reference heading (a ref_heading_deg column, or GPS course while moving)"
+                .to_string(),
+        )
+    } else if let Some((base_method, calibration, _)) = base {
+        let level_base_ut: Vec<Vector2<f64>> = inputs
+            .samples
+            .mag_ut
+            .iter()
+            .zip(&inputs.samples.tilt)
+            .map(|(&mag, tilt)| tilt.level(calibration.apply(mag)))
+            .collect();
+        let base_pairs: Vec<Vector2<f64>> = level_base_ut
+            .iter()
+            .zip(inputs.ref_heading_rad)
+            .zip(inputs.is_fit)
+            .filter_map(|((&level, reference), &fit)| (fit && reference.is_some()).then_some(level))
+            .collect();
+        let partial_options = RefLsOptions {
+            prior: Some(PartialPrior::default()),
+            ..refls_options
+        };
+        fit_reference_ls(&base_pairs, &pairs.1, &partial_options)
+                .map_err(|error| error.to_string())
+                .map(|fit| {
+                    outputs.notes.push(format!(
+                        "reference LS: the reference headings cover too little of the circle for Eq. 8 alone \
+                         (none between {:.0}° and {:.0}°), so it was fitted on top of the {} calibration, held \
+                         near it where those headings cannot see",
+                        coverage.largest_gap_start_deg,
+                        (coverage.largest_gap_start_deg + coverage.largest_gap_deg).rem_euclid(360.0),
+                        base_method.label()
+                    ));
+                    let headings: Vec<f64> =
+                        level_base_ut.iter().map(|&level| fit.heading_rad(level)).collect();
+                    (MethodParameters::RefLs(fit), headings)
+                })
+    } else {
+        fit_reference_ls(&pairs.0, &pairs.1, &refls_options)
+            .map_err(|error| error.to_string())
+            .map(|fit| {
+                let headings: Vec<f64> = inputs
+                    .level_raw_ut
+                    .iter()
+                    .map(|&level| fit.heading_rad(level))
+                    .collect();
+                (MethodParameters::RefLs(fit), headings)
+            })
+    }
+}
