@@ -278,32 +278,7 @@ pub fn compare(calibration: &CalibrationAnalysis, options: &HeadingOptions) -> H
         });
     }
 
-    // The models see the train part in bins of PAIR_WINDOW_S: the circular mean of the
-    // base heading and of the reference over each bin. Averaging takes out most of the
-    // body's sway, whose noise in the raw heading would otherwise flatten the fitted
-    // curve (noise in a regressor biases least squares); a bin in a turn is left out.
-    let mut bins: Vec<Vec<usize>> = Vec::new();
-    let mut bin_start_s = f64::NEG_INFINITY;
-    for (idx, (&sample_t_s, (&train, reference))) in t_s
-        .iter()
-        .zip(is_train.iter().zip(&reference_rad))
-        .enumerate()
-    {
-        if !train || reference.is_none() {
-            continue;
-        }
-        match bins.last_mut() {
-            Some(bin) if sample_t_s < bin_start_s + PAIR_WINDOW_S => bin.push(idx),
-            _ => {
-                bins.push(vec![idx]);
-                bin_start_s = sample_t_s;
-            }
-        }
-    }
-    // A bin in a turn, or within a second of one, is left out when the gyro says so: a
-    // GNSS course lags the heading in a turn (it is the direction of the last second's
-    // motion), and a turn's bins would teach every model that lag.
-    bins.retain(|bin| !turning(bin, &t_s, gyro_heading_deg));
+    let bins = train_bins(&t_s, &is_train, &reference_rad, gyro_heading_deg);
     let reference_values: Vec<f64> = reference_rad
         .iter()
         .map(|reference| reference.unwrap_or(f64::NAN))
@@ -535,6 +510,41 @@ pub fn compare(calibration: &CalibrationAnalysis, options: &HeadingOptions) -> H
         reference_deg: ref_heading_deg,
         headings_deg: series,
     }
+}
+
+/// The models see the train part in bins of PAIR_WINDOW_S: the circular mean of the
+/// base heading and of the reference over each bin. Averaging takes out most of the
+/// body's sway, whose noise in the raw heading would otherwise flatten the fitted
+/// curve (noise in a regressor biases least squares); a bin in a turn is left out.
+fn train_bins(
+    t_s: &[f64],
+    is_train: &[bool],
+    reference_rad: &[Option<f64>],
+    gyro_heading_deg: &[Option<f64>],
+) -> Vec<Vec<usize>> {
+    let mut bins: Vec<Vec<usize>> = Vec::new();
+    let mut bin_start_s = f64::NEG_INFINITY;
+    for (idx, (&sample_t_s, (&train, reference))) in t_s
+        .iter()
+        .zip(is_train.iter().zip(reference_rad))
+        .enumerate()
+    {
+        if !train || reference.is_none() {
+            continue;
+        }
+        match bins.last_mut() {
+            Some(bin) if sample_t_s < bin_start_s + PAIR_WINDOW_S => bin.push(idx),
+            _ => {
+                bins.push(vec![idx]);
+                bin_start_s = sample_t_s;
+            }
+        }
+    }
+    // A bin in a turn, or within a second of one, is left out when the gyro says so: a
+    // GNSS course lags the heading in a turn (it is the direction of the last second's
+    // motion), and a turn's bins would teach every model that lag.
+    bins.retain(|bin| !turning(bin, t_s, gyro_heading_deg));
+    bins
 }
 
 /// The circular mean of `values_rad` at `indices`, or `None` when they spread beyond
