@@ -39,6 +39,18 @@ pub fn civil_from_days(days: i64) -> (i64, u32, u32) {
     (year, month as u32, day as u32)
 }
 
+/// The UTC date of a Unix time in seconds, as (year, month 1-12, day 1-31); `None` when
+/// the time is not finite or absurdly far (more than a million years) from 1970.
+pub fn civil_from_unix_s(unix_s: f64) -> Option<(i64, u32, u32)> {
+    const SECONDS_PER_DAY: f64 = 86_400.0;
+    const MAX_ABS_DAYS: f64 = 365.25 * 1e6;
+    let days = (unix_s / SECONDS_PER_DAY).floor();
+    if !days.is_finite() || days.abs() > MAX_ABS_DAYS {
+        return None;
+    }
+    Some(civil_from_days(days as i64))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -311,17 +311,11 @@ pub fn expected_field(
 /// The UTC calendar date of a Unix time in seconds; `None` when it is not finite or
 /// absurdly far (more than a million years) from 1970.
 pub fn date_of_unix_s(unix_s: f64) -> Option<CalendarDate> {
-    const SECONDS_PER_DAY: f64 = 86_400.0;
-    const MAX_ABS_DAYS: f64 = 365.25 * 1e6;
-    let days = (unix_s / SECONDS_PER_DAY).floor();
-    if !days.is_finite() || days.abs() > MAX_ABS_DAYS {
-        return None;
-    }
-    let (year, month, day) = civil_from_days(days as i64);
+    let (year, month, day) = crate::civil::civil_from_unix_s(unix_s)?;
     Some(CalendarDate {
         year: i32::try_from(year).ok()?,
-        month,
-        day,
+        month: u8::try_from(month).ok()?,
+        day: u8::try_from(day).ok()?,
     })
 }
 
@@ -385,13 +379,6 @@ fn days_in_month(year: i32, month: u8) -> u8 {
         2 => 28,
         _ => 0,
     }
-}
-
-/// [`crate::civil::civil_from_days`] with this module's `u8` month and day.
-fn civil_from_days(days: i64) -> (i64, u8, u8) {
-    let (year, month, day) = crate::civil::civil_from_days(days);
-    // In range by construction: month in [1, 12], day in [1, 31].
-    (year, month as u8, day as u8)
 }
 
 #[cfg(test)]
@@ -675,8 +662,9 @@ mod tests {
     fn day_counts_round_trip_over_four_centuries() {
         let start = date(1900, 1, 1).days_since_unix_epoch();
         for days in start..start + 146_097 + 400 {
-            let (year, month, day) = civil_from_days(days);
-            let date = CalendarDate::new(year as i32, month, day).expect("a valid date");
+            let (year, month, day) = crate::civil::civil_from_days(days);
+            let date =
+                CalendarDate::new(year as i32, month as u8, day as u8).expect("a valid date");
             assert_eq!(date.days_since_unix_epoch(), days);
         }
     }

@@ -106,14 +106,10 @@ pub fn recognise(file_name: &str, sample_lines: &[&str]) -> Option<SensorFile> {
 
 /// A date and time for people, `2023-03-17 14:50:47.2 UTC`.
 fn utc_text(unix_s: f64) -> String {
-    // Within a million years of 1970, where the calendar is meaningful.
-    const MAX_ABS_DAYS: f64 = 365.25 * 1e6;
-    let days = (unix_s / 86_400.0).floor();
-    if !days.is_finite() || days.abs() > MAX_ABS_DAYS {
+    let Some((year, month, day)) = crate::civil::civil_from_unix_s(unix_s) else {
         return format!("{unix_s:.1} s after 1970");
-    }
-    let seconds_of_day = unix_s - days * 86_400.0;
-    let (year, month, day) = crate::civil::civil_from_days(days as i64);
+    };
+    let seconds_of_day = unix_s - (unix_s / 86_400.0).floor() * 86_400.0;
     let hours = (seconds_of_day / 3600.0).floor();
     let minutes = ((seconds_of_day - hours * 3600.0) / 60.0).floor();
     let seconds = seconds_of_day - hours * 3600.0 - minutes * 60.0;
