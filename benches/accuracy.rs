@@ -32,12 +32,13 @@ mod report {
     use compass_pdr::calibration::{
         CalibrationOptions, DeclinationChoice, Method, MethodParameters,
     };
-    use compass_pdr::deviation::{analyse_headings, HeadingAnalysis, HeadingOptions};
+    use compass_pdr::deviation::{HeadingAnalysis, HeadingOptions};
     use compass_pdr::io::canonical_csv;
     use compass_pdr::io::import::import;
     use compass_pdr::pdr::fusion::{GnssPolicy, Outage};
     use compass_pdr::pdr::step_length::StepModelKind;
-    use compass_pdr::pdr::{run, PdrAnalysis, PdrOptions};
+    use compass_pdr::pdr::{PdrAnalysis, PdrOptions};
+    use compass_pdr::pipeline::dead_reckoning;
     use compass_pdr::reference::{ReferenceChoice, ReferenceOptions};
     use compass_pdr::sim::walk::{simulate, simulate_with_truth, WalkConfig};
     use compass_pdr::stats::HeadingErrorStats;
@@ -123,14 +124,15 @@ mod report {
         report: compass_pdr::io::ImportReport,
         calibration: CalibrationOptions,
     ) -> HeadingAnalysis {
-        analyse_headings(
-            report,
+        compass_pdr::pipeline::headings(
+            &report,
             &HeadingOptions {
                 calibration,
                 ..HeadingOptions::default()
             },
         )
         .expect("the headings analyse")
+        .1
     }
 
     /// The PDR scenario with GNSS ignored from 4 to 14 minutes.
@@ -159,7 +161,7 @@ mod report {
             ..PdrOptions::default()
         };
         (
-            run(report, &options).expect("dead-reckons"),
+            dead_reckoning(&report, &options).expect("dead-reckons"),
             truth.steps.len(),
         )
     }
@@ -386,8 +388,8 @@ mod report {
                 );
             }
             let loop_paths = common::files_in(&data.join("phyphox-hallway-loop"), "csv");
-            let analysis = run(
-                common::import_paths(&loop_paths),
+            let analysis = dead_reckoning(
+                &common::import_paths(&loop_paths),
                 &PdrOptions {
                     known_distance_m: Some(116.0),
                     closed_loop: true,

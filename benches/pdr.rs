@@ -12,7 +12,7 @@
 //!   innovation, then Eq. 13's prediction). The inputs are prepared before timing.
 //! - **Pipeline**: a 1-hour walk at 100 Hz with GNSS from the crate's simulator (seed 6),
 //!   as canonical CSV bytes in memory: `io::import::import` then
-//!   `pdr::run(report, &PdrOptions::default())` (calibrations and heading models, steps,
+//!   `pipeline::dead_reckoning(&report, &PdrOptions::default())` (calibrations and heading models, steps,
 //!   step model, EKF, metrics).
 //!
 //! `cargo bench --bench pdr --profile bench-import` writes, under `target/bench-data/`:
@@ -38,8 +38,8 @@ mod native {
     use compass_pdr::pdr::ekf::{EkfNoise, PdrEkf};
     use compass_pdr::pdr::fusion::{fuse, FixInput, StepInput};
     use compass_pdr::pdr::steps::detect_steps;
-    use compass_pdr::pdr::{run, PdrOptions};
-    use compass_pdr::reference::ReferenceChoice;
+    use compass_pdr::pdr::PdrOptions;
+    use compass_pdr::pipeline::dead_reckoning;
     use compass_pdr::sim::rng::SplitMix64;
     use compass_pdr::sim::walk::{simulate, WalkConfig};
     use criterion::{Criterion, SamplingMode, Throughput};
@@ -193,16 +193,16 @@ mod native {
         (median_s(times_s), value.expect("STAGE_RUNS is positive"))
     }
 
-    /// Times the pipeline's stages one by one, as `pdr::run` chains them (on a log
-    /// without outages, where its GNSS-course heading options are the calibration's with
-    /// the GNSS reference), and the whole of `pdr::run`; "other" is the whole minus the
-    /// timed stages (step headings, local frame, step model training, metrics, copies).
+    /// Times the pipeline's stages one by one, as `pipeline::dead_reckoning` chains them
+    /// (the calibration and the heading comparison once, then the dead reckoning, which
+    /// fits the chosen model again on the GNSS course), and the whole of it; "other" is
+    /// the whole minus the timed stages (the refit, step headings, local frame, step
+    /// model training, metrics, copies).
     fn stage_profile(name: &str, bytes: &[u8]) -> serde_json::Value {
         let options = PdrOptions::default();
         let (import_s, report) =
             time_stage(|| import(name, bytes).expect("the simulated log imports"));
-        let mut heading_options: HeadingOptions = options.heading_options.clone();
-        heading_options.calibration.reference.choice = ReferenceChoice::Gps;
+        let heading_options: HeadingOptions = options.heading_options.clone();
         let (calibrate_s, calibration) = time_stage(|| {
             calibrate(report.clone(), &heading_options.calibration)
                 .expect("the simulated log calibrates")
@@ -210,8 +210,9 @@ mod native {
         let (compare_s, _) = time_stage(|| compare(&calibration, &heading_options));
         let (steps_s, detection) =
             time_stage(|| detect_steps(&report.recording.acc_in_body_mps2, &options.steps));
-        let (run_s, analysis) =
-            time_stage(|| run(report.clone(), &options).expect("the simulated log dead-reckons"));
+        let (run_s, analysis) = time_stage(|| {
+            dead_reckoning(&report, &options).expect("the simulated log dead-reckons")
+        });
         let inputs: Vec<StepInput> = analysis
             .steps
             .iter()
@@ -236,7 +237,7 @@ mod native {
                 &options.gnss,
             )
         });
-        // The report clone each call of `run` takes (it owns the report).
+        // The report clone the calibration takes (it owns the report).
         let (clone_s, _) = time_stage(|| report.clone());
         let other_s = run_s - calibrate_s - compare_s - steps_s - ekf_s - clone_s;
         let n_samples = report.recording.acc_in_body_mps2.t_s.len();
@@ -249,7 +250,7 @@ mod native {
             analysis.report.pdr_distance_m
         );
         eprintln!(
-            "stages (median of {STAGE_RUNS}, s): import {import_s:.3}, calibrate {calibrate_s:.3}, compare {compare_s:.3}, steps {steps_s:.3}, ekf {ekf_s:.4}, other {other_s:.3}; pdr::run {run_s:.3}; import + run {:.3}",
+            "stages (median of {STAGE_RUNS}, s): import {import_s:.3}, calibrate {calibrate_s:.3}, compare {compare_s:.3}, steps {steps_s:.3}, ekf {ekf_s:.4}, other {other_s:.3}; dead_reckoning {run_s:.3}; import + run {:.3}",
             import_s + run_s
         );
         json!({
@@ -353,7 +354,10 @@ mod native {
             group.bench_function("pipeline/hour_100hz", |bencher| {
                 bencher.iter(|| {
                     let report = import(HOUR_NAME, black_box(&bytes)).expect("imports");
-                    run(report, &options).expect("dead-reckons").report.n_steps
+                    dead_reckoning(&report, &options)
+                        .expect("dead-reckons")
+                        .report
+                        .n_steps
                 })
             });
             group.finish();

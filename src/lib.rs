@@ -76,6 +76,7 @@ pub mod live;
 pub mod nn;
 pub mod par;
 pub mod pdr;
+pub mod pipeline;
 pub mod plot;
 pub mod recording;
 pub mod reference;

@@ -490,6 +490,14 @@ pub fn html_report(
         report.n_samples_used,
         report.n_mag_samples
     );
+    if let Some(choice) = &report.choice {
+        // The analysis's one best (the page's status line and the CLI's `best:`).
+        let _ = writeln!(
+            html,
+            "<p><strong>Best: {}.</strong></p>",
+            escape_html(&choice.sentence())
+        );
+    }
     html.push_str("<h2>Context</h2>\n");
     html.push_str(&list(&context_lines(report)));
     if let Some(heading) = heading {

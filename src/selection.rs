@@ -219,14 +219,22 @@ pub fn field_calibration_of(report: &MethodReport) -> Option<FieldCalibration> {
     }
 }
 
-/// The calibration for the device: among the methods with a 3D correction, the one the
-/// rule chooses (by check RMS with a reference, by the fits' own figures without).
+/// The calibration for the device: the best method's own when it has a 3D correction
+/// (the ellipse's or the ellipsoid's, also under a deviation model); else, among the
+/// methods with a 3D correction, the one the rule chooses (by check RMS with a
+/// reference, by the fits' own figures without).
 pub fn device_calibration(report: &CalibrationReport) -> Option<(Method, FieldCalibration)> {
     let three_d: Vec<&MethodReport> = report
         .methods
         .iter()
         .filter(|method| field_calibration_of(method).is_some())
         .collect();
+    if let Some(best) = three_d
+        .iter()
+        .find(|method| Some(method.method) == report.best)
+    {
+        return Some((best.method, field_calibration_of(best)?));
+    }
     let scored: Vec<Scored> = three_d
         .iter()
         .map(|method| Scored {

@@ -785,3 +785,82 @@ fn the_qmc5883l_file_calibrates_at_50_hz_in_counts_without_warnings() {
         assert!(text.contains(expected), "{expected}\n{text}");
     }
 }
+
+/// `compass-pdr ARGS --json`, parsed; the command must succeed.
+fn json_of(args: &[&str]) -> serde_json::Value {
+    let all: Vec<&str> = args.iter().copied().chain(["--json"]).collect();
+    let output = compass_pdr(&all);
+    assert!(output.status.success(), "{args:?}: {}", stderr(&output));
+    serde_json::from_slice(&output.stdout).expect("JSON")
+}
+
+/// Every command and the report name the same best method and the same device
+/// calibration (one pipeline, one choice): on the demo (a reference column and GNSS),
+/// on a walk with GNSS course only, and on a board turned in the hand (no reference).
+#[test]
+fn every_command_and_the_report_name_the_same_best_and_device_calibration() {
+    let dir = scratch_dir("one-best");
+    let demo = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/demo-walk.csv");
+    let dance = dir.join("dance.txt");
+    let output = compass_pdr(&[
+        "simulate",
+        "--scenario",
+        "dance",
+        "--out",
+        dance.to_str().unwrap_or_default(),
+    ]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    let car = dir.join("car.csv");
+    simulate_to(&car, &["--scenario", "vehicle", "--seed", "3"]);
+    for (log, walks) in [(demo, true), (car, false), (dance, false)] {
+        let log = log.to_str().unwrap_or_default();
+        let calibrated = json_of(&["calibrate", log]);
+        let headings = json_of(&["heading", log]);
+        let best = headings["choice"]["key"]
+            .as_str()
+            .expect("a best")
+            .to_string();
+        assert_eq!(
+            calibrated["choice"]["key"], headings["choice"]["key"],
+            "{log}"
+        );
+        assert_eq!(headings["best"].as_str(), Some(best.as_str()), "{log}");
+        // The device calibration is the best's own when that has a 3D correction.
+        let device = calibrated["device_calibration"]["method"]
+            .as_str()
+            .unwrap_or("");
+        let base = best.split('+').next().unwrap_or("");
+        if ["ellipse", "ellipsoid"].contains(&base) {
+            assert_eq!(
+                device, base,
+                "{log}: the device calibration follows the best"
+            );
+        }
+        if walks {
+            let pdr = json_of(&["pdr", log]);
+            assert_eq!(pdr["heading_key"].as_str(), Some(best.as_str()), "{log}");
+        }
+        let report = dir.join("report.html");
+        let output = compass_pdr(&["report", log, "--out", report.to_str().unwrap_or_default()]);
+        assert!(output.status.success(), "{}", stderr(&output));
+        let html = std::fs::read_to_string(&report).expect("written");
+        let label = headings["choice"]["label"].as_str().expect("a label");
+        assert!(
+            html.contains(&format!("Best: {}", label.replace('&', "&amp;"))),
+            "{log}: the report names the best ({label})"
+        );
+        if !device.is_empty() {
+            let text =
+                String::from_utf8_lossy(&compass_pdr(&["calibrate", log]).stdout).into_owned();
+            let hard_iron = text
+                .lines()
+                .find(|line| line.trim_start().starts_with("Hard iron ("))
+                .expect("the device calibration's hard iron")
+                .trim();
+            assert!(
+                html.contains(hard_iron),
+                "{log}: the report's device calibration is {hard_iron}"
+            );
+        }
+    }
+}

@@ -94,13 +94,14 @@ fn a_magnet_mount_drive_gets_a_heading_near_the_floor_and_never_worse_than_uncal
 /// about 1 % of the distance (the PDR paper's own figure), over a dozen seeds.
 #[test]
 fn a_four_direction_walk_drifts_about_one_percent_across_a_ten_minute_outage() {
-    use compass_pdr::pdr::{run as dead_reckon, PdrOptions};
+    use compass_pdr::pdr::PdrOptions;
+    use compass_pdr::pipeline::dead_reckoning;
     let mut rms_pct = Vec::new();
     for seed in 1..=12 {
         let log = physics::four_direction_walk(seed);
         let report =
             compass_pdr::io::import::import("walk.csv", log.csv.as_bytes()).expect("imports");
-        let analysis = dead_reckon(report, &PdrOptions::default()).expect("dead-reckons");
+        let analysis = dead_reckoning(&report, &PdrOptions::default()).expect("dead-reckons");
         let gap = analysis
             .report
             .gnss_gaps

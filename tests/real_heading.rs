@@ -7,7 +7,7 @@
 mod common;
 
 use compass_pdr::calibration::CalibrationOptions;
-use compass_pdr::deviation::{analyse_headings, HeadingAnalysis, HeadingOptions, HeadingRow};
+use compass_pdr::deviation::{HeadingAnalysis, HeadingOptions, HeadingRow};
 use compass_pdr::io::import::import_files;
 use compass_pdr::reference::gyro::GyroAlignment;
 use compass_pdr::reference::{ReferenceChoice, ReferenceOptions, ReferenceSource};
@@ -32,7 +32,9 @@ fn analyse(
         },
         ..HeadingOptions::default()
     };
-    analyse_headings(report, &options).expect("analyses")
+    compass_pdr::pipeline::headings(&report, &options)
+        .expect("analyses")
+        .1
 }
 
 fn row<'a>(analysis: &'a HeadingAnalysis, key: &str) -> &'a HeadingRow {

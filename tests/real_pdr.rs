@@ -9,7 +9,8 @@ mod common;
 use compass_pdr::calibration::DeclinationChoice;
 use compass_pdr::io::import::import_files;
 use compass_pdr::pdr::step_length::StepLengthModel;
-use compass_pdr::pdr::{run, PdrAnalysis, PdrOptions};
+use compass_pdr::pdr::{PdrAnalysis, PdrOptions};
+use compass_pdr::pipeline::dead_reckoning;
 use std::path::PathBuf;
 
 fn dead_reckon(paths: &[PathBuf], options: &PdrOptions) -> PdrAnalysis {
@@ -18,7 +19,7 @@ fn dead_reckon(paths: &[PathBuf], options: &PdrOptions) -> PdrAnalysis {
         .iter()
         .map(|(name, bytes)| (name.as_str(), bytes.as_slice()))
         .collect();
-    run(import_files(&slices).expect("imports"), options).expect("dead-reckons")
+    dead_reckoning(&import_files(&slices).expect("imports"), options).expect("dead-reckons")
 }
 
 #[test]

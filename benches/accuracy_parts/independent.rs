@@ -5,7 +5,8 @@
 use std::fmt::Write as _;
 
 use compass_pdr::calibration::CalibrationOptions;
-use compass_pdr::pdr::{run, PdrOptions};
+use compass_pdr::pdr::PdrOptions;
+use compass_pdr::pipeline::dead_reckoning;
 
 use super::physics;
 use super::physics::scoring::{quantile, score, Scores};
@@ -107,7 +108,7 @@ pub fn section(text: &mut String) {
         let Ok(report) = compass_pdr::io::import::import("walk.csv", log.csv.as_bytes()) else {
             continue;
         };
-        let Ok(analysis) = run(report, &PdrOptions::default()) else {
+        let Ok(analysis) = dead_reckoning(&report, &PdrOptions::default()) else {
             continue;
         };
         if let Some(errors) = analysis

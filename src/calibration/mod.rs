@@ -210,11 +210,14 @@ pub struct CalibrationReport {
     pub raw_heading_error_train: Option<HeadingErrorStats>,
     pub raw_heading_error_check: Option<HeadingErrorStats>,
     pub methods: Vec<MethodReport>,
-    /// The field calibration the analysis recommends ([`crate::selection`]): the lowest
-    /// check RMS, never worse than uncalibrated; without a reference, by the fits' own
-    /// figures. `None` when uncalibrated is the choice (see `choice`).
+    /// The field-domain method of the analysis's one best heading ([`crate::selection`]):
+    /// [`calibrate`] sets the best of the field-domain methods alone (the lowest check
+    /// RMS, never worse than uncalibrated; without a reference, by the fits' own
+    /// figures); the pipeline's heading stage ([`crate::pipeline::headings`]) replaces it
+    /// with the base of the best of every heading model. `None` when uncalibrated (or a
+    /// network on it) is the choice.
     pub best: Option<Method>,
-    /// That choice, with the uncalibrated heading as a possible answer and why.
+    /// That choice (a row key such as `ellipsoid+fourier`), and why.
     pub choice: Option<Choice>,
     pub notes: Vec<String>,
     pub diagnostics: Diagnostics,

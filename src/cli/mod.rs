@@ -8,9 +8,9 @@ use clap::{Parser, Subcommand, ValueEnum};
 use compass_pdr::calib::export::{c_snippet, motioncal_packet};
 use compass_pdr::calib::plane::SoftIronModel;
 use compass_pdr::calibration::{
-    calibrate, CalibrationOptions, CalibrationReport, DeclinationChoice, Method, MethodParameters,
+    CalibrationOptions, CalibrationReport, DeclinationChoice, Method, MethodParameters,
 };
-use compass_pdr::deviation::{analyse_headings, compare, HeadingOptions, HeadingReport};
+use compass_pdr::deviation::{HeadingOptions, HeadingReport};
 use compass_pdr::io::canonical_csv;
 use compass_pdr::io::delimited::ColumnMapping;
 use compass_pdr::io::import::{header_signature, merge, ChunkedImport, Inspection};
@@ -18,7 +18,8 @@ use compass_pdr::io::{Diagnostics, ImportReport};
 use compass_pdr::pdr::export::{track_text, TrackFormat};
 use compass_pdr::pdr::fusion::{GnssPolicy, Outage};
 use compass_pdr::pdr::step_length::StepModelKind;
-use compass_pdr::pdr::{self, HeadingChoice, PdrOptions, PdrReport};
+use compass_pdr::pdr::{HeadingChoice, PdrOptions, PdrReport};
+use compass_pdr::pipeline;
 use compass_pdr::plot::{draw_calibration_figure, draw_deviation_figure, draw_pdr_figure};
 use compass_pdr::reference::{ReferenceChoice, ReferenceOptions};
 use compass_pdr::report::{
@@ -710,7 +711,14 @@ fn run_calibrate(
     outputs: &Outputs<'_>,
 ) -> Result<(), String> {
     let report = import_paths(input)?;
-    let analysis = calibrate(report, options).map_err(|error| error.to_string())?;
+    // The heading stage too: the best and the device calibration are the analysis's one
+    // choice, the same as `heading`, `report` and the page give.
+    let heading_options = HeadingOptions {
+        calibration: options.clone(),
+        ..HeadingOptions::default()
+    };
+    let (analysis, _) =
+        pipeline::headings(&report, &heading_options).map_err(|error| error.to_string())?;
     let report = &analysis.report;
     print_import_diagnostics(&report.file_name, &report.diagnostics);
     if let Some(plot) = outputs.plot {
@@ -796,7 +804,7 @@ fn run_heading(
     plot: Option<&Path>,
 ) -> Result<(), String> {
     let report = import_paths(input)?;
-    let analysis = analyse_headings(report, options).map_err(|error| error.to_string())?;
+    let (_, analysis) = pipeline::headings(&report, options).map_err(|error| error.to_string())?;
     let report = &analysis.report;
     print_import_diagnostics(&report.file_name, &report.calibration.diagnostics);
     if let Some(plot) = plot {
@@ -810,18 +818,18 @@ fn run_heading(
 fn run_report(input: &ImportArgs, options: &PdrOptions, out: &Path) -> Result<(), String> {
     let report = import_paths(input)?;
     let file_name = report.file_name.clone();
-    let for_pdr = (!report.recording.acc_in_body_mps2.is_empty()).then(|| report.clone());
-    let calibration = calibrate(report, &options.heading_options.calibration)
-        .map_err(|error| error.to_string())?;
-    print_import_diagnostics(&file_name, &calibration.report.diagnostics);
-    let heading = compare(&calibration, &options.heading_options);
-    let pdr = for_pdr
-        .ok_or_else(|| "the log has no accelerometer, so no steps can be detected".to_string())
-        .and_then(|report| pdr::run(report, options).map_err(|error| error.to_string()));
-    let figures = svg_figures(&calibration, Some(&heading), pdr.as_ref().ok());
+    let analysis = pipeline::analyse(&report, options).map_err(|error| error.to_string())?;
+    print_import_diagnostics(&file_name, &analysis.calibration.report.diagnostics);
+    let pdr = match analysis.pdr {
+        Some(Ok(pdr)) => Ok(pdr),
+        Some(Err(error)) => Err(error.to_string()),
+        None => Err("no dead reckoning was asked for".to_string()),
+    };
+    let (calibration, heading) = (&analysis.calibration, &analysis.headings);
+    let figures = svg_figures(calibration, Some(heading), pdr.as_ref().ok());
     let html = html_report(
-        &calibration,
-        Some(&heading),
+        calibration,
+        Some(heading),
         pdr.as_ref().map_err(String::as_str),
         &figures,
     );
@@ -856,7 +864,7 @@ fn run_pdr(
 ) -> Result<(), String> {
     let report = import_paths(input)?;
     print_import_diagnostics(&report.file_name, &report.diagnostics);
-    let analysis = pdr::run(report, options).map_err(|error| error.to_string())?;
+    let analysis = pipeline::dead_reckoning(&report, options).map_err(|error| error.to_string())?;
     if let Some(out) = out {
         let name = out.to_string_lossy();
         let format = TrackFormat::from_file_name(&name).ok_or_else(|| {

@@ -24,10 +24,8 @@ pub mod rls;
 
 use serde::Serialize;
 
-use crate::analysis::AnalysisError;
 use crate::angle::heading_difference_rad;
-use crate::calibration::{calibrate, CalibrationAnalysis, CalibrationOptions, CalibrationReport};
-use crate::io::ImportReport;
+use crate::calibration::{CalibrationAnalysis, CalibrationOptions, CalibrationReport};
 use crate::reference::ReferenceSource;
 use crate::selection::{choose_by_reference, choose_without_reference, Choice, Scored};
 use crate::stats::HeadingErrorStats;
@@ -173,18 +171,9 @@ struct Base {
     heading_rad: Vec<f64>,
 }
 
-/// Calibrates `report` with every field-domain method, then learns the deviation models
-/// on each and compares everything.
-pub fn analyse_headings(
-    report: ImportReport,
-    options: &HeadingOptions,
-) -> Result<HeadingAnalysis, AnalysisError> {
-    let calibration = calibrate(report, &options.calibration)?;
-    Ok(compare(&calibration, options))
-}
-
-/// The comparison on an existing calibration analysis (the page keeps that one for its
-/// own plots).
+/// Learns the deviation models on every base heading of a calibration analysis and
+/// compares everything on its split ([`crate::pipeline::headings`] runs the calibration
+/// then this, and writes the choice back into the calibration's report).
 pub fn compare(calibration: &CalibrationAnalysis, options: &HeadingOptions) -> HeadingAnalysis {
     let CalibrationAnalysis {
         report: calibration_report,
@@ -633,7 +622,7 @@ mod tests {
     /// The paper's Table II, data set 1.
     const TABLE_II_1: [f64; 5] = [9.0, 31.4, 0.9, 0.6, 1.8];
 
-    fn simulated(config: &WalkConfig) -> ImportReport {
+    fn simulated(config: &WalkConfig) -> crate::io::ImportReport {
         let text = canonical_csv::write(&simulate(config));
         import("walk.csv", text.as_bytes()).expect("imports")
     }
@@ -641,7 +630,9 @@ mod tests {
     /// The Fourier model fitted on the raw heading of the simulated `config`, every
     /// sample with a GPS course training (the reference must be the GPS course).
     fn raw_fourier_fit_on_gps(config: &WalkConfig) -> fourier::FourierFit {
-        let analysis = analyse_headings(simulated(config), &all_train_on_gps()).expect("analyses");
+        let analysis = crate::pipeline::headings(&simulated(config), &all_train_on_gps())
+            .map(|(_, headings)| headings)
+            .expect("analyses");
         assert_eq!(
             analysis.report.reference.map(|source| source.label()),
             Some("GPS course")
@@ -741,7 +732,9 @@ mod tests {
             },
             ..HeadingOptions::default()
         };
-        let analysis = analyse_headings(simulated(&config), &options).expect("analyses");
+        let analysis = crate::pipeline::headings(&simulated(&config), &options)
+            .map(|(_, headings)| headings)
+            .expect("analyses");
         let check_rms = |key: &str| {
             analysis
                 .report
@@ -783,7 +776,9 @@ mod tests {
         }
         let text = canonical_csv::write(&rows);
         let report = import("walk.csv", text.as_bytes()).expect("imports");
-        let analysis = analyse_headings(report, &HeadingOptions::default()).expect("analyses");
+        let analysis = crate::pipeline::headings(&report, &HeadingOptions::default())
+            .map(|(_, headings)| headings)
+            .expect("analyses");
         for (&t_s, reference) in analysis.t_s.iter().zip(&analysis.reference_deg) {
             if (151.5..248.5).contains(&t_s) || t_s > 381.5 {
                 assert!(reference.is_none(), "a reference at {t_s} s");
@@ -803,7 +798,9 @@ mod tests {
     fn every_base_gets_a_fourier_stack_and_a_row() {
         let text = canonical_csv::write(&simulate(&WalkConfig::from_seed(3, 180.0)));
         let report = import("walk.csv", text.as_bytes()).expect("imports");
-        let analysis = analyse_headings(report, &HeadingOptions::default()).expect("analyses");
+        let analysis = crate::pipeline::headings(&report, &HeadingOptions::default())
+            .map(|(_, headings)| headings)
+            .expect("analyses");
         let keys: Vec<&str> = analysis
             .report
             .rows

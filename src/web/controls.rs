@@ -28,13 +28,7 @@ pub const TIMELINE_ID: &str = "timeline";
 const STATUS_ID: &str = "controls-status";
 
 /// What a change re-runs.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Stage {
-    /// The calibration, the heading models and the dead reckoning.
-    Calibration,
-    /// The dead reckoning only.
-    DeadReckoning,
-}
+pub use crate::pipeline::Stage;
 
 /// The controls as read from the form.
 #[derive(Debug, Clone, PartialEq)]
@@ -47,26 +41,21 @@ pub struct Controls {
 }
 
 impl Controls {
-    pub fn calibration_options(&self) -> CalibrationOptions {
-        CalibrationOptions {
+    /// The options of every stage of the pipeline.
+    pub fn options(&self) -> PdrOptions {
+        let mut options = PdrOptions {
+            step_model: self.step_model,
+            ..PdrOptions::default()
+        };
+        options.gnss.outages = self.outages.clone();
+        options.heading_options.calibration = CalibrationOptions {
             methods: self.methods.clone(),
             train_until_s: self.train_until_s,
             declination: self
                 .declination_deg
                 .map_or(DeclinationChoice::Auto, DeclinationChoice::Degrees),
             ..CalibrationOptions::default()
-        }
-    }
-
-    pub fn pdr_options(&self) -> PdrOptions {
-        let mut options = PdrOptions {
-            step_model: self.step_model,
-            ..PdrOptions::default()
         };
-        options.gnss.outages = self.outages.clone();
-        options.heading_options.calibration.declination = self
-            .declination_deg
-            .map_or(DeclinationChoice::Auto, DeclinationChoice::Degrees);
         options
     }
 }

@@ -27,9 +27,6 @@ use std::sync::Once;
 
 use wasm_bindgen::prelude::*;
 
-use crate::analysis::analyse_file as analyse_log;
-use crate::calibration::CalibrationOptions;
-
 /// Wires up the page (`www/index.html`) and analyses the demo log named by the body's
 /// `data-demo-url`.
 #[wasm_bindgen]
@@ -45,12 +42,15 @@ pub fn run_page() -> Result<(), JsError> {
     Ok(())
 }
 
-/// Min/max analysis of a canonical CSV, returned as a plain object (the same fields as
-/// `compass-pdr calibrate --json`). Throws an `Error` whose message says what is wrong
-/// with the file and what to do.
+/// The calibration of a log with the pipeline's one best (the calibration and heading
+/// stages of [`crate::pipeline`], as the page runs them), returned as a plain object
+/// (the fields of `compass-pdr calibrate --json`'s report). Throws an `Error` whose
+/// message says what is wrong with the file and what to do.
 #[wasm_bindgen]
 pub fn analyse_file(file_name: &str, bytes: &[u8]) -> Result<JsValue, JsError> {
-    let analysis = analyse_log(file_name, bytes, &CalibrationOptions::default())
+    let import = crate::io::import::import(file_name, bytes)
+        .map_err(|error| JsError::new(&error.to_string()))?;
+    let (analysis, _) = crate::pipeline::headings(&import, &Default::default())
         .map_err(|error| JsError::new(&error.to_string()))?;
     let serializer = serde_wasm_bindgen::Serializer::json_compatible();
     serde::Serialize::serialize(&analysis.report, &serializer)

@@ -18,14 +18,14 @@ use super::controls::{self, Stage};
 use super::dom;
 use super::mapping;
 use crate::analysis::AnalysisError;
-use crate::calibration::{calibrate, CalibrationAnalysis, CalibrationReport};
-use crate::deviation::HeadingAnalysis;
-use crate::deviation::{compare, HeadingOptions, HeadingReport};
+use crate::calibration::{CalibrationAnalysis, CalibrationReport};
+use crate::deviation::{HeadingAnalysis, HeadingReport};
 use crate::io::delimited::{preview, ColumnMapping, Preview};
 use crate::io::import::import_files;
 use crate::io::import::{header_signature, merge, ChunkedImport, FileImport};
 use crate::io::{ImportError, ImportReport};
-use crate::pdr::{self, PdrAnalysis, PdrError};
+use crate::pdr::{PdrAnalysis, PdrError};
+use crate::pipeline;
 use crate::plot::timeline::Timeline;
 use crate::report;
 
@@ -275,7 +275,7 @@ impl Page {
             page.hide_progress();
             page.set_state("loading", &format!("Analysing {}…", names.join(", ")));
             let merged = merge(results).map_err(AnalysisError::from);
-            let (result, for_pdr) = page.calibrate_import(merged);
+            let (result, import) = page.calibrate_import(merged);
             // A single delimited file whose columns were not understood, or numbers
             // without a header line: ask the user.
             let unreadable_header = matches!(
@@ -305,7 +305,7 @@ impl Page {
                     return;
                 }
             }
-            page.show_result(result, for_pdr).await;
+            page.show_result(result, import).await;
             if !remembered_for.is_empty() {
                 let status = page.status.text_content().unwrap_or_default();
                 page.status.set_text_content(Some(&format!(
@@ -387,15 +387,15 @@ impl Page {
     async fn show_result(
         &self,
         result: Result<CalibrationAnalysis, AnalysisError>,
-        for_pdr: Option<ImportReport>,
+        import: Option<Rc<ImportReport>>,
     ) {
         match result {
-            Ok(analysis) => {
+            Ok(mut analysis) => {
                 self.show_calibration(&analysis);
                 yield_to_browser().await;
-                let (summary, heading) = self.show_heading_models(&analysis);
+                let (summary, heading) = self.show_heading_models(&mut analysis);
                 yield_to_browser().await;
-                let (pdr_summary, pdr) = self.show_dead_reckoning(for_pdr);
+                let (pdr_summary, pdr) = self.show_dead_reckoning(import.as_deref(), &heading);
                 self.keep_results(Results {
                     calibration: analysis,
                     heading,
@@ -439,26 +439,31 @@ impl Page {
 
     async fn analyse_and_show(&self, files: &[(&str, &[u8])]) {
         let imported = import_files(files).map_err(AnalysisError::from);
-        let (result, for_pdr) = self.calibrate_import(imported);
-        self.show_result(result, for_pdr).await;
+        let (result, import) = self.calibrate_import(imported);
+        self.show_result(result, import).await;
     }
 
-    /// Keeps the import for re-runs and calibrates it with the controls' options; also
-    /// returns the copy the dead reckoning takes (when the log has an accelerometer).
+    /// Keeps the import for re-runs and runs the pipeline's calibration stage on it
+    /// with the controls' options; also returns the kept import.
     fn calibrate_import(
         &self,
         imported: Result<ImportReport, AnalysisError>,
     ) -> (
         Result<CalibrationAnalysis, AnalysisError>,
-        Option<ImportReport>,
+        Option<Rc<ImportReport>>,
     ) {
-        let kept = imported.as_ref().ok().map(|report| Rc::new(report.clone()));
-        let for_pdr = kept.as_deref().and_then(copy_for_pdr);
-        *self.import.borrow_mut() = kept;
-        let options = controls::read(&self.document).calibration_options();
+        let import = match imported {
+            Ok(report) => Rc::new(report),
+            Err(error) => {
+                *self.import.borrow_mut() = None;
+                return (Err(error), None);
+            }
+        };
+        *self.import.borrow_mut() = Some(Rc::clone(&import));
+        let options = controls::read(&self.document).options();
         self.count_run(&self.n_calibration_runs, "data-calibration-runs");
-        let result = imported.and_then(|report| calibrate(report, &options));
-        (result, for_pdr)
+        let result = pipeline::calibration(&import, &options.heading_options);
+        (result, Some(import))
     }
 
     fn count_run(&self, counter: &std::cell::Cell<u32>, attribute: &str) {
@@ -482,7 +487,8 @@ impl Page {
             let previous = page.results.borrow_mut().take();
             match (stage, previous.map(Rc::try_unwrap)) {
                 (Stage::DeadReckoning, Some(Ok(results))) => {
-                    let (pdr_summary, pdr) = page.show_dead_reckoning(copy_for_pdr(&import));
+                    let (pdr_summary, pdr) =
+                        page.show_dead_reckoning(Some(&import), &results.heading);
                     let summary = format!(
                         "Dead-reckoned {file_name} again with the new settings.{pdr_summary}"
                     );
@@ -490,10 +496,10 @@ impl Page {
                     page.set_state("ready", &summary);
                 }
                 _ => {
-                    let options = controls::read(&page.document).calibration_options();
+                    let options = controls::read(&page.document).options();
                     page.count_run(&page.n_calibration_runs, "data-calibration-runs");
-                    let result = calibrate((*import).clone(), &options);
-                    page.show_result(result, copy_for_pdr(&import)).await;
+                    let result = pipeline::calibration(&import, &options.heading_options);
+                    page.show_result(result, Some(import)).await;
                 }
             }
         });
@@ -543,10 +549,10 @@ impl Page {
 
     /// The whole analysis at once (the browser tests use it).
     #[cfg(test)]
-    pub fn show_analysis(&self, analysis: &CalibrationAnalysis, for_pdr: Option<ImportReport>) {
+    pub fn show_analysis(&self, analysis: &mut CalibrationAnalysis, import: Option<&ImportReport>) {
         self.show_calibration(analysis);
-        let (summary, _) = self.show_heading_models(analysis);
-        let (pdr_summary, _) = self.show_dead_reckoning(for_pdr);
+        let (summary, heading) = self.show_heading_models(analysis);
+        let (pdr_summary, _) = self.show_dead_reckoning(import, &heading);
         self.set_state("ready", &format!("{summary}{pdr_summary}"));
     }
 
@@ -598,9 +604,18 @@ impl Page {
     /// The heading models on top of the calibration: every method and every stack on
     /// the same split, the deviation curve and the residuals. Returns the status line
     /// and the analysis.
-    fn show_heading_models(&self, analysis: &CalibrationAnalysis) -> (String, HeadingAnalysis) {
+    fn show_heading_models(&self, analysis: &mut CalibrationAnalysis) -> (String, HeadingAnalysis) {
+        let options = controls::read(&self.document).options();
+        let headings = pipeline::heading_models(analysis, &options.heading_options);
+        // The choice is made: the device calibration and the heading plot follow it.
+        self.show_device_calibration(analysis);
+        if let Err(message) = canvas::draw(&self.heading_canvas, Plot::HeadingError, analysis) {
+            let _ = canvas::draw_message(
+                &self.heading_canvas,
+                &format!("This plot could not be drawn: {message}"),
+            );
+        }
         let report = &analysis.report;
-        let headings = compare(analysis, &HeadingOptions::default());
         self.show_methods(&headings.report);
         self.show_deviation_model(&headings.report);
         for (canvas, plot) in [
@@ -638,14 +653,16 @@ impl Page {
     /// sentence for the status line, and the analysis or why there is none.
     fn show_dead_reckoning(
         &self,
-        report: Option<ImportReport>,
+        import: Option<&ImportReport>,
+        headings: &HeadingAnalysis,
     ) -> (String, Result<PdrAnalysis, String>) {
         self.count_run(&self.n_pdr_runs, "data-pdr-runs");
-        let options = controls::read(&self.document).pdr_options();
-        let result = report
+        let options = controls::read(&self.document).options();
+        let result = import
+            .filter(|import| !import.recording.acc_in_body_mps2.is_empty())
             .ok_or_else(|| "the log has no accelerometer, so no steps can be detected".to_string())
-            .and_then(|report| {
-                pdr::run(report, &options).map_err(|error| match error {
+            .and_then(|import| {
+                crate::pdr::dead_reckon(import, headings, &options).map_err(|error| match error {
                     PdrError::Analysis(error) => error.to_string(),
                     other => other.to_string(),
                 })
@@ -867,12 +884,6 @@ impl Page {
 
 /// The items, or a single "None." when there are none, so that an empty list reads as
 /// checked rather than missing.
-/// A copy of the import for dead reckoning, when the log has an accelerometer to
-/// detect steps in (the calibration consumes the original).
-fn copy_for_pdr(report: &ImportReport) -> Option<ImportReport> {
-    (!report.recording.acc_in_body_mps2.is_empty()).then(|| report.clone())
-}
-
 fn or_none(items: impl Iterator<Item = String>) -> impl Iterator<Item = String> {
     let mut items = items.peekable();
     let none = items.peek().is_none().then(|| "None.".to_string());

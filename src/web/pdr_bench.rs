@@ -4,7 +4,8 @@
 use wasm_bindgen::prelude::*;
 
 use crate::pdr::ekf::{EkfNoise, PdrEkf};
-use crate::pdr::{run, PdrOptions};
+use crate::pdr::PdrOptions;
+use crate::pipeline::dead_reckoning;
 
 /// What one pipeline run found, for the page.
 #[derive(serde::Serialize)]
@@ -54,7 +55,7 @@ pub fn pdr_ekf_steps(
         .collect())
 }
 
-/// The whole pipeline on a log's bytes: `import` then `pdr::run` with the default
+/// The whole pipeline on a log's bytes: `import` then `pipeline::dead_reckoning` with the default
 /// options (calibrations and heading models, steps, step model, EKF, metrics). Returns
 /// the step count, the dead-reckoned distance (m), the walk's duration (s) and the
 /// heading used as a plain object; throws an `Error` saying what is wrong with the log.
@@ -62,8 +63,8 @@ pub fn pdr_ekf_steps(
 pub fn pdr_pipeline(file_name: &str, bytes: &[u8]) -> Result<JsValue, JsError> {
     let report = crate::io::import::import(file_name, bytes)
         .map_err(|error| JsError::new(&error.to_string()))?;
-    let analysis =
-        run(report, &PdrOptions::default()).map_err(|error| JsError::new(&error.to_string()))?;
+    let analysis = dead_reckoning(&report, &PdrOptions::default())
+        .map_err(|error| JsError::new(&error.to_string()))?;
     let result = BenchPipeline {
         n_steps: analysis.report.n_steps,
         distance_m: analysis.report.pdr_distance_m,

@@ -150,10 +150,10 @@ fn the_page_shows_an_analysis_then_an_error() {
             .unwrap_or_default()
     };
 
-    let analysis = analyse_log("walk.csv", &simulated_csv(), &CalibrationOptions::default())
+    let mut analysis = analyse_log("walk.csv", &simulated_csv(), &CalibrationOptions::default())
         .expect("analysable");
     let import = crate::io::import::import("walk.csv", &simulated_csv()).expect("readable");
-    page.show_analysis(&analysis, Some(import));
+    page.show_analysis(&mut analysis, Some(&import));
     let min_max = analysis.report.method(Method::MinMax).expect("min/max ran");
     let check = min_max.heading_error_check.expect("reference present");
     assert_eq!(

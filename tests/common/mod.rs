@@ -94,8 +94,8 @@ pub fn indoor_walk(
     use compass_pdr::deviation::HeadingOptions;
     use compass_pdr::pdr::{HeadingChoice, PdrOptions};
     let paths = files_in(&data.join("msft-indoor-2020/site1").join(floor), "txt");
-    compass_pdr::pdr::run(
-        import_paths(&paths),
+    compass_pdr::pipeline::dead_reckoning(
+        &import_paths(&paths),
         &PdrOptions {
             heading: HeadingChoice::parse(heading),
             weinberg_k: k,

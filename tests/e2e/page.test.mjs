@@ -88,6 +88,16 @@ test('the demo is analysed and drawn on load, with the CLI\'s figures', async ()
   assert.equal(await statusBackground(page), 'rgb(244, 246, 249)', 'a good result is not styled as an error');
   assert.match(await text(page, 'context'), /Reference heading: the log's reference-heading column/);
   assert.match(await text(page, 'calibration'), /Hard iron \(/);
+  // One pipeline: the page, `compass-pdr calibrate`, `heading` and `pdr` name the same
+  // best method and the same device calibration.
+  assert.equal(pdr.heading_key, expected.choice.key, 'the dead reckoning takes the best');
+  const calibrateLines = readFileSync(join(out, 'demo-walk-calibrate.txt'), 'utf8').split('\n').map((line) => line.trim());
+  assert.ok(calibrateLines.some((line) => line.startsWith(`best: ${expected.choice.label}: `)), 'calibrate names the best');
+  const deviceCalibration = await text(page, 'calibration');
+  for (const prefix of ['From the ', 'Hard iron (', 'Soft iron [[']) {
+    const line = calibrateLines.find((candidate) => candidate.startsWith(prefix));
+    assert.ok(line && deviceCalibration.includes(line), `the page's device calibration has "${line}"`);
+  }
   const ellipseModel = expected.fourier.find((fourier) => fourier.base_key === 'ellipse').fit.model;
   const models = await text(page, 'deviation-model');
   assert.equal(expected.neural.length, 2, 'a network on the raw heading and on the best calibration');

@@ -1,0 +1,260 @@
+//! The heading each step takes: the analysis's one best heading model (or the one the
+//! user names, or the device's own yaw), fitted again on the GNSS course outside the
+//! outages, optionally carried by the gyro (Chen et al., Fig. 2: "the speed and heading
+//! from GPS are utilized to … calibrate the compass" while GNSS is good).
+//!
+//! The choice of model is not made here: it is the heading comparison's
+//! ([`crate::selection`], through [`crate::pipeline`]), so the dead reckoning, the page,
+//! the CLI and the report name the same method. What is done here is to fit that one
+//! model again for the track: on every GNSS-referenced sample outside the outages, never
+//! on a reference-heading column (in a test log that column is the truth), so that no
+//! fix inside an outage trains what bridges it.
+
+use crate::calibration::{calibrate, CalibrationOptions, Method};
+use crate::deviation::{HeadingAnalysis, HeadingOptions};
+use crate::io::ImportReport;
+use crate::recording::{GnssFix, Stream};
+use crate::reference::gyro::gyro_heading;
+use crate::reference::{ReferenceChoice, ReferenceOptions};
+
+use super::fusion::Outage;
+use super::{HeadingBase, PdrOptions};
+
+/// A heading per sample (rad, clockwise from true north), with its row key and label.
+pub struct StepHeading {
+    pub heading_rad: Stream<f64>,
+    pub key: String,
+    pub label: String,
+}
+
+/// The heading the steps take, and notes on how it was made.
+pub fn step_heading(
+    import: &ImportReport,
+    headings: &HeadingAnalysis,
+    options: &PdrOptions,
+    notes: &mut Vec<String>,
+) -> Option<StepHeading> {
+    let compass = compass_heading(import, headings, options, notes)?;
+    let base = match options.heading.base {
+        HeadingBase::Device => device_heading(import, headings, notes).unwrap_or(compass),
+        _ => compass,
+    };
+    if !options.heading.gyro_aligned {
+        return Some(base);
+    }
+    let gravity_window_s = options.heading_options.calibration.gravity_window_s;
+    match gyro_heading(
+        &import.recording,
+        gravity_window_s,
+        Some(&base.heading_rad),
+        false,
+    ) {
+        Some(gyro) => Some(StepHeading {
+            heading_rad: gyro.heading_rad,
+            key: format!("gyro+{}", base.key),
+            label: format!("the gyro aligned to {}", base.label),
+        }),
+        None => {
+            notes.push(format!(
+                "The log has no gyroscope: the {} heading was used without it.",
+                base.key
+            ));
+            Some(base)
+        }
+    }
+}
+
+/// The compass heading: the model the comparison chose (or the one asked for by key),
+/// fitted again on every GNSS-referenced sample outside the outages when GNSS can
+/// reference it, else as the comparison fitted it; the uncalibrated heading when the
+/// model does not exist for this log. `None` when there is no heading at all.
+fn compass_heading(
+    import: &ImportReport,
+    headings: &HeadingAnalysis,
+    options: &PdrOptions,
+    notes: &mut Vec<String>,
+) -> Option<StepHeading> {
+    let wanted = match &options.heading.base {
+        HeadingBase::Model(key) => key.clone(),
+        _ => headings.report.choice.key.clone(),
+    };
+    let refit = refit_on_gnss(import, &wanted, options, notes);
+    let from_refit = refit
+        .as_ref()
+        .and_then(|refit| series_of(refit, &wanted).map(|series| (refit, series)));
+    let (source, series) = from_refit
+        .or_else(|| series_of(headings, &wanted).map(|series| (headings, series)))
+        .or_else(|| series_of(headings, crate::selection::RAW_KEY).map(|s| (headings, s)))?;
+    let key = series.0.clone();
+    if let HeadingBase::Model(requested) = &options.heading.base {
+        if *requested != key {
+            notes.push(format!(
+                "There is no heading model '{requested}' for this log; the {key} heading was used. The models are: {}.",
+                model_keys(&headings.headings_deg)
+            ));
+        }
+    }
+    Some(StepHeading {
+        heading_rad: Stream {
+            t_s: source.t_s.clone(),
+            values: series.1.iter().map(|deg| deg.to_radians()).collect(),
+        },
+        label: label_of(source, &key),
+        key,
+    })
+}
+
+/// The model keyed `key` fitted on every GNSS-referenced sample outside the outages
+/// (only its field-domain method, with the 3D fits a reference least squares stands
+/// on); `None` when a train/check split was asked for (the comparison's fit then
+/// stands), when the calibration fails (said in a note) or when GNSS references no
+/// heading.
+fn refit_on_gnss(
+    import: &ImportReport,
+    key: &str,
+    options: &PdrOptions,
+    notes: &mut Vec<String>,
+) -> Option<HeadingAnalysis> {
+    let given = &options.heading_options;
+    if given.calibration.train_until_s.is_some() {
+        return None;
+    }
+    let base_method = Method::ALL
+        .into_iter()
+        .find(|method| key.split('+').next() == Some(method.key()));
+    let methods = match base_method.unwrap_or(Method::MinMax) {
+        Method::RefLs => vec![Method::Ellipse, Method::Ellipsoid, Method::RefLs],
+        method => vec![method],
+    };
+    let everything = HeadingOptions {
+        calibration: CalibrationOptions {
+            reference: ReferenceOptions {
+                choice: ReferenceChoice::Gps,
+                ..given.calibration.reference
+            },
+            train_until_s: Some(f64::INFINITY),
+            methods,
+            ..given.calibration.clone()
+        },
+        // A network trains only when it is the model: it would dominate the time.
+        neural: key.contains("mlp"),
+        ..given.clone()
+    };
+    let mut report = import.clone();
+    report.recording.gnss = without_outages(&report.recording.gnss, &options.gnss.outages);
+    match calibrate(report, &everything.calibration) {
+        Ok(refit) if refit.report.reference.is_some() => {
+            Some(crate::deviation::compare(&refit, &everything))
+        }
+        Ok(_) => None,
+        Err(error) => {
+            notes.push(format!(
+                "The heading model was not refitted on every GNSS-referenced sample ({error}); the one the comparison fitted was used."
+            ));
+            None
+        }
+    }
+}
+
+/// The device's own fused yaw turned to true north, if the log has one.
+fn device_heading(
+    import: &ImportReport,
+    headings: &HeadingAnalysis,
+    notes: &mut Vec<String>,
+) -> Option<StepHeading> {
+    let declination_rad = headings
+        .report
+        .calibration
+        .declination
+        .declination_deg
+        .to_radians();
+    let attitude = &import.recording.attitude;
+    let mut device = Stream::default();
+    for (&t_s, attitude) in attitude.t_s.iter().zip(&attitude.values) {
+        if let Some(yaw_rad) = attitude.yaw_rad.filter(|yaw| yaw.is_finite()) {
+            device.push(t_s, crate::angle::wrap_to_2pi(yaw_rad + declination_rad));
+        }
+    }
+    if device.is_empty() {
+        notes.push(
+            "The log has no device yaw (rotation vector): the compass heading was used."
+                .to_string(),
+        );
+        return None;
+    }
+    Some(StepHeading {
+        heading_rad: device,
+        key: "device".to_string(),
+        label: "the device's own yaw (rotation vector) with the declination".to_string(),
+    })
+}
+
+fn series_of<'a>(headings: &'a HeadingAnalysis, key: &str) -> Option<&'a (String, Vec<f64>)> {
+    headings.headings_deg.iter().find(|(row, _)| row == key)
+}
+
+/// The GNSS fixes outside the outages.
+pub fn without_outages(gnss: &Stream<GnssFix>, outages: &[Outage]) -> Stream<GnssFix> {
+    let mut kept = Stream::default();
+    for (&t_s, fix) in gnss.t_s.iter().zip(&gnss.values) {
+        if !outages.iter().any(|outage| outage.contains(t_s)) {
+            kept.push(t_s, *fix);
+        }
+    }
+    kept
+}
+
+fn label_of(headings: &HeadingAnalysis, key: &str) -> String {
+    headings
+        .report
+        .rows
+        .iter()
+        .find(|row| row.key == key)
+        .map_or_else(|| key.to_string(), |row| row.label.clone())
+}
+
+fn model_keys(series: &[(String, Vec<f64>)]) -> String {
+    series
+        .iter()
+        .map(|(key, _)| key.as_str())
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// The circular mean of the heading samples within a step, else the heading
+/// interpolated at its middle (within a second); NaN when there is none.
+pub fn mean_heading(heading: &Stream<f64>, start_s: f64, end_s: f64) -> f64 {
+    let first = heading.t_s.partition_point(|&t| t < start_s);
+    let last = heading.t_s.partition_point(|&t| t < end_s);
+    let (mut sin_sum, mut cos_sum) = (0.0, 0.0);
+    for value in heading.values.get(first..last).unwrap_or(&[]) {
+        sin_sum += value.sin();
+        cos_sum += value.cos();
+    }
+    if sin_sum != 0.0 || cos_sum != 0.0 {
+        return crate::angle::wrap_to_2pi(sin_sum.atan2(cos_sum));
+    }
+    heading
+        .interpolate_angle_at(0.5 * (start_s + end_s), 1.0)
+        .unwrap_or(f64::NAN)
+}
+
+/// Each NaN replaced by the last finite value before it (the first finite one at the
+/// start; 0 when there is none).
+pub fn fill_forward(values: Vec<f64>) -> Vec<f64> {
+    let first_finite = values
+        .iter()
+        .copied()
+        .find(|v| v.is_finite())
+        .unwrap_or(0.0);
+    let mut last = first_finite;
+    values
+        .into_iter()
+        .map(|value| {
+            if value.is_finite() {
+                last = value;
+            }
+            last
+        })
+        .collect()
+}

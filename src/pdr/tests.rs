@@ -1,0 +1,141 @@
+use super::fusion::Outage;
+use super::references::straight_segments;
+use super::step_length::StepLengthModel;
+use super::*;
+use crate::io::canonical_csv;
+use crate::io::import::import;
+use crate::sim::walk::{simulate, GnssSim, WalkConfig};
+
+fn sim_report(config: &WalkConfig) -> ImportReport {
+    let text = canonical_csv::write(&simulate(config));
+    import("sim.csv", text.as_bytes()).expect("readable")
+}
+
+fn with_gnss(seed: u64, duration_s: f64) -> WalkConfig {
+    WalkConfig {
+        gnss: Some(GnssSim {
+            position_noise_m: 3.0,
+            hacc_m: 3.0,
+            ..GnssSim::default()
+        }),
+        ..WalkConfig::from_seed(seed, duration_s)
+    }
+}
+
+fn weinberg_k(analysis: &PdrAnalysis) -> f64 {
+    match analysis.report.step_model.model {
+        StepLengthModel::Weinberg { k } => k,
+        _ => f64::NAN,
+    }
+}
+
+/// Issue 6's simulator check: a 15-minute walk (varied gait, Weinberg-sized
+/// bounces, the unified heading error of up to ~18°, 3 m GNSS) with GNSS ignored from
+/// 4 to 14 minutes. The outage's RMS position error must stay under 1 % of the
+/// distance walked in it, and the step count within 1 % of the truth's.
+#[test]
+fn a_ten_minute_outage_is_bridged_within_one_percent_of_the_distance() {
+    for (seed, rate_hz, model) in [
+        (1, 50.0, StepModelKind::Weinberg),
+        (2, 100.0, StepModelKind::Linear),
+        (3, 50.0, StepModelKind::Neural),
+    ] {
+        let config = WalkConfig::pdr_walk(seed, 900.0, rate_hz);
+        let (rows, truth) = crate::sim::walk::simulate_with_truth(&config);
+        let text = canonical_csv::write(&rows);
+        let report = import("walk.csv", text.as_bytes()).expect("readable");
+        let options = PdrOptions {
+            step_model: model,
+            gnss: GnssPolicy {
+                outages: vec![Outage {
+                    start_s: 240.0,
+                    end_s: 840.0,
+                }],
+                ..GnssPolicy::default()
+            },
+            ..PdrOptions::default()
+        };
+        let analysis = crate::pipeline::dead_reckoning(&report, &options).expect("dead-reckons");
+        let report = &analysis.report;
+        let outage = report.outage_position_errors.first().expect("scored");
+        let step_error_pct = 100.0 * (report.n_steps as f64 / truth.steps.len() as f64 - 1.0);
+        eprintln!(
+            "seed {seed}, {rate_hz} Hz, {model:?}: {} steps (truth {}), outage RMS {:.2} m = {:.3} % of {:.0} m, max {:.2} m, heading {}",
+            report.n_steps,
+            truth.steps.len(),
+            outage.rms_m,
+            outage.rms_pct,
+            outage.distance_m,
+            outage.max_m,
+            report.heading_key
+        );
+        assert!(outage.rms_pct < 1.0, "{outage:?}");
+        assert!(outage.distance_m > 500.0, "{outage:?}");
+        assert!(step_error_pct.abs() < 1.0, "{step_error_pct} %");
+        assert_eq!(report.step_model.trained_on, "gnss_speed");
+        assert_eq!(report.step_model.model.kind(), model);
+        assert_eq!(report.fixes.in_outage, 601, "{:?}", report.fixes);
+    }
+}
+
+#[test]
+fn gnss_positions_train_the_step_model_when_the_log_has_no_speed() {
+    // 20 minutes: each 20-s stretch knows its length to about 2.3 m (3 m fixes), so
+    // about 50 stretches give K to about 1.3 %.
+    let config = with_gnss(21, 1200.0);
+    let with_speed = crate::pipeline::dead_reckoning(&sim_report(&config), &PdrOptions::default())
+        .expect("runs");
+    assert_eq!(with_speed.report.step_model.trained_on, "gnss_speed");
+    let mut report = sim_report(&config);
+    for fix in &mut report.recording.gnss.values {
+        fix.speed_mps = None;
+    }
+    let without_speed =
+        crate::pipeline::dead_reckoning(&report, &PdrOptions::default()).expect("runs");
+    let summary = &without_speed.report.step_model;
+    assert_eq!(
+        summary.trained_on, "gnss_positions",
+        "{:?}",
+        without_speed.report.notes
+    );
+    assert!(summary.n_references >= 10, "{summary:?}");
+    let (k_speed, k_positions) = (weinberg_k(&with_speed), weinberg_k(&without_speed));
+    assert!(
+        (k_positions / k_speed - 1.0).abs() < 0.04,
+        "{k_speed} from speed, {k_positions} from positions"
+    );
+}
+
+#[test]
+fn straight_segments_follow_straight_runs_of_steps_only() {
+    let step = |k: usize| Step {
+        t_start_s: 0.5 * k as f64,
+        t_end_s: 0.5 * (k + 1) as f64,
+        t_peak_s: 0.5 * k as f64 + 0.1,
+        frequency_hz: 2.0,
+        variance_mps2_sq: 1.0,
+        a_max_mps2: 11.0,
+        a_min_mps2: 8.5,
+        ends_bout: false,
+    };
+    let steps: Vec<Step> = (0..200).map(step).collect();
+    // North for 50 s, then turning 9° a step.
+    let headings: Vec<f64> = (0..200)
+        .map(|k| {
+            if k < 100 {
+                0.0
+            } else {
+                (k - 100) as f64 * 9f64.to_radians()
+            }
+        })
+        .collect();
+    let positions: Vec<(f64, [f64; 2])> = (0..100)
+        .map(|t| (t as f64, [0.0, 1.4 * t as f64]))
+        .collect();
+    let segments = straight_segments(&positions, &steps, &headings, 20.0, 15.0);
+    assert!(!segments.is_empty());
+    for segment in &segments {
+        assert!(segment.steps.end <= 100, "{segment:?}");
+        assert!(segment.distance_m >= 15.0);
+    }
+}
