@@ -1,0 +1,149 @@
+//! `compass-pdr heading`: every heading method and model on one split, and the best.
+
+use std::path::Path;
+
+use super::args::ImportArgs;
+use super::inspect::{import_paths, print_import_diagnostics};
+use super::print_report;
+use compass_pdr::deviation::{HeadingOptions, HeadingReport};
+use compass_pdr::pipeline;
+use compass_pdr::plot::draw_deviation_figure;
+use compass_pdr::stats::HeadingErrorStats;
+use plotters::prelude::{IntoDrawingArea, SVGBackend};
+
+pub(super) fn run_heading(
+    input: &ImportArgs,
+    options: &HeadingOptions,
+    json: bool,
+    plot: Option<&Path>,
+) -> Result<(), String> {
+    let report = import_paths(input)?;
+    let (_, analysis) = pipeline::headings(&report, options).map_err(|error| error.to_string())?;
+    let report = &analysis.report;
+    print_import_diagnostics(&report.file_name, &report.calibration.diagnostics);
+    if let Some(plot) = plot {
+        let root = SVGBackend::new(plot, (1400, 1000)).into_drawing_area();
+        draw_deviation_figure(&root, &analysis)
+            .map_err(|error| format!("{error} ({})", plot.display()))?;
+    }
+    print_report(report, json, heading_text)
+}
+
+/// The heading comparison as a table, then each Fourier model as the paper's Table II.
+pub(super) fn heading_text(report: &HeadingReport) -> String {
+    use std::fmt::Write as _;
+    let mut text = String::new();
+    let _ = writeln!(
+        text,
+        "{}: {} samples with a reference on train, {} on check{}",
+        report.file_name,
+        report.n_train_referenced,
+        report.n_check_referenced,
+        report
+            .train_until_s
+            .map_or(String::new(), |until_s| format!(
+                ", split at {until_s:.1} s"
+            ))
+    );
+    let _ = writeln!(
+        text,
+        "  reference heading: {}",
+        report.reference_description.as_deref().unwrap_or("none")
+    );
+    let _ = writeln!(
+        text,
+        "  declination: {:.2}° ({})",
+        report.calibration.declination.declination_deg, report.calibration.declination.source
+    );
+    let _ = writeln!(
+        text,
+        "  {:<36} {:>9} {:>16} {:>9} {:>9} {:>8}",
+        "heading method", "train RMS", "check mean±std", "check RMS", "check p95", "±5°"
+    );
+    let cell = |stats: Option<HeadingErrorStats>, pick: fn(&HeadingErrorStats) -> String| {
+        stats.as_ref().map_or("—".to_string(), pick)
+    };
+    for row in &report.rows {
+        if let Some(error) = &row.error {
+            let _ = writeln!(text, "  {:<36} not fitted: {error}", row.label);
+            continue;
+        }
+        let best = if report.best.as_deref() == Some(row.key.as_str()) {
+            " ← best"
+        } else {
+            ""
+        };
+        let _ = writeln!(
+            text,
+            "  {:<36} {:>9} {:>16} {:>9} {:>9} {:>8}{best}",
+            row.label,
+            cell(row.train, |stats| format!("{:.2}°", stats.rms_deg)),
+            cell(row.check, |stats| format!(
+                "{:.2}±{:.2}°",
+                stats.mean_deg, stats.std_deg
+            )),
+            cell(row.check, |stats| format!("{:.2}°", stats.rms_deg)),
+            cell(row.check, |stats| format!("{:.2}°", stats.p95_abs_deg)),
+            cell(row.check, |stats| format!(
+                "{:.0} %",
+                stats.within_5_deg_pct
+            )),
+        );
+    }
+    let _ = writeln!(text, "  best: {}", report.choice.sentence());
+    if !report.fourier.is_empty() {
+        let _ = writeln!(
+            text,
+            "  Fourier model on each base (train), as the PDR paper's Table II:\n  {:<36} {:>7} {:>7} {:>7} {:>7} {:>7} {:>14} {:>6}",
+            "base", "A °", "B °", "C °", "D °", "E °", "resid mean±std", "±5°"
+        );
+        for fourier in &report.fourier {
+            let model = fourier.fit.model;
+            let _ = writeln!(
+                text,
+                "  {:<36} {:>7.2} {:>7.2} {:>7.2} {:>7.2} {:>7.2} {:>14} {:>5.0}%",
+                fourier.base_label,
+                model.a_deg,
+                model.b_deg,
+                model.c_deg,
+                model.d_deg,
+                model.e_deg,
+                format!(
+                    "{:.2}±{:.2}°",
+                    fourier.fit.residual_mean_deg, fourier.fit.residual_std_deg
+                ),
+                fourier.fit.within_5_deg_pct
+            );
+        }
+    }
+    for neural in &report.neural {
+        let _ = writeln!(
+            text,
+            "  MLP on {}: inputs {}; {} pairs, {} hidden neurons, {} L-BFGS iterations ({:?}), train MSE {:.2} deg², \
+             validation MSE {}",
+            neural.base_label,
+            neural.inputs.join(", "),
+            neural.n_pairs,
+            neural.n_hidden,
+            neural.iterations,
+            neural.stop,
+            neural.train_mse_deg2,
+            neural
+                .validation_mse_deg2
+                .map_or("—".to_string(), |mse| format!("{mse:.2} deg²"))
+        );
+    }
+    if let Some(online) = &report.online {
+        let model = online.model;
+        let _ = writeln!(
+            text,
+            "  online on {} (RLS, memory {:.0} s, {} updates): A {:.2}° B {:.2}° C {:.2}° D {:.2}° E {:.2}°",
+            online.base_label,
+            online.memory_s, online.n_updates, model.a_deg, model.b_deg, model.c_deg, model.d_deg, model.e_deg
+        );
+    }
+    for note in report.notes.iter().chain(&report.calibration.notes) {
+        let _ = writeln!(text, "  note: {note}");
+    }
+    text
+}

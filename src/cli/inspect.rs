@@ -1,0 +1,139 @@
+//! Reading the files a command names (`import_paths`, in chunks, with a remembered
+//! column mapping) and `compass-pdr inspect`: what a log holds.
+
+use super::args::ImportArgs;
+use super::{mapping_store, print_out, print_report};
+use compass_pdr::io::delimited::ColumnMapping;
+use compass_pdr::io::import::{header_signature, merge, ChunkedImport, Inspection};
+use compass_pdr::io::{Diagnostics, ImportReport};
+
+/// Reads the files of one recording in chunks (memory holds the samples, not the
+/// text) and merges them. A file that cannot be opened ends the command with its name;
+/// one that cannot be parsed is left out with a diagnostic unless all fail. A column
+/// mapping given with `--map` is remembered for the file's header; without one, a
+/// remembered mapping is used and said so.
+pub(super) fn import_paths(input: &ImportArgs) -> Result<ImportReport, String> {
+    use std::io::Read as _;
+    const CHUNK_BYTES: usize = 1 << 20;
+    let given_mapping = input
+        .map
+        .as_deref()
+        .map(ColumnMapping::parse)
+        .transpose()
+        .map_err(|error| format!("--map: {error}"))?;
+    let mut store = mapping_store::MappingStore::load();
+    let mut results = Vec::with_capacity(input.files.len());
+    let mut buffer = vec![0u8; CHUNK_BYTES];
+    for path in &input.files {
+        let file_name = path.display().to_string();
+        let cannot_read = |error: std::io::Error| format!("cannot read {file_name}: {error}");
+        let mut file = std::fs::File::open(path).map_err(cannot_read)?;
+        let size_hint = file
+            .metadata()
+            .ok()
+            .and_then(|metadata| usize::try_from(metadata.len()).ok());
+        let mut n_read = file.read(&mut buffer).map_err(cannot_read)?;
+        let first_chunk = buffer.get(..n_read).unwrap_or_default();
+        let signature = header_signature(first_chunk);
+        let mapping = match (&given_mapping, &signature) {
+            (Some(mapping), Some(signature)) => {
+                store.remember(signature, mapping);
+                Some(mapping.clone())
+            }
+            (Some(mapping), None) => Some(mapping.clone()),
+            (None, Some(signature)) => store.recall(signature).inspect(|_| {
+                eprintln!(
+                    "note: {file_name}: using the column mapping remembered for this header ({}); pass --map to change it",
+                    store.path_text()
+                );
+            }),
+            (None, None) => None,
+        };
+        let mut import = ChunkedImport::new(&file_name, size_hint).with_mapping(mapping);
+        let mut result = Ok(());
+        while n_read > 0 {
+            let Some(chunk) = buffer.get(..n_read) else {
+                break;
+            };
+            result = import.feed(chunk);
+            if result.is_err() {
+                break;
+            }
+            n_read = file.read(&mut buffer).map_err(cannot_read)?;
+        }
+        results.push((file_name, result.and_then(|()| import.finish())));
+    }
+    if let Err(message) = store.save_if_changed() {
+        eprintln!("warning: {message}");
+    }
+    merge(results).map_err(|error| error.to_string())
+}
+
+pub(super) fn run_inspect(input: &ImportArgs, json: bool) -> Result<(), String> {
+    let report = import_paths(input)?;
+    let inspection = Inspection::of(&report);
+    print_import_diagnostics(&inspection.file_name, &inspection.diagnostics);
+    if json {
+        return print_report(&inspection, true, |_| String::new());
+    }
+    use std::fmt::Write as _;
+    let mut text = String::new();
+    let _ = writeln!(
+        text,
+        "{}: {}, {} data lines, {} lines skipped or suspect",
+        inspection.file_name,
+        inspection.format,
+        inspection.n_data_lines,
+        inspection.diagnostics.total()
+    );
+    let _ = writeln!(
+        text,
+        "  {:<34} {:>9} {:>9} {:>10} {:>5} {:>9} {:>8} {:>11}",
+        "stream", "samples", "rate Hz", "duration s", "gaps", "max gap s", "repeats", "mean |v|"
+    );
+    for stream in &inspection.streams {
+        let _ = writeln!(
+            text,
+            "  {:<34} {:>9} {:>9} {:>10.2} {:>5} {:>9.3} {:>8} {:>11}",
+            stream.stream,
+            stream.n_samples,
+            stream
+                .rate_hz
+                .map_or("—".to_string(), |rate_hz| format!("{rate_hz:.2}")),
+            stream.duration_s,
+            stream.n_gaps,
+            stream.largest_gap_s,
+            stream.n_repeated_times,
+            stream
+                .mean_magnitude
+                .map_or(String::new(), |magnitude| format!(
+                    "{magnitude:.3} {}",
+                    stream.unit
+                )),
+        );
+    }
+    if let Some(frame) = &inspection.mag_frame {
+        let _ = writeln!(text, "  {}", frame.describe());
+    }
+    for note in &inspection.notes {
+        let _ = writeln!(text, "  note: {note}");
+    }
+    print_out(&text)
+}
+
+/// Every skipped or suspect line goes to stderr as `file:line: message`.
+pub(super) fn print_import_diagnostics(file_name: &str, diagnostics: &Diagnostics) {
+    for diagnostic in &diagnostics.kept {
+        let file_name = diagnostic.file_name.as_deref().unwrap_or(file_name);
+        match diagnostic.line {
+            Some(line) => eprintln!("warning: {file_name}:{line}: {}", diagnostic.message),
+            None => eprintln!("warning: {file_name}: {}", diagnostic.message),
+        }
+    }
+    if diagnostics.n_not_kept > 0 {
+        eprintln!(
+            "warning: {file_name}: {} more lines had problems (not listed)",
+            diagnostics.n_not_kept
+        );
+    }
+}
