@@ -36,8 +36,6 @@ use super::rng::SplitMix64;
 use crate::angle::wrap_to_2pi;
 use crate::io::canonical_csv::CanonicalRow;
 
-const G_MPS2: f64 = 9.81;
-
 /// The truth of a walk beyond its reference columns.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
 pub struct WalkTruth {

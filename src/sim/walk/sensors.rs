@@ -6,7 +6,8 @@
 use nalgebra::{Matrix3, Rotation3, Vector3};
 
 use super::trajectory::Sample;
-use super::{WalkConfig, G_MPS2};
+use super::WalkConfig;
+use crate::io::STANDARD_GRAVITY_MPS2;
 use crate::sim::rng::SplitMix64;
 
 /// The sensors of one sample.
@@ -137,7 +138,7 @@ impl<'a> Sensors<'a> {
             surge_mps2 * heading_rad.sin() + centripetal_mps2 * heading_rad.cos(),
             bounce_mps2,
         );
-        let f_in_ned_mps2 = acc_in_ned_mps2 - Vector3::new(0.0, 0.0, G_MPS2);
+        let f_in_ned_mps2 = acc_in_ned_mps2 - Vector3::new(0.0, 0.0, STANDARD_GRAVITY_MPS2);
         attitude.body_from_ned * f_in_ned_mps2 + noise3(rng, self.config.acc_noise_mps2)
     }
 

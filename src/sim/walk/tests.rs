@@ -8,7 +8,7 @@ use super::*;
 use crate::analysis::analyse_file;
 use crate::calibration::{CalibrationOptions, Method, MethodParameters};
 use crate::geo::{Geodetic, LocalFrame};
-use crate::io::canonical_csv;
+use crate::io::{canonical_csv, STANDARD_GRAVITY_MPS2};
 use crate::sim::gait::Gait;
 
 #[test]
@@ -479,7 +479,10 @@ fn the_walk_has_the_requested_length_and_a_level_rest_reading() {
     let rows = simulate(&config);
     assert_eq!(rows.len(), 3000);
     let first_acc = rows[0].acc_mps2.unwrap_or_default();
-    assert!((first_acc.norm() - G_MPS2).abs() < 0.3, "{first_acc:?}");
+    assert!(
+        (first_acc.norm() - STANDARD_GRAVITY_MPS2).abs() < 0.3,
+        "{first_acc:?}"
+    );
     assert!(
         first_acc.z < -9.0,
         "a nearly level device reads z ≈ −g: {first_acc:?}"
