@@ -43,8 +43,8 @@ use super::tilt::smooth_specific_force;
 use crate::recording::{GnssFix, Stream};
 
 /// Standard gravity (m/s²), the magnitude given to the estimated specific force
-/// (CGPM 1901; only the direction matters to the tilt).
-pub const STANDARD_GRAVITY_MPS2: f64 = 9.80665;
+/// (CGPM 1901; only the direction matters to the tilt): `io`'s one constant.
+pub use crate::io::STANDARD_GRAVITY_MPS2;
 
 /// The gyroscope's rate is not interpolated across gaps longer than this (s).
 const MAX_GYRO_GAP_S: f64 = 0.5;

@@ -146,7 +146,7 @@ mod tests {
     use super::*;
     use nalgebra::Rotation3;
 
-    const G_MPS2: f64 = 9.81;
+    use crate::io::STANDARD_GRAVITY_MPS2;
 
     /// The body-to-NED rotation for yaw, pitch, roll.
     fn ned_from_body(yaw_rad: f64, pitch_rad: f64, roll_rad: f64) -> Rotation3<f64> {
@@ -164,7 +164,7 @@ mod tests {
         ] {
             let (roll_rad, pitch_rad) = (f64::to_radians(roll_deg), f64::to_radians(pitch_deg));
             let body_from_ned = ned_from_body(1.0, pitch_rad, roll_rad).inverse();
-            let f_in_body = body_from_ned * Vector3::new(0.0, 0.0, -G_MPS2);
+            let f_in_body = body_from_ned * Vector3::new(0.0, 0.0, -STANDARD_GRAVITY_MPS2);
             let tilt = Tilt::from_specific_force(f_in_body).expect("gravity is large enough");
             assert!((tilt.roll_rad - roll_rad).abs() < 1e-9, "roll {roll_deg}");
             assert!(
@@ -183,8 +183,10 @@ mod tests {
         for &(roll_deg, pitch_deg) in &[(0.0, 0.0), (15.0, -10.0), (-40.0, 25.0)] {
             let (roll_rad, pitch_rad) = (f64::to_radians(roll_deg), f64::to_radians(pitch_deg));
             let body_from_ned = ned_from_body(yaw_rad, pitch_rad, roll_rad).inverse();
-            let tilt = Tilt::from_specific_force(body_from_ned * Vector3::new(0.0, 0.0, -G_MPS2))
-                .expect("tilt");
+            let tilt = Tilt::from_specific_force(
+                body_from_ned * Vector3::new(0.0, 0.0, -STANDARD_GRAVITY_MPS2),
+            )
+            .expect("tilt");
             let level_ut = tilt.level(body_from_ned * field_in_ned_ut);
             assert!(
                 (level_ut - expect).norm() < 1e-9,
@@ -209,11 +211,17 @@ mod tests {
             let t_s = sample_idx as f64 * 0.01;
             // A 2 Hz bounce: a 1 s window holds whole periods.
             let bounce_mps2 = 2.0 * (std::f64::consts::TAU * 2.0 * t_s).sin();
-            acc.push(t_s, Vector3::new(0.0, 0.0, -G_MPS2 + bounce_mps2));
+            acc.push(
+                t_s,
+                Vector3::new(0.0, 0.0, -STANDARD_GRAVITY_MPS2 + bounce_mps2),
+            );
         }
         let smoothed = smooth_specific_force(&acc, 1.0);
         assert_eq!(smoothed.len(), acc.len());
         let middle = smoothed.values[250];
-        assert!((middle.z + G_MPS2).abs() < 0.05, "{middle:?}");
+        assert!(
+            (middle.z + STANDARD_GRAVITY_MPS2).abs() < 0.05,
+            "{middle:?}"
+        );
     }
 }

@@ -77,14 +77,16 @@ impl PhoneMount {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::io::STANDARD_GRAVITY_MPS2;
 
     #[test]
     fn gravity_reads_down_in_body_axes_for_both_mounts() {
         // At rest the specific force points up: +z (device) when flat, +y when upright.
-        let flat = PhoneMount::Flat.device_to_body(Vector3::new(0.0, 0.0, 9.81));
-        let upright = PhoneMount::Upright.device_to_body(Vector3::new(0.0, 9.81, 0.0));
-        assert_eq!(flat, Vector3::new(0.0, 0.0, -9.81));
-        assert_eq!(upright, Vector3::new(0.0, 0.0, -9.81));
+        let flat = PhoneMount::Flat.device_to_body(Vector3::new(0.0, 0.0, STANDARD_GRAVITY_MPS2));
+        let upright =
+            PhoneMount::Upright.device_to_body(Vector3::new(0.0, STANDARD_GRAVITY_MPS2, 0.0));
+        assert_eq!(flat, Vector3::new(0.0, 0.0, -STANDARD_GRAVITY_MPS2));
+        assert_eq!(upright, Vector3::new(0.0, 0.0, -STANDARD_GRAVITY_MPS2));
     }
 
     #[test]

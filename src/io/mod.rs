@@ -35,8 +35,9 @@ pub const MAX_DIAGNOSTICS_KEPT: usize = 200;
 /// their own.
 const MAX_LINE_BYTES: usize = 64 * 1024;
 
-/// Standard gravity (CGPM 1901), for accelerometers that report in g.
-const STANDARD_GRAVITY_MPS2: f64 = 9.806_65;
+/// Standard gravity (CGPM 1901, m/s²): for accelerometers that report in g, and the
+/// crate's one value of g (the tilt's, the simulators').
+pub const STANDARD_GRAVITY_MPS2: f64 = 9.806_65;
 
 /// A line that was skipped or is suspect.
 #[derive(Debug, Clone, PartialEq, Serialize)]

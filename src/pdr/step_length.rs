@@ -311,6 +311,7 @@ pub fn fit_weinberg_to_distance(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::io::STANDARD_GRAVITY_MPS2;
     use crate::sim::rng::SplitMix64;
 
     fn step_with(frequency_hz: f64, variance: f64, peak_to_peak: f64) -> Step {
@@ -320,8 +321,8 @@ mod tests {
             t_peak_s: 0.1,
             frequency_hz,
             variance_mps2_sq: variance,
-            a_max_mps2: 9.81 + peak_to_peak / 2.0,
-            a_min_mps2: 9.81 - peak_to_peak / 2.0,
+            a_max_mps2: STANDARD_GRAVITY_MPS2 + peak_to_peak / 2.0,
+            a_min_mps2: STANDARD_GRAVITY_MPS2 - peak_to_peak / 2.0,
             ends_bout: false,
         }
     }

@@ -299,6 +299,7 @@ fn centred_moving_mean(t_s: &[f64], values: &[f64], window_s: f64) -> Vec<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::io::STANDARD_GRAVITY_MPS2;
 
     /// A walk of `n_steps` bounces at `freq_hz` with `amp` (m/s²), sampled at `rate_hz`,
     /// with a second of rest before and after.
@@ -316,7 +317,7 @@ mod tests {
                 0.0
             };
             // The phone held flat: gravity on z, the bounce along it.
-            stream.push(t, Vector3::new(0.1, -0.2, -9.81 - bounce));
+            stream.push(t, Vector3::new(0.1, -0.2, -STANDARD_GRAVITY_MPS2 - bounce));
         }
         stream
     }
@@ -352,7 +353,10 @@ mod tests {
         let mut rng = crate::sim::rng::SplitMix64::new(3);
         for idx in 0..3000 {
             let noise = Vector3::new(rng.gaussian(), rng.gaussian(), rng.gaussian()) * 0.05;
-            stream.push(idx as f64 / 50.0, Vector3::new(0.0, 0.0, -9.81) + noise);
+            stream.push(
+                idx as f64 / 50.0,
+                Vector3::new(0.0, 0.0, -STANDARD_GRAVITY_MPS2) + noise,
+            );
         }
         assert!(detect_steps(&stream, &StepOptions::default())
             .steps

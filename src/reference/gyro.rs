@@ -325,6 +325,8 @@ mod tests {
     use super::*;
     use nalgebra::Vector3;
 
+    use crate::io::STANDARD_GRAVITY_MPS2;
+
     /// A level device turning at `rate_radps` about the vertical, with a gyro bias.
     fn turning(duration_s: f64, rate_radps: f64, bias_radps: f64) -> Recording {
         let mut recording = Recording::default();
@@ -336,7 +338,7 @@ mod tests {
                 .push(t_s, Vector3::new(0.0, 0.0, rate_radps + bias_radps));
             recording
                 .acc_in_body_mps2
-                .push(t_s, Vector3::new(0.0, 0.0, -9.81));
+                .push(t_s, Vector3::new(0.0, 0.0, -STANDARD_GRAVITY_MPS2));
         }
         recording
     }
@@ -390,7 +392,7 @@ mod tests {
             let bounce = 2.0 * (std::f64::consts::TAU * 2.0 * t_s).sin();
             recording
                 .acc_in_body_mps2
-                .push(t_s, Vector3::new(0.0, 0.0, -9.81 + bounce));
+                .push(t_s, Vector3::new(0.0, 0.0, -STANDARD_GRAVITY_MPS2 + bounce));
         }
         let gyro = gyro_heading(&recording, 1.0, None, true).expect("gyro");
         let GyroAlignment::ClosedLoop {

@@ -17,9 +17,8 @@ use serde::Serialize;
 
 use super::field::FieldTruth;
 use super::rng::SplitMix64;
-
-/// Standard gravity, as the importer reads MotionCal counts.
-const G_MPS2: f64 = 9.80665;
+// Standard gravity, as the importer reads MotionCal counts.
+use crate::io::STANDARD_GRAVITY_MPS2;
 
 /// A dance and the board that dances it.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -100,7 +99,7 @@ pub fn motioncal_raw_lines(config: &DanceConfig) -> (String, DanceTruth) {
         let noise = Vector3::new(rng.gaussian(), rng.gaussian(), rng.gaussian()) * truth.noise_ut;
         let mag_ut = truth.soft_iron * field + truth.hard_iron_ut + noise;
         // Specific force: up (−g in NED's down axis) in the sensor's axes.
-        let acc_mps2 = sensor_from_ned * Vector3::new(0.0, 0.0, -G_MPS2);
+        let acc_mps2 = sensor_from_ned * Vector3::new(0.0, 0.0, -STANDARD_GRAVITY_MPS2);
         // Rate of turn at the line's time: the change of attitude over one line centred
         // on it (a gyroscope samples the rate when the accelerometer samples gravity).
         let before = attitude(config, t_s - dt_s / 2.0);
@@ -112,9 +111,9 @@ pub fn motioncal_raw_lines(config: &DanceConfig) -> (String, DanceTruth) {
             &mut text,
             format_args!(
                 "Raw:{},{},{},{},{},{},{},{},{}\r\n",
-                counts(acc_mps2.x, 8192.0 / G_MPS2),
-                counts(acc_mps2.y, 8192.0 / G_MPS2),
-                counts(acc_mps2.z, 8192.0 / G_MPS2),
+                counts(acc_mps2.x, 8192.0 / STANDARD_GRAVITY_MPS2),
+                counts(acc_mps2.y, 8192.0 / STANDARD_GRAVITY_MPS2),
+                counts(acc_mps2.z, 8192.0 / STANDARD_GRAVITY_MPS2),
                 counts(rate_dps.x, 16.0),
                 counts(rate_dps.y, 16.0),
                 counts(rate_dps.z, 16.0),

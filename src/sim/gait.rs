@@ -37,7 +37,7 @@
 //! Limits: the truth position moves at the speed above; the surge is zero-mean over
 //! each step and is not integrated into it (it would move the walker by a centimetre
 //! within a step and not at all over a whole one). There is no lateral acceleration;
-//! the hand's sway is simulated in `walk.rs`. Step frequencies are kept within
+//! the hand's sway is simulated in `walk/`. Step frequencies are kept within
 //! 0.5-4 Hz whatever the configuration says.
 
 use std::f64::consts::{PI, TAU};
