@@ -23,20 +23,26 @@ use serde::Serialize;
 use crate::analysis::AnalysisError;
 use crate::angle::heading_difference_rad;
 use crate::calib::heading::heading_rad;
-use crate::calib::inertial::{FieldPrior, InertialFit, InertialOptions};
+use crate::calib::inertial::InertialFit;
 use crate::calib::minmax::MinMaxCalibration;
 use crate::calib::model::FieldCalibration;
-use crate::calib::plane::{PlaneFit, PlaneOptions};
+use crate::calib::plane::PlaneFit;
 use crate::calib::refls::RefLsFit;
 use crate::calib::tilt::Tilt;
-use crate::calib::wmm::{date_of_unix_s, expected_field, CalendarDate, ExpectedField};
+use crate::calib::wmm::ExpectedField;
 use crate::io::{Diagnostics, ImportReport, SensorFrame};
 use crate::recording::Recording;
 use crate::reference::{choose_reference, ReferenceOptions, ReferenceSource};
 use crate::selection::{choose_by_reference, choose_without_reference, Choice, Scored, RAW_KEY};
 use crate::stats::HeadingErrorStats;
 
+mod context;
 mod methods;
+
+pub use context::{expected_field_of, inertial_options, plane_options};
+use context::{
+    conditions, declination_used, field_and_reference_notes, split, turn_onto_raw_heading, Split,
+};
 use methods::{fit_ellipse, fit_ellipsoid, fit_min_max, fit_ref_ls, MethodInputs, MethodOutputs};
 
 /// A calibration method.
@@ -275,6 +281,180 @@ impl CalibrationAnalysis {
     }
 }
 
+/// What every method of one log stands on: the tilted samples, the reference at each,
+/// the declination, the expected field, the split and the levelled field.
+struct Prepared {
+    samples: crate::analysis::TiltedSamples,
+    reference: Option<crate::reference::Reference>,
+    ref_heading_rad: Vec<Option<f64>>,
+    expected: Option<ExpectedField>,
+    declination: DeclinationUsed,
+    split: Split,
+    level_raw_ut: Vec<Vector2<f64>>,
+    raw_heading_rad: Vec<f64>,
+}
+
+impl Prepared {
+    /// The heading error statistics on the train part (`true`) or the check part.
+    fn stats(&self, headings_rad: &[f64], want_train: bool) -> Option<HeadingErrorStats> {
+        HeadingErrorStats::from_errors_rad(
+            headings_rad
+                .iter()
+                .zip(&self.ref_heading_rad)
+                .zip(&self.split.is_train)
+                .filter_map(|((&heading_rad, &reference_rad), &train)| {
+                    (train == want_train)
+                        .then_some(heading_difference_rad(heading_rad, reference_rad?))
+                }),
+        )
+    }
+}
+
+/// The values at the samples `keep` marks.
+fn kept<T: Copy>(values: &[T], keep: &[bool]) -> Vec<T> {
+    values
+        .iter()
+        .zip(keep)
+        .filter(|(_, &keep)| keep)
+        .map(|(value, _)| *value)
+        .collect()
+}
+
+/// Tilts the samples, finds the reference and the declination, splits the log and
+/// levels the field.
+fn prepare(
+    file_name: &str,
+    recording: &Recording,
+    import: (Option<&crate::io::HeaderInfo>, &Diagnostics, usize),
+    options: &CalibrationOptions,
+    notes: &mut Vec<String>,
+) -> Result<Prepared, AnalysisError> {
+    let (header, diagnostics, n_data_lines) = import;
+    let samples = crate::analysis::tilted_samples(
+        file_name,
+        recording,
+        header,
+        diagnostics,
+        n_data_lines,
+        options.gravity_window_s,
+    )?;
+    notes.extend(samples.notes.iter().cloned());
+    let reference_options = ReferenceOptions {
+        gravity_window_s: options.gravity_window_s,
+        ..options.reference
+    };
+    let reference = choose_reference(recording, &reference_options);
+    let mut ref_heading_rad: Vec<Option<f64>> = samples
+        .t_s
+        .iter()
+        .map(|&t_s| {
+            reference.as_ref().and_then(|reference| {
+                reference
+                    .heading_rad
+                    .interpolate_angle_at(t_s, reference.max_gap_s)
+            })
+        })
+        .collect();
+    let expected = expected_field_of(recording, options.position_deg, notes);
+    let declination = declination_used(
+        options.declination,
+        expected.as_ref(),
+        reference.as_ref().map(|reference| reference.source),
+        notes,
+    );
+    let split = split(&samples.t_s, &ref_heading_rad, options.train_until_s, notes);
+    let level_raw_ut: Vec<Vector2<f64>> = samples
+        .mag_ut
+        .iter()
+        .zip(&samples.tilt)
+        .map(|(&mag, tilt)| tilt.level(mag))
+        .collect();
+    let declination_rad = declination.declination_deg.to_radians();
+    let raw_heading_rad: Vec<f64> = level_raw_ut
+        .iter()
+        .map(|&level| heading_rad(level, declination_rad))
+        .collect();
+    if let Some(reference) = reference
+        .as_ref()
+        .filter(|reference| !reference.source.is_absolute())
+    {
+        notes.push(turn_onto_raw_heading(
+            reference.source,
+            &raw_heading_rad,
+            &mut ref_heading_rad,
+        ));
+    }
+    Ok(Prepared {
+        samples,
+        reference,
+        ref_heading_rad,
+        expected,
+        declination,
+        split,
+        level_raw_ut,
+        raw_heading_rad,
+    })
+}
+
+/// Each method fitted on the train part and scored on both: its report, and its heading
+/// at every sample (degrees) where it was fitted.
+fn run_methods(
+    methods: &[Method],
+    prepared: &Prepared,
+    mag_frame: Option<&SensorFrame>,
+    outputs: &mut MethodOutputs,
+) -> (Vec<MethodReport>, Vec<(Method, Vec<f64>)>) {
+    let is_fit = &prepared.split.is_fit;
+    let (samples, level_raw_ut) = (&prepared.samples, &prepared.level_raw_ut);
+    let (mag_train, tilt_train, level_train) = (
+        kept(&samples.mag_ut, is_fit),
+        kept(&samples.tilt, is_fit),
+        kept(level_raw_ut, is_fit),
+    );
+    let inputs = MethodInputs {
+        samples,
+        level_raw_ut,
+        level_train: &level_train,
+        mag_train: &mag_train,
+        tilt_train: &tilt_train,
+        ref_heading_rad: &prepared.ref_heading_rad,
+        is_fit,
+        declination_rad: prepared.declination.declination_deg.to_radians(),
+        expected: prepared.expected.as_ref(),
+        mag_frame,
+    };
+    let mut method_reports = Vec::new();
+    let mut headings_deg = Vec::new();
+    for &method in methods {
+        let fitted = match method {
+            Method::MinMax => fit_min_max(&inputs, outputs),
+            Method::Ellipse => fit_ellipse(&inputs, outputs),
+            Method::Ellipsoid => fit_ellipsoid(&inputs, outputs),
+            Method::RefLs => fit_ref_ls(&inputs, outputs, &method_reports),
+        };
+        let (parameters, error, train, check) = match fitted {
+            Ok((parameters, headings_rad)) => {
+                let scores = (
+                    prepared.stats(&headings_rad, true),
+                    prepared.stats(&headings_rad, false),
+                );
+                headings_deg.push((method, headings_rad.iter().map(|h| h.to_degrees()).collect()));
+                (Some(parameters), None, scores.0, scores.1)
+            }
+            Err(reason) => (None, Some(reason), None, None),
+        };
+        method_reports.push(MethodReport {
+            method,
+            label: method.label(),
+            parameters,
+            error,
+            heading_error_train: train,
+            heading_error_check: check,
+        });
+    }
+    (method_reports, headings_deg)
+}
+
 /// Runs the chosen methods on an imported log.
 pub fn calibrate(
     report: ImportReport,
@@ -287,173 +467,18 @@ pub fn calibrate(
         diagnostics,
         header,
         n_data_lines,
-        notes: import_notes,
+        mut notes,
         mag_frame,
     } = report;
-    let mut notes: Vec<String> = import_notes;
-    let samples = crate::analysis::tilted_samples(
-        &file_name,
-        &recording,
-        header.as_ref(),
-        &diagnostics,
-        n_data_lines,
-        options.gravity_window_s,
-    )?;
-    notes.extend(samples.notes.iter().cloned());
-
-    // Reference and declination.
-    let reference_options = ReferenceOptions {
-        gravity_window_s: options.gravity_window_s,
-        ..options.reference
-    };
-    let reference = choose_reference(&recording, &reference_options);
-    let ref_heading_rad: Vec<Option<f64>> = samples
-        .t_s
-        .iter()
-        .map(|&t_s| {
-            reference.as_ref().and_then(|reference| {
-                reference
-                    .heading_rad
-                    .interpolate_angle_at(t_s, reference.max_gap_s)
-            })
-        })
-        .collect();
-    let expected = expected_field_of(&recording, options.position_deg, &mut notes);
-    let declination = declination_used(
-        options.declination,
-        expected.as_ref(),
-        reference.as_ref().map(|reference| reference.source),
-        &mut notes,
-    );
-    let declination_rad = declination.declination_deg.to_radians();
-
-    // The train/check split.
-    let Split {
-        train_until_s,
-        is_train,
-        is_fit,
-        n_train,
-        n_check,
-    } = split(
-        &samples.t_s,
-        &ref_heading_rad,
-        options.train_until_s,
-        &mut notes,
-    );
-    let train = |values: &[Vector3<f64>]| -> Vec<Vector3<f64>> {
-        values
-            .iter()
-            .zip(&is_fit)
-            .filter(|(_, &train)| train)
-            .map(|(value, _)| *value)
-            .collect()
-    };
-    let mag_train = train(&samples.mag_ut);
-    let tilt_train: Vec<Tilt> = samples
-        .tilt
-        .iter()
-        .zip(&is_fit)
-        .filter(|(_, &train)| train)
-        .map(|(tilt, _)| *tilt)
-        .collect();
-    let level_raw_ut: Vec<Vector2<f64>> = samples
-        .mag_ut
-        .iter()
-        .zip(&samples.tilt)
-        .map(|(&mag, tilt)| tilt.level(mag))
-        .collect();
-    let level_train: Vec<Vector2<f64>> = level_raw_ut
-        .iter()
-        .zip(&is_fit)
-        .filter(|(_, &train)| train)
-        .map(|(level, _)| *level)
-        .collect();
-
-    let raw_heading_rad: Vec<f64> = level_raw_ut
-        .iter()
-        .map(|&level| heading_rad(level, declination_rad))
-        .collect();
-    let mut ref_heading_rad = ref_heading_rad;
-    if let Some(reference) = reference
-        .as_ref()
-        .filter(|reference| !reference.source.is_absolute())
-    {
-        notes.push(turn_onto_raw_heading(
-            reference.source,
-            &raw_heading_rad,
-            &mut ref_heading_rad,
-        ));
-    }
-
-    // Heading-error statistics on each part.
-    let stats_of = |headings_rad: &[f64], want_train: bool| {
-        HeadingErrorStats::from_errors_rad(
-            headings_rad
-                .iter()
-                .zip(&ref_heading_rad)
-                .zip(&is_train)
-                .filter_map(|((&heading_rad, &reference_rad), &train)| {
-                    (train == want_train)
-                        .then_some(heading_difference_rad(heading_rad, reference_rad?))
-                }),
-        )
-    };
-
-    let mut method_reports = Vec::new();
-    let mut headings_deg = Vec::new();
-    let inputs = MethodInputs {
-        samples: &samples,
-        level_raw_ut: &level_raw_ut,
-        level_train: &level_train,
-        mag_train: &mag_train,
-        tilt_train: &tilt_train,
-        ref_heading_rad: &ref_heading_rad,
-        is_fit: &is_fit,
-        declination_rad,
-        expected: expected.as_ref(),
-        mag_frame: mag_frame.as_ref(),
-    };
+    let import = (header.as_ref(), &diagnostics, n_data_lines);
+    let prepared = prepare(&file_name, &recording, import, options, &mut notes)?;
     let mut outputs = MethodOutputs {
         plane_correction: None,
         field_corrected_ut: None,
         notes: &mut notes,
     };
-    for &method in &options.methods {
-        let fitted = match method {
-            Method::MinMax => fit_min_max(&inputs, &mut outputs),
-            Method::Ellipse => fit_ellipse(&inputs, &mut outputs),
-            Method::Ellipsoid => fit_ellipsoid(&inputs, &mut outputs),
-            Method::RefLs => fit_ref_ls(&inputs, &mut outputs, &method_reports),
-        };
-        match fitted {
-            Ok((parameters, headings_rad)) => {
-                method_reports.push(MethodReport {
-                    method,
-                    label: method.label(),
-                    parameters: Some(parameters),
-                    error: None,
-                    heading_error_train: stats_of(&headings_rad, true),
-                    heading_error_check: stats_of(&headings_rad, false),
-                });
-                headings_deg.push((
-                    method,
-                    headings_rad
-                        .iter()
-                        .map(|heading| heading.to_degrees())
-                        .collect(),
-                ));
-            }
-            Err(reason) => method_reports.push(MethodReport {
-                method,
-                label: method.label(),
-                parameters: None,
-                error: Some(reason),
-                heading_error_train: None,
-                heading_error_check: None,
-            }),
-        }
-    }
-
+    let (method_reports, headings_deg) =
+        run_methods(&options.methods, &prepared, mag_frame.as_ref(), &mut outputs);
     let MethodOutputs {
         plane_correction,
         field_corrected_ut,
@@ -469,10 +494,20 @@ pub fn calibrate(
             reasons: reasons.join(" "),
         });
     }
-    let raw_train = stats_of(&raw_heading_rad, true);
-    let raw_check = stats_of(&raw_heading_rad, false);
+    let raw_train = prepared.stats(&prepared.raw_heading_rad, true);
+    let raw_check = prepared.stats(&prepared.raw_heading_rad, false);
     let scored = scored_methods(raw_train, raw_check, &method_reports);
     let by_reference = choose_by_reference(&scored);
+    let Prepared {
+        samples,
+        reference,
+        ref_heading_rad,
+        expected,
+        declination,
+        split,
+        level_raw_ut,
+        raw_heading_rad,
+    } = prepared;
     let field_raw_ut: Vec<f64> = samples.mag_ut.iter().map(|mag| mag.norm()).collect();
     let (temp_c, gyro_heading_deg) = conditions(&recording, &samples.t_s, options.gravity_window_s);
     let mean_raw_field_ut = field_raw_ut.iter().sum::<f64>() / field_raw_ut.len().max(1) as f64;
@@ -489,9 +524,9 @@ pub fn calibrate(
             format,
             n_mag_samples: recording.mag_in_body_ut.len(),
             n_samples_used: samples.t_s.len(),
-            n_train,
-            n_check,
-            train_until_s,
+            n_train: split.n_train,
+            n_check: split.n_check,
+            train_until_s: split.train_until_s,
             reference: reference.map(|reference| reference.source),
             declination,
             expected_field: expected,
@@ -557,274 +592,6 @@ fn scored_methods(
         check_rms_deg: report.heading_error_check.map(|stats| stats.rms_deg),
     }));
     scored
-}
-
-/// The temperature and the gyro's heading at each sample, where the log has them: the
-/// conditions the neural heading model takes as inputs.
-fn conditions(
-    recording: &Recording,
-    t_s: &[f64],
-    gravity_window_s: f64,
-) -> (Vec<Option<f64>>, Vec<Option<f64>>) {
-    let temp_c: Vec<Option<f64>> = t_s
-        .iter()
-        .map(|&t_s| recording.temp_c.interpolate_at(t_s, MAX_CONDITION_GAP_S))
-        .collect();
-    let gyro = crate::reference::gyro::gyro_heading(recording, gravity_window_s, None, false);
-    let gyro_heading_deg: Vec<Option<f64>> = t_s
-        .iter()
-        .map(|&t_s| {
-            gyro.as_ref()
-                .and_then(|gyro| {
-                    gyro.heading_rad
-                        .interpolate_angle_at(t_s, MAX_CONDITION_GAP_S)
-                })
-                .map(f64::to_degrees)
-        })
-        .collect();
-    (temp_c, gyro_heading_deg)
-}
-
-/// What the user should know about the raw field's size and a missing reference.
-fn field_and_reference_notes(
-    mean_raw_field_ut: f64,
-    expected: Option<&ExpectedField>,
-    has_reference: bool,
-) -> Vec<String> {
-    let mut notes = Vec::new();
-    if let Some(expected) = expected {
-        let ratio = mean_raw_field_ut / expected.total_ut;
-        if !(1.0 / FIELD_RATIO_WARNING..=FIELD_RATIO_WARNING).contains(&ratio) {
-            notes.push(format!(
-                "the raw field averages {mean_raw_field_ut:.1} µT where {:.1} µT is expected: wrong units, or a magnet \
-                 or iron close to the sensor",
-                expected.total_ut
-            ));
-        }
-    }
-    if !has_reference {
-        notes.push(
-            "the log has no reference heading (a ref_heading_deg column, or GPS course while moving), so heading \
-             errors cannot be computed"
-                .to_string(),
-        );
-    }
-    notes
-}
-
-/// A relative reference (a gyro heading that does not know north) turned onto the raw
-/// compass heading's circular mean: the methods are then compared on the shape of their
-/// heading, not on a constant offset that nothing here can observe. The note says so.
-fn turn_onto_raw_heading(
-    source: ReferenceSource,
-    raw_heading_rad: &[f64],
-    ref_heading_rad: &mut [Option<f64>],
-) -> String {
-    let (sum_sin, sum_cos) = raw_heading_rad
-        .iter()
-        .zip(ref_heading_rad.iter())
-        .filter_map(|(&raw_rad, &reference_rad)| Some(raw_rad - reference_rad?))
-        .fold((0.0, 0.0), |(sum_sin, sum_cos), offset_rad| {
-            (sum_sin + offset_rad.sin(), sum_cos + offset_rad.cos())
-        });
-    let offset_rad = sum_sin.atan2(sum_cos);
-    for reference_rad in ref_heading_rad.iter_mut().flatten() {
-        *reference_rad = crate::angle::wrap_to_2pi(*reference_rad + offset_rad);
-    }
-    format!(
-        "the reference ({}) does not know north, so it was turned by {:.1}° onto the raw compass heading's \
-         mean: constant offsets (declination, misalignment) cannot be judged against it",
-        source.label(),
-        offset_rad.to_degrees()
-    )
-}
-
-/// The declination the headings use: the user's, else the model's at the log's place and
-/// date, else 0° (with a note when the reference is absolute, so that it matters).
-fn declination_used(
-    choice: DeclinationChoice,
-    expected: Option<&ExpectedField>,
-    reference_source: Option<ReferenceSource>,
-    notes: &mut Vec<String>,
-) -> DeclinationUsed {
-    match (choice, expected) {
-        (DeclinationChoice::Degrees(declination_deg), _) => DeclinationUsed {
-            declination_deg,
-            source: "given by the user".to_string(),
-        },
-        (DeclinationChoice::Auto, Some(expected)) => DeclinationUsed {
-            declination_deg: expected.declination_deg,
-            source: format!(
-                "{} on {} at the log's first position",
-                expected.model, expected.model_date
-            ),
-        },
-        (DeclinationChoice::Auto, None) => {
-            if reference_source.is_some_and(|source| source != ReferenceSource::Column) {
-                notes.push(
-                    "no position and date for the magnetic model, so the declination is taken as 0°; give \
-                     --declination DEG for true headings"
-                        .to_string(),
-                );
-            }
-            DeclinationUsed {
-                declination_deg: 0.0,
-                source: "none known (0°)".to_string(),
-            }
-        }
-    }
-}
-
-/// The train/check split and the train samples the fits see.
-struct Split {
-    train_until_s: Option<f64>,
-    is_train: Vec<bool>,
-    is_fit: Vec<bool>,
-    n_train: usize,
-    n_check: usize,
-}
-
-/// Train up to `train_until_s` (given, else the middle of the referenced samples), check
-/// after; the fits see at most [`MAX_FIT_SAMPLES`] of the train samples.
-fn split(
-    t_s: &[f64],
-    ref_heading_rad: &[Option<f64>],
-    train_until_s: Option<f64>,
-    notes: &mut Vec<String>,
-) -> Split {
-    let train_until_s = train_until_s.or_else(|| {
-        let referenced: Vec<f64> = t_s
-            .iter()
-            .zip(ref_heading_rad)
-            .filter(|(_, reference)| reference.is_some())
-            .map(|(&t_s, _)| t_s)
-            .collect();
-        // Half of the referenced samples on each side: a sparse tail of reference (a
-        // few fixes at the end of a drive) does not move the split.
-        let middle = referenced.len() / 2;
-        match (
-            referenced.first(),
-            referenced.get(middle),
-            referenced.last(),
-        ) {
-            (Some(first_s), Some(&middle_s), Some(last_s)) if last_s > first_s => Some(middle_s),
-            _ => None,
-        }
-    });
-    let is_train: Vec<bool> = t_s
-        .iter()
-        .map(|&t_s| train_until_s.is_none_or(|until_s| t_s <= until_s))
-        .collect();
-    let n_train = is_train.iter().filter(|&&train| train).count();
-    let n_check = is_train.len() - n_train;
-    // The fits see at most MAX_FIT_SAMPLES of the train samples, evenly spread: more add
-    // little to parameters fitted from thousands of samples, and cost the page seconds.
-    let fit_stride = n_train.div_ceil(MAX_FIT_SAMPLES).max(1);
-    let mut n_train_seen = 0usize;
-    let is_fit: Vec<bool> = is_train
-        .iter()
-        .map(|&train| {
-            let fit = train && n_train_seen.is_multiple_of(fit_stride);
-            n_train_seen += usize::from(train);
-            fit
-        })
-        .collect();
-    if fit_stride > 1 {
-        notes.push(format!(
-            "the methods were fitted to every {fit_stride}th train sample ({} of {n_train})",
-            n_train.div_ceil(fit_stride)
-        ));
-    }
-    Split {
-        train_until_s,
-        is_train,
-        is_fit,
-        n_train,
-        n_check,
-    }
-}
-
-/// What [`calibrate`] tells the tilt-aware ellipse fit: the model's dip at the log's place.
-pub fn plane_options(expected: Option<&ExpectedField>) -> PlaneOptions {
-    PlaneOptions {
-        inclination_deg: expected.map(|expected| expected.inclination_deg),
-        ..PlaneOptions::default()
-    }
-}
-
-/// What [`calibrate`] tells the 3D fit: the model's intensity and dip as priors, and
-/// whether the sensor's gain is known (values in µT, or converted to µT, come with the
-/// sensor's factory gains; raw counts do not).
-pub fn inertial_options(
-    expected: Option<&ExpectedField>,
-    mag_frame: Option<&SensorFrame>,
-) -> InertialOptions {
-    InertialOptions {
-        field: expected.map(|expected| FieldPrior {
-            total_ut: expected.total_ut,
-            inclination_deg: expected.inclination_deg,
-        }),
-        gain_known: mag_frame.is_none_or(|frame| frame.unit.ut_per_unit.is_some()),
-    }
-}
-
-/// The day the model is evaluated on when the log has a position but no date: the
-/// current model's epoch (WMM2025). The field changes by well under 1° and 1 % in the
-/// five years a model covers, less than a compass's other errors.
-const MODEL_EPOCH_WITHOUT_DATE: CalendarDate = CalendarDate {
-    year: 2025,
-    month: 1,
-    day: 1,
-};
-
-/// The expected field at the log's first position (the user's, else the first GNSS fix,
-/// else the first reference position given as latitude and longitude) and date (the
-/// model's epoch when the log has none, with a note), with a note when the model warns:
-/// what [`calibrate`] gives the fits as priors (public for the fit benchmark, which feeds
-/// the fits as `calibrate` does).
-pub fn expected_field_of(
-    recording: &Recording,
-    position_deg: Option<(f64, f64)>,
-    notes: &mut Vec<String>,
-) -> Option<ExpectedField> {
-    let given = position_deg.map(|(lat_deg, lon_deg)| (lat_deg, lon_deg, 0.0));
-    let position = given
-        .or_else(|| {
-            recording
-                .gnss
-                .values
-                .iter()
-                .find_map(|fix| Some((fix.lat_deg?, fix.lon_deg?, fix.alt_m.unwrap_or(0.0))))
-        })
-        .or_else(|| {
-            recording
-                .ref_position_lat_lon_deg
-                .values
-                .first()
-                .map(|lat_lon| (lat_lon.x, lat_lon.y, 0.0))
-        });
-    let (lat_deg, lon_deg, alt_m) = position?;
-    let date = match recording.start_unix_s.and_then(date_of_unix_s) {
-        Some(date) => date,
-        None => {
-            notes.push(format!(
-                "the log gives a position but no date: the magnetic model was evaluated at \
-                 its epoch, {MODEL_EPOCH_WITHOUT_DATE}; the field changes by well under 1° and \
-                 1 % in five years"
-            ));
-            MODEL_EPOCH_WITHOUT_DATE
-        }
-    };
-    match expected_field(lat_deg, lon_deg, alt_m, date) {
-        Ok(expected) => {
-            notes.extend(expected.warnings.iter().map(ToString::to_string));
-            Some(expected)
-        }
-        Err(error) => {
-            notes.push(format!("no magnetic model value: {error}"));
-            None
-        }
-    }
 }
 
 #[cfg(test)]
