@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The accuracy report (issue 8): heading and PDR accuracy on the simulator's scenarios and
+# The accuracy report: heading and PDR accuracy on the simulator's scenarios and
 # on the real recordings in ../shared/data, beside the papers' numbers. Writes
 # docs/ACCURACY.md (benches/accuracy.rs). Takes about a minute; not part of ./test.
 #

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The fits on real logs (issue 16) in one go: the ellipse (tilt-aware level-plane) and
+# The fits on real logs in one go: the ellipse (tilt-aware level-plane) and
 # 3D (calib::inertial) fits on 10⁴ samples of each real recording in ../shared/data, of
 # the simulator's demo walk and of the independent generator's circle walk, natively
 # (criterion, benches/fits.rs, which also writes the samples and the outcomes), and

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The MLP-training benchmark (issue 5) in one go: compass-pdr's L-BFGS training on
+# The MLP-training benchmark in one go: compass-pdr's L-BFGS training on
 # 10,000 samples (5 inputs, 15 logistic neurons) natively (criterion, benches/mlp.rs,
 # which also writes the samples), scikit-learn's MLPRegressor(solver="lbfgs") on the
 # same samples with the same architecture, loss and stopping rules (bench/mlp_peer.py),

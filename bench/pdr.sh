@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The PDR benchmark (issue 6) in one go: compass-pdr's [E, N, l, a] EKF in steps per
+# The PDR benchmark in one go: compass-pdr's [E, N, l, a] EKF in steps per
 # second natively (criterion, benches/pdr.rs, which also writes the inputs), the same
 # filter with filterpy's ExtendedKalmanFilter and as a plain numpy loop on the same steps
 # (bench/pdr_peer.py), and in WebAssembly in headless Chromium (bench/wasm/pdr.html);

@@ -1,4 +1,4 @@
-//! The accuracy report (issue 8): heading and PDR accuracy on the simulator's scenarios
+//! The accuracy report: heading and PDR accuracy on the simulator's scenarios
 //! and on the real recordings in `../shared/data`, laid out like the papers' tables with
 //! the papers' own numbers beside ours. Writes `docs/ACCURACY.md`.
 //!

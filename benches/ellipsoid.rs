@@ -1,4 +1,4 @@
-//! Ellipsoid-fit time (issue 4): `compass_pdr::calib::ellipsoid::fit_ellipsoid` on
+//! Ellipsoid-fit time: `compass_pdr::calib::ellipsoid::fit_ellipsoid` on
 //! 10³, 10⁴, 10⁵ and 10⁶ full-sphere magnetometer samples from the crate's simulator
 //! (`sim::field`, fixed seed), algebraic only (`refine: false`, what Magneto 1.2 and
 //! `bench/ellipsoid_peer.py` do) and with the Levenberg-Marquardt refinement. Run by

@@ -1,4 +1,4 @@
-//! MLP training time (issue 5): `compass_pdr::nn::train` with L-BFGS on 10,000 samples of
+//! MLP training time: `compass_pdr::nn::train` with L-BFGS on 10,000 samples of
 //! 5 inputs, 15 logistic hidden neurons, one linear output, beside scikit-learn's
 //! `MLPRegressor(solver="lbfgs")` (`bench/mlp_peer.py`) and the same training in
 //! WebAssembly (`bench/wasm/mlp.html`); `bench/mlp.sh` runs all three and prints a table.

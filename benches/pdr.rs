@@ -1,4 +1,4 @@
-//! PDR speed (issue 6): the `[E, N, l, a]` EKF's steps per second and the whole pipeline
+//! PDR speed: the `[E, N, l, a]` EKF's steps per second and the whole pipeline
 //! on a simulated hour, beside filterpy and a numpy loop (`bench/pdr_peer.py`) and the
 //! same work in WebAssembly (`bench/wasm/pdr.html`); `bench/pdr.sh` runs all of them and
 //! prints a table.
@@ -45,7 +45,7 @@ mod native {
     use criterion::{Criterion, SamplingMode, Throughput};
     use serde_json::json;
 
-    /// Issue 6.
+    /// The seed of the simulated PDR walk.
     const SEED: u64 = 6;
     const N_STEPS: usize = 1_000_000;
     /// Step counts after which the native state is recorded, for the peers (which run
@@ -148,7 +148,7 @@ mod native {
         json!({ "x": ekf.x, "p": ekf.p })
     }
 
-    /// The simulated walk: issue 6's PDR scenario (varied gait, the unified heading
+    /// The simulated walk: the PDR scenario (varied gait, the unified heading
     /// error, 3 m GNSS) for `duration_s` at 100 Hz, as canonical CSV.
     fn walk_csv(duration_s: f64) -> Vec<u8> {
         canonical_csv::write(&simulate(&WalkConfig::pdr_walk(SEED, duration_s, 100.0))).into_bytes()

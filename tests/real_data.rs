@@ -325,7 +325,7 @@ fn vehicle_heading_against_gps_course_on_a_check_period() {
         );
     }
     // Field-domain calibration takes the uncalibrated heading error down; the rest is
-    // the deviation a heading model (issue 5) addresses.
+    // the deviation a heading model addresses.
     let raw = report.raw_heading_error_check.expect("a reference").rms_deg;
     let best = report
         .methods

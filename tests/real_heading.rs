@@ -1,4 +1,4 @@
-//! Replay tests of the heading models (issue 5) on the real recordings in
+//! Replay tests of the heading models on the real recordings in
 //! `../shared/data`: the GPS-course comparison on the car log, the map-leg reference on
 //! the indoor walks, the closed-loop gyro reference on the hallway loop. Skipped, with a
 //! message, when `../shared/data` is absent.

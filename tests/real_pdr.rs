@@ -1,4 +1,4 @@
-//! Replay tests of pedestrian dead reckoning (issue 6) on the real recordings in
+//! Replay tests of pedestrian dead reckoning on the real recordings in
 //! `../shared/data`: the step count and loop closure of the hallway loop, and the error
 //! at the surveyed waypoints of the two indoor walks. Skipped, with a message, when
 //! `../shared/data` is absent.
@@ -109,7 +109,7 @@ fn indoor_walks_at_the_waypoints() {
         }
     }
     eprintln!("best RMS: {best:?}; gyro+device, K of the other walk, magnetic north: {chosen:?}");
-    // Issue 6: under 3 % of the path. One configuration does it on both walks: the gyro
+    // Under 3 % of the path. One configuration does it on both walks: the gyro
     // aligned to the phone's yaw, K from the other walk, and the plan's north taken as
     // magnetic (the README says why). The bounds hold what it reaches today.
     assert!(chosen["F1"] < 2.7, "{chosen:?}");

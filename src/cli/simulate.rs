@@ -25,7 +25,7 @@ pub(super) enum Scenario {
     /// (hard iron of 0.69 of the horizontal field, and a declination of −12° that the log
     /// does not reveal).
     Paper,
-    /// Issue 6's PDR walk: varied steps, unified-model compass error, 3 m GNSS noise.
+    /// The PDR walk: varied steps, unified-model compass error, 3 m GNSS noise.
     Pdr,
     /// A board's sphere "calibration dance", written as MotionCal `Raw:` lines (what a
     /// calibration sketch prints over the serial port), with an Eq. 5 distortion (hard

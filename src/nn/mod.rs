@@ -1,5 +1,5 @@
 //! A small neural network: a multilayer perceptron with one hidden layer, for the
-//! heading-deviation correction of issue 5 and the step-length model of issue 6.
+//! heading-deviation correction and the step-length model.
 //!
 //! Noureldin, Osman and El-Sheimy (2007), *Autocalibration and dynamic calibration of a
 //! 3-axis magnetometer with an ANN*, Sections 3 and 5: five inputs (raw heading, |H|, gyro

@@ -29,7 +29,7 @@ fn weinberg_k(analysis: &PdrAnalysis) -> f64 {
     }
 }
 
-/// Issue 6's simulator check: a 15-minute walk (varied gait, Weinberg-sized
+/// The simulator check: a 15-minute walk (varied gait, Weinberg-sized
 /// bounces, the unified heading error of up to ~18°, 3 m GNSS) with GNSS ignored from
 /// 4 to 14 minutes. The outage's RMS position error must stay under 1 % of the
 /// distance walked in it, and the step count within 1 % of the truth's.

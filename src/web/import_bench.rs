@@ -1,4 +1,4 @@
-//! The import benchmark's entry point (`bench/wasm/index.html`, issue 3): the file's bytes
+//! The import benchmark's entry point (`bench/wasm/index.html`): the file's bytes
 //! are copied into the module's memory once, then each run imports them there, as the
 //! native benchmark (`benches/import.rs`) imports bytes already in memory. The copy and
 //! the stream summaries are timed apart, by the page's `inspect_file`.

@@ -1,4 +1,4 @@
-//! The MLP benchmark's entry point (`bench/wasm/mlp.html`, issue 5): the same training as
+//! The MLP benchmark's entry point (`bench/wasm/mlp.html`): the same training as
 //! `benches/mlp.rs`, on samples the page fetched.
 
 use wasm_bindgen::prelude::*;

@@ -1,4 +1,4 @@
-//! The PDR benchmark's entry points (`bench/wasm/pdr.html`, issue 6): the EKF steps and
+//! The PDR benchmark's entry points (`bench/wasm/pdr.html`): the EKF steps and
 //! the whole pipeline of `benches/pdr.rs`, on inputs the page fetched.
 
 use wasm_bindgen::prelude::*;

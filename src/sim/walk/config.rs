@@ -384,7 +384,7 @@ impl WalkConfig {
             .unwrap_or(config)
     }
 
-    /// The PDR scenario of issue 6: the walk of [`WalkConfig::from_seed`] at
+    /// The PDR scenario: the walk of [`WalkConfig::from_seed`] at
     /// `sample_rate_hz` (50 or 100 Hz on phones), with the varied gait of
     /// [`GaitVariation::default`] and a GNSS receiver with 3 m noise (1 Hz fixes, 2°
     /// course noise, the speed with 0.05 m/s noise, a reported accuracy of 3 m).
