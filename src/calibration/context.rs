@@ -7,14 +7,13 @@
 use crate::calib::inertial::{FieldPrior, InertialOptions};
 use crate::calib::plane::PlaneOptions;
 use crate::calib::wmm::{date_of_unix_s, expected_field, CalendarDate, ExpectedField};
-use crate::recording::Recording;
 use crate::io::SensorFrame;
+use crate::recording::Recording;
 use crate::reference::ReferenceSource;
 
 use super::{
     DeclinationChoice, DeclinationUsed, FIELD_RATIO_WARNING, MAX_CONDITION_GAP_S, MAX_FIT_SAMPLES,
 };
-
 
 /// The temperature and the gyro's heading at each sample, where the log has them: the
 /// conditions the neural heading model takes as inputs.

@@ -39,10 +39,10 @@ use crate::stats::HeadingErrorStats;
 mod context;
 mod methods;
 
-pub use context::{expected_field_of, inertial_options, plane_options};
 use context::{
     conditions, declination_used, field_and_reference_notes, split, turn_onto_raw_heading, Split,
 };
+pub use context::{expected_field_of, inertial_options, plane_options};
 use methods::{fit_ellipse, fit_ellipsoid, fit_min_max, fit_ref_ls, MethodInputs, MethodOutputs};
 
 /// A calibration method.
@@ -438,7 +438,10 @@ fn run_methods(
                     prepared.stats(&headings_rad, true),
                     prepared.stats(&headings_rad, false),
                 );
-                headings_deg.push((method, headings_rad.iter().map(|h| h.to_degrees()).collect()));
+                headings_deg.push((
+                    method,
+                    headings_rad.iter().map(|h| h.to_degrees()).collect(),
+                ));
                 (Some(parameters), None, scores.0, scores.1)
             }
             Err(reason) => (None, Some(reason), None, None),
@@ -477,8 +480,12 @@ pub fn calibrate(
         field_corrected_ut: None,
         notes: &mut notes,
     };
-    let (method_reports, headings_deg) =
-        run_methods(&options.methods, &prepared, mag_frame.as_ref(), &mut outputs);
+    let (method_reports, headings_deg) = run_methods(
+        &options.methods,
+        &prepared,
+        mag_frame.as_ref(),
+        &mut outputs,
+    );
     let MethodOutputs {
         plane_correction,
         field_corrected_ut,

@@ -112,7 +112,12 @@ pub fn compare(calibration: &CalibrationAnalysis, options: &HeadingOptions) -> H
     let bases = bases_of(calibration);
     let mut table = Table::default();
     for base in &bases {
-        table.push_scored(base.key.clone(), base.label.clone(), &base.heading_rad, &split);
+        table.push_scored(
+            base.key.clone(),
+            base.label.clone(),
+            &base.heading_rad,
+            &split,
+        );
     }
     // Field-domain methods that could not be fitted are listed with their reason.
     for method_report in &calibration_report.methods {

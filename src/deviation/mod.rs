@@ -166,8 +166,6 @@ pub struct HeadingAnalysis {
     pub headings_deg: Vec<(String, Vec<f64>)>,
 }
 
-
-
 /// The models see the train part in bins of PAIR_WINDOW_S: the circular mean of the
 /// base heading and of the reference over each bin. Averaging takes out most of the
 /// body's sway, whose noise in the raw heading would otherwise flatten the fitted
@@ -248,8 +246,6 @@ fn turning(bin: &[usize], t_s: &[f64], gyro_heading_deg: &[Option<f64>]) -> bool
         });
     high - low > MAX_BIN_TURN_DEG
 }
-
-
 
 #[cfg(test)]
 mod tests {

@@ -225,7 +225,7 @@ impl Batch {
         self.params_f32
             .extend(params.iter().map(|&value| value as f32));
         let n_threads = if range.len() >= PARALLEL_MIN_SAMPLES {
-            n_threads()
+            crate::par::n_threads()
         } else {
             1
         };
@@ -296,19 +296,6 @@ impl Batch {
         }
         self.sum_squared_residuals.iter().sum::<f64>() / (2.0 * m)
             + l2_penalty * penalty / (2.0 * m)
-    }
-}
-
-/// The threads a large batch may use: the cores available natively, one in wasm.
-fn n_threads() -> usize {
-    #[cfg(not(target_arch = "wasm32"))]
-    {
-        static THREADS: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
-        *THREADS.get_or_init(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
-    }
-    #[cfg(target_arch = "wasm32")]
-    {
-        1
     }
 }
 

@@ -1,31 +1,24 @@
-//! Helper threads that evaluate parts of a large batch beside the caller's thread
-//! (native builds; wasm runs every part on its one thread).
+//! The parts of a large batch evaluated beside the caller's thread, on the crate's
+//! helper threads ([`crate::par::Helpers`]; native builds, wasm runs every part on its
+//! one thread).
 //!
 //! L-BFGS evaluates the objective a few hundred times in a row, each evaluation taking
-//! a fraction of a millisecond, so starting threads for each one would cost about as
-//! much as it saves. A batch therefore starts its helpers once, at its first large
+//! a fraction of a millisecond, so a batch starts its helpers once, at its first large
 //! evaluation, and keeps them until it is dropped. Each helper owns its scratch space,
-//! receives a job (the parameters and a run of whole parts) over a channel, and sends the
-//! job back with the parts' sums. Waiting for a job or a result first spins briefly
-//! (consecutive evaluations follow each other within microseconds, and waking a parked
-//! thread can take far longer) and then blocks.
+//! receives a job (the parameters and a run of whole parts), and sends the job back
+//! with the parts' sums.
 //!
 //! The parts, and so the bits of the result, do not depend on how many helpers run: the
 //! caller adds the parts' sums in the order of the parts.
 
 use std::ops::Range;
-use std::sync::mpsc::{self, Receiver, Sender, TryRecvError};
 use std::sync::Arc;
+
+use crate::par::Helpers;
 
 use super::activation::Activation;
 use super::kernels::{self, PartInput, Scratch};
 use super::loss::{Samples, Shape};
-
-/// How many rounds of 64 polls a waiting thread spins (a round is a microsecond or two
-/// of polling, so some 20 µs), then how many more it yields between rounds (some
-/// 200 µs), before it blocks. Counted, not timed: the core reads no clock.
-const SPIN_ROUNDS: u32 = 16;
-const YIELD_ROUNDS: u32 = 160;
 
 /// What a helper evaluates, and where it writes.
 struct Job {
@@ -40,31 +33,13 @@ struct Job {
     sums: Vec<f64>,
 }
 
-/// One helper thread and its channels.
-struct Helper {
-    jobs: Option<Sender<Job>>,
-    done: Receiver<Job>,
-    /// The buffers of the last job, reused by the next.
-    spare: Option<Job>,
-    thread: Option<std::thread::JoinHandle<()>>,
-}
-
-impl Drop for Helper {
-    fn drop(&mut self) {
-        // Closing the channel ends the helper's loop.
-        self.jobs = None;
-        if let Some(thread) = self.thread.take() {
-            // A helper that panicked has nothing left to clean up.
-            let _ = thread.join();
-        }
-    }
-}
-
 /// The helper threads of one batch (none until the first large evaluation).
 pub(crate) struct Workers {
     shape: Shape,
     activation: Activation,
-    helpers: Vec<Helper>,
+    helpers: Helpers<Job>,
+    /// The buffers of each helper's last job, reused by its next.
+    spare: Vec<Option<Job>>,
 }
 
 impl Workers {
@@ -72,29 +47,23 @@ impl Workers {
         Workers {
             shape,
             activation,
-            helpers: Vec::new(),
+            helpers: Helpers::default(),
+            spare: Vec::new(),
         }
     }
 
     /// Starts helpers until there are `n_helpers` (fewer if the system refuses a
     /// thread) and returns how many there are.
     fn ensure(&mut self, n_helpers: usize) -> usize {
-        while self.helpers.len() < n_helpers {
-            let (jobs, job_receiver) = mpsc::channel::<Job>();
-            let (done_sender, done) = mpsc::channel::<Job>();
-            let (shape, activation) = (self.shape, self.activation);
-            let spawned = std::thread::Builder::new()
-                .name("nn-batch".to_owned())
-                .spawn(move || help(shape, activation, &job_receiver, &done_sender));
-            let Ok(thread) = spawned else { break };
-            self.helpers.push(Helper {
-                jobs: Some(jobs),
-                done,
-                spare: None,
-                thread: Some(thread),
-            });
+        let (shape, activation) = (self.shape, self.activation);
+        let n = self.helpers.ensure(n_helpers, "nn-batch", || {
+            let mut scratch = Scratch::new(shape);
+            move |job| help(shape, activation, &mut scratch, job)
+        });
+        if self.spare.len() < n {
+            self.spare.resize_with(n, || None);
         }
-        self.helpers.len().min(n_helpers)
+        n
     }
 
     /// Evaluates the parts of `range` (`part_len` samples each) into `part_sums`
@@ -120,26 +89,25 @@ impl Workers {
             let end = (range.start + first_part_of(thread_idx + 1) * part_len).min(range.end);
             start..end
         };
-        let mut sent = vec![false; n_threads - 1];
-        for (helper_idx, helper) in self.helpers[..n_threads - 1].iter_mut().enumerate() {
-            let mut job = helper.spare.take().unwrap_or_else(|| Job {
-                samples: None,
-                params: Vec::new(),
-                span: 0..0,
-                part_len,
-                sums_len,
-                sums: Vec::new(),
-            });
-            job.samples = Some(Arc::clone(samples));
-            job.params.clear();
-            job.params.extend_from_slice(params);
-            job.span = span_of(helper_idx + 1);
-            job.part_len = part_len;
-            job.sums_len = sums_len;
-            if let Some(jobs) = &helper.jobs {
-                sent[helper_idx] = jobs.send(job).is_ok();
-            }
-        }
+        let sent: Vec<bool> = (0..n_threads - 1)
+            .map(|helper_idx| {
+                let mut job = self.spare[helper_idx].take().unwrap_or_else(|| Job {
+                    samples: None,
+                    params: Vec::new(),
+                    span: 0..0,
+                    part_len,
+                    sums_len,
+                    sums: Vec::new(),
+                });
+                job.samples = Some(Arc::clone(samples));
+                job.params.clear();
+                job.params.extend_from_slice(params);
+                job.span = span_of(helper_idx + 1);
+                job.part_len = part_len;
+                job.sums_len = sums_len;
+                self.helpers.send(helper_idx, job).is_ok()
+            })
+            .collect();
 
         let input = PartInput {
             shape: self.shape,
@@ -151,16 +119,16 @@ impl Workers {
         };
         run(&input, span_of(0), part_len, scratch, part_sums, sums_len);
 
-        for (helper_idx, helper) in self.helpers[..n_threads - 1].iter_mut().enumerate() {
+        for (helper_idx, &sent) in sent.iter().enumerate() {
             let span = span_of(helper_idx + 1);
             let first = first_part_of(helper_idx + 1) * sums_len;
             let last = first_part_of(helper_idx + 2) * sums_len;
             let mine = &mut part_sums[first..last];
-            match sent[helper_idx].then(|| receive(&helper.done)).flatten() {
+            match sent.then(|| self.helpers.receive(helper_idx)).flatten() {
                 Some(mut job) => {
                     mine.copy_from_slice(&job.sums[..mine.len()]);
                     job.samples = None;
-                    helper.spare = Some(job);
+                    self.spare[helper_idx] = Some(job);
                 }
                 // The helper is gone (it cannot be, short of a bug): do its share here.
                 None => run(&input, span, part_len, scratch, mine, sums_len),
@@ -189,51 +157,27 @@ fn run(
     }
 }
 
-/// A helper's loop: jobs in, results out, until the batch closes the channel.
-fn help(shape: Shape, activation: Activation, jobs: &Receiver<Job>, done: &Sender<Job>) {
-    let mut scratch = Scratch::new(shape);
-    while let Some(mut job) = receive(jobs) {
-        if let Some(samples) = job.samples.take() {
-            let n_parts = job.span.len().div_ceil(job.part_len);
-            job.sums.resize(n_parts * job.sums_len, 0.0);
-            let input = PartInput {
-                shape,
-                activation,
-                params: &job.params,
-                inputs: &samples.inputs,
-                targets: &samples.targets,
-                stride: samples.stride,
-            };
-            run(
-                &input,
-                job.span.clone(),
-                job.part_len,
-                &mut scratch,
-                &mut job.sums,
-                job.sums_len,
-            );
-        }
-        if done.send(job).is_err() {
-            return;
-        }
+/// A helper's job: the parts of its span evaluated into its sums.
+fn help(shape: Shape, activation: Activation, scratch: &mut Scratch, mut job: Job) -> Job {
+    if let Some(samples) = job.samples.take() {
+        let n_parts = job.span.len().div_ceil(job.part_len);
+        job.sums.resize(n_parts * job.sums_len, 0.0);
+        let input = PartInput {
+            shape,
+            activation,
+            params: &job.params,
+            inputs: &samples.inputs,
+            targets: &samples.targets,
+            stride: samples.stride,
+        };
+        run(
+            &input,
+            job.span.clone(),
+            job.part_len,
+            scratch,
+            &mut job.sums,
+            job.sums_len,
+        );
     }
-}
-
-/// The next message, spinning for [`SPIN_ROUNDS`] and then yielding to other threads
-/// for [`YIELD_ROUNDS`] before blocking (a busy machine gets its core back); `None` when
-/// the other side has gone.
-fn receive<T>(channel: &Receiver<T>) -> Option<T> {
-    for round in 0..SPIN_ROUNDS + YIELD_ROUNDS {
-        for _ in 0..64 {
-            match channel.try_recv() {
-                Ok(message) => return Some(message),
-                Err(TryRecvError::Disconnected) => return None,
-                Err(TryRecvError::Empty) => std::hint::spin_loop(),
-            }
-        }
-        if round >= SPIN_ROUNDS {
-            std::thread::yield_now();
-        }
-    }
-    channel.recv().ok()
+    job
 }

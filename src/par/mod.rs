@@ -1,5 +1,7 @@
-//! Work side by side on every core: [`on_each_part`] runs one closure on each of a few
-//! parts and gives the results in order, for the importers' large-file paths.
+//! Work side by side on every core, the crate's one place for threads: [`on_each_part`]
+//! runs one closure on each of a few parts and gives the results in order (the
+//! importers' large-file paths, the 3D fit's starts), and [`Helpers`] keeps helper
+//! threads for a run of many small jobs (the network's training batches; native only).
 //!
 //! Three builds, one contract (the results are in the parts' order, whichever thread
 //! ran which part, so the callers' output does not depend on the number of threads):
@@ -21,12 +23,18 @@
 //!   panic to make that happen.) This pool is the crate's one piece of global state outside `web`:
 //!   like the allocator, it is the runtime's, not the algorithms'.
 
+mod helpers;
+
+pub use helpers::Helpers;
+
 /// How many threads [`on_each_part`] can use now, this one included: the parts a
 /// caller should cut its work into.
 pub fn n_threads() -> usize {
     #[cfg(not(target_arch = "wasm32"))]
     {
-        std::thread::available_parallelism().map_or(1, usize::from)
+        // Asked once: the answer reads the system's limits, and hot loops ask often.
+        static THREADS: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
+        *THREADS.get_or_init(|| std::thread::available_parallelism().map_or(1, usize::from))
     }
     #[cfg(all(target_arch = "wasm32", target_feature = "atomics"))]
     {
