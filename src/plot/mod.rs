@@ -8,7 +8,7 @@ pub mod circle_fit;
 pub mod deviation;
 pub mod field_magnitude;
 pub mod heading_error;
-pub mod live;
+pub mod live_panel;
 pub mod pdr;
 pub mod timeline;
 

@@ -95,7 +95,7 @@ pub fn draw_live_clouds(
     quality: Option<&crate::live::LiveQuality>,
 ) -> Result<(), String> {
     draw_with(canvas, |area| {
-        crate::plot::live::draw_live_clouds(area, samples_ut, quality)
+        crate::plot::live_panel::draw_live_clouds(area, samples_ut, quality)
     })
 }
 
@@ -105,7 +105,7 @@ pub fn draw_coverage(
     coverage: Option<&crate::calib::sphere_coverage::SphereCoverage>,
 ) -> Result<(), String> {
     draw_with(canvas, |area| {
-        crate::plot::live::draw_coverage_map(area, coverage)
+        crate::plot::live_panel::draw_coverage_map(area, coverage)
     })
 }
 
@@ -122,7 +122,7 @@ pub fn draw_timeline(
 /// The live panel's heading dial.
 pub fn draw_dial(canvas: &HtmlCanvasElement, heading_rad: Option<f64>) -> Result<(), String> {
     draw_with(canvas, |area| {
-        crate::plot::live::draw_heading_dial(area, heading_rad)
+        crate::plot::live_panel::draw_heading_dial(area, heading_rad)
     })
 }
 

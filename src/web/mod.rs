@@ -11,7 +11,7 @@ mod controls;
 mod dom;
 mod exports;
 mod import_bench;
-mod live;
+mod live_panel;
 mod mapping;
 mod nn_bench;
 mod page;
@@ -33,8 +33,8 @@ use wasm_bindgen::prelude::*;
 pub fn run_page() -> Result<(), JsError> {
     install_panic_hook();
     let page = page::Page::from_document().map_err(|message| JsError::new(&message))?;
-    let live =
-        live::LivePanel::from_document(&page.document).map_err(|message| JsError::new(&message))?;
+    let live = live_panel::LivePanel::from_document(&page.document)
+        .map_err(|message| JsError::new(&message))?;
     exports::wire(&page);
     controls::wire(&page);
     page.start();

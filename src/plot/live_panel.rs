@@ -1,5 +1,6 @@
-//! The live calibration's plots: the raw samples seen along each pair of sensor axes
-//! (MotionCal's view), the coverage of the sphere of directions, and a heading dial.
+//! The live panel's plots (the live calibration): the raw samples seen along each pair
+//! of sensor axes (MotionCal's view), the coverage of the sphere of directions, and a
+//! heading dial.
 //!
 //! All three take what [`crate::live::LiveSession`] holds and draw nothing else; the page
 //! redraws them a few times a second while samples arrive.

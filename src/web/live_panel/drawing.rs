@@ -1,0 +1,218 @@
+//! What the panel shows while samples arrive: the timer that refits and redraws apart
+//! from the read loop, the figures (counts, the fit, the verdict and its reasons, the
+//! skipped lines, the board's confirmation) and the three plots.
+
+use std::rc::Rc;
+
+use web_sys::HtmlCanvasElement;
+
+use super::{every, now_ms, LivePanel};
+use crate::io::Diagnostics;
+use crate::live::{Confirmation, LiveQuality, MIN_FIT_SAMPLES};
+use crate::web::canvas;
+
+/// Refits this often while samples arrive (ms).
+const REFIT_EVERY_MS: f64 = 500.0;
+/// Redraws the plots and figures this often (ms).
+const DRAW_EVERY_MS: f64 = 250.0;
+
+/// Skipped lines listed at most (all are counted).
+const MAX_SKIPPED_SHOWN: usize = 20;
+
+impl LivePanel {
+    /// Refits and redraws on a timer while connected, apart from the read loop, so that
+    /// reading never waits for drawing and the last bytes are always shown.
+    pub(super) fn start_ticker(self: &Rc<Self>) {
+        let panel = Rc::clone(self);
+        *self.ticker.borrow_mut() = every(DRAW_EVERY_MS, move || panel.tick());
+    }
+
+    pub(super) fn stop_ticker(&self) {
+        if let Some((id, _tick)) = self.ticker.borrow_mut().take() {
+            if let Some(window) = web_sys::window() {
+                window.clear_interval_with_handle(id);
+            }
+        }
+    }
+
+    /// Redraws when bytes came in; refits at most every [`REFIT_EVERY_MS`], and once
+    /// more after the last bytes, so that the fit shown is always of everything received.
+    fn tick(&self) {
+        let now = now_ms();
+        if self.dirty.replace(false) {
+            self.refit_pending.set(true);
+        } else if !self.refit_pending.get() {
+            return;
+        }
+        if now - self.last_refit_ms.get() >= REFIT_EVERY_MS {
+            self.last_refit_ms.set(now);
+            self.refit_pending.set(false);
+            self.refit();
+        }
+        self.draw();
+    }
+
+    /// Refits now when samples came in since the last refit (the ticker refits at most
+    /// every [`REFIT_EVERY_MS`]), so that what is downloaded or sent is the fit of
+    /// everything received, and the same fit for each of them.
+    pub(super) fn refit_if_behind(&self) {
+        if self.dirty.replace(false) || self.refit_pending.replace(false) {
+            self.last_refit_ms.set(now_ms());
+            self.refit();
+            self.draw();
+        }
+    }
+
+    pub(super) fn refit_and_draw(&self) {
+        self.refit();
+        self.draw();
+    }
+
+    fn refit(&self) {
+        let mut session = self.session.borrow_mut();
+        let message = session.refit().err();
+        *self.fit_message.borrow_mut() = message;
+    }
+
+    /// The figures, the verdict and the plots.
+    pub(super) fn draw(&self) {
+        let session = self.session.borrow();
+        let counts = session.counts();
+        self.set_text("live-lines", &counts.n_lines.to_string());
+        self.set_text("live-samples", &counts.n_mag_samples.to_string());
+        self.set_text("live-skipped-count", &counts.n_skipped_lines.to_string());
+        self.set_text("live-bytes", &counts.n_bytes.to_string());
+        self.set_text("live-format", counts.format.unwrap_or("not known yet"));
+        let quality = session.quality();
+        self.show_fit_and_verdict(quality);
+        self.show_skipped(session.diagnostics());
+        self.show_confirmation_of(&session.confirmation());
+        let samples = session.kept_samples_ut();
+        let heading = session.latest_heading_rad();
+        drop_errors(
+            &self.clouds,
+            canvas::draw_live_clouds(&self.clouds, samples, quality),
+        );
+        drop_errors(
+            &self.coverage,
+            canvas::draw_coverage(&self.coverage, quality.map(|quality| &quality.coverage)),
+        );
+        drop_errors(&self.dial, canvas::draw_dial(&self.dial, heading));
+        drop(session);
+        self.update_buttons();
+    }
+
+    /// The fit's figures and whether it is good enough (with the reasons when it is
+    /// not), or why there is no fit yet.
+    fn show_fit_and_verdict(&self, quality: Option<&LiveQuality>) {
+        match quality {
+            Some(quality) => {
+                let cal = &quality.calibration;
+                self.set_text(
+                    "live-fit",
+                    &format!(
+                        "hard iron ({:.2}, {:.2}, {:.2}) µT, field {:.2} µT, residual RMS {:.2} µT, \
+                         |B| spread {:.2} %, gaps {:.1} % ({} of {} regions covered){}",
+                        cal.hard_iron_ut.x,
+                        cal.hard_iron_ut.y,
+                        cal.hard_iron_ut.z,
+                        cal.field_ut,
+                        quality.residual_rms_ut,
+                        quality.field_spread_pct,
+                        quality.coverage.gap_pct,
+                        quality.coverage.n_covered,
+                        quality.coverage.n_regions,
+                        match (quality.expected_field_ut, quality.field_difference_pct) {
+                            (Some(expected), Some(pct)) =>
+                                format!(", {pct:+.1} % from the WMM's {expected:.1} µT"),
+                            _ => ", no WMM comparison (type your latitude and longitude)".to_string(),
+                        }
+                    ),
+                );
+                let verdict = &quality.verdict;
+                self.section
+                    .set_attribute(
+                        "data-good-enough",
+                        if verdict.good_enough { "yes" } else { "no" },
+                    )
+                    .ok();
+                self.set_text(
+                    "live-verdict",
+                    if verdict.good_enough {
+                        "Good enough: send it to the board, or download it."
+                    } else {
+                        "Not good enough yet:"
+                    },
+                );
+                self.fill_list("live-reasons", verdict.reasons.iter().cloned());
+            }
+            None => {
+                self.section.set_attribute("data-good-enough", "no").ok();
+                let message = self.fit_message.borrow().clone().unwrap_or_else(|| {
+                    format!("No fit yet: it needs {MIN_FIT_SAMPLES} magnetometer samples.")
+                });
+                self.set_text("live-fit", &message);
+                self.set_text("live-verdict", "");
+                self.fill_list("live-reasons", std::iter::empty());
+            }
+        }
+    }
+
+    /// The lines skipped (the first [`MAX_SKIPPED_SHOWN`], the rest counted).
+    fn show_skipped(&self, skipped: &Diagnostics) {
+        let shown = skipped
+            .kept
+            .iter()
+            .take(MAX_SKIPPED_SHOWN)
+            .map(|diagnostic| match diagnostic.line {
+                Some(line) => format!("line {line}: {}", diagnostic.message),
+                None => diagnostic.message.clone(),
+            });
+        let more = skipped
+            .total()
+            .checked_sub(MAX_SKIPPED_SHOWN)
+            .filter(|&n| n > 0)
+            .map(|n| format!("… and {n} more (all are in the recording)."));
+        let mut items = shown.chain(more).peekable();
+        let none = items.peek().is_none().then(|| "None.".to_string());
+        self.fill_list("live-skipped", items.chain(none));
+    }
+
+    pub(super) fn show_confirmation(&self) {
+        let confirmation = self.session.borrow().confirmation();
+        self.show_confirmation_of(&confirmation);
+    }
+
+    fn show_confirmation_of(&self, confirmation: &Confirmation) {
+        let (state, text) = match confirmation {
+            Confirmation::NotSent => ("not-sent", String::new()),
+            Confirmation::Waiting => (
+                "waiting",
+                "Sent the 68-byte MotionCal packet; waiting for the board to echo it (Cal1:/Cal2: lines)…"
+                    .to_string(),
+            ),
+            Confirmation::Confirmed { line } => (
+                "confirmed",
+                format!("Confirmed: the board echoed the calibration sent (line {line})."),
+            ),
+            Confirmation::Differs { line, what } => (
+                "differs",
+                format!(
+                    "The board echoed a different calibration (line {line}: {what}). Send it again; if \
+                     it persists, the sketch does not store what it receives."
+                ),
+            ),
+        };
+        self.section.set_attribute("data-confirmation", state).ok();
+        self.set_text("live-confirmation", &text);
+    }
+}
+
+fn drop_errors(canvas_element: &HtmlCanvasElement, result: Result<(), String>) {
+    if let Err(message) = result {
+        let _ = canvas::draw_message(
+            canvas_element,
+            &format!("This plot could not be drawn: {message}"),
+        );
+    }
+}

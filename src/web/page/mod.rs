@@ -1,0 +1,348 @@
+//! The page: its element handles, the wiring of the file input and the drop zone, the
+//! demo log, the re-runs when a control changes, and the kept import and [`Results`].
+//! Reading dropped files is in `reading.rs`; putting the analysis into the DOM is in
+//! `show.rs`.
+//!
+//! Log-derived text (file names, messages) is set with `textContent`, never as HTML.
+//! The body's `data-state` attribute says where the page is (`loading`, `ready`,
+//! `error`), for people using assistive technology (through the status region) and for
+//! the end-to-end tests.
+
+mod reading;
+mod show;
+
+use std::rc::Rc;
+
+use gloo::events::{EventListener, EventListenerOptions};
+use wasm_bindgen::JsCast;
+use wasm_bindgen_futures::{spawn_local, JsFuture};
+use web_sys::{Document, DragEvent, Element, HtmlCanvasElement, HtmlElement, HtmlInputElement};
+
+use super::controls::{self, Stage};
+use super::dom;
+use crate::calibration::CalibrationAnalysis;
+use crate::deviation::HeadingAnalysis;
+use crate::io::ImportReport;
+use crate::pdr::PdrAnalysis;
+use crate::pipeline;
+use crate::plot::timeline::Timeline;
+
+/// The ids of the elements the page must have (see `www/index.html`).
+const STATUS_ID: &str = "status";
+const FILE_INPUT_ID: &str = "file-input";
+const DROP_ZONE_ID: &str = "drop-zone";
+const CIRCLE_CANVAS_ID: &str = "plot-circle";
+const HEADING_CANVAS_ID: &str = "plot-heading";
+const FIELD_CANVAS_ID: &str = "plot-field";
+const DEVIATION_CANVAS_ID: &str = "plot-deviation";
+const RESIDUALS_CANVAS_ID: &str = "plot-residuals";
+const ONLINE_CANVAS_ID: &str = "plot-online";
+const TRAJECTORY_CANVAS_ID: &str = "plot-trajectory";
+const STEPS_CANVAS_ID: &str = "plot-steps";
+const POSITION_ERROR_CANVAS_ID: &str = "plot-position-error";
+
+/// Bytes read from a file at a time: small enough that the page answers between
+/// chunks, large enough that the reads cost little.
+pub(super) const CHUNK_BYTES: f64 = 4.0 * 1024.0 * 1024.0;
+
+pub struct Page {
+    pub(super) document: Document,
+    body: HtmlElement,
+    status: Element,
+    file_input: HtmlInputElement,
+    drop_zone: Element,
+    circle_canvas: HtmlCanvasElement,
+    heading_canvas: HtmlCanvasElement,
+    field_canvas: HtmlCanvasElement,
+    deviation_canvas: HtmlCanvasElement,
+    residuals_canvas: HtmlCanvasElement,
+    online_canvas: HtmlCanvasElement,
+    trajectory_canvas: HtmlCanvasElement,
+    steps_canvas: HtmlCanvasElement,
+    position_error_canvas: HtmlCanvasElement,
+    /// The latest analysis, for the exports; `None` before the first and after an error.
+    results: std::cell::RefCell<Option<Rc<Results>>>,
+    /// The latest log as imported, for re-running the analysis when a control changes.
+    import: std::cell::RefCell<Option<Rc<ImportReport>>>,
+    /// How many times the calibration and the dead reckoning ran (on the body as
+    /// `data-calibration-runs` and `data-pdr-runs`, for the tests).
+    n_calibration_runs: std::cell::Cell<u32>,
+    n_pdr_runs: std::cell::Cell<u32>,
+}
+
+/// One log's analysis: what the exports write.
+pub struct Results {
+    pub calibration: CalibrationAnalysis,
+    pub heading: HeadingAnalysis,
+    /// The dead reckoning, or why there is none.
+    pub pdr: Result<PdrAnalysis, String>,
+}
+
+impl Page {
+    /// Finds the page's elements; the message names the first one missing.
+    pub fn from_document() -> Result<Rc<Page>, String> {
+        let document = web_sys::window()
+            .and_then(|window| window.document())
+            .ok_or("no document")?;
+        let body = document.body().ok_or("the page has no body")?;
+        let element = |id: &str| {
+            document
+                .get_element_by_id(id)
+                .ok_or(format!("the page has no element #{id}"))
+        };
+        let canvas = |id: &str| {
+            element(id)?
+                .dyn_into::<HtmlCanvasElement>()
+                .map_err(|_| format!("#{id} is not a canvas"))
+        };
+        Ok(Rc::new(Page {
+            status: element(STATUS_ID)?,
+            file_input: element(FILE_INPUT_ID)?
+                .dyn_into::<HtmlInputElement>()
+                .map_err(|_| format!("#{FILE_INPUT_ID} is not an input"))?,
+            drop_zone: element(DROP_ZONE_ID)?,
+            circle_canvas: canvas(CIRCLE_CANVAS_ID)?,
+            heading_canvas: canvas(HEADING_CANVAS_ID)?,
+            field_canvas: canvas(FIELD_CANVAS_ID)?,
+            deviation_canvas: canvas(DEVIATION_CANVAS_ID)?,
+            residuals_canvas: canvas(RESIDUALS_CANVAS_ID)?,
+            online_canvas: canvas(ONLINE_CANVAS_ID)?,
+            trajectory_canvas: canvas(TRAJECTORY_CANVAS_ID)?,
+            steps_canvas: canvas(STEPS_CANVAS_ID)?,
+            position_error_canvas: canvas(POSITION_ERROR_CANVAS_ID)?,
+            body,
+            document,
+            results: std::cell::RefCell::new(None),
+            import: std::cell::RefCell::new(None),
+            n_calibration_runs: std::cell::Cell::new(0),
+            n_pdr_runs: std::cell::Cell::new(0),
+        }))
+    }
+
+    /// Wires the file input and the drop zone, then analyses the demo.
+    pub fn start(self: Rc<Self>) {
+        let page = Rc::clone(&self);
+        EventListener::new(&self.file_input, "change", move |_| {
+            let Some(files) = page.file_input.files() else {
+                return;
+            };
+            page.analyse_files(files);
+            // Choosing the same file again should analyse it again.
+            page.file_input.set_value("");
+        })
+        .forget();
+
+        // Without preventDefault on dragover and drop, the browser opens the file.
+        let prevent_default = EventListenerOptions::enable_prevent_default();
+        for event_name in ["dragover", "drop"] {
+            EventListener::new_with_options(&self.document, event_name, prevent_default, |event| {
+                event.prevent_default()
+            })
+            .forget();
+        }
+        let drop_zone = self.drop_zone.clone();
+        EventListener::new(&self.drop_zone, "dragover", move |_| {
+            let _ = drop_zone.class_list().add_1("dragging");
+        })
+        .forget();
+        let drop_zone = self.drop_zone.clone();
+        EventListener::new(&self.drop_zone, "dragleave", move |_| {
+            let _ = drop_zone.class_list().remove_1("dragging");
+        })
+        .forget();
+        let page = Rc::clone(&self);
+        EventListener::new_with_options(&self.drop_zone, "drop", prevent_default, move |event| {
+            event.prevent_default();
+            let _ = page.drop_zone.class_list().remove_1("dragging");
+            let files = event
+                .dyn_ref::<DragEvent>()
+                .and_then(DragEvent::data_transfer)
+                .and_then(|transfer| transfer.files());
+            match files {
+                Some(files) if files.length() > 0 => page.analyse_files(files),
+                _ => page.show_error(
+                    "Nothing to read in what was dropped. Drop a CSV file from your computer.",
+                ),
+            }
+        })
+        .forget();
+
+        spawn_local(async move { self.load_demo().await });
+    }
+
+    async fn load_demo(&self) {
+        let Some(demo_url) = self.body.get_attribute("data-demo-url") else {
+            self.set_state("ready", "Drop a log to analyse it.");
+            return;
+        };
+        let file_name = demo_url.rsplit('/').next().unwrap_or(&demo_url).to_string();
+        self.set_state("loading", &format!("Loading the demo log {file_name}…"));
+        match fetch_bytes(&demo_url).await {
+            Ok(bytes) => {
+                self.analyse_and_show(&[(file_name.as_str(), bytes.as_slice())])
+                    .await
+            }
+            Err(message) => self.show_error(&format!("Could not load the demo log {demo_url}: {message}. Drop a log to analyse it instead.")),
+        }
+    }
+
+    /// The latest analysis, if there is one.
+    pub fn results(&self) -> Option<Rc<Results>> {
+        self.results.borrow().clone()
+    }
+
+    fn count_run(&self, counter: &std::cell::Cell<u32>, attribute: &str) {
+        counter.set(counter.get() + 1);
+        self.body
+            .set_attribute(attribute, &counter.get().to_string())
+            .ok();
+    }
+
+    /// Re-runs `stage` (and what follows it) on the kept import with the controls'
+    /// current values.
+    pub fn rerun(self: &Rc<Self>, stage: Stage) {
+        let Some(import) = self.import.borrow().clone() else {
+            return;
+        };
+        let page = Rc::clone(self);
+        spawn_local(async move {
+            let file_name = import.file_name.clone();
+            page.set_state("loading", &format!("Analysing {file_name} again…"));
+            yield_to_browser().await;
+            let previous = page.results.borrow_mut().take();
+            match (stage, previous.map(Rc::try_unwrap)) {
+                (Stage::DeadReckoning, Some(Ok(results))) => {
+                    let (pdr_summary, pdr) =
+                        page.show_dead_reckoning(Some(&import), &results.heading);
+                    let summary = format!(
+                        "Dead-reckoned {file_name} again with the new settings.{pdr_summary}"
+                    );
+                    page.keep_results(Results { pdr, ..results });
+                    page.set_state("ready", &summary);
+                }
+                _ => {
+                    let options = controls::read(&page.document).options();
+                    page.count_run(&page.n_calibration_runs, "data-calibration-runs");
+                    let result = pipeline::calibration(&import, &options.heading_options);
+                    page.show_result(result, Some(import)).await;
+                }
+            }
+        });
+    }
+
+    /// The timeline of the kept import, with the controls' split and outages.
+    pub fn timeline(&self) -> Option<Timeline> {
+        let import = self.import.borrow().clone()?;
+        let recording = &import.recording;
+        let times = &recording.mag_in_body_ut.t_s;
+        let (start_s, end_s) = (*times.first()?, *times.last()?);
+        let controls = controls::read(&self.document);
+        let train_until_s = self
+            .results
+            .borrow()
+            .as_ref()
+            .and_then(|results| results.calibration.report.train_until_s)
+            .or(controls.train_until_s);
+        Some(Timeline {
+            start_s,
+            end_s: end_s.max(start_s + 1.0),
+            train_until_s,
+            outages: controls.outages,
+            gnss_times_s: recording.gnss.t_s.clone(),
+        })
+    }
+
+    fn set_text(&self, id: &str, text: &str) {
+        dom::set_text(&self.document, id, text);
+    }
+
+    fn fill_list(&self, id: &str, items: impl Iterator<Item = String>) {
+        dom::fill_list(&self.document, id, items);
+    }
+
+    fn set_state(&self, state: &str, message: &str) {
+        self.body.set_attribute("data-state", state).ok();
+        self.status.set_text_content(Some(message));
+        if state == "ready" {
+            self.mark_time("data-ready-ms");
+        }
+    }
+
+    /// Milliseconds from the page's navigation to now, on the body the first time (the
+    /// time to the first plots and to the whole demo, which the README reports).
+    fn mark_time(&self, attribute: &str) {
+        if self.body.has_attribute(attribute) {
+            return;
+        }
+        if let Some(performance) = web_sys::window().and_then(|window| window.performance()) {
+            let _ = self
+                .body
+                .set_attribute(attribute, &format!("{:.0}", performance.now()));
+        }
+    }
+}
+
+/// Milliseconds on the page's clock (`performance.now()`), 0 where there is none.
+fn now_ms() -> f64 {
+    web_sys::window()
+        .and_then(|window| window.performance())
+        .map_or(0.0, |performance| performance.now())
+}
+
+/// Lets the browser run its queued work (painting, input) before the next step: a
+/// zero-delay timeout, awaited.
+async fn yield_to_browser() {
+    let promise = js_sys::Promise::new(&mut |resolve, _reject| {
+        let scheduled = web_sys::window().is_some_and(|window| {
+            window
+                .set_timeout_with_callback_and_timeout_and_arguments_0(&resolve, 0)
+                .is_ok()
+        });
+        if !scheduled {
+            let _ = resolve.call0(&wasm_bindgen::JsValue::NULL);
+        }
+    });
+    let _ = JsFuture::from(promise).await;
+}
+
+/// Puts a bug report into the status area, whatever state the page is in.
+pub fn show_bug(message: &str) {
+    let Some(document) = web_sys::window().and_then(|window| window.document()) else {
+        return;
+    };
+    if let Some(body) = document.body() {
+        body.set_attribute("data-state", "error").ok();
+    }
+    if let Some(status) = document.get_element_by_id(STATUS_ID) {
+        status.set_text_content(Some(message));
+    }
+}
+
+/// The bytes at a URL of the page's own origin.
+async fn fetch_bytes(url: &str) -> Result<Vec<u8>, String> {
+    let window = web_sys::window().ok_or("no window")?;
+    let response = JsFuture::from(window.fetch_with_str(url))
+        .await
+        .map_err(describe_js_error)?;
+    let response: web_sys::Response = response
+        .dyn_into()
+        .map_err(|_| "the answer was not an HTTP response".to_string())?;
+    if !response.ok() {
+        return Err(format!("HTTP {}", response.status()));
+    }
+    let buffer = JsFuture::from(response.array_buffer().map_err(describe_js_error)?)
+        .await
+        .map_err(describe_js_error)?;
+    Ok(js_sys::Uint8Array::new(&buffer).to_vec())
+}
+
+/// The message of a JavaScript error, without a final full stop (the page's sentences
+/// go on after it).
+pub(super) fn describe_js_error(value: wasm_bindgen::JsValue) -> String {
+    let message = value
+        .dyn_ref::<js_sys::Error>()
+        .map(|error| String::from(error.message()))
+        .or_else(|| value.as_string())
+        .unwrap_or_else(|| "unknown error".to_string());
+    message.trim_end().trim_end_matches('.').to_string()
+}

@@ -1,0 +1,398 @@
+//! Putting one log's analysis into the DOM: the calibration (context, streams, device
+//! calibration, notes, diagnostics, its plots), the heading models (the comparison
+//! table, the deviation models, their plots), the dead reckoning (summary and plots),
+//! the timeline, and errors in the place of all of them.
+
+use std::rc::Rc;
+
+use wasm_bindgen::JsCast;
+use web_sys::HtmlCanvasElement;
+
+use super::{yield_to_browser, Page, Results};
+use crate::analysis::AnalysisError;
+use crate::calibration::{CalibrationAnalysis, CalibrationReport};
+use crate::deviation::{HeadingAnalysis, HeadingReport};
+use crate::io::ImportReport;
+use crate::pdr::{PdrAnalysis, PdrError};
+use crate::pipeline;
+use crate::report;
+use crate::web::canvas::{self, HeadingPlot, PdrPlot, Plot};
+use crate::web::controls;
+
+/// Diagnostics listed on the page at most; the rest are counted.
+const MAX_DIAGNOSTICS_SHOWN: usize = 50;
+
+impl Page {
+    /// Shows the calibration, lets the browser breathe (paint, answer input), then
+    /// learns and shows the heading models: two shorter blocks instead of one long one.
+    /// Then, with the log's own import, dead-reckons the walk.
+    pub(super) async fn show_result(
+        &self,
+        result: Result<CalibrationAnalysis, AnalysisError>,
+        import: Option<Rc<ImportReport>>,
+    ) {
+        match result {
+            Ok(mut analysis) => {
+                self.show_calibration(&analysis);
+                yield_to_browser().await;
+                let (summary, heading) = self.show_heading_models(&mut analysis);
+                yield_to_browser().await;
+                let (pdr_summary, pdr) = self.show_dead_reckoning(import.as_deref(), &heading);
+                self.keep_results(Results {
+                    calibration: analysis,
+                    heading,
+                    pdr,
+                });
+                self.set_state("ready", &format!("{summary}{pdr_summary}"));
+            }
+            Err(error) => self.show_error(&error.to_string()),
+        }
+    }
+
+    /// Keeps the analysis for the exports and enables their buttons.
+    pub(super) fn keep_results(&self, results: Results) {
+        let results = Rc::new(results);
+        crate::web::exports::enable(&self.document, Some(&results));
+        *self.results.borrow_mut() = Some(results);
+        self.show_timeline();
+    }
+
+    fn show_timeline(&self) {
+        let Some(canvas) = self
+            .document
+            .get_element_by_id(controls::TIMELINE_ID)
+            .and_then(|element| element.dyn_into::<HtmlCanvasElement>().ok())
+        else {
+            return;
+        };
+        let drawn = match self.timeline() {
+            Some(timeline) => canvas::draw_timeline(&canvas, &timeline),
+            None => canvas::draw_message(&canvas, "No log yet."),
+        };
+        if let Err(message) = drawn {
+            let _ = canvas::draw_message(
+                &canvas,
+                &format!("The timeline could not be drawn: {message}"),
+            );
+        }
+    }
+
+    /// The calibration's context, device calibration, notes, diagnostics and plots.
+    fn show_calibration(&self, analysis: &CalibrationAnalysis) {
+        let report = &analysis.report;
+        self.body.set_attribute("data-file", &report.file_name).ok();
+        self.set_text("result-file", &report.file_name);
+        self.show_context(report);
+        if let Some(import) = self.import.borrow().as_ref() {
+            self.fill_list(
+                "streams",
+                report::stream_lines(
+                    import.format,
+                    &crate::io::summary::summarize(&import.recording),
+                )
+                .into_iter()
+                .chain(import.mag_frame.map(|frame| frame.describe())),
+            );
+        }
+        // The table waits for the heading models; no stale rows meanwhile.
+        self.fill_list("methods-body", std::iter::empty());
+        self.fill_list("deviation-model", std::iter::empty());
+        self.show_device_calibration(analysis);
+        self.fill_list("notes", or_none(report.notes.iter().cloned()));
+        self.show_diagnostics(report);
+        for (canvas, plot) in [
+            (&self.circle_canvas, Plot::CircleFit),
+            (&self.heading_canvas, Plot::HeadingError),
+            (&self.field_canvas, Plot::FieldMagnitude),
+        ] {
+            if let Err(message) = canvas::draw(canvas, plot, analysis) {
+                let _ = canvas::draw_message(
+                    canvas,
+                    &format!("This plot could not be drawn: {message}"),
+                );
+            }
+        }
+        self.mark_time("data-first-plot-ms");
+        self.set_state(
+            "loading",
+            &format!(
+                "Calibrated {}; learning the heading models…",
+                report.file_name
+            ),
+        );
+    }
+
+    /// The heading models on top of the calibration: every method and every stack on
+    /// the same split, the deviation curve and the residuals. Returns the status line
+    /// and the analysis.
+    fn show_heading_models(&self, analysis: &mut CalibrationAnalysis) -> (String, HeadingAnalysis) {
+        let options = controls::read(&self.document).options();
+        let headings = pipeline::heading_models(analysis, &options.heading_options);
+        // The choice is made: the device calibration and the heading plot follow it.
+        self.show_device_calibration(analysis);
+        if let Err(message) = canvas::draw(&self.heading_canvas, Plot::HeadingError, analysis) {
+            let _ = canvas::draw_message(
+                &self.heading_canvas,
+                &format!("This plot could not be drawn: {message}"),
+            );
+        }
+        let report = &analysis.report;
+        self.show_methods(&headings.report);
+        self.show_deviation_model(&headings.report);
+        for (canvas, plot) in [
+            (&self.deviation_canvas, HeadingPlot::DeviationCurve),
+            (&self.residuals_canvas, HeadingPlot::ResidualHistogram),
+            (&self.online_canvas, HeadingPlot::OnlineConvergence),
+        ] {
+            if let Err(message) = canvas::draw_heading(canvas, plot, &headings) {
+                let _ = canvas::draw_message(
+                    canvas,
+                    &format!("This plot could not be drawn: {message}"),
+                );
+            }
+        }
+        let problems = match report.diagnostics.total() {
+            0 => String::new(),
+            1 => " 1 line had a problem; see below.".to_string(),
+            n => format!(" {n} lines had problems; see below."),
+        };
+        // The CLI's `best:` line, word for word (crate::selection makes the choice once).
+        let best = format!(" Best: {}.", headings.report.choice.sentence());
+        self.set_state(
+            "loading",
+            &format!("Calibrated {}; dead-reckoning the walk…", report.file_name),
+        );
+        let summary = format!(
+            "Analysed {}: {} magnetometer samples.{best}{problems}",
+            report.file_name, report.n_samples_used
+        );
+        (summary, headings)
+    }
+
+    /// Dead-reckons the walk (steps, step model, the EKF) and shows its summary and
+    /// plots; a log that cannot be dead-reckoned says why in their place. Returns a
+    /// sentence for the status line, and the analysis or why there is none.
+    pub(super) fn show_dead_reckoning(
+        &self,
+        import: Option<&ImportReport>,
+        headings: &HeadingAnalysis,
+    ) -> (String, Result<PdrAnalysis, String>) {
+        self.count_run(&self.n_pdr_runs, "data-pdr-runs");
+        let options = controls::read(&self.document).options();
+        let result = import
+            .filter(|import| !import.recording.acc_in_body_mps2.is_empty())
+            .ok_or_else(|| "the log has no accelerometer, so no steps can be detected".to_string())
+            .and_then(|import| {
+                crate::pdr::dead_reckon(import, headings, &options).map_err(|error| match error {
+                    PdrError::Analysis(error) => error.to_string(),
+                    other => other.to_string(),
+                })
+            });
+        let canvases = [
+            (&self.trajectory_canvas, PdrPlot::Trajectory),
+            (&self.steps_canvas, PdrPlot::StepLengths),
+            (&self.position_error_canvas, PdrPlot::PositionError),
+        ];
+        match result {
+            Ok(analysis) => {
+                self.fill_list(
+                    "pdr-summary",
+                    report::pdr_summary_lines(&analysis).into_iter(),
+                );
+                for (canvas, plot) in canvases {
+                    if let Err(message) = canvas::draw_pdr(canvas, plot, &analysis) {
+                        let _ = canvas::draw_message(
+                            canvas,
+                            &format!("This plot could not be drawn: {message}"),
+                        );
+                    }
+                }
+                let sentence = format!(
+                    " {} steps dead-reckoned over {:.0} m.",
+                    analysis.report.n_steps, analysis.report.pdr_distance_m
+                );
+                (sentence, Ok(analysis))
+            }
+            Err(message) => {
+                let message = format!("No dead reckoning: {message}.");
+                self.fill_list("pdr-summary", std::iter::once(message.clone()));
+                for (canvas, _) in canvases {
+                    let _ = canvas::draw_message(canvas, &message);
+                }
+                (String::new(), Err(message))
+            }
+        }
+    }
+
+    /// Shows an error in the status area and on the canvases, and clears the figures of
+    /// the previous file so that none of them is taken for this one's.
+    pub(crate) fn show_error(&self, message: &str) {
+        self.results.borrow_mut().take();
+        crate::web::exports::enable(&self.document, None);
+        self.body.remove_attribute("data-file").ok();
+        self.set_text("result-file", "—");
+        for id in [
+            "streams",
+            "context",
+            "methods-body",
+            "deviation-model",
+            "pdr-summary",
+            "calibration",
+            "notes",
+            "diagnostics",
+        ] {
+            self.fill_list(id, std::iter::empty());
+        }
+        for canvas in [
+            &self.circle_canvas,
+            &self.heading_canvas,
+            &self.field_canvas,
+            &self.deviation_canvas,
+            &self.residuals_canvas,
+            &self.online_canvas,
+            &self.trajectory_canvas,
+            &self.steps_canvas,
+            &self.position_error_canvas,
+        ] {
+            let _ = canvas::draw_message(canvas, &format!("No plot: {message}"));
+        }
+        self.set_state("error", message);
+    }
+
+    /// Where the reference, declination and expected field came from, and the split.
+    fn show_context(&self, report: &CalibrationReport) {
+        self.fill_list("context", report::context_lines(report).into_iter());
+    }
+
+    /// The comparison table: one row per method, train and check heading errors.
+    fn show_methods(&self, report: &HeadingReport) {
+        let Some(body) = self.document.get_element_by_id("methods-body") else {
+            return;
+        };
+        body.set_text_content(None);
+        let rows = report.rows.iter().map(|row| {
+            (
+                row.key.replace('+', "-"),
+                row.label.clone(),
+                row.train,
+                row.check,
+                row.error.clone(),
+            )
+        });
+        for (key, label, train, check, error) in rows {
+            let Ok(row) = self.document.create_element("tr") else {
+                continue;
+            };
+            row.set_id(&format!("row-{key}"));
+            if report
+                .best
+                .as_deref()
+                .is_some_and(|best| best.replace('+', "-") == key)
+            {
+                let _ = row.class_list().add_1("best");
+            }
+            let Ok(header) = self.document.create_element("th") else {
+                continue;
+            };
+            let _ = header.set_attribute("scope", "row");
+            header.set_text_content(Some(&label));
+            let _ = row.append_child(&header);
+            match error {
+                Some(error) => {
+                    if let Ok(cell) = self.document.create_element("td") {
+                        let _ = cell.set_attribute("colspan", "6");
+                        let _ = cell.class_list().add_1("method-error");
+                        cell.set_id(&format!("error-{key}"));
+                        cell.set_text_content(Some(&error));
+                        let _ = row.append_child(&cell);
+                    }
+                }
+                None => {
+                    let format = |value: Option<f64>, unit: &str| {
+                        value.map_or("—".to_string(), |value| format!("{value:.2}{unit}"))
+                    };
+                    let cells = [
+                        ("train-rms", format(train.map(|stats| stats.rms_deg), "°")),
+                        ("check-rms", format(check.map(|stats| stats.rms_deg), "°")),
+                        ("check-mean", format(check.map(|stats| stats.mean_deg), "°")),
+                        ("check-std", format(check.map(|stats| stats.std_deg), "°")),
+                        (
+                            "check-p95",
+                            format(check.map(|stats| stats.p95_abs_deg), "°"),
+                        ),
+                        (
+                            "check-within5",
+                            format(check.map(|stats| stats.within_5_deg_pct), " %"),
+                        ),
+                    ];
+                    for (name, text) in cells {
+                        if let Ok(cell) = self.document.create_element("td") {
+                            cell.set_id(&format!("stat-{key}-{name}"));
+                            cell.set_text_content(Some(&text));
+                            let _ = row.append_child(&cell);
+                        }
+                    }
+                }
+            }
+            let _ = body.append_child(&row);
+        }
+    }
+
+    /// The Fourier deviation models as the PDR paper's Table II, and the online one.
+    fn show_deviation_model(&self, report: &HeadingReport) {
+        self.fill_list(
+            "deviation-model",
+            or_none(report::deviation_model_lines(report).into_iter()),
+        );
+    }
+
+    /// The calibration to store in the device, as numbers a person can copy.
+    fn show_device_calibration(&self, analysis: &CalibrationAnalysis) {
+        self.fill_list(
+            "calibration",
+            report::device_calibration_lines(analysis).into_iter(),
+        );
+    }
+
+    fn show_diagnostics(&self, report: &CalibrationReport) {
+        let diagnostics = &report.diagnostics;
+        let shown = diagnostics
+            .kept
+            .iter()
+            .take(MAX_DIAGNOSTICS_SHOWN)
+            .map(|diagnostic| {
+                let file_name = diagnostic.file_name.as_deref().unwrap_or(&report.file_name);
+                match diagnostic.line {
+                    Some(line) => format!("{file_name}, line {line}: {}", diagnostic.message),
+                    None => format!("{file_name}: {}", diagnostic.message),
+                }
+            });
+        let n_not_shown = diagnostics.total().saturating_sub(MAX_DIAGNOSTICS_SHOWN);
+        let more = (n_not_shown > 0)
+            .then(|| format!("… and {n_not_shown} more (the CLI lists them all)."));
+        self.fill_list("diagnostics", or_none(shown.chain(more)));
+    }
+}
+
+/// The items, or a single "None." when there are none, so that an empty list reads as
+/// checked rather than missing.
+fn or_none(items: impl Iterator<Item = String>) -> impl Iterator<Item = String> {
+    let mut items = items.peekable();
+    let none = items.peek().is_none().then(|| "None.".to_string());
+    items.chain(none)
+}
+
+#[cfg(test)]
+impl Page {
+    /// The whole analysis at once (the browser tests use it).
+    pub(crate) fn show_analysis(
+        &self,
+        analysis: &mut CalibrationAnalysis,
+        import: Option<&ImportReport>,
+    ) {
+        self.show_calibration(analysis);
+        let (summary, heading) = self.show_heading_models(analysis);
+        let (pdr_summary, _) = self.show_dead_reckoning(import, &heading);
+        self.set_state("ready", &format!("{summary}{pdr_summary}"));
+    }
+}
