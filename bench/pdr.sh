@@ -144,7 +144,7 @@ print("|---|---|---|")
 for key, label in [
     ("import", "`io::import::import`"),
     ("calibrate", "`calibration::calibrate` (field-domain fits, GNSS reference)"),
-    ("compare", "`deviation::compare` (Fourier, RLS and MLP heading models)"),
+    ("compare", "`heading::compare` (Fourier, RLS and MLP heading models)"),
     ("steps", "`pdr::steps::detect_steps`"),
     ("ekf", "`pdr::fusion::fuse` (the EKF with GNSS gating)"),
     ("report_clone", "the `ImportReport` clone `pdr::run` needs"),

@@ -32,7 +32,7 @@ mod report {
     use compass_pdr::calibration::{
         CalibrationOptions, DeclinationChoice, Method, MethodParameters,
     };
-    use compass_pdr::deviation::{HeadingAnalysis, HeadingOptions};
+    use compass_pdr::heading::{HeadingAnalysis, HeadingOptions};
     use compass_pdr::io::canonical_csv;
     use compass_pdr::io::import::import;
     use compass_pdr::pdr::fusion::{GnssPolicy, Outage};

@@ -32,7 +32,7 @@ mod native {
 
     use compass_pdr::angle::wrap_to_2pi;
     use compass_pdr::calibration::calibrate;
-    use compass_pdr::deviation::{compare, HeadingOptions};
+    use compass_pdr::heading::{compare, HeadingOptions};
     use compass_pdr::io::canonical_csv;
     use compass_pdr::io::import::import;
     use compass_pdr::pdr::ekf::{EkfNoise, PdrEkf};

@@ -49,7 +49,7 @@
 //!
 //! Field-domain calibration (min/max, a tilt-aware ellipse, a 3D ellipsoid,
 //! reference-heading least squares) is followed by heading models learned from a
-//! reference ([`deviation`]: the PDR paper's Fourier model, online too, and the 2007
+//! reference ([`heading`]: the PDR paper's Fourier model, online too, and the 2007
 //! paper's neural network). Tilt comes from the direction of specific force averaged over
 //! a second, so fast sway is not compensated (a gyro-aided attitude would). Dead
 //! reckoning ([`pdr`]) detects steps, fits a step-length model to GNSS or a known
@@ -69,8 +69,8 @@ pub mod angle;
 pub mod calib;
 pub mod calibration;
 pub mod civil;
-pub mod deviation;
 pub mod geo;
+pub mod heading;
 pub mod io;
 pub mod live;
 pub mod nn;

@@ -1,6 +1,6 @@
 //! The one analysis pipeline: an imported recording → the field calibrations
 //! ([`crate::calibration`]) → the heading models and the one choice of "best"
-//! ([`crate::deviation`], [`crate::selection`]) → dead reckoning ([`crate::pdr`]). The
+//! ([`crate::heading`], [`crate::selection`]) → dead reckoning ([`crate::pdr`]). The
 //! CLI, the page and the report are thin callers of these functions, so they name the
 //! same best method and export the same device calibration.
 //!
@@ -12,7 +12,7 @@
 
 use crate::analysis::AnalysisError;
 use crate::calibration::{calibrate, CalibrationAnalysis, Method};
-use crate::deviation::{compare, HeadingAnalysis, HeadingOptions};
+use crate::heading::{compare, HeadingAnalysis, HeadingOptions};
 use crate::io::ImportReport;
 use crate::pdr::{dead_reckon, PdrAnalysis, PdrError, PdrOptions};
 use crate::selection::Choice;

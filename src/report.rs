@@ -13,7 +13,7 @@ use serde::Serialize;
 
 use crate::calib::export::{CalibrationExport, SensorCalibration};
 use crate::calibration::{CalibrationAnalysis, CalibrationReport, Method};
-use crate::deviation::{HeadingAnalysis, HeadingReport};
+use crate::heading::{HeadingAnalysis, HeadingReport};
 use crate::io::SensorFrame;
 use crate::pdr::PdrAnalysis;
 use crate::plot::{draw_calibration_figure, draw_deviation_figure, draw_pdr_figure};
@@ -572,7 +572,7 @@ mod tests {
     use super::*;
     use crate::analysis::analyse_file;
     use crate::calibration::CalibrationOptions;
-    use crate::deviation::{compare, HeadingOptions};
+    use crate::heading::{compare, HeadingOptions};
     use crate::sim::walk::{simulate, WalkConfig};
 
     #[test]

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use compass_pdr::angle::wrap_to_pi;
 use compass_pdr::calibration::{CalibrationAnalysis, CalibrationOptions, Method, MethodParameters};
-use compass_pdr::deviation::{compare, HeadingOptions};
+use compass_pdr::heading::{compare, HeadingOptions};
 use compass_pdr::reference::{ReferenceChoice, ReferenceOptions};
 use compass_pdr::selection::field_calibration_of;
 use nalgebra::{Matrix3, Vector3};

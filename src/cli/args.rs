@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use clap::ValueEnum;
 use compass_pdr::calibration::{CalibrationOptions, DeclinationChoice, Method};
-use compass_pdr::deviation::HeadingOptions;
+use compass_pdr::heading::HeadingOptions;
 use compass_pdr::pdr::fusion::{GnssPolicy, Outage};
 use compass_pdr::pdr::step_length::StepModelKind;
 use compass_pdr::pdr::{HeadingChoice, PdrOptions};

@@ -9,7 +9,7 @@ use super::{print_out, print_report};
 use compass_pdr::calib::export::{c_snippet, motioncal_packet};
 use compass_pdr::calib::plane::SoftIronModel;
 use compass_pdr::calibration::{CalibrationOptions, CalibrationReport, MethodParameters};
-use compass_pdr::deviation::HeadingOptions;
+use compass_pdr::heading::HeadingOptions;
 use compass_pdr::pipeline;
 use compass_pdr::plot::draw_calibration_figure;
 use compass_pdr::report::{device_calibration_lines, device_export, DeviceExport};

@@ -5,7 +5,7 @@ use std::path::Path;
 use super::args::ImportArgs;
 use super::inspect::{import_paths, print_import_diagnostics};
 use super::print_report;
-use compass_pdr::deviation::{HeadingOptions, HeadingReport};
+use compass_pdr::heading::{HeadingOptions, HeadingReport};
 use compass_pdr::pipeline;
 use compass_pdr::plot::draw_deviation_figure;
 use compass_pdr::stats::HeadingErrorStats;

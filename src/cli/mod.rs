@@ -11,7 +11,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 use compass_pdr::calibration::Method;
-use compass_pdr::deviation::HeadingOptions;
+use compass_pdr::heading::HeadingOptions;
 
 /// Magnetometer compass calibration, heading models and pedestrian dead reckoning.
 #[derive(Debug, Parser)]

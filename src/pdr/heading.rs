@@ -11,7 +11,7 @@
 //! fix inside an outage trains what bridges it.
 
 use crate::calibration::{calibrate, CalibrationOptions, Method};
-use crate::deviation::{HeadingAnalysis, HeadingOptions};
+use crate::heading::{HeadingAnalysis, HeadingOptions};
 use crate::io::ImportReport;
 use crate::recording::{GnssFix, Stream};
 use crate::reference::gyro::gyro_heading;
@@ -144,7 +144,7 @@ fn refit_on_gnss(
     report.recording.gnss = without_outages(&report.recording.gnss, &options.gnss.outages);
     match calibrate(report, &everything.calibration) {
         Ok(refit) if refit.report.reference.is_some() => {
-            Some(crate::deviation::compare(&refit, &everything))
+            Some(crate::heading::compare(&refit, &everything))
         }
         Ok(_) => None,
         Err(error) => {

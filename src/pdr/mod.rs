@@ -49,8 +49,8 @@ pub use report::{FixCounts, GnssGap, PdrAnalysis, PdrError, PdrReport, StepModel
 
 use serde::Serialize;
 
-use crate::deviation::{HeadingAnalysis, HeadingOptions};
 use crate::geo::LocalFrame;
+use crate::heading::{HeadingAnalysis, HeadingOptions};
 use crate::io::ImportReport;
 use crate::recording::{Recording, Stream};
 

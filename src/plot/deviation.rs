@@ -9,7 +9,7 @@ use plotters::prelude::*;
 use super::circle_fit::{CORRECTED_COLOR, RAW_COLOR};
 use super::{thinned_indices, PlotError, MAX_POINTS_PER_SERIES};
 use crate::angle::heading_difference_rad;
-use crate::deviation::HeadingAnalysis;
+use crate::heading::HeadingAnalysis;
 
 const RESIDUAL_COLOR: RGBColor = RGBColor(120, 120, 120);
 
@@ -276,7 +276,7 @@ pub fn draw_online_convergence<DB: DrawingBackend>(
             "Online A…E (no reference to learn from)".to_string(),
         ),
     };
-    let coefficient = |snapshot: &crate::deviation::rls::RlsSnapshot, idx: usize| {
+    let coefficient = |snapshot: &crate::heading::rls::RlsSnapshot, idx: usize| {
         let model = snapshot.model;
         [
             model.a_deg,

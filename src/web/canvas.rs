@@ -9,7 +9,7 @@ use wasm_bindgen::JsCast;
 use web_sys::HtmlCanvasElement;
 
 use crate::calibration::CalibrationAnalysis;
-use crate::deviation::HeadingAnalysis;
+use crate::heading::HeadingAnalysis;
 use crate::pdr::PdrAnalysis;
 use crate::plot::deviation::{
     draw_deviation_curve, draw_online_convergence, draw_residual_histogram,

@@ -91,7 +91,7 @@ pub fn indoor_walk(
     declination: compass_pdr::calibration::DeclinationChoice,
 ) -> compass_pdr::pdr::PdrAnalysis {
     use compass_pdr::calibration::CalibrationOptions;
-    use compass_pdr::deviation::HeadingOptions;
+    use compass_pdr::heading::HeadingOptions;
     use compass_pdr::pdr::{HeadingChoice, PdrOptions};
     let paths = files_in(&data.join("msft-indoor-2020/site1").join(floor), "txt");
     compass_pdr::pipeline::dead_reckoning(

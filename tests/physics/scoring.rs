@@ -11,7 +11,7 @@ use compass_pdr::angle::heading_difference_rad;
 use compass_pdr::calib::heading::heading_rad;
 use compass_pdr::calib::model::FieldCalibration;
 use compass_pdr::calibration::{calibrate, CalibrationAnalysis, CalibrationOptions};
-use compass_pdr::deviation::{compare, HeadingOptions};
+use compass_pdr::heading::{compare, HeadingOptions};
 use compass_pdr::io::import::import;
 use compass_pdr::stats::HeadingErrorStats;
 

@@ -21,7 +21,7 @@ use web_sys::{Document, DragEvent, Element, HtmlCanvasElement, HtmlElement, Html
 use super::controls::{self, Stage};
 use super::dom;
 use crate::calibration::CalibrationAnalysis;
-use crate::deviation::HeadingAnalysis;
+use crate::heading::HeadingAnalysis;
 use crate::io::ImportReport;
 use crate::pdr::PdrAnalysis;
 use crate::pipeline;

@@ -11,7 +11,7 @@ use web_sys::HtmlCanvasElement;
 use super::{yield_to_browser, Page, Results};
 use crate::analysis::AnalysisError;
 use crate::calibration::{CalibrationAnalysis, CalibrationReport};
-use crate::deviation::{HeadingAnalysis, HeadingReport};
+use crate::heading::{HeadingAnalysis, HeadingReport};
 use crate::io::ImportReport;
 use crate::pdr::{PdrAnalysis, PdrError};
 use crate::pipeline;
