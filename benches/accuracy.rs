@@ -429,7 +429,7 @@ mod report {
                 .iter()
                 .map(|(name, bytes)| (name.as_str(), bytes.as_slice()))
                 .collect();
-            let analysis = compass_pdr::analysis::analyse_files(
+            let analysis = compass_pdr::pipeline::calibrate_files(
                 &slices,
                 &CalibrationOptions {
                     methods: vec![Method::Ellipsoid],

@@ -1,6 +1,6 @@
-//! The analysis entry points the CLI and the page share: bytes of one or more logs in,
-//! the calibration comparison of [`crate::calibration`] out; and the preparation every
-//! calibration needs — magnetometer samples with the tilt at each ([`tilted_samples`]).
+//! What every calibration needs before it fits: magnetometer samples with the tilt at
+//! each ([`tilted_samples`]), and the errors ([`AnalysisError`]) whose messages name the
+//! file and what to do.
 
 use nalgebra::Vector3;
 use serde::Serialize;
@@ -8,8 +8,6 @@ use thiserror::Error;
 
 use crate::calib::gravity::{estimate_gravity, GravitySource};
 use crate::calib::tilt::Tilt;
-use crate::calibration::{calibrate, CalibrationAnalysis, CalibrationOptions};
-use crate::io::import::import_files;
 use crate::io::{Diagnostics, HeaderInfo, ImportError};
 use crate::recording::Recording;
 
@@ -86,7 +84,7 @@ fn streams_found(recording: &Recording) -> String {
     let found: Vec<String> = counts
         .iter()
         .filter(|(count, _)| *count > 0)
-        .map(|(count, what)| format!("{} {what}", crate::report::thousands(*count)))
+        .map(|(count, what)| format!("{} {what}", crate::io::thousands(*count)))
         .collect();
     match found.as_slice() {
         [] => "notes on what it is (no samples this tool uses)".to_string(),
@@ -227,29 +225,11 @@ pub fn tilted_samples(
     Ok(samples)
 }
 
-/// Reads a log (any format [`crate::io::import`] knows) and compares the calibration
-/// methods on it.
-pub fn analyse_file(
-    file_name: &str,
-    bytes: &[u8],
-    options: &CalibrationOptions,
-) -> Result<CalibrationAnalysis, AnalysisError> {
-    analyse_files(&[(file_name, bytes)], options)
-}
-
-/// Reads the files of one recording together (phyphox writes one file per sensor),
-/// merges them, and compares the calibration methods on them.
-pub fn analyse_files(
-    files: &[(&str, &[u8])],
-    options: &CalibrationOptions,
-) -> Result<CalibrationAnalysis, AnalysisError> {
-    calibrate(import_files(files)?, options)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::calibration::Method;
+    use crate::calibration::{CalibrationAnalysis, CalibrationOptions, Method};
+    use crate::pipeline::calibrate_file as analyse_file;
 
     fn analyse(text: &str) -> Result<CalibrationAnalysis, AnalysisError> {
         analyse_file("log.csv", text.as_bytes(), &CalibrationOptions::default())

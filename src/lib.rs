@@ -81,7 +81,6 @@ pub mod plot;
 pub mod recording;
 pub mod reference;
 pub mod report;
-pub mod selection;
 pub mod sim;
 pub mod stats;
 

@@ -1,6 +1,6 @@
 //! The one analysis pipeline: an imported recording → the field calibrations
 //! ([`crate::calibration`]) → the heading models and the one choice of "best"
-//! ([`crate::heading`], [`crate::selection`]) → dead reckoning ([`crate::pdr`]). The
+//! ([`crate::heading`], [`crate::calibration::selection`]) → dead reckoning ([`crate::pdr`]). The
 //! CLI, the page and the report are thin callers of these functions, so they name the
 //! same best method and export the same device calibration.
 //!
@@ -11,11 +11,13 @@
 //! (so no fix inside an outage trains what bridges it) but does not choose again.
 
 use crate::analysis::AnalysisError;
+use crate::calibration::selection::Choice;
+use crate::calibration::CalibrationOptions;
 use crate::calibration::{calibrate, CalibrationAnalysis, Method};
 use crate::heading::{compare, HeadingAnalysis, HeadingOptions};
+use crate::io::import::import_files;
 use crate::io::ImportReport;
 use crate::pdr::{dead_reckon, PdrAnalysis, PdrError, PdrOptions};
-use crate::selection::Choice;
 
 /// Where a re-run starts.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -118,4 +120,23 @@ pub fn dead_reckoning(
 ) -> Result<PdrAnalysis, PdrError> {
     let (_, headings) = headings(import, &options.heading_options)?;
     dead_reckon(import, &headings, options)
+}
+
+/// The calibration stage on the bytes of one log (any format [`crate::io::import`]
+/// knows), for tests and scripts (the page and the CLI read files in chunks).
+pub fn calibrate_file(
+    file_name: &str,
+    bytes: &[u8],
+    options: &CalibrationOptions,
+) -> Result<CalibrationAnalysis, AnalysisError> {
+    calibrate_files(&[(file_name, bytes)], options)
+}
+
+/// The calibration stage on the files of one recording, merged (phyphox writes one file
+/// per sensor).
+pub fn calibrate_files(
+    files: &[(&str, &[u8])],
+    options: &CalibrationOptions,
+) -> Result<CalibrationAnalysis, AnalysisError> {
+    calibrate(import_files(files)?, options)
 }

@@ -570,16 +570,16 @@ pub fn html_report(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::analysis::analyse_file;
     use crate::calibration::CalibrationOptions;
     use crate::heading::{compare, HeadingOptions};
+    use crate::pipeline::calibrate_file;
     use crate::sim::walk::{simulate, WalkConfig};
 
     #[test]
     fn the_device_calibration_is_shown_in_the_board_s_axes_and_unit_with_the_formula() {
         use crate::sim::dance::{motioncal_raw_lines, DanceConfig};
         let (text, truth) = motioncal_raw_lines(&DanceConfig::from_seed(5, 60.0));
-        let analysis = analyse_file("dance.txt", text.as_bytes(), &CalibrationOptions::default())
+        let analysis = calibrate_file("dance.txt", text.as_bytes(), &CalibrationOptions::default())
             .expect("the dance calibrates");
         let lines = device_calibration_lines(&analysis);
         assert!(
@@ -628,7 +628,7 @@ mod tests {
     #[test]
     fn the_csv_and_the_report_hold_the_analysis() {
         let csv = crate::io::canonical_csv::write(&simulate(&WalkConfig::from_seed(3, 120.0)));
-        let analysis = analyse_file(
+        let analysis = calibrate_file(
             "<b>walk</b>.csv",
             csv.as_bytes(),
             &CalibrationOptions::default(),

@@ -294,3 +294,82 @@ fn no_file_is_over_1000_lines_or_800_without_its_tests() {
     }
     assert!(violations.is_empty(), "{violations:#?}");
 }
+
+/// The crate's top-level modules import one another without a cycle (outside tests), so
+/// that each layer can be read, and changed, knowing only what is below it. A cycle is
+/// reported as the chain of modules with one import that makes each link.
+#[test]
+fn the_top_level_modules_import_one_another_without_a_cycle() {
+    use std::collections::BTreeMap;
+    let mut files = Vec::new();
+    rust_files(&src(), &mut files);
+    // module -> imported module -> the first place it is imported.
+    let mut imports: BTreeMap<String, BTreeMap<String, String>> = BTreeMap::new();
+    for path in &files {
+        let relative = path.strip_prefix(src()).unwrap_or(path);
+        let Some(first) = relative.components().next() else {
+            continue;
+        };
+        let top = first
+            .as_os_str()
+            .to_string_lossy()
+            .trim_end_matches(".rs")
+            .to_string();
+        if top == "lib" || top == "main" {
+            continue;
+        }
+        for (line_no, code) in code_lines(path) {
+            for (at, _) in code.match_indices("crate::") {
+                let module: String = code[at + "crate::".len()..]
+                    .chars()
+                    .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
+                    .collect();
+                if module != top && !module.is_empty() {
+                    imports
+                        .entry(top.clone())
+                        .or_default()
+                        .entry(module)
+                        .or_insert_with(|| format!("{}:{line_no}", relative.display()));
+                }
+            }
+        }
+    }
+    assert!(imports.len() > 10, "the modules were not found");
+    // Depth-first search with the path kept: a module met again on the path closes a
+    // cycle.
+    fn visit(
+        module: &str,
+        imports: &BTreeMap<String, BTreeMap<String, String>>,
+        path: &mut Vec<String>,
+        done: &mut Vec<String>,
+        cycles: &mut Vec<String>,
+    ) {
+        if let Some(at) = path.iter().position(|seen| seen == module) {
+            let chain: Vec<String> = path[at..]
+                .iter()
+                .zip(
+                    path[at + 1..]
+                        .iter()
+                        .chain(std::iter::once(&module.to_string())),
+                )
+                .map(|(from, to)| format!("{from} -> {to} ({})", imports[from][to]))
+                .collect();
+            cycles.push(chain.join(", "));
+            return;
+        }
+        if done.iter().any(|finished| finished == module) {
+            return;
+        }
+        path.push(module.to_string());
+        for next in imports.get(module).into_iter().flat_map(BTreeMap::keys) {
+            visit(next, imports, path, done, cycles);
+        }
+        path.pop();
+        done.push(module.to_string());
+    }
+    let (mut done, mut cycles) = (Vec::new(), Vec::new());
+    for module in imports.keys() {
+        visit(module, &imports, &mut Vec::new(), &mut done, &mut cycles);
+    }
+    assert!(cycles.is_empty(), "{cycles:#?}");
+}

@@ -11,9 +11,9 @@
 //! the sensor's axes and the log's unit.
 #![cfg(not(target_arch = "wasm32"))]
 
-use compass_pdr::analysis::analyse_files;
 use compass_pdr::calib::export::{c_snippet, motioncal_packet};
 use compass_pdr::calibration::{CalibrationAnalysis, CalibrationOptions, MethodParameters};
+use compass_pdr::pipeline::calibrate_files;
 use compass_pdr::report::{device_export, DeviceExport};
 use compass_pdr::sim::dance::{motioncal_raw_lines, DanceConfig};
 use compass_pdr::sim::rng::SplitMix64;
@@ -120,7 +120,7 @@ fn analyse(files: &[(&str, &str)]) -> CalibrationAnalysis {
         .iter()
         .map(|(name, text)| (*name, text.as_bytes()))
         .collect();
-    analyse_files(&slices, &CalibrationOptions::default()).expect("the log calibrates")
+    calibrate_files(&slices, &CalibrationOptions::default()).expect("the log calibrates")
 }
 
 /// The spread the analysis reports for its device calibration: the ellipsoid fit's own

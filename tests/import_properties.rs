@@ -3,10 +3,10 @@
 //! so that it runs inside `./test`.
 #![cfg(not(target_arch = "wasm32"))]
 
-use compass_pdr::analysis::analyse_file;
 use compass_pdr::calibration::CalibrationOptions;
 use compass_pdr::io::import::{import, import_files, merge, ChunkedImport, Inspection};
 use compass_pdr::io::lines::LineDecoder;
+use compass_pdr::pipeline::calibrate_file;
 use proptest::prelude::*;
 
 /// Lines of every format this tool reads, to be shuffled, cut and corrupted.
@@ -70,7 +70,7 @@ proptest! {
     #[test]
     fn arbitrary_bytes_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..2048)) {
         let _ = import("fuzz.bin", &bytes).map(|report| Inspection::of(&report));
-        let _ = analyse_file("fuzz.bin", &bytes, &CalibrationOptions::default());
+        let _ = calibrate_file("fuzz.bin", &bytes, &CalibrationOptions::default());
     }
 
     #[test]
@@ -90,7 +90,7 @@ proptest! {
         }
         let _ = import("mixed.txt", &text).map(|report| Inspection::of(&report));
         let _ = import_files(&[("a.txt", &text), ("b.txt", &text[..text.len() / 2])]);
-        let _ = analyse_file("mixed.txt", &text, &CalibrationOptions::default());
+        let _ = calibrate_file("mixed.txt", &text, &CalibrationOptions::default());
     }
 
     #[test]

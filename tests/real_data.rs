@@ -227,7 +227,7 @@ fn calibrate_paths(
 ) -> compass_pdr::calibration::CalibrationAnalysis {
     let contents = read_named(paths);
     let slices = as_slices(&contents);
-    compass_pdr::analysis::analyse_files(&slices, options).expect("calibrates")
+    compass_pdr::pipeline::calibrate_files(&slices, options).expect("calibrates")
 }
 
 fn hmc_run(data: &Path, run: &str) -> Vec<PathBuf> {
@@ -756,7 +756,7 @@ fn qmc5883l_calibration_agrees_with_its_author_s() {
     let ours = analysis
         .report
         .method(Method::Ellipsoid)
-        .and_then(compass_pdr::selection::field_calibration_of)
+        .and_then(compass_pdr::calibration::selection::field_calibration_of)
         .expect("the 3D fit");
     let spread = |correct: &dyn Fn(Vector3<f64>) -> f64| {
         let norms: Vec<f64> = analysis.mag_ut.iter().map(|&m| correct(m)).collect();

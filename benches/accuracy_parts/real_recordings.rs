@@ -5,10 +5,10 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use compass_pdr::angle::wrap_to_pi;
+use compass_pdr::calibration::selection::field_calibration_of;
 use compass_pdr::calibration::{CalibrationAnalysis, CalibrationOptions, Method, MethodParameters};
 use compass_pdr::heading::{compare, HeadingOptions};
 use compass_pdr::reference::{ReferenceChoice, ReferenceOptions};
-use compass_pdr::selection::field_calibration_of;
 use nalgebra::{Matrix3, Vector3};
 
 use super::common;
@@ -19,7 +19,7 @@ fn analyse(paths: &[PathBuf], options: &CalibrationOptions) -> Option<Calibratio
         .iter()
         .map(|(name, bytes)| (name.as_str(), bytes.as_slice()))
         .collect();
-    compass_pdr::analysis::analyse_files(&slices, options).ok()
+    compass_pdr::pipeline::calibrate_files(&slices, options).ok()
 }
 
 /// The chosen heading method over the whole heading comparison, and the uncalibrated

@@ -201,7 +201,7 @@ pub(super) fn fit_ref_ls(
             method_reports
                 .iter()
                 .filter_map(|report: &MethodReport| {
-                    let calibration = crate::selection::field_calibration_of(report)?;
+                    let calibration = crate::calibration::selection::field_calibration_of(report)?;
                     Some((
                         report.method,
                         calibration,

@@ -30,14 +30,17 @@ use crate::calib::plane::PlaneFit;
 use crate::calib::refls::RefLsFit;
 use crate::calib::tilt::Tilt;
 use crate::calib::wmm::ExpectedField;
+use crate::calibration::selection::{
+    choose_by_reference, choose_without_reference, Choice, Scored, RAW_KEY,
+};
 use crate::io::{Diagnostics, ImportReport, SensorFrame};
 use crate::recording::Recording;
 use crate::reference::{choose_reference, ReferenceOptions, ReferenceSource};
-use crate::selection::{choose_by_reference, choose_without_reference, Choice, Scored, RAW_KEY};
 use crate::stats::HeadingErrorStats;
 
 mod context;
 mod methods;
+pub mod selection;
 
 use context::{
     conditions, declination_used, field_and_reference_notes, split, turn_onto_raw_heading, Split,
@@ -216,7 +219,7 @@ pub struct CalibrationReport {
     pub raw_heading_error_train: Option<HeadingErrorStats>,
     pub raw_heading_error_check: Option<HeadingErrorStats>,
     pub methods: Vec<MethodReport>,
-    /// The field-domain method of the analysis's one best heading ([`crate::selection`]):
+    /// The field-domain method of the analysis's one best heading ([`crate::calibration::selection`]):
     /// [`calibrate`] sets the best of the field-domain methods alone (the lowest check
     /// RMS, never worse than uncalibrated; without a reference, by the fits' own
     /// figures); the pipeline's heading stage ([`crate::pipeline::headings`]) replaces it
@@ -275,9 +278,9 @@ impl CalibrationReport {
 
 impl CalibrationAnalysis {
     /// The 3D calibration to store in a device (C snippet, MotionCal packet), chosen by
-    /// [`crate::selection::device_calibration`].
+    /// [`crate::calibration::selection::device_calibration`].
     pub fn device_calibration(&self) -> Option<(Method, FieldCalibration)> {
-        crate::selection::device_calibration(&self.report)
+        crate::calibration::selection::device_calibration(&self.report)
     }
 }
 

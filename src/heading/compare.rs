@@ -2,11 +2,13 @@
 //! (uncalibrated and each field-domain calibration) alone, with the PDR paper's Fourier
 //! model (Eq. 12) on top, with the 2007 paper's network on top (on the raw heading and on
 //! the best-fitting calibration), the online adaptation of the featured Fourier model,
-//! and the one choice of "best" by [`crate::selection`]'s rule.
+//! and the one choice of "best" by [`crate::calibration::selection`]'s rule.
 
 use crate::angle::heading_difference_rad;
+use crate::calibration::selection::{
+    choose_by_reference, choose_without_reference, Choice, Scored,
+};
 use crate::calibration::{CalibrationAnalysis, CalibrationReport};
-use crate::selection::{choose_by_reference, choose_without_reference, Choice, Scored};
 use crate::stats::HeadingErrorStats;
 
 use super::fourier::{self, fit_fourier};

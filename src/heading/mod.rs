@@ -27,9 +27,9 @@ pub use compare::compare;
 
 use serde::Serialize;
 
+use crate::calibration::selection::Choice;
 use crate::calibration::{CalibrationOptions, CalibrationReport};
 use crate::reference::ReferenceSource;
-use crate::selection::Choice;
 use crate::stats::HeadingErrorStats;
 use fourier::{FourierDeviation, FourierFit};
 use rls::RlsSnapshot;
@@ -122,7 +122,7 @@ pub struct HeadingReport {
     /// method), with their inputs and training.
     pub neural: Vec<neural::NeuralReport>,
     pub online: Option<OnlineReport>,
-    /// The row the analysis recommends ([`crate::selection`]): the lowest check RMS
+    /// The row the analysis recommends ([`crate::calibration::selection`]): the lowest check RMS
     /// (train RMS without a check part), never worse than the uncalibrated heading;
     /// without a reference, the field calibration the fits' own figures recommend.
     pub best: Option<String>,

@@ -4,7 +4,7 @@
 //! from GPS are utilized to … calibrate the compass" while GNSS is good).
 //!
 //! The choice of model is not made here: it is the heading comparison's
-//! ([`crate::selection`], through [`crate::pipeline`]), so the dead reckoning, the page,
+//! ([`crate::calibration::selection`], through [`crate::pipeline`]), so the dead reckoning, the page,
 //! the CLI and the report name the same method. What is done here is to fit that one
 //! model again for the track: on every GNSS-referenced sample outside the outages, never
 //! on a reference-heading column (in a test log that column is the truth), so that no
@@ -84,7 +84,9 @@ fn compass_heading(
         .and_then(|refit| series_of(refit, &wanted).map(|series| (refit, series)));
     let (source, series) = from_refit
         .or_else(|| series_of(headings, &wanted).map(|series| (headings, series)))
-        .or_else(|| series_of(headings, crate::selection::RAW_KEY).map(|s| (headings, s)))?;
+        .or_else(|| {
+            series_of(headings, crate::calibration::selection::RAW_KEY).map(|s| (headings, s))
+        })?;
     let key = series.0.clone();
     if let HeadingBase::Model(requested) = &options.heading.base {
         if *requested != key {

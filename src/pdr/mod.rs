@@ -20,7 +20,7 @@
 //!
 //! ## The stage
 //!
-//! 1. The heading model is the comparison's choice ([`crate::selection`]); it is fitted
+//! 1. The heading model is the comparison's choice ([`crate::calibration::selection`]); it is fitted
 //!    again on the GNSS course left after the outages' fixes are set aside (Fig. 2:
 //!    "the speed and heading from GPS are utilized to train the step length model and
 //!    calibrate the compass"), never on a reference-heading column, which in a test log

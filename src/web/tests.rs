@@ -5,9 +5,9 @@ use wasm_bindgen_test::*;
 use web_sys::{CanvasRenderingContext2d, HtmlCanvasElement};
 
 use super::canvas::{self, Plot};
-use crate::analysis::analyse_file as analyse_log;
 use crate::calibration::{CalibrationOptions, Method};
 use crate::io::canonical_csv;
+use crate::pipeline::calibrate_file as analyse_log;
 use crate::sim::walk::{simulate, WalkConfig};
 
 wasm_bindgen_test_configure!(run_in_browser);

@@ -5,10 +5,10 @@
 use nalgebra::Vector2;
 
 use super::*;
-use crate::analysis::analyse_file;
 use crate::calibration::{CalibrationOptions, Method, MethodParameters};
 use crate::geo::{Geodetic, LocalFrame};
 use crate::io::{canonical_csv, STANDARD_GRAVITY_MPS2};
+use crate::pipeline::calibrate_file;
 use crate::sim::gait::Gait;
 
 #[test]
@@ -125,7 +125,7 @@ fn gnss_outages_have_no_fix_and_multipath_strays_with_an_optimistic_accuracy() {
 fn the_paper_raw_case_is_wrong_by_about_12_plus_or_minus_30_degrees() {
     let config = WalkConfig::paper_raw_case(3, 600.0);
     assert_eq!(config.route, Route::Turntable { period_s: 60.0 });
-    let analysis = analyse_file(
+    let analysis = calibrate_file(
         "paper.csv",
         canonical_csv::write(&simulate(&config)).as_bytes(),
         &CalibrationOptions::default(),
@@ -159,7 +159,7 @@ fn soft_iron_off_the_diagonal_is_what_the_level_ellipse_fit_removes() {
         soft_iron_offdiag: [0.12, 0.0, 0.0],
         ..WalkConfig::from_seed(5, 300.0)
     };
-    let analysis = analyse_file(
+    let analysis = calibrate_file(
         "soft.csv",
         canonical_csv::write(&simulate(&config)).as_bytes(),
         &CalibrationOptions::default(),
@@ -493,7 +493,7 @@ fn the_walk_has_the_requested_length_and_a_level_rest_reading() {
 fn minmax_recovers_the_simulated_heading() {
     let config = WalkConfig::from_seed(11, 120.0);
     let text = canonical_csv::write(&simulate(&config));
-    let analysis = analyse_file("sim.csv", text.as_bytes(), &CalibrationOptions::default())
+    let analysis = calibrate_file("sim.csv", text.as_bytes(), &CalibrationOptions::default())
         .expect("analysable");
     let report = &analysis.report;
     let raw = report.raw_heading_error_check.expect("reference present");

@@ -156,7 +156,7 @@ impl Page {
             1 => " 1 line had a problem; see below.".to_string(),
             n => format!(" {n} lines had problems; see below."),
         };
-        // The CLI's `best:` line, word for word (crate::selection makes the choice once).
+        // The CLI's `best:` line, word for word (crate::calibration::selection makes the choice once).
         let best = format!(" Best: {}.", headings.report.choice.sentence());
         self.set_state(
             "loading",

@@ -24,8 +24,8 @@
 
 use serde::Serialize;
 
+use super::{CalibrationReport, Method, MethodParameters, MethodReport};
 use crate::calib::model::FieldCalibration;
-use crate::calibration::{CalibrationReport, Method, MethodParameters, MethodReport};
 
 /// Without a reference, the 3D fit is trusted when its own heading uncertainty (from
 /// its parameters' covariance, at the log's attitudes) is within this many degrees.
