@@ -19,7 +19,8 @@ use crate::io::import::import_files;
 use crate::io::ImportReport;
 use crate::pdr::{dead_reckon, PdrAnalysis, PdrError, PdrOptions};
 
-/// Where a re-run starts.
+/// Where a re-run starts (the page's controls say which stage a change touches, and run
+/// the stage functions from there).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Stage {
     /// The calibration, the heading models and the dead reckoning.
@@ -94,22 +95,6 @@ pub fn analyse(import: &ImportReport, options: &PdrOptions) -> Result<Analysis, 
         headings,
         pdr,
     })
-}
-
-/// Re-runs `stage` and what follows it with new options.
-pub fn rerun(
-    previous: Analysis,
-    import: &ImportReport,
-    options: &PdrOptions,
-    stage: Stage,
-) -> Result<Analysis, AnalysisError> {
-    match stage {
-        Stage::Calibration => analyse(import, options),
-        Stage::DeadReckoning => Ok(Analysis {
-            pdr: Some(dead_reckon(import, &previous.headings, options)),
-            ..previous
-        }),
-    }
 }
 
 /// The dead reckoning of a recording, with the stages before it (for callers that
