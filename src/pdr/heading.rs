@@ -142,8 +142,13 @@ fn refit_on_gnss(
         neural: key.contains("mlp"),
         ..given.clone()
     };
+    let gnss = without_outages(&import.recording.gnss, &options.gnss.outages);
+    if gnss.is_empty() {
+        // Nothing to reference the heading: the comparison's fit stands.
+        return None;
+    }
     let mut report = import.clone();
-    report.recording.gnss = without_outages(&report.recording.gnss, &options.gnss.outages);
+    report.recording.gnss = gnss;
     match calibrate(report, &everything.calibration) {
         Ok(refit) if refit.report.reference.is_some() => {
             Some(crate::heading::compare(&refit, &everything))
