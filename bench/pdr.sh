@@ -125,7 +125,7 @@ print(f"| numpy {peer['numpy_version']} loop, 4×4 arrays ({peer['runs']} runs) 
 print()
 print(f"PDR pipeline: `{profile['file']}`, a simulated hour at {settings['hour_rate_hz']:g} Hz with GNSS "
       f"({profile['bytes'] / 1e6:.1f} MB of canonical CSV, {profile['n_samples']:,} samples, {profile['n_fixes']:,} fixes), "
-      f"`import` then `pdr::run` with the default options: {profile['n_steps']:,} steps, "
+      f"`import` then `pipeline::dead_reckoning` with the default options: {profile['n_steps']:,} steps, "
       f"{profile['distance_m']:.0f} m, heading `{profile['heading_key']}`")
 print()
 print("| run | median s | target | | load (1, 5, 15 min) at start |")
@@ -137,18 +137,18 @@ print(f"| ours, wasm ({wasm['pipeline']['runs']} runs, {wasm['pipeline']['n_step
       f"| {env['BENCH_LOAD_WASM']} |")
 print()
 total = profile["import_and_run_s"]
-print(f"Native stages (each timed alone, median of {profile['runs']}; import + `pdr::run` {total:.2f} s):")
+print(f"Native stages (each timed alone, median of {profile['runs']}; import + the pipeline {total:.2f} s):")
 print()
 print("| stage | s | share |")
 print("|---|---|---|")
 for key, label in [
     ("import", "`io::import::import`"),
-    ("calibrate", "`calibration::calibrate` (field-domain fits, GNSS reference)"),
+    ("calibrate", "`calibration::calibrate` (field-domain fits, the log's reference)"),
     ("compare", "`heading::compare` (Fourier, RLS and MLP heading models)"),
     ("steps", "`pdr::steps::detect_steps`"),
     ("ekf", "`pdr::fusion::fuse` (the EKF with GNSS gating)"),
-    ("report_clone", "the `ImportReport` clone `pdr::run` needs"),
-    ("other", "the rest of `pdr::run` (step headings, frame, step model, metrics)"),
+    ("report_clone", "the `ImportReport` clone the calibration takes"),
+    ("other", "the rest (the chosen model fitted again on GNSS, step headings, frame, step model, metrics)"),
 ]:
     print(f"| {label} | {stages[key]:.3f} | {stages[key] / total * 100:.0f}% |")
 print()
