@@ -3,7 +3,7 @@
 
 use serde::Serialize;
 
-use crate::angle::wrap_to_pi;
+use crate::angle::{heading_difference_rad, wrap_to_pi};
 
 /// Statistics of a set of heading errors (estimate minus reference), in degrees.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -21,6 +21,26 @@ pub struct HeadingErrorStats {
 }
 
 impl HeadingErrorStats {
+    /// Statistics of `headings_rad` against the reference on one part of a train/check
+    /// split: the samples whose `is_train` is `want_train` and that have a reference.
+    pub fn on_part(
+        headings_rad: &[f64],
+        reference_rad: &[Option<f64>],
+        is_train: &[bool],
+        want_train: bool,
+    ) -> Option<Self> {
+        Self::from_errors_rad(
+            headings_rad
+                .iter()
+                .zip(reference_rad)
+                .zip(is_train)
+                .filter_map(|((&heading_rad, &reference_rad), &train)| {
+                    (train == want_train)
+                        .then_some(heading_difference_rad(heading_rad, reference_rad?))
+                }),
+        )
+    }
+
     /// Statistics of heading errors given in radians (wrapped here to ±π). Non-finite
     /// values are left out; `None` when nothing is left.
     pub fn from_errors_rad(errors_rad: impl IntoIterator<Item = f64>) -> Option<Self> {

@@ -21,7 +21,6 @@ use nalgebra::{Vector2, Vector3};
 use serde::Serialize;
 
 use crate::analysis::AnalysisError;
-use crate::angle::heading_difference_rad;
 use crate::calib::heading::heading_rad;
 use crate::calib::inertial::InertialFit;
 use crate::calib::minmax::MinMaxCalibration;
@@ -300,16 +299,8 @@ struct Prepared {
 impl Prepared {
     /// The heading error statistics on the train part (`true`) or the check part.
     fn stats(&self, headings_rad: &[f64], want_train: bool) -> Option<HeadingErrorStats> {
-        HeadingErrorStats::from_errors_rad(
-            headings_rad
-                .iter()
-                .zip(&self.ref_heading_rad)
-                .zip(&self.split.is_train)
-                .filter_map(|((&heading_rad, &reference_rad), &train)| {
-                    (train == want_train)
-                        .then_some(heading_difference_rad(heading_rad, reference_rad?))
-                }),
-        )
+        let (reference, is_train) = (&self.ref_heading_rad, &self.split.is_train);
+        HeadingErrorStats::on_part(headings_rad, reference, is_train, want_train)
     }
 }
 
@@ -733,7 +724,8 @@ mod tests {
         let (plain_deg, turned_deg) = (&plain.headings_deg[0].1, &turned.headings_deg[0].1);
         for (a_deg, b_deg) in plain_deg.iter().zip(turned_deg) {
             let difference_deg =
-                heading_difference_rad(b_deg.to_radians(), a_deg.to_radians()).to_degrees();
+                crate::angle::heading_difference_rad(b_deg.to_radians(), a_deg.to_radians())
+                    .to_degrees();
             assert!((difference_deg - 10.0).abs() < 1e-9);
         }
         assert_eq!(turned.report.declination.source, "given by the user");

@@ -4,7 +4,6 @@
 //! the best-fitting calibration), the online adaptation of the featured Fourier model,
 //! and the one choice of "best" by [`crate::calibration::selection`]'s rule.
 
-use crate::angle::heading_difference_rad;
 use crate::calibration::selection::{
     choose_by_reference, choose_without_reference, Choice, Scored,
 };
@@ -61,16 +60,8 @@ impl Split {
 
     /// The heading error statistics on one part.
     fn stats(&self, headings_rad: &[f64], want_train: bool) -> Option<HeadingErrorStats> {
-        HeadingErrorStats::from_errors_rad(
-            headings_rad
-                .iter()
-                .zip(&self.reference_rad)
-                .zip(&self.is_train)
-                .filter_map(|((&heading_rad, &reference_rad), &train)| {
-                    (train == want_train)
-                        .then_some(heading_difference_rad(heading_rad, reference_rad?))
-                }),
-        )
+        let (reference, is_train) = (&self.reference_rad, &self.is_train);
+        HeadingErrorStats::on_part(headings_rad, reference, is_train, want_train)
     }
 }
 
