@@ -152,7 +152,7 @@ mod native {
             report.header.as_ref(),
             &report.diagnostics,
             report.n_data_lines,
-            options.gravity_window_s,
+            &compass_pdr::calib::gravity::gravity_of(&report.recording, options.gravity_window_s),
         )
         .map_err(|error| error.to_string())?;
         let expected = expected_field_of(&report.recording, options.position_deg, &mut Vec::new());

@@ -6,7 +6,7 @@ use nalgebra::Vector3;
 use serde::Serialize;
 use thiserror::Error;
 
-use crate::calib::gravity::{estimate_gravity, GravitySource};
+use crate::calib::gravity::{GravityEstimate, GravitySource};
 use crate::calib::tilt::Tilt;
 use crate::io::{Diagnostics, HeaderInfo, ImportError};
 use crate::recording::Recording;
@@ -104,9 +104,9 @@ pub struct TiltedSamples {
     pub notes: Vec<String>,
 }
 
-/// The magnetometer samples of a recording with roll and pitch from the accelerometer
-/// and gyroscope ([`crate::calib::gravity`], time constant `gravity_window_s`), or level
-/// when the log has no accelerometer.
+/// The magnetometer samples of a recording with roll and pitch from `gravity` (the
+/// recording's down from its accelerometer and gyroscope,
+/// [`crate::calib::gravity::gravity_of`]), or level when the log has no accelerometer.
 /// Fails, saying why and what to do, when there is no usable magnetometer sample.
 pub fn tilted_samples(
     file_name: &str,
@@ -114,7 +114,7 @@ pub fn tilted_samples(
     header: Option<&HeaderInfo>,
     diagnostics: &Diagnostics,
     n_data_lines: usize,
-    gravity_window_s: f64,
+    gravity: &GravityEstimate,
 ) -> Result<TiltedSamples, AnalysisError> {
     let file_name = file_name.to_string();
     let (header_line, header_columns) = header.map_or((1, Vec::new()), |header| {
@@ -156,19 +156,13 @@ pub fn tilted_samples(
             }
         });
     }
-    let estimate = estimate_gravity(
-        &recording.acc_in_body_mps2,
-        &recording.gyro_in_body_radps,
-        &recording.gnss,
-        gravity_window_s,
-    );
+    let estimate = gravity;
     let gravity = &estimate.specific_force_mps2;
+    let window_s = estimate.tau_s();
     let levelling = if gravity.is_empty() {
         Levelling::AssumedLevel
     } else {
-        Levelling::Accelerometer {
-            window_s: gravity_window_s,
-        }
+        Levelling::Accelerometer { window_s }
     };
     let mut samples = TiltedSamples {
         t_s: Vec::with_capacity(mag.len()),
@@ -201,7 +195,7 @@ pub fn tilted_samples(
                 if !recording.gyro_in_body_radps.is_empty() =>
             {
                 samples.notes.push(format!(
-                    "tilt from the accelerometer alone (averaged over {gravity_window_s} s), not with the gyroscope: {reason}"
+                    "tilt from the accelerometer alone (averaged over {window_s} s), not with the gyroscope: {reason}"
                 ));
             }
             GravitySource::GyroAided {

@@ -7,7 +7,16 @@ use std::f64::consts::{PI, TAU};
 
 /// Wraps an angle to `[0, 2π)`, as headings are reported.
 pub fn wrap_to_2pi(angle_rad: f64) -> f64 {
-    let wrapped = angle_rad.rem_euclid(TAU);
+    // Within one turn of the range, `rem_euclid` is the identity or one addition (its
+    // remainder is exact there): the same value without its `fmod`, which costs more
+    // than the rest of a heading's arithmetic (a software routine, in wasm too).
+    let wrapped = if (0.0..TAU).contains(&angle_rad) {
+        angle_rad
+    } else if angle_rad > -TAU && angle_rad < 0.0 {
+        angle_rad + TAU
+    } else {
+        angle_rad.rem_euclid(TAU)
+    };
     // rem_euclid can return exactly TAU for tiny negative inputs through rounding.
     if wrapped >= TAU {
         0.0
@@ -34,6 +43,35 @@ pub fn heading_difference_rad(a_rad: f64, b_rad: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_fast_paths_give_rem_euclid_bit_for_bit() {
+        let mut state = 0x9E37_79B9_7F4A_7C15_u64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        let edges = [
+            0.0,
+            -0.0,
+            TAU,
+            -TAU,
+            PI,
+            -PI,
+            1e-300,
+            -1e-300,
+            TAU - 1e-15,
+            -TAU + 1e-15,
+        ];
+        let random = (0..100_000).map(|_| (next() as f64 / u64::MAX as f64 - 0.5) * 8.0 * TAU);
+        for angle in edges.into_iter().chain(random) {
+            let slow = angle.rem_euclid(TAU);
+            let slow = if slow >= TAU { 0.0 } else { slow };
+            assert_eq!(wrap_to_2pi(angle).to_bits(), slow.to_bits(), "{angle}");
+        }
+    }
 
     fn check(input_deg: f64, expect_deg: f64) {
         let got_deg = wrap_to_pi(input_deg.to_radians()).to_degrees();

@@ -419,7 +419,7 @@ fn msft_indoor_hard_iron_against_the_os_estimate() {
             import.header.as_ref(),
             &import.diagnostics,
             import.n_data_lines,
-            options.gravity_window_s,
+            &compass_pdr::calib::gravity::gravity_of(&import.recording, options.gravity_window_s),
         )
         .expect("levelled");
         let os_vertical_ut: Vec<f64> = samples

@@ -40,7 +40,7 @@ use nalgebra::{Rotation3, Vector3};
 use serde::Serialize;
 
 use super::tilt::smooth_specific_force;
-use crate::recording::{GnssFix, Stream};
+use crate::recording::{GnssFix, Recording, Stream};
 
 /// Standard gravity (m/s²), the magnitude given to the estimated specific force
 /// (CGPM 1901; only the direction matters to the tilt): `io`'s one constant.
@@ -84,6 +84,40 @@ pub struct GravityEstimate {
     pub source: GravitySource,
 }
 
+/// [`estimate_gravity`] on a recording's accelerometer, gyroscope and GNSS: computed
+/// once per analysis and shared by whatever levels with it (the magnetometer's tilt,
+/// the gyro's heading, the dead reckoning's refit).
+pub fn gravity_of(recording: &Recording, tau_s: f64) -> GravityEstimate {
+    estimate_gravity(
+        &recording.acc_in_body_mps2,
+        &recording.gyro_in_body_radps,
+        &recording.gnss,
+        tau_s,
+    )
+}
+
+impl GravityEstimate {
+    /// The time constant it was estimated with (s).
+    pub fn tau_s(&self) -> f64 {
+        match self.source {
+            GravitySource::GyroAided { tau_s, .. } => tau_s,
+            GravitySource::Accelerometer { window_s, .. } => window_s,
+        }
+    }
+
+    /// Whether the estimate used the GNSS (its speeds' accelerations were taken out of
+    /// the accelerometer): if not, it does not change when fixes are left out.
+    pub fn uses_gnss(&self) -> bool {
+        matches!(
+            self.source,
+            GravitySource::GyroAided {
+                motion_compensated: true,
+                ..
+            }
+        )
+    }
+}
+
 /// Estimates down at every accelerometer sample: gyro-aided with time constant
 /// `tau_s` when the log has a consistent gyroscope, else the accelerometer averaged
 /// over a window of the same length.
@@ -122,17 +156,22 @@ pub fn estimate_gravity(
     let mut best: Option<Setting> = None;
     for (motion_idx, motion) in motions.iter().enumerate() {
         for gyro_scale in GYRO_TIME_SCALES {
-            let (downs, innovation) = pass(
-                acc_in_body_mps2,
-                gyro_in_body_radps,
-                gyro_scale,
-                tau_s,
-                Direction::Forward,
-                motion,
-            );
             // Motion compensation is its own evidence; a changed time scale must halve
             // the innovation.
             let handicap = if gyro_scale == 1.0 { 1.0 } else { 2.0 };
+            let losing_rad = best
+                .as_ref()
+                .map_or(f64::INFINITY, |best| best.score / handicap);
+            let Some((downs, innovation)) = pass(
+                acc_in_body_mps2,
+                gyro_in_body_radps,
+                (gyro_scale, tau_s),
+                Direction::Forward,
+                motion,
+                losing_rad,
+            ) else {
+                continue;
+            };
             let score = innovation * handicap;
             if best.as_ref().is_none_or(|best| score < best.score) {
                 best = Some(Setting {
@@ -165,11 +204,12 @@ pub fn estimate_gravity(
     let (backward, _) = pass(
         acc_in_body_mps2,
         gyro_in_body_radps,
-        gyro_scale,
-        tau_s,
+        (gyro_scale, tau_s),
         Direction::Backward,
         motion,
-    );
+        f64::INFINITY,
+    )
+    .unwrap_or_default();
     let mut fused = Stream::default();
     for (&t_s, (a, b)) in acc_in_body_mps2
         .t_s
@@ -333,15 +373,28 @@ enum Direction {
 /// and the RMS over blocks of [`INNOVATION_BLOCK_S`] of the mean difference between the
 /// accelerometer's down and the gyroscope's prediction (rad): how far the accelerometer
 /// leans on average, which a right motion compensation reduces.
+///
+/// A pass whose innovation is sure to come out at `losing_rad` or more (another setting
+/// already does better) is abandoned: `None`. The blocks start at least
+/// [`INNOVATION_BLOCK_S`] apart, so the log's span bounds their number, and the RMS over
+/// the blocks so far divided by that bound can only grow. The answer is the same as
+/// running every pass to the end; a wrong time scale is given up within seconds of
+/// the log.
 fn pass(
     acc: &Stream<Vector3<f64>>,
     gyro: &Stream<Vector3<f64>>,
-    gyro_scale: f64,
-    tau_s: f64,
+    (gyro_scale, tau_s): (f64, f64),
     direction: Direction,
     motion: &Motion,
-) -> (Vec<Option<Vector3<f64>>>, f64) {
+    losing_rad: f64,
+) -> Option<(Vec<Option<Vector3<f64>>>, f64)> {
     let n = acc.len().min(acc.t_s.len());
+    let max_blocks = (acc.duration_s().abs() / INNOVATION_BLOCK_S).floor() + 1.0;
+    let losing_sum_sq = if max_blocks.is_finite() {
+        losing_rad * losing_rad * max_blocks
+    } else {
+        f64::INFINITY
+    };
     let mut downs = vec![None; n];
     let order: Box<dyn Iterator<Item = usize>> = match direction {
         Direction::Forward => Box::new(0..n),
@@ -393,6 +446,9 @@ fn pass(
                                 if let Some((_, sum, count)) = block {
                                     sum_sq_innovation += (sum / count as f64).norm_squared();
                                     n_blocks += 1;
+                                    if sum_sq_innovation >= losing_sum_sq {
+                                        return None;
+                                    }
                                 }
                                 block = Some((t_s, innovation, 1));
                             }
@@ -410,7 +466,7 @@ fn pass(
         state = Some((t_s, down));
     }
     let rms = (sum_sq_innovation / n_blocks.max(1) as f64).sqrt();
-    (downs, rms)
+    Some((downs, rms))
 }
 
 #[cfg(test)]
@@ -454,10 +510,7 @@ mod tests {
                 Vector3::new(gyro_sign * rate.x, rate.y, rate.z) + gyro_bias_radps,
             );
             let (roll, pitch, _) = ned_from_body.euler_angles();
-            truth.push(Tilt {
-                roll_rad: roll,
-                pitch_rad: pitch,
-            });
+            truth.push(Tilt::new(roll, pitch));
         }
         (acc, gyro, truth)
     }
@@ -472,8 +525,8 @@ mod tests {
             .filter_map(|(f, truth)| {
                 let tilt = Tilt::from_specific_force(*f)?;
                 Some(
-                    (tilt.roll_rad - truth.roll_rad).powi(2)
-                        + (tilt.pitch_rad - truth.pitch_rad).powi(2),
+                    (tilt.roll_rad() - truth.roll_rad()).powi(2)
+                        + (tilt.pitch_rad() - truth.pitch_rad()).powi(2),
                 )
             })
             .collect();

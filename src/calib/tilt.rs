@@ -36,18 +36,54 @@ use crate::recording::Stream;
 /// broken sensor.
 const MIN_SPECIFIC_FORCE_MPS2: f64 = 2.0;
 
-/// Roll and pitch of the body frame against the local level.
+/// Roll and pitch of the body frame against the local level, with their sines and
+/// cosines (computed once: a sample is levelled by every method, and by a fit at each
+/// of its iterations).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Tilt {
-    pub roll_rad: f64,
-    pub pitch_rad: f64,
+    roll_rad: f64,
+    pitch_rad: f64,
+    /// `roll_rad.sin_cos()` and `pitch_rad.sin_cos()`.
+    roll_sin_cos: (f64, f64),
+    pitch_sin_cos: (f64, f64),
 }
 
 impl Tilt {
     pub const LEVEL: Tilt = Tilt {
         roll_rad: 0.0,
         pitch_rad: 0.0,
+        roll_sin_cos: (0.0, 1.0),
+        pitch_sin_cos: (0.0, 1.0),
     };
+
+    pub fn new(roll_rad: f64, pitch_rad: f64) -> Tilt {
+        Tilt {
+            roll_rad,
+            pitch_rad,
+            roll_sin_cos: roll_rad.sin_cos(),
+            pitch_sin_cos: pitch_rad.sin_cos(),
+        }
+    }
+
+    /// Roll φ (rad), right side down positive.
+    pub fn roll_rad(&self) -> f64 {
+        self.roll_rad
+    }
+
+    /// Pitch θ (rad), nose up positive.
+    pub fn pitch_rad(&self) -> f64 {
+        self.pitch_rad
+    }
+
+    /// `(sin φ, cos φ)`.
+    pub fn roll_sin_cos(&self) -> (f64, f64) {
+        self.roll_sin_cos
+    }
+
+    /// `(sin θ, cos θ)`.
+    pub fn pitch_sin_cos(&self) -> (f64, f64) {
+        self.pitch_sin_cos
+    }
 
     /// Roll and pitch from specific force in the body frame; `None` when the force is
     /// too small or not finite to tell which way is down.
@@ -57,17 +93,14 @@ impl Tilt {
             return None;
         }
         let (fx, fy, fz) = (f_in_body_mps2.x, f_in_body_mps2.y, f_in_body_mps2.z);
-        Some(Tilt {
-            roll_rad: (-fy).atan2(-fz),
-            pitch_rad: fx.atan2(fy.hypot(fz)),
-        })
+        Some(Tilt::new((-fy).atan2(-fz), fx.atan2(fy.hypot(fz))))
     }
 
     /// The horizontal components (Xh along the heading, Yh to its right) of a body
     /// vector: Eq. 4 in this crate's frames.
     pub fn level(&self, v_in_body: Vector3<f64>) -> Vector2<f64> {
-        let (sin_roll, cos_roll) = self.roll_rad.sin_cos();
-        let (sin_pitch, cos_pitch) = self.pitch_rad.sin_cos();
+        let (sin_roll, cos_roll) = self.roll_sin_cos;
+        let (sin_pitch, cos_pitch) = self.pitch_sin_cos;
         Vector2::new(
             v_in_body.x * cos_pitch
                 + v_in_body.y * sin_roll * sin_pitch

@@ -4,6 +4,7 @@
 //! conditions the networks learn from, and the notes that compare the field with the
 //! expected one.
 
+use crate::calib::gravity::GravityEstimate;
 use crate::calib::inertial::{FieldPrior, InertialOptions};
 use crate::calib::plane::PlaneOptions;
 use crate::calib::wmm::{date_of_unix_s, expected_field, CalendarDate, ExpectedField};
@@ -20,13 +21,13 @@ use super::{
 pub(super) fn conditions(
     recording: &Recording,
     t_s: &[f64],
-    gravity_window_s: f64,
+    gravity: &GravityEstimate,
 ) -> (Vec<Option<f64>>, Vec<Option<f64>>) {
     let temp_c: Vec<Option<f64>> = t_s
         .iter()
         .map(|&t_s| recording.temp_c.interpolate_at(t_s, MAX_CONDITION_GAP_S))
         .collect();
-    let gyro = crate::reference::gyro::gyro_heading(recording, gravity_window_s, None, false);
+    let gyro = crate::reference::gyro::gyro_heading(recording, gravity, None, false);
     let gyro_heading_deg: Vec<Option<f64>> = t_s
         .iter()
         .map(|&t_s| {

@@ -17,10 +17,13 @@
 //! log's first position and date ([`crate::calib::wmm`]), which also gives the expected
 //! field that a wrong unit or a nearby magnet stands out against.
 
+use std::sync::Arc;
+
 use nalgebra::{Vector2, Vector3};
 use serde::Serialize;
 
 use crate::analysis::AnalysisError;
+use crate::calib::gravity::{gravity_of, GravityEstimate};
 use crate::calib::heading::heading_rad;
 use crate::calib::inertial::InertialFit;
 use crate::calib::minmax::MinMaxCalibration;
@@ -266,6 +269,9 @@ pub struct CalibrationAnalysis {
     /// temperature, and the integrated gyro heading (relative to its start).
     pub temp_c: Vec<Option<f64>>,
     pub gyro_heading_deg: Vec<Option<f64>>,
+    /// Down at each accelerometer sample, which levelled the samples and the gyro:
+    /// estimated once, shared by the stages after (shared, not copied, by a clone).
+    pub gravity: Arc<GravityEstimate>,
 }
 
 impl CalibrationReport {
@@ -320,7 +326,7 @@ fn prepare(
     file_name: &str,
     recording: &Recording,
     import: (Option<&crate::io::HeaderInfo>, &Diagnostics, usize),
-    options: &CalibrationOptions,
+    (gravity, options): (&GravityEstimate, &CalibrationOptions),
     notes: &mut Vec<String>,
 ) -> Result<Prepared, AnalysisError> {
     let (header, diagnostics, n_data_lines) = import;
@@ -330,14 +336,10 @@ fn prepare(
         header,
         diagnostics,
         n_data_lines,
-        options.gravity_window_s,
+        gravity,
     )?;
     notes.extend(samples.notes.iter().cloned());
-    let reference_options = ReferenceOptions {
-        gravity_window_s: options.gravity_window_s,
-        ..options.reference
-    };
-    let reference = choose_reference(recording, &reference_options);
+    let reference = choose_reference(recording, gravity, &options.reference);
     let mut ref_heading_rad: Vec<Option<f64>> = samples
         .t_s
         .iter()
@@ -457,6 +459,17 @@ pub fn calibrate(
     report: ImportReport,
     options: &CalibrationOptions,
 ) -> Result<CalibrationAnalysis, AnalysisError> {
+    calibrate_with_gravity(report, options, None)
+}
+
+/// [`calibrate`], levelling with `gravity` where it is given and was estimated with the
+/// options' `gravity_window_s` (it must be the recording's own, [`gravity_of`]: a
+/// later stage re-running the calibration on the same sensors passes the first run's).
+pub fn calibrate_with_gravity(
+    report: ImportReport,
+    options: &CalibrationOptions,
+    gravity: Option<Arc<GravityEstimate>>,
+) -> Result<CalibrationAnalysis, AnalysisError> {
     let ImportReport {
         file_name,
         format,
@@ -468,7 +481,16 @@ pub fn calibrate(
         mag_frame,
     } = report;
     let import = (header.as_ref(), &diagnostics, n_data_lines);
-    let prepared = prepare(&file_name, &recording, import, options, &mut notes)?;
+    let gravity = gravity
+        .filter(|gravity| gravity.tau_s() == options.gravity_window_s)
+        .unwrap_or_else(|| Arc::new(gravity_of(&recording, options.gravity_window_s)));
+    let prepared = prepare(
+        &file_name,
+        &recording,
+        import,
+        (&gravity, options),
+        &mut notes,
+    )?;
     let mut outputs = MethodOutputs {
         plane_correction: None,
         field_corrected_ut: None,
@@ -510,7 +532,7 @@ pub fn calibrate(
         raw_heading_rad,
     } = prepared;
     let field_raw_ut: Vec<f64> = samples.mag_ut.iter().map(|mag| mag.norm()).collect();
-    let (temp_c, gyro_heading_deg) = conditions(&recording, &samples.t_s, options.gravity_window_s);
+    let (temp_c, gyro_heading_deg) = conditions(&recording, &samples.t_s, &gravity);
     let mean_raw_field_ut = field_raw_ut.iter().sum::<f64>() / field_raw_ut.len().max(1) as f64;
     notes.extend(field_and_reference_notes(
         mean_raw_field_ut,
@@ -561,6 +583,7 @@ pub fn calibrate(
         temp_c,
         gyro_heading_deg,
         field_raw_ut,
+        gravity,
     };
     let report = &mut analysis.report;
     let choice = report

@@ -161,6 +161,7 @@ pub fn compare(calibration: &CalibrationAnalysis, options: &HeadingOptions) -> H
         is_train: split.is_train,
         reference_deg: calibration.ref_heading_deg.clone(),
         headings_deg: table.series,
+        gravity: calibration.gravity.clone(),
     }
 }
 

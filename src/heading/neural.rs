@@ -86,7 +86,9 @@ impl NeuralCorrection {
         idx: usize,
     ) -> Option<f64> {
         let row = self.row(heading_rad, conditions, idx)?;
-        let deviation_deg = *self.model.predict(&row).ok()?.first()?;
+        let mut deviation_deg = [0.0];
+        self.model.predict_into(&row, &mut deviation_deg).ok()?;
+        let [deviation_deg] = deviation_deg;
         deviation_deg
             .is_finite()
             .then(|| crate::angle::wrap_to_2pi(heading_rad + deviation_deg.to_radians()))

@@ -15,6 +15,9 @@ use super::error::NnError;
 use super::loss::{Batch, Shape, INPUT_CLAMP};
 use super::normalise::Standardiser;
 
+/// Networks with up to this many inputs normalise them on the stack when predicting.
+const STACK_INPUTS: usize = 16;
+
 /// A multilayer perceptron with one hidden layer and its input and output
 /// normalisation. Made by [`super::train`] or loaded with serde.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -184,6 +187,22 @@ impl Mlp {
             });
         }
         let params = shape.split(&self.params);
+        // The inputs normalised once (on the stack for the usual few inputs).
+        let mut on_stack = [0f32; STACK_INPUTS];
+        let mut on_heap = Vec::new();
+        let normalised: &mut [f32] = match on_stack.get_mut(..shape.n_inputs) {
+            Some(slice) => slice,
+            None => {
+                on_heap.resize(shape.n_inputs, 0f32);
+                &mut on_heap
+            }
+        };
+        for (input_idx, (slot, raw)) in normalised.iter_mut().zip(inputs).enumerate() {
+            *slot = self
+                .input_scaling
+                .normalise(input_idx, *raw)
+                .clamp(-INPUT_CLAMP, INPUT_CLAMP) as f32;
+        }
         // The training's forward pass for one sample: the same f32 operations in the
         // same order (`kernels.rs`), so the network predicts what it was trained on.
         // Each output's sum is kept in `outputs` (an f32 value is exact in f64).
@@ -197,12 +216,8 @@ impl Mlp {
             .enumerate()
         {
             let mut z = *bias as f32;
-            for (input_idx, (weight, raw)) in weights.iter().zip(inputs).enumerate() {
-                let normalised = self
-                    .input_scaling
-                    .normalise(input_idx, *raw)
-                    .clamp(-INPUT_CLAMP, INPUT_CLAMP) as f32;
-                z += *weight as f32 * normalised;
+            for (weight, normalised) in weights.iter().zip(normalised.iter()) {
+                z += *weight as f32 * *normalised;
             }
             let h = self.activation.of(z);
             for (output, weights) in outputs

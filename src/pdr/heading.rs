@@ -10,7 +10,7 @@
 //! on a reference-heading column (in a test log that column is the truth), so that no
 //! fix inside an outage trains what bridges it.
 
-use crate::calibration::{calibrate, CalibrationOptions, Method};
+use crate::calibration::{calibrate_with_gravity, CalibrationOptions, Method};
 use crate::heading::{HeadingAnalysis, HeadingOptions};
 use crate::io::ImportReport;
 use crate::recording::{GnssFix, Stream};
@@ -42,10 +42,9 @@ pub fn step_heading(
     if !options.heading.gyro_aligned {
         return Some(base);
     }
-    let gravity_window_s = options.heading_options.calibration.gravity_window_s;
     match gyro_heading(
         &import.recording,
-        gravity_window_s,
+        &headings.gravity,
         Some(&base.heading_rad),
         false,
     ) {
@@ -78,7 +77,7 @@ fn compass_heading(
         HeadingBase::Model(key) => key.clone(),
         _ => headings.report.choice.key.clone(),
     };
-    let refit = refit_on_gnss(import, &wanted, options, notes);
+    let refit = refit_on_gnss(import, headings, &wanted, options, notes);
     let from_refit = refit
         .as_ref()
         .and_then(|refit| series_of(refit, &wanted).map(|series| (refit, series)));
@@ -113,6 +112,7 @@ fn compass_heading(
 /// heading.
 fn refit_on_gnss(
     import: &ImportReport,
+    headings: &HeadingAnalysis,
     key: &str,
     options: &PdrOptions,
     notes: &mut Vec<String>,
@@ -147,9 +147,12 @@ fn refit_on_gnss(
         // Nothing to reference the heading: the comparison's fit stands.
         return None;
     }
+    // The calibration's down, unless it took speeds from fixes the outages now hide.
+    let gravity = (gnss.len() == import.recording.gnss.len() || !headings.gravity.uses_gnss())
+        .then(|| headings.gravity.clone());
     let mut report = import.clone();
     report.recording.gnss = gnss;
-    match calibrate(report, &everything.calibration) {
+    match calibrate_with_gravity(report, &everything.calibration, gravity) {
         Ok(refit) if refit.report.reference.is_some() => {
             Some(crate::heading::compare(&refit, &everything))
         }

@@ -28,7 +28,7 @@
 use serde::Serialize;
 
 use crate::angle::wrap_to_pi;
-use crate::calib::gravity::estimate_gravity;
+use crate::calib::gravity::GravityEstimate;
 use crate::calib::tilt::Tilt;
 use crate::recording::{Recording, Stream};
 
@@ -90,22 +90,17 @@ pub struct GyroHeading {
     pub n_gaps: usize,
 }
 
-/// Integrates the gyro of `recording`; `None` without gyro samples.
+/// Integrates the gyro of `recording`, levelled with `gravity` (the recording's own,
+/// [`crate::calib::gravity::gravity_of`]); `None` without gyro samples.
 pub fn gyro_heading(
     recording: &Recording,
-    gravity_window_s: f64,
+    gravity: &GravityEstimate,
     anchor: Option<&Stream<f64>>,
     closed_loop: bool,
 ) -> Option<GyroHeading> {
     let gyro = &recording.gyro_in_body_radps;
     let max_gap_s = gap_limit_s(&gyro.t_s);
-    let gravity = estimate_gravity(
-        &recording.acc_in_body_mps2,
-        gyro,
-        &recording.gnss,
-        gravity_window_s,
-    )
-    .specific_force_mps2;
+    let gravity = &gravity.specific_force_mps2;
     let mut relative = Stream::default();
     let mut heading_rad = 0.0;
     let mut previous: Option<(f64, f64)> = None;
@@ -119,12 +114,12 @@ pub fn gyro_heading(
                 .and_then(Tilt::from_specific_force)
         };
         let Some(tilt) = tilt else { continue };
-        let cos_pitch = tilt.pitch_rad.cos();
+        let (_, cos_pitch) = tilt.pitch_sin_cos();
         if cos_pitch.abs() < 0.1 || !rate.iter().all(|value| value.is_finite()) {
             // Near ±90° pitch the heading rate is undefined.
             continue;
         }
-        let (sin_roll, cos_roll) = tilt.roll_rad.sin_cos();
+        let (sin_roll, cos_roll) = tilt.roll_sin_cos();
         let heading_rate_radps = (rate.y * sin_roll + rate.z * cos_roll) / cos_pitch;
         if let Some((previous_t_s, previous_rate_radps)) = previous {
             let dt_s = t_s - previous_t_s;
@@ -325,6 +320,7 @@ mod tests {
     use super::*;
     use nalgebra::Vector3;
 
+    use crate::calib::gravity::gravity_of;
     use crate::io::STANDARD_GRAVITY_MPS2;
 
     /// A level device turning at `rate_radps` about the vertical, with a gyro bias.
@@ -352,7 +348,13 @@ mod tests {
             let t_s = idx as f64 * 10.0;
             anchor.push(t_s, crate::angle::wrap_to_2pi(1.0 + 0.05 * t_s));
         }
-        let gyro = gyro_heading(&recording, 1.0, Some(&anchor), false).expect("gyro");
+        let gyro = gyro_heading(
+            &recording,
+            &gravity_of(&recording, 1.0),
+            Some(&anchor),
+            false,
+        )
+        .expect("gyro");
         let GyroAlignment::Anchored {
             drift_deg_per_min: Some(drift_deg_per_min),
             ..
@@ -394,7 +396,8 @@ mod tests {
                 .acc_in_body_mps2
                 .push(t_s, Vector3::new(0.0, 0.0, -STANDARD_GRAVITY_MPS2 + bounce));
         }
-        let gyro = gyro_heading(&recording, 1.0, None, true).expect("gyro");
+        let gyro =
+            gyro_heading(&recording, &gravity_of(&recording, 1.0), None, true).expect("gyro");
         let GyroAlignment::ClosedLoop {
             drift_deg_per_min,
             turned_deg,
@@ -411,8 +414,15 @@ mod tests {
         assert!((turned_deg - 360.0).abs() < 3.0, "{turned_deg}");
         assert!(closure_pct < 1.0, "{closure_pct}");
         // Without the loop, nothing is corrected.
-        let relative = gyro_heading(&recording, 1.0, None, false).expect("gyro");
+        let relative =
+            gyro_heading(&recording, &gravity_of(&recording, 1.0), None, false).expect("gyro");
         assert_eq!(relative.alignment, GyroAlignment::Relative);
-        assert!(gyro_heading(&Recording::default(), 1.0, None, false).is_none());
+        assert!(gyro_heading(
+            &Recording::default(),
+            &gravity_of(&Recording::default(), 1.0),
+            None,
+            false
+        )
+        .is_none());
     }
 }

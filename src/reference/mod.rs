@@ -20,6 +20,7 @@ pub mod legs;
 
 use serde::Serialize;
 
+use crate::calib::gravity::GravityEstimate;
 use crate::geo::{Geodetic, LocalFrame};
 use crate::recording::{Recording, Stream};
 use gps::{course_reference, GpsCourseGates, GpsCourseUse};
@@ -170,8 +171,6 @@ pub struct ReferenceOptions {
     pub min_course_speed_mps: Option<f64>,
     /// The walk ends where and as it started (for a gyro reference without anchors).
     pub closed_loop: bool,
-    /// Accelerometer window for the gyro's roll and pitch (s).
-    pub gravity_window_s: f64,
 }
 
 impl Default for ReferenceOptions {
@@ -180,7 +179,6 @@ impl Default for ReferenceOptions {
             choice: ReferenceChoice::Auto,
             min_course_speed_mps: None,
             closed_loop: false,
-            gravity_window_s: 1.0,
         }
     }
 }
@@ -250,8 +248,12 @@ fn legs_reference(recording: &Recording) -> Option<Reference> {
 }
 
 /// The reference asked for, or in `Auto` the best the recording has; `None` when
-/// there is none of the kind asked for.
-pub fn choose_reference(recording: &Recording, options: &ReferenceOptions) -> Option<Reference> {
+/// there is none of the kind asked for. `gravity` levels the gyro of a gyro reference.
+pub fn choose_reference(
+    recording: &Recording,
+    gravity: &GravityEstimate,
+    options: &ReferenceOptions,
+) -> Option<Reference> {
     let absolute = || {
         column_reference(recording)
             .or_else(|| gps_reference(recording, options))
@@ -262,24 +264,25 @@ pub fn choose_reference(recording: &Recording, options: &ReferenceOptions) -> Op
             // A closed loop is the one case where the gyro alone is a useful reference.
             options
                 .closed_loop
-                .then(|| gyro_reference(recording, options, None))
+                .then(|| gyro_reference(recording, gravity, options, None))
                 .flatten()
         }),
         ReferenceChoice::Column => column_reference(recording),
         ReferenceChoice::Gps => gps_reference(recording, options),
         ReferenceChoice::Legs => legs_reference(recording),
-        ReferenceChoice::Gyro => gyro_reference(recording, options, absolute()),
+        ReferenceChoice::Gyro => gyro_reference(recording, gravity, options, absolute()),
     }
 }
 
 fn gyro_reference(
     recording: &Recording,
+    gravity: &GravityEstimate,
     options: &ReferenceOptions,
     anchor: Option<Reference>,
 ) -> Option<Reference> {
     let gyro = gyro_heading(
         recording,
-        options.gravity_window_s,
+        gravity,
         anchor.as_ref().map(|anchor| &anchor.heading_rad),
         options.closed_loop,
     )?;
@@ -300,6 +303,7 @@ fn gyro_reference(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::calib::gravity::gravity_of;
     use crate::recording::GnssFix;
 
     fn options(choice: ReferenceChoice, min_speed: Option<f64>) -> ReferenceOptions {
@@ -312,6 +316,7 @@ mod tests {
 
     #[test]
     fn a_reference_column_wins_over_gps() {
+        let level = gravity_of(&Recording::default(), 1.0);
         let mut recording = Recording::default();
         recording.ref_heading_rad.push(0.0, 1.0);
         recording.gnss.push(
@@ -324,19 +329,22 @@ mod tests {
         );
         let auto = options(ReferenceChoice::Auto, Some(5.0));
         assert_eq!(
-            choose_reference(&recording, &auto).map(|reference| reference.source),
+            choose_reference(&recording, &level, &auto).map(|reference| reference.source),
             Some(ReferenceSource::Column)
         );
         let gps = options(ReferenceChoice::Gps, Some(5.0));
         assert_eq!(
-            choose_reference(&recording, &gps).map(|reference| reference.source.label()),
+            choose_reference(&recording, &level, &gps).map(|reference| reference.source.label()),
             Some("GPS course")
         );
-        assert!(choose_reference(&recording, &options(ReferenceChoice::Legs, None)).is_none());
+        assert!(
+            choose_reference(&recording, &level, &options(ReferenceChoice::Legs, None)).is_none()
+        );
     }
 
     #[test]
     fn gps_course_counts_only_when_moving_fast_enough() {
+        let level = gravity_of(&Recording::default(), 1.0);
         let mut recording = Recording::default();
         for (t_s, speed_mps) in [(0.0, 1.0), (1.0, 6.0), (2.0, 12.0), (3.0, 4.9)] {
             recording.gnss.push(
@@ -348,13 +356,19 @@ mod tests {
                 },
             );
         }
-        let reference = choose_reference(&recording, &options(ReferenceChoice::Auto, Some(5.0)))
-            .expect("two fast fixes");
+        let reference = choose_reference(
+            &recording,
+            &level,
+            &options(ReferenceChoice::Auto, Some(5.0)),
+        )
+        .expect("two fast fixes");
         assert_eq!(reference.heading_rad.t_s, vec![1.0, 2.0]);
         // Auto gates: four fixes are no vehicle, so walking pace counts.
-        let auto =
-            choose_reference(&recording, &options(ReferenceChoice::Auto, None)).expect("walking");
+        let auto = choose_reference(&recording, &level, &options(ReferenceChoice::Auto, None))
+            .expect("walking");
         assert_eq!(auto.heading_rad.t_s, vec![0.0, 1.0, 2.0, 3.0]);
-        assert!(choose_reference(&Recording::default(), &ReferenceOptions::default()).is_none());
+        assert!(
+            choose_reference(&Recording::default(), &level, &ReferenceOptions::default()).is_none()
+        );
     }
 }

@@ -107,10 +107,7 @@ pub fn true_tilt_floor(log: &GeneratedLog, analysis: &CalibrationAnalysis) -> Op
                 .partition_point(|&true_t_s| true_t_s + start_s < t_s - 1e-6);
             let attitude = log.true_attitude.get(idx)?;
             let (roll, pitch, _) = attitude.euler_angles();
-            let tilt = compass_pdr::calib::tilt::Tilt {
-                roll_rad: roll,
-                pitch_rad: pitch,
-            };
+            let tilt = compass_pdr::calib::tilt::Tilt::new(roll, pitch);
             let heading = heading_rad(
                 tilt.level(correction * (mag_ut - hard_iron_ut)),
                 log.declination_deg.to_radians(),

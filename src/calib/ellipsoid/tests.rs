@@ -39,10 +39,7 @@ fn heading_rms_deg(samples: &[FieldSample], calibration: &FieldCalibration) -> f
     let sum_squares: f64 = samples
         .iter()
         .map(|sample| {
-            let tilt = Tilt {
-                roll_rad: sample.roll_rad,
-                pitch_rad: sample.pitch_rad,
-            };
+            let tilt = Tilt::new(sample.roll_rad, sample.pitch_rad);
             let level_ut = tilt.level(calibration.apply(sample.mag_ut));
             heading_difference_rad(heading_rad(level_ut, 0.0), sample.heading_rad).powi(2)
         })

@@ -348,8 +348,8 @@ pub enum InertialError {
 /// The unit "down" direction in body axes at a tilt: `(−sinθ, sinφ·cosθ, cosφ·cosθ)`,
 /// the direction opposite to the specific force at rest (see [`super::tilt`]).
 pub fn down_in_body(tilt: &Tilt) -> Vector3<f64> {
-    let (sin_roll, cos_roll) = tilt.roll_rad.sin_cos();
-    let (sin_pitch, cos_pitch) = tilt.pitch_rad.sin_cos();
+    let (sin_roll, cos_roll) = tilt.roll_sin_cos();
+    let (sin_pitch, cos_pitch) = tilt.pitch_sin_cos();
     Vector3::new(-sin_pitch, sin_roll * cos_pitch, cos_roll * cos_pitch)
 }
 

@@ -74,10 +74,10 @@ fn case(seed: u64, tilt_amplitude_deg: f64, hard_iron_max_ut: f64, tilt_noise_de
         let b_body = ned_from_body.inverse() * field_ned;
         let noise = Vector3::from_fn(|_, _| 0.3 * rng.gaussian());
         case.mag_ut.push(distortion * b_body + hard_iron_ut + noise);
-        case.tilt.push(Tilt {
-            roll_rad: roll + tilt_noise_deg.to_radians() * rng.gaussian(),
-            pitch_rad: pitch + tilt_noise_deg.to_radians() * rng.gaussian(),
-        });
+        case.tilt.push(Tilt::new(
+            roll + tilt_noise_deg.to_radians() * rng.gaussian(),
+            pitch + tilt_noise_deg.to_radians() * rng.gaussian(),
+        ));
         case.heading_rad.push(heading);
     }
     case

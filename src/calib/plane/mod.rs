@@ -380,8 +380,8 @@ fn checked_inputs(
     }
     if let Some(sample_idx) = mag_ut.iter().zip(tilt).position(|(mag, tilt)| {
         !(mag.iter().all(|value| value.is_finite())
-            && tilt.roll_rad.is_finite()
-            && tilt.pitch_rad.is_finite())
+            && tilt.roll_rad().is_finite()
+            && tilt.pitch_rad().is_finite())
     }) {
         return Err(PlaneError::NonFinite { sample_idx });
     }
@@ -608,8 +608,8 @@ fn checked(
 /// The levelling rotation `T = Ry(θ)·Rx(φ)`: its first two rows are Eq. 4 as
 /// [`Tilt::level`] computes it, the third the vertical component.
 fn levelling_rotation(tilt: &Tilt) -> Matrix3<f64> {
-    let (sin_roll, cos_roll) = tilt.roll_rad.sin_cos();
-    let (sin_pitch, cos_pitch) = tilt.pitch_rad.sin_cos();
+    let (sin_roll, cos_roll) = tilt.roll_sin_cos();
+    let (sin_pitch, cos_pitch) = tilt.pitch_sin_cos();
     Matrix3::new(
         cos_pitch,
         sin_roll * sin_pitch,
@@ -627,12 +627,12 @@ fn levelling_rotation(tilt: &Tilt) -> Matrix3<f64> {
 /// iron from the vertical field.
 fn tilt_spread_rad(tilt: &[Tilt]) -> f64 {
     let n_samples = tilt.len().max(1) as f64;
-    let mean_roll_rad = tilt.iter().map(|tilt| tilt.roll_rad).sum::<f64>() / n_samples;
-    let mean_pitch_rad = tilt.iter().map(|tilt| tilt.pitch_rad).sum::<f64>() / n_samples;
+    let mean_roll_rad = tilt.iter().map(Tilt::roll_rad).sum::<f64>() / n_samples;
+    let mean_pitch_rad = tilt.iter().map(Tilt::pitch_rad).sum::<f64>() / n_samples;
     (tilt
         .iter()
         .map(|tilt| {
-            (tilt.roll_rad - mean_roll_rad).powi(2) + (tilt.pitch_rad - mean_pitch_rad).powi(2)
+            (tilt.roll_rad() - mean_roll_rad).powi(2) + (tilt.pitch_rad() - mean_pitch_rad).powi(2)
         })
         .sum::<f64>()
         / n_samples)

@@ -5,10 +5,7 @@ use crate::sim::field::{circle_only, FieldSample, FieldTruth};
 use crate::sim::rng::SplitMix64;
 
 fn tilt_of(sample: &FieldSample) -> Tilt {
-    Tilt {
-        roll_rad: sample.roll_rad,
-        pitch_rad: sample.pitch_rad,
-    }
+    Tilt::new(sample.roll_rad, sample.pitch_rad)
 }
 
 fn split(samples: &[FieldSample]) -> (Vec<Vector3<f64>>, Vec<Tilt>) {
@@ -353,7 +350,7 @@ fn degenerate_inputs_are_errors_not_panics() {
         Err(PlaneError::NonFinite { sample_idx: 17 })
     ));
     let mut tilt_with_infinity = tilt.clone();
-    tilt_with_infinity[4].pitch_rad = f64::INFINITY;
+    tilt_with_infinity[4] = Tilt::new(tilt_with_infinity[4].roll_rad(), f64::INFINITY);
     assert!(matches!(
         fit_plane(&mag_ut, &tilt_with_infinity, &options),
         Err(PlaneError::NonFinite { sample_idx: 4 })
@@ -401,10 +398,7 @@ fn arbitrary_input_never_panics() {
             .map(|_| Vector3::new(rng.gaussian(), rng.gaussian(), rng.gaussian()) * magnitude)
             .collect();
         let tilt: Vec<Tilt> = (0..n_samples)
-            .map(|_| Tilt {
-                roll_rad: rng.uniform_in(-3.0, 3.0),
-                pitch_rad: rng.uniform_in(-1.5, 1.5),
-            })
+            .map(|_| Tilt::new(rng.uniform_in(-3.0, 3.0), rng.uniform_in(-1.5, 1.5)))
             .collect();
         if let Ok(fit) = fit_plane(&mag_ut, &tilt, &PlaneOptions::default()) {
             assert!(fit.residual_rms_ut.is_finite());
