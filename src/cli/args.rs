@@ -186,7 +186,6 @@ impl AnalysisArgs {
                 },
                 min_course_speed_mps: self.min_course_speed,
                 closed_loop: self.closed_loop,
-                ..ReferenceOptions::default()
             },
             ..CalibrationOptions::default()
         })
