@@ -5,6 +5,9 @@ use serde::Serialize;
 
 use crate::angle::{heading_difference_rad, wrap_to_pi};
 
+/// Parts shorter than this are scored on one thread (a thread costs tens of µs).
+const MIN_SAMPLES_PER_THREAD: usize = 20_000;
+
 /// Statistics of a set of heading errors (estimate minus reference), in degrees.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct HeadingErrorStats {
@@ -39,6 +42,25 @@ impl HeadingErrorStats {
                         .then_some(heading_difference_rad(heading_rad, reference_rad?))
                 }),
         )
+    }
+
+    /// [`Self::on_part`] of the train part and of the check part, side by side on two
+    /// cores when the log is long (each part is a pass, a copy and a selection).
+    pub fn on_both_parts(
+        headings_rad: &[f64],
+        reference_rad: &[Option<f64>],
+        is_train: &[bool],
+    ) -> (Option<Self>, Option<Self>) {
+        let part = |want_train| Self::on_part(headings_rad, reference_rad, is_train, want_train);
+        let parts = if headings_rad.len() >= 2 * MIN_SAMPLES_PER_THREAD {
+            crate::par::on_each_part([true, false].into_iter(), part)
+        } else {
+            None
+        };
+        match parts.as_deref() {
+            Some(&[train, check]) => (train, check),
+            _ => (part(true), part(false)),
+        }
     }
 
     /// Statistics of heading errors given in radians (wrapped here to ±π). Non-finite

@@ -35,6 +35,16 @@ pub(super) struct MethodInputs<'a> {
     pub(super) mag_frame: Option<&'a SensorFrame>,
 }
 
+impl MethodInputs<'_> {
+    /// `f(mag, tilt)` at every sample, on every core ([`crate::par::map`]).
+    fn map_tilted<R: Send>(&self, f: impl Fn(Vector3<f64>, Tilt) -> R + Sync) -> Vec<R> {
+        let tilt = &self.samples.tilt;
+        crate::par::map(&self.samples.mag_ut, |idx, &mag| {
+            f(mag, tilt.get(idx).copied().unwrap_or(Tilt::LEVEL))
+        })
+    }
+}
+
 /// What the methods' fits leave besides their parameters: the correction the circle
 /// plot shows, the corrected |B|, and notes for the user.
 pub(super) struct MethodOutputs<'a> {
@@ -51,11 +61,9 @@ pub(super) fn fit_min_max(inputs: &MethodInputs, outputs: &mut MethodOutputs) ->
     MinMaxCalibration::fit(inputs.level_train)
         .map_err(|error| error.to_string())
         .map(|calibration| {
-            let headings: Vec<f64> = inputs
-                .level_raw_ut
-                .iter()
-                .map(|&level| heading_rad(calibration.apply(level), inputs.declination_rad))
-                .collect();
+            let headings = crate::par::map(inputs.level_raw_ut, |_, &level| {
+                heading_rad(calibration.apply(level), inputs.declination_rad)
+            });
             if outputs.plane_correction.is_none() {
                 let corrected = inputs
                     .level_raw_ut
@@ -87,13 +95,8 @@ pub(super) fn fit_ellipse(inputs: &MethodInputs, outputs: &mut MethodOutputs) ->
     )
     .map_err(|error| error.to_string())
     .map(|fit| {
-        let headings: Vec<f64> = inputs
-            .samples
-            .mag_ut
-            .iter()
-            .zip(&inputs.samples.tilt)
-            .map(|(&mag, &tilt)| fit.heading_rad(mag, tilt, inputs.declination_rad))
-            .collect();
+        let headings =
+            inputs.map_tilted(|mag, tilt| fit.heading_rad(mag, tilt, inputs.declination_rad));
         let corrected: Vec<Vector2<f64>> = inputs
             .samples
             .mag_ut
@@ -137,15 +140,9 @@ pub(super) fn fit_ellipsoid(inputs: &MethodInputs, outputs: &mut MethodOutputs) 
         .map_err(|error| error.to_string())
         .map(|fit| {
             let calibration = fit.calibration;
-            let headings: Vec<f64> = inputs
-                .samples
-                .mag_ut
-                .iter()
-                .zip(&inputs.samples.tilt)
-                .map(|(&mag, tilt)| {
-                    heading_rad(tilt.level(calibration.apply(mag)), inputs.declination_rad)
-                })
-                .collect();
+            let headings = inputs.map_tilted(|mag, tilt| {
+                heading_rad(tilt.level(calibration.apply(mag)), inputs.declination_rad)
+            });
             outputs.field_corrected_ut = Some(
                 inputs
                     .samples
@@ -253,11 +250,8 @@ pub(super) fn fit_ref_ls(
         fit_reference_ls(&pairs.0, &pairs.1, &refls_options)
             .map_err(|error| error.to_string())
             .map(|fit| {
-                let headings: Vec<f64> = inputs
-                    .level_raw_ut
-                    .iter()
-                    .map(|&level| fit.heading_rad(level))
-                    .collect();
+                let headings =
+                    crate::par::map(inputs.level_raw_ut, |_, &level| fit.heading_rad(level));
                 (MethodParameters::RefLs(fit), headings)
             })
     }

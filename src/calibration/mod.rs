@@ -303,10 +303,12 @@ struct Prepared {
 }
 
 impl Prepared {
-    /// The heading error statistics on the train part (`true`) or the check part.
-    fn stats(&self, headings_rad: &[f64], want_train: bool) -> Option<HeadingErrorStats> {
-        let (reference, is_train) = (&self.ref_heading_rad, &self.split.is_train);
-        HeadingErrorStats::on_part(headings_rad, reference, is_train, want_train)
+    /// The heading error statistics on the train part and on the check part.
+    fn both_stats(
+        &self,
+        headings_rad: &[f64],
+    ) -> (Option<HeadingErrorStats>, Option<HeadingErrorStats>) {
+        HeadingErrorStats::on_both_parts(headings_rad, &self.ref_heading_rad, &self.split.is_train)
     }
 }
 
@@ -430,10 +432,7 @@ fn run_methods(
         };
         let (parameters, error, train, check) = match fitted {
             Ok((parameters, headings_rad)) => {
-                let scores = (
-                    prepared.stats(&headings_rad, true),
-                    prepared.stats(&headings_rad, false),
-                );
+                let scores = prepared.both_stats(&headings_rad);
                 headings_deg.push((
                     method,
                     headings_rad.iter().map(|h| h.to_degrees()).collect(),
@@ -517,8 +516,7 @@ pub fn calibrate_with_gravity(
             reasons: reasons.join(" "),
         });
     }
-    let raw_train = prepared.stats(&prepared.raw_heading_rad, true);
-    let raw_check = prepared.stats(&prepared.raw_heading_rad, false);
+    let (raw_train, raw_check) = prepared.both_stats(&prepared.raw_heading_rad);
     let scored = scored_methods(raw_train, raw_check, &method_reports);
     let by_reference = choose_by_reference(&scored);
     let Prepared {

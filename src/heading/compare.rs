@@ -63,6 +63,14 @@ impl Split {
         let (reference, is_train) = (&self.reference_rad, &self.is_train);
         HeadingErrorStats::on_part(headings_rad, reference, is_train, want_train)
     }
+
+    /// The heading error statistics on the train part and on the check part.
+    fn both_stats(
+        &self,
+        headings_rad: &[f64],
+    ) -> (Option<HeadingErrorStats>, Option<HeadingErrorStats>) {
+        HeadingErrorStats::on_both_parts(headings_rad, &self.reference_rad, &self.is_train)
+    }
 }
 
 /// The rows of the comparison, each scored row's heading per sample, and the notes.
@@ -75,11 +83,12 @@ struct Table {
 
 impl Table {
     fn push_scored(&mut self, key: String, label: String, headings_rad: &[f64], split: &Split) {
+        let (train, check) = split.both_stats(headings_rad);
         self.rows.push(HeadingRow {
             key: key.clone(),
             label,
-            train: split.stats(headings_rad, true),
-            check: split.stats(headings_rad, false),
+            train,
+            check,
             error: None,
         });
         self.series.push((key, to_degrees(headings_rad)));
@@ -218,11 +227,9 @@ fn fourier_stacks(
             .unzip();
         match fit_fourier(&raw, &reference) {
             Ok(fit) => {
-                let corrected: Vec<f64> = base
-                    .heading_rad
-                    .iter()
-                    .map(|&heading| fit.model.correct_rad(heading))
-                    .collect();
+                let corrected = crate::par::map(&base.heading_rad, |_, &heading| {
+                    fit.model.correct_rad(heading)
+                });
                 table.push_scored(key, label, &corrected, split);
                 if fit.terms != fourier::FourierTerms::Full {
                     table.notes.push(format!(
@@ -312,16 +319,7 @@ fn neural_stacks(
         );
         match trained {
             Ok(correction) => {
-                let corrected: Vec<f64> = base
-                    .heading_rad
-                    .iter()
-                    .enumerate()
-                    .map(|(idx, &heading)| {
-                        correction
-                            .correct_rad(heading, &conditions, idx)
-                            .unwrap_or(f64::NAN)
-                    })
-                    .collect();
+                let corrected = correction.correct_all_rad(&base.heading_rad, &conditions);
                 table.push_scored(key, label, &corrected, split);
                 if !correction.report.missing_inputs.is_empty() {
                     table.notes.push(format!(

@@ -93,7 +93,45 @@ impl NeuralCorrection {
             .is_finite()
             .then(|| crate::angle::wrap_to_2pi(heading_rad + deviation_deg.to_radians()))
     }
+
+    /// [`Self::correct_rad`] at every sample (`headings_rad[i]` is sample `i`'s base
+    /// heading), NaN where an input is missing: the same values, the network run on
+    /// blocks of rows ([`crate::nn::Mlp::predict_rows`]).
+    pub fn correct_all_rad(&self, headings_rad: &[f64], conditions: &Conditions<'_>) -> Vec<f64> {
+        let mut corrected = vec![f64::NAN; headings_rad.len()];
+        let (mut rows, mut indices) = (Vec::new(), Vec::new());
+        for (start, headings) in (0..)
+            .step_by(ROWS_PER_CALL)
+            .zip(headings_rad.chunks(ROWS_PER_CALL))
+        {
+            rows.clear();
+            indices.clear();
+            for (idx, &heading_rad) in (start..).zip(headings) {
+                if let Some(row) = self.row(heading_rad, conditions, idx) {
+                    rows.extend_from_slice(&row);
+                    indices.push(idx);
+                }
+            }
+            let Ok(deviations_deg) = self.model.predict_rows(&rows) else {
+                continue;
+            };
+            for (&idx, deviation_deg) in indices.iter().zip(deviations_deg) {
+                if let (Some(slot), Some(&heading_rad)) =
+                    (corrected.get_mut(idx), headings_rad.get(idx))
+                {
+                    if deviation_deg.is_finite() {
+                        *slot = crate::angle::wrap_to_2pi(heading_rad + deviation_deg.to_radians());
+                    }
+                }
+            }
+        }
+        corrected
+    }
 }
+
+/// Samples per call of the network in [`NeuralCorrection::correct_all_rad`] (bounds the
+/// rows held at once).
+const ROWS_PER_CALL: usize = 8192;
 
 fn input_row(
     heading_rad: f64,

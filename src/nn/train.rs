@@ -849,6 +849,34 @@ mod tests {
     }
 
     #[test]
+    fn predicting_many_rows_gives_each_row_its_own_bits() {
+        // Three inputs, two outputs, tanh and logistic, and a block and a bit of rows.
+        for (activation, n_rows) in [(Activation::Logistic, 600), (Activation::Tanh, 257)] {
+            let data = samples(n_rows, 3, (-2.0, 2.0), 0.1, 9, |x| {
+                vec![x[0] * x[1] - x[2], (x[0] + x[2]).sin()]
+            });
+            let (model, _) = train(
+                &data,
+                &no_validation(TrainOptions {
+                    activation,
+                    max_iterations: 15,
+                    ..Default::default()
+                }),
+            )
+            .unwrap();
+            let many = model.predict_rows(data.inputs()).unwrap();
+            for (row, outputs) in data.inputs().chunks_exact(3).zip(many.chunks_exact(2)) {
+                let one = model.predict(row).unwrap();
+                assert_eq!(
+                    one.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+                    outputs.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+                    "{row:?}"
+                );
+            }
+        }
+    }
+
+    #[test]
     fn mean_squared_error_agrees_with_predictions() {
         let data = samples(150, 2, (-1.0, 1.0), 0.1, 8, |x| vec![x[0] - x[1]]);
         let (model, report) = train(
