@@ -36,43 +36,37 @@ use crate::recording::Stream;
 /// broken sensor.
 const MIN_SPECIFIC_FORCE_MPS2: f64 = 2.0;
 
-/// Roll and pitch of the body frame against the local level, with their sines and
-/// cosines (computed once: a sample is levelled by every method, and by a fit at each
-/// of its iterations).
+/// Roll and pitch of the body frame against the local level, kept as their sines and
+/// cosines: a sample is levelled by every method, and by a fit at each of its
+/// iterations, and the accelerometer gives them without an angle in between.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Tilt {
-    roll_rad: f64,
-    pitch_rad: f64,
-    /// `roll_rad.sin_cos()` and `pitch_rad.sin_cos()`.
+    /// `(sin φ, cos φ)` and `(sin θ, cos θ)`, each a unit vector.
     roll_sin_cos: (f64, f64),
     pitch_sin_cos: (f64, f64),
 }
 
 impl Tilt {
     pub const LEVEL: Tilt = Tilt {
-        roll_rad: 0.0,
-        pitch_rad: 0.0,
         roll_sin_cos: (0.0, 1.0),
         pitch_sin_cos: (0.0, 1.0),
     };
 
     pub fn new(roll_rad: f64, pitch_rad: f64) -> Tilt {
         Tilt {
-            roll_rad,
-            pitch_rad,
             roll_sin_cos: roll_rad.sin_cos(),
             pitch_sin_cos: pitch_rad.sin_cos(),
         }
     }
 
-    /// Roll φ (rad), right side down positive.
+    /// Roll φ (rad, in (−π, π]), right side down positive.
     pub fn roll_rad(&self) -> f64 {
-        self.roll_rad
+        self.roll_sin_cos.0.atan2(self.roll_sin_cos.1)
     }
 
-    /// Pitch θ (rad), nose up positive.
+    /// Pitch θ (rad, in [−π/2, π/2] from the accelerometer), nose up positive.
     pub fn pitch_rad(&self) -> f64 {
-        self.pitch_rad
+        self.pitch_sin_cos.0.atan2(self.pitch_sin_cos.1)
     }
 
     /// `(sin φ, cos φ)`.
@@ -86,14 +80,22 @@ impl Tilt {
     }
 
     /// Roll and pitch from specific force in the body frame; `None` when the force is
-    /// too small or not finite to tell which way is down.
+    /// too small or not finite to tell which way is down. With `h = √(fy² + fz²)`,
+    /// `φ = atan2(−fy, −fz)` and `θ = atan2(fx, h)` (see the module's derivation), so
+    /// `(sin φ, cos φ) = (−fy, −fz)/h` and `(sin θ, cos θ) = (fx, h)/|f|`. At ±90° pitch
+    /// (`h = 0`) the roll is undefined and taken as zero.
     pub fn from_specific_force(f_in_body_mps2: Vector3<f64>) -> Option<Tilt> {
         let norm_mps2 = f_in_body_mps2.norm();
         if !norm_mps2.is_finite() || norm_mps2 < MIN_SPECIFIC_FORCE_MPS2 {
             return None;
         }
         let (fx, fy, fz) = (f_in_body_mps2.x, f_in_body_mps2.y, f_in_body_mps2.z);
-        Some(Tilt::new((-fy).atan2(-fz), fx.atan2(fy.hypot(fz))))
+        let h = fy.hypot(fz);
+        let roll_sin_cos = if h > 0.0 { (-fy / h, -fz / h) } else { (0.0, 1.0) };
+        Some(Tilt {
+            roll_sin_cos,
+            pitch_sin_cos: (fx / norm_mps2, h / norm_mps2),
+        })
     }
 
     /// The horizontal components (Xh along the heading, Yh to its right) of a body
@@ -199,9 +201,9 @@ mod tests {
             let body_from_ned = ned_from_body(1.0, pitch_rad, roll_rad).inverse();
             let f_in_body = body_from_ned * Vector3::new(0.0, 0.0, -STANDARD_GRAVITY_MPS2);
             let tilt = Tilt::from_specific_force(f_in_body).expect("gravity is large enough");
-            assert!((tilt.roll_rad - roll_rad).abs() < 1e-9, "roll {roll_deg}");
+            assert!((tilt.roll_rad() - roll_rad).abs() < 1e-9, "roll {roll_deg}");
             assert!(
-                (tilt.pitch_rad - pitch_rad).abs() < 1e-9,
+                (tilt.pitch_rad() - pitch_rad).abs() < 1e-9,
                 "pitch {pitch_deg}"
             );
         }
