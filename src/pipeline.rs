@@ -89,7 +89,7 @@ pub fn headings(
 /// accelerometer (else why not, in `pdr`).
 pub fn analyse(import: &ImportReport, options: &PdrOptions) -> Result<Analysis, AnalysisError> {
     let (calibration, headings) = headings(import, &options.heading_options)?;
-    let pdr = Some(dead_reckon(import, &headings, options));
+    let pdr = Some(dead_reckon(import, (&calibration, &headings), options));
     Ok(Analysis {
         calibration,
         headings,
@@ -103,8 +103,8 @@ pub fn dead_reckoning(
     import: &ImportReport,
     options: &PdrOptions,
 ) -> Result<PdrAnalysis, PdrError> {
-    let (_, headings) = headings(import, &options.heading_options)?;
-    dead_reckon(import, &headings, options)
+    let (calibration, headings) = headings(import, &options.heading_options)?;
+    dead_reckon(import, (&calibration, &headings), options)
 }
 
 /// The calibration stage on the bytes of one log (any format [`crate::io::import`]

@@ -127,9 +127,8 @@ pub fn estimate_gravity(
     gnss: &Stream<GnssFix>,
     tau_s: f64,
 ) -> GravityEstimate {
-    let averaged = smooth_specific_force(acc_in_body_mps2, tau_s);
     let fallback = |reason: String| GravityEstimate {
-        specific_force_mps2: averaged.clone(),
+        specific_force_mps2: smooth_specific_force(acc_in_body_mps2, tau_s),
         source: GravitySource::Accelerometer {
             window_s: tau_s,
             reason,
@@ -410,10 +409,15 @@ fn pass(
         let (Some(&t_s), Some(&f)) = (acc.t_s.get(idx), acc.values.get(idx)) else {
             continue;
         };
-        let rate_now = gyro
-            .interpolate_at(t_s, MAX_GYRO_GAP_S)
-            .map(|rate| rate * gyro_scale);
-        let f = f - motion.acceleration_in_body_mps2(t_s, rate_now);
+        let f = match motion {
+            Motion::None => f,
+            Motion::Forward { .. } => {
+                let rate_now = gyro
+                    .interpolate_at(t_s, MAX_GYRO_GAP_S)
+                    .map(|rate| rate * gyro_scale);
+                f - motion.acceleration_in_body_mps2(t_s, rate_now)
+            }
+        };
         let measured = (f.norm() >= MIN_SPECIFIC_FORCE_MPS2 && f.iter().all(|v| v.is_finite()))
             .then(|| -f.normalize());
         let down = match (state, measured) {

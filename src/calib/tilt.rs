@@ -91,7 +91,11 @@ impl Tilt {
         }
         let (fx, fy, fz) = (f_in_body_mps2.x, f_in_body_mps2.y, f_in_body_mps2.z);
         let h = fy.hypot(fz);
-        let roll_sin_cos = if h > 0.0 { (-fy / h, -fz / h) } else { (0.0, 1.0) };
+        let roll_sin_cos = if h > 0.0 {
+            (-fy / h, -fz / h)
+        } else {
+            (0.0, 1.0)
+        };
         Some(Tilt {
             roll_sin_cos,
             pitch_sin_cos: (fx / norm_mps2, h / norm_mps2),

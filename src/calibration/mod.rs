@@ -22,7 +22,7 @@ use std::sync::Arc;
 use nalgebra::{Vector2, Vector3};
 use serde::Serialize;
 
-use crate::analysis::AnalysisError;
+use crate::analysis::{AnalysisError, Levelling, TiltedSamples};
 use crate::calib::gravity::{gravity_of, GravityEstimate};
 use crate::calib::heading::heading_rad;
 use crate::calib::inertial::InertialFit;
@@ -322,24 +322,74 @@ fn kept<T: Copy>(values: &[T], keep: &[bool]) -> Vec<T> {
         .collect()
 }
 
-/// Tilts the samples, finds the reference and the declination, splits the log and
-/// levels the field.
+/// The samples levelled and the conditions at each: what a calibration takes from the
+/// magnetometer, the accelerometer and the gyroscope alone, so a second calibration of
+/// the same sensors with other options (or fewer fixes) can take it from the first.
+struct Levelled {
+    gravity: Arc<GravityEstimate>,
+    samples: TiltedSamples,
+    temp_c: Vec<Option<f64>>,
+    gyro_heading_deg: Vec<Option<f64>>,
+}
+
+impl Levelled {
+    /// Down, the tilted samples and the conditions of `recording`.
+    fn of(
+        file_name: &str,
+        recording: &Recording,
+        import: (Option<&crate::io::HeaderInfo>, &Diagnostics, usize),
+        options: &CalibrationOptions,
+    ) -> Result<Levelled, AnalysisError> {
+        let (header, diagnostics, n_data_lines) = import;
+        let gravity = Arc::new(gravity_of(recording, options.gravity_window_s));
+        let samples = crate::analysis::tilted_samples(
+            file_name,
+            recording,
+            header,
+            diagnostics,
+            n_data_lines,
+            &gravity,
+        )?;
+        let (temp_c, gyro_heading_deg) = conditions(recording, &samples.t_s, &gravity);
+        Ok(Levelled {
+            gravity,
+            samples,
+            temp_c,
+            gyro_heading_deg,
+        })
+    }
+
+    /// What `previous` levelled (its notes on the levelling are in its report).
+    fn of_analysis(previous: &CalibrationAnalysis) -> Levelled {
+        let levelling = if previous.gravity.specific_force_mps2.is_empty() {
+            Levelling::AssumedLevel
+        } else {
+            Levelling::Accelerometer {
+                window_s: previous.gravity.tau_s(),
+            }
+        };
+        Levelled {
+            gravity: previous.gravity.clone(),
+            samples: TiltedSamples {
+                t_s: previous.t_s.clone(),
+                mag_ut: previous.mag_ut.clone(),
+                tilt: previous.tilt.clone(),
+                levelling,
+                notes: Vec::new(),
+            },
+            temp_c: previous.temp_c.clone(),
+            gyro_heading_deg: previous.gyro_heading_deg.clone(),
+        }
+    }
+}
+
+/// Finds the reference and the declination, splits the log and levels the field.
 fn prepare(
-    file_name: &str,
     recording: &Recording,
-    import: (Option<&crate::io::HeaderInfo>, &Diagnostics, usize),
-    (gravity, options): (&GravityEstimate, &CalibrationOptions),
+    (samples, gravity): (TiltedSamples, &GravityEstimate),
+    options: &CalibrationOptions,
     notes: &mut Vec<String>,
 ) -> Result<Prepared, AnalysisError> {
-    let (header, diagnostics, n_data_lines) = import;
-    let samples = crate::analysis::tilted_samples(
-        file_name,
-        recording,
-        header,
-        diagnostics,
-        n_data_lines,
-        gravity,
-    )?;
     notes.extend(samples.notes.iter().cloned());
     let reference = choose_reference(recording, gravity, &options.reference);
     let mut ref_heading_rad: Vec<Option<f64>> = samples
@@ -458,16 +508,32 @@ pub fn calibrate(
     report: ImportReport,
     options: &CalibrationOptions,
 ) -> Result<CalibrationAnalysis, AnalysisError> {
-    calibrate_with_gravity(report, options, None)
+    calibrate_levelled(report, options, None)
 }
 
-/// [`calibrate`], levelling with `gravity` where it is given and was estimated with the
-/// options' `gravity_window_s` (it must be the recording's own, [`gravity_of`]: a
-/// later stage re-running the calibration on the same sensors passes the first run's).
-pub fn calibrate_with_gravity(
+/// [`calibrate`] again on the recording `previous` was calibrated from, with other
+/// options (another reference, split or methods) or fewer GNSS fixes, taking the
+/// levelled samples and the conditions from `previous` rather than computing them
+/// again. The caller vouches that the magnetometer, accelerometer and gyroscope are
+/// `previous`'s, and that fixes were left out only if `previous.gravity` did not use
+/// them ([`GravityEstimate::uses_gnss`]); a different gravity window, or a different
+/// number of magnetometer samples, computes everything afresh.
+pub fn calibrate_again(
+    previous: &CalibrationAnalysis,
     report: ImportReport,
     options: &CalibrationOptions,
-    gravity: Option<Arc<GravityEstimate>>,
+) -> Result<CalibrationAnalysis, AnalysisError> {
+    let same_sensors = previous.gravity.tau_s() == options.gravity_window_s
+        && previous.report.n_mag_samples == report.recording.mag_in_body_ut.len();
+    let levelled = same_sensors.then(|| Levelled::of_analysis(previous));
+    calibrate_levelled(report, options, levelled)
+}
+
+/// [`calibrate`] with the levelling given, or computed when it is `None`.
+fn calibrate_levelled(
+    report: ImportReport,
+    options: &CalibrationOptions,
+    levelled: Option<Levelled>,
 ) -> Result<CalibrationAnalysis, AnalysisError> {
     let ImportReport {
         file_name,
@@ -479,17 +545,21 @@ pub fn calibrate_with_gravity(
         mut notes,
         mag_frame,
     } = report;
-    let import = (header.as_ref(), &diagnostics, n_data_lines);
-    let gravity = gravity
-        .filter(|gravity| gravity.tau_s() == options.gravity_window_s)
-        .unwrap_or_else(|| Arc::new(gravity_of(&recording, options.gravity_window_s)));
-    let prepared = prepare(
-        &file_name,
-        &recording,
-        import,
-        (&gravity, options),
-        &mut notes,
-    )?;
+    let Levelled {
+        gravity,
+        samples,
+        temp_c,
+        gyro_heading_deg,
+    } = match levelled {
+        Some(levelled) => levelled,
+        None => Levelled::of(
+            &file_name,
+            &recording,
+            (header.as_ref(), &diagnostics, n_data_lines),
+            options,
+        )?,
+    };
+    let prepared = prepare(&recording, (samples, &gravity), options, &mut notes)?;
     let mut outputs = MethodOutputs {
         plane_correction: None,
         field_corrected_ut: None,
@@ -530,7 +600,6 @@ pub fn calibrate_with_gravity(
         raw_heading_rad,
     } = prepared;
     let field_raw_ut: Vec<f64> = samples.mag_ut.iter().map(|mag| mag.norm()).collect();
-    let (temp_c, gyro_heading_deg) = conditions(&recording, &samples.t_s, &gravity);
     let mean_raw_field_ut = field_raw_ut.iter().sum::<f64>() / field_raw_ut.len().max(1) as f64;
     notes.extend(field_and_reference_notes(
         mean_raw_field_ut,

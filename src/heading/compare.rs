@@ -18,12 +18,18 @@ use super::{
     HeadingReport, HeadingRow, OnlineReport, ONLINE_SNAPSHOT_SPACING_S, ONLINE_UPDATE_SPACING_S,
 };
 
-/// A base heading: raw or one field-domain method, in radians per sample.
-struct Base {
+/// A base heading: raw or one field-domain method, in radians per sample, with its
+/// degrees and its scores as the calibration gave them (on the same split).
+struct Base<'a> {
     key: String,
     label: String,
     heading_rad: Vec<f64>,
+    heading_deg: &'a [f64],
+    scores: Scores,
 }
+
+/// A row's statistics on the train part and on the check part.
+type Scores = (Option<HeadingErrorStats>, Option<HeadingErrorStats>);
 
 /// The split every row is scored on: the reference at each sample and which part the
 /// sample is in.
@@ -58,12 +64,6 @@ impl Split {
             .count()
     }
 
-    /// The heading error statistics on one part.
-    fn stats(&self, headings_rad: &[f64], want_train: bool) -> Option<HeadingErrorStats> {
-        let (reference, is_train) = (&self.reference_rad, &self.is_train);
-        HeadingErrorStats::on_part(headings_rad, reference, is_train, want_train)
-    }
-
     /// The heading error statistics on the train part and on the check part.
     fn both_stats(
         &self,
@@ -83,7 +83,21 @@ struct Table {
 
 impl Table {
     fn push_scored(&mut self, key: String, label: String, headings_rad: &[f64], split: &Split) {
-        let (train, check) = split.both_stats(headings_rad);
+        self.push_row(
+            key,
+            label,
+            split.both_stats(headings_rad),
+            to_degrees(headings_rad),
+        );
+    }
+
+    fn push_row(
+        &mut self,
+        key: String,
+        label: String,
+        (train, check): Scores,
+        series_deg: Vec<f64>,
+    ) {
         self.rows.push(HeadingRow {
             key: key.clone(),
             label,
@@ -91,7 +105,7 @@ impl Table {
             check,
             error: None,
         });
-        self.series.push((key, to_degrees(headings_rad)));
+        self.series.push((key, series_deg));
     }
 
     fn push_error(&mut self, key: String, label: String, error: String) {
@@ -113,12 +127,13 @@ pub fn compare(calibration: &CalibrationAnalysis, options: &HeadingOptions) -> H
     let split = Split::of(calibration);
     let bases = bases_of(calibration);
     let mut table = Table::default();
+    // The bases as the calibration scored them (its split is this one).
     for base in &bases {
-        table.push_scored(
+        table.push_row(
             base.key.clone(),
             base.label.clone(),
-            &base.heading_rad,
-            &split,
+            base.scores,
+            base.heading_deg.to_vec(),
         );
     }
     // Field-domain methods that could not be fitted are listed with their reason.
@@ -170,23 +185,33 @@ pub fn compare(calibration: &CalibrationAnalysis, options: &HeadingOptions) -> H
         is_train: split.is_train,
         reference_deg: calibration.ref_heading_deg.clone(),
         headings_deg: table.series,
-        gravity: calibration.gravity.clone(),
     }
 }
 
 /// The uncalibrated heading, then each fitted field-domain method's.
-fn bases_of(calibration: &CalibrationAnalysis) -> Vec<Base> {
+fn bases_of(calibration: &CalibrationAnalysis) -> Vec<Base<'_>> {
     let radians = |headings_deg: &[f64]| headings_deg.iter().map(|deg| deg.to_radians()).collect();
+    let report = &calibration.report;
     let mut bases = vec![Base {
         key: "raw".to_string(),
         label: "uncalibrated".to_string(),
         heading_rad: radians(&calibration.raw_heading_deg),
+        heading_deg: &calibration.raw_heading_deg,
+        scores: (
+            report.raw_heading_error_train,
+            report.raw_heading_error_check,
+        ),
     }];
     for (method, headings_deg) in &calibration.headings_deg {
+        let scores = report.method(*method).map_or((None, None), |method| {
+            (method.heading_error_train, method.heading_error_check)
+        });
         bases.push(Base {
             key: method.key().to_string(),
             label: method.label().to_string(),
             heading_rad: radians(headings_deg),
+            heading_deg: headings_deg,
+            scores,
         });
     }
     bases
@@ -204,6 +229,11 @@ fn fourier_stacks(
         .iter()
         .map(|reference| reference.unwrap_or(f64::NAN))
         .collect();
+    // The reference's mean over each bin, the same for every base.
+    let reference_means: Vec<Option<f64>> = bins
+        .iter()
+        .map(|bin| steady_mean(&reference_values, bin))
+        .collect();
     let mut reports = Vec::new();
     for base in bases {
         let (key, label) = if base.key == "raw" {
@@ -219,10 +249,9 @@ fn fourier_stacks(
         };
         let (raw, reference): (Vec<f64>, Vec<f64>) = bins
             .iter()
-            .filter_map(|bin| {
-                let base = steady_mean(&base.heading_rad, bin)?;
-                let reference = steady_mean(&reference_values, bin)?;
-                Some((base, reference))
+            .zip(&reference_means)
+            .filter_map(|(bin, &reference)| {
+                Some((steady_mean(&base.heading_rad, bin)?, reference?))
             })
             .unzip();
         match fit_fourier(&raw, &reference) {
@@ -295,7 +324,7 @@ fn neural_stacks(
     let best_field_base = bases
         .iter()
         .skip(1)
-        .filter_map(|base| Some((base, split.stats(&base.heading_rad, true)?.rms_deg)))
+        .filter_map(|base| Some((base, base.scores.0?.rms_deg)))
         .min_by(|a, b| a.1.total_cmp(&b.1))
         .map(|(base, _)| base);
     let mut reports = Vec::new();

@@ -49,8 +49,7 @@ pub struct FourierDeviation {
 impl FourierDeviation {
     /// δ(ξ') in radians.
     pub fn deviation_rad(&self, raw_heading_rad: f64) -> f64 {
-        let (s1, c1) = raw_heading_rad.sin_cos();
-        let (s2, c2) = (2.0 * raw_heading_rad).sin_cos();
+        let [s1, c1, s2, c2] = harmonics(raw_heading_rad);
         (self.a_deg + self.b_deg * s1 + self.c_deg * c1 + self.d_deg * s2 + self.e_deg * c2)
             .to_radians()
     }
@@ -142,9 +141,15 @@ pub enum FourierError {
     LengthMismatch(usize, usize),
 }
 
+/// `[sin ξ, cos ξ, sin 2ξ, cos 2ξ]`, the second pair by the double-angle formulas (one
+/// `sin_cos` per heading: the models evaluate it at every sample of a recording).
+pub(super) fn harmonics(heading_rad: f64) -> [f64; 4] {
+    let (s1, c1) = heading_rad.sin_cos();
+    [s1, c1, 2.0 * s1 * c1, (c1 - s1) * (c1 + s1)]
+}
+
 fn regressors(raw_heading_rad: f64, n_terms: usize) -> [f64; 5] {
-    let (s1, c1) = raw_heading_rad.sin_cos();
-    let (s2, c2) = (2.0 * raw_heading_rad).sin_cos();
+    let [s1, c1, s2, c2] = harmonics(raw_heading_rad);
     let mut row = [1.0, s1, c1, s2, c2];
     for value in row.iter_mut().skip(n_terms) {
         *value = 0.0;

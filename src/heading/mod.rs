@@ -25,11 +25,8 @@ pub mod rls;
 
 pub use compare::compare;
 
-use std::sync::Arc;
-
 use serde::Serialize;
 
-use crate::calib::gravity::GravityEstimate;
 use crate::calibration::selection::Choice;
 use crate::calibration::{CalibrationOptions, CalibrationReport};
 use crate::reference::ReferenceSource;
@@ -167,9 +164,6 @@ pub struct HeadingAnalysis {
     pub reference_deg: Vec<Option<f64>>,
     /// Each row's heading per sample, by key.
     pub headings_deg: Vec<(String, Vec<f64>)>,
-    /// The calibration's down at each accelerometer sample, for the dead reckoning's
-    /// gyro and refit (shared with the calibration, not copied).
-    pub gravity: Arc<GravityEstimate>,
 }
 
 /// The models see the train part in bins of PAIR_WINDOW_S: the circular mean of the

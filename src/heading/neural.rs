@@ -106,9 +106,9 @@ impl NeuralCorrection {
         {
             rows.clear();
             indices.clear();
+            let uses = (self.use_gyro, self.use_temp);
             for (idx, &heading_rad) in (start..).zip(headings) {
-                if let Some(row) = self.row(heading_rad, conditions, idx) {
-                    rows.extend_from_slice(&row);
+                if push_input_row(&mut rows, heading_rad, conditions, idx, uses) {
                     indices.push(idx);
                 }
             }
@@ -141,19 +141,41 @@ fn input_row(
     use_temp: bool,
 ) -> Option<Vec<f64>> {
     let mut row = Vec::with_capacity(7);
-    row.push(heading_rad.sin());
-    row.push(heading_rad.cos());
-    row.push(*conditions.horizontal_ut.get(idx)?);
-    if use_gyro {
-        let gyro_rad = (*conditions.gyro_heading_deg.get(idx)?)?.to_radians();
-        row.push(gyro_rad.sin());
-        row.push(gyro_rad.cos());
+    push_input_row(&mut row, heading_rad, conditions, idx, (use_gyro, use_temp)).then_some(row)
+}
+
+/// Appends the network's inputs at sample `idx` to `rows`; `false`, with nothing
+/// appended, where an input is missing or not finite.
+fn push_input_row(
+    rows: &mut Vec<f64>,
+    heading_rad: f64,
+    conditions: &Conditions<'_>,
+    idx: usize,
+    (use_gyro, use_temp): (bool, bool),
+) -> bool {
+    let start = rows.len();
+    let mut push = || -> Option<()> {
+        let (sin, cos) = heading_rad.sin_cos();
+        rows.extend_from_slice(&[sin, cos, *conditions.horizontal_ut.get(idx)?]);
+        if use_gyro {
+            let gyro_rad = (*conditions.gyro_heading_deg.get(idx)?)?.to_radians();
+            let (sin, cos) = gyro_rad.sin_cos();
+            rows.extend_from_slice(&[sin, cos]);
+        }
+        rows.push(*conditions.dip_deg.get(idx)?);
+        if use_temp {
+            rows.push((*conditions.temp_c.get(idx)?)?);
+        }
+        Some(())
+    };
+    let complete = push().is_some();
+    let appended = rows.get(start..).unwrap_or(&[]);
+    if complete && appended.iter().all(|value| value.is_finite()) {
+        true
+    } else {
+        rows.truncate(start);
+        false
     }
-    row.push(*conditions.dip_deg.get(idx)?);
-    if use_temp {
-        row.push((*conditions.temp_c.get(idx)?)?);
-    }
-    row.iter().all(|value| value.is_finite()).then_some(row)
 }
 
 /// Trains the correction on `bins` (groups of train sample indices, each a second of

@@ -69,8 +69,7 @@ impl FourierRls {
         if !(raw_heading_rad.is_finite() && reference_rad.is_finite()) {
             return;
         }
-        let (s1, c1) = raw_heading_rad.sin_cos();
-        let (s2, c2) = (2.0 * raw_heading_rad).sin_cos();
+        let [s1, c1, s2, c2] = super::fourier::harmonics(raw_heading_rad);
         let phi = Vector5::new(1.0, s1, c1, s2, c2);
         let p_phi = self.covariance * phi;
         let denominator = self.forgetting + phi.dot(&p_phi);

@@ -10,7 +10,9 @@
 //! on a reference-heading column (in a test log that column is the truth), so that no
 //! fix inside an outage trains what bridges it.
 
-use crate::calibration::{calibrate_with_gravity, CalibrationOptions, Method};
+use crate::calibration::{
+    calibrate, calibrate_again, CalibrationAnalysis, CalibrationOptions, Method,
+};
 use crate::heading::{HeadingAnalysis, HeadingOptions};
 use crate::io::ImportReport;
 use crate::recording::{GnssFix, Stream};
@@ -30,11 +32,11 @@ pub struct StepHeading {
 /// The heading the steps take, and notes on how it was made.
 pub fn step_heading(
     import: &ImportReport,
-    headings: &HeadingAnalysis,
+    (calibration, headings): (&CalibrationAnalysis, &HeadingAnalysis),
     options: &PdrOptions,
     notes: &mut Vec<String>,
 ) -> Option<StepHeading> {
-    let compass = compass_heading(import, headings, options, notes)?;
+    let compass = compass_heading(import, (calibration, headings), options, notes)?;
     let base = match options.heading.base {
         HeadingBase::Device => device_heading(import, headings, notes).unwrap_or(compass),
         _ => compass,
@@ -44,7 +46,7 @@ pub fn step_heading(
     }
     match gyro_heading(
         &import.recording,
-        &headings.gravity,
+        &calibration.gravity,
         Some(&base.heading_rad),
         false,
     ) {
@@ -69,7 +71,7 @@ pub fn step_heading(
 /// model does not exist for this log. `None` when there is no heading at all.
 fn compass_heading(
     import: &ImportReport,
-    headings: &HeadingAnalysis,
+    (calibration, headings): (&CalibrationAnalysis, &HeadingAnalysis),
     options: &PdrOptions,
     notes: &mut Vec<String>,
 ) -> Option<StepHeading> {
@@ -77,7 +79,7 @@ fn compass_heading(
         HeadingBase::Model(key) => key.clone(),
         _ => headings.report.choice.key.clone(),
     };
-    let refit = refit_on_gnss(import, headings, &wanted, options, notes);
+    let refit = refit_on_gnss(import, calibration, &wanted, options, notes);
     let from_refit = refit
         .as_ref()
         .and_then(|refit| series_of(refit, &wanted).map(|series| (refit, series)));
@@ -112,7 +114,7 @@ fn compass_heading(
 /// heading.
 fn refit_on_gnss(
     import: &ImportReport,
-    headings: &HeadingAnalysis,
+    calibration: &CalibrationAnalysis,
     key: &str,
     options: &PdrOptions,
     notes: &mut Vec<String>,
@@ -147,12 +149,17 @@ fn refit_on_gnss(
         // Nothing to reference the heading: the comparison's fit stands.
         return None;
     }
-    // The calibration's down, unless it took speeds from fixes the outages now hide.
-    let gravity = (gnss.len() == import.recording.gnss.len() || !headings.gravity.uses_gnss())
-        .then(|| headings.gravity.clone());
+    // The calibration's levelled samples, unless its down took speeds from fixes the
+    // outages now hide.
+    let reuse = gnss.len() == import.recording.gnss.len() || !calibration.gravity.uses_gnss();
     let mut report = import.clone();
     report.recording.gnss = gnss;
-    match calibrate_with_gravity(report, &everything.calibration, gravity) {
+    let refit = if reuse {
+        calibrate_again(calibration, report, &everything.calibration)
+    } else {
+        calibrate(report, &everything.calibration)
+    };
+    match refit {
         Ok(refit) if refit.report.reference.is_some() => {
             Some(crate::heading::compare(&refit, &everything))
         }

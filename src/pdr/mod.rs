@@ -49,6 +49,7 @@ pub use report::{FixCounts, GnssGap, PdrAnalysis, PdrError, PdrReport, StepModel
 
 use serde::Serialize;
 
+use crate::calibration::CalibrationAnalysis;
 use crate::geo::LocalFrame;
 use crate::heading::{HeadingAnalysis, HeadingOptions};
 use crate::io::ImportReport;
@@ -162,7 +163,7 @@ impl Default for PdrOptions {
 /// ([`crate::pipeline`] runs the two in order).
 pub fn dead_reckon(
     import: &ImportReport,
-    headings: &HeadingAnalysis,
+    (calibration, headings): (&CalibrationAnalysis, &HeadingAnalysis),
     options: &PdrOptions,
 ) -> Result<PdrAnalysis, PdrError> {
     let file_name = import.file_name.clone();
@@ -178,7 +179,7 @@ pub fn dead_reckon(
         heading_rad: heading_stream,
         key: heading_key,
         label: heading_label,
-    }) = step_heading(import, headings, options, &mut notes)
+    }) = step_heading(import, (calibration, headings), options, &mut notes)
     else {
         return Err(PdrError::NoSteps {
             file_name,

@@ -212,8 +212,10 @@ impl Page {
             let previous = page.results.borrow_mut().take();
             match (stage, previous.map(Rc::try_unwrap)) {
                 (Stage::DeadReckoning, Some(Ok(results))) => {
-                    let (pdr_summary, pdr) =
-                        page.show_dead_reckoning(Some(&import), &results.heading);
+                    let (pdr_summary, pdr) = page.show_dead_reckoning(
+                        Some(&import),
+                        (&results.calibration, &results.heading),
+                    );
                     let summary = format!(
                         "Dead-reckoned {file_name} again with the new settings.{pdr_summary}"
                     );

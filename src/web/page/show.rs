@@ -37,7 +37,8 @@ impl Page {
                 yield_to_browser().await;
                 let (summary, heading) = self.show_heading_models(&mut analysis);
                 yield_to_browser().await;
-                let (pdr_summary, pdr) = self.show_dead_reckoning(import.as_deref(), &heading);
+                let (pdr_summary, pdr) =
+                    self.show_dead_reckoning(import.as_deref(), (&analysis, &heading));
                 self.keep_results(Results {
                     calibration: analysis,
                     heading,
@@ -175,7 +176,7 @@ impl Page {
     pub(super) fn show_dead_reckoning(
         &self,
         import: Option<&ImportReport>,
-        headings: &HeadingAnalysis,
+        stages: (&CalibrationAnalysis, &HeadingAnalysis),
     ) -> (String, Result<PdrAnalysis, String>) {
         self.count_run(&self.n_pdr_runs, "data-pdr-runs");
         let options = controls::read(&self.document).options();
@@ -183,7 +184,7 @@ impl Page {
             .filter(|import| !import.recording.acc_in_body_mps2.is_empty())
             .ok_or_else(|| "the log has no accelerometer, so no steps can be detected".to_string())
             .and_then(|import| {
-                crate::pdr::dead_reckon(import, headings, &options).map_err(|error| match error {
+                crate::pdr::dead_reckon(import, stages, &options).map_err(|error| match error {
                     PdrError::Analysis(error) => error.to_string(),
                     other => other.to_string(),
                 })
@@ -392,7 +393,7 @@ impl Page {
     ) {
         self.show_calibration(analysis);
         let (summary, heading) = self.show_heading_models(analysis);
-        let (pdr_summary, _) = self.show_dead_reckoning(import, &heading);
+        let (pdr_summary, _) = self.show_dead_reckoning(import, (analysis, &heading));
         self.set_state("ready", &format!("{summary}{pdr_summary}"));
     }
 }
