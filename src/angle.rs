@@ -15,7 +15,7 @@ pub fn wrap_to_2pi(angle_rad: f64) -> f64 {
     } else if angle_rad > -TAU && angle_rad < 0.0 {
         angle_rad + TAU
     } else {
-        angle_rad.rem_euclid(TAU)
+        rem_euclid_tau(angle_rad)
     };
     // rem_euclid can return exactly TAU for tiny negative inputs through rounding.
     if wrapped >= TAU {
@@ -23,6 +23,15 @@ pub fn wrap_to_2pi(angle_rad: f64) -> f64 {
     } else {
         wrapped
     }
+}
+
+/// `rem_euclid(TAU)` out of line: were it inlined, the compiler could compute the
+/// remainder before the range tests (a remainder has no side effects) and the fast
+/// paths above would save nothing.
+#[cold]
+#[inline(never)]
+fn rem_euclid_tau(angle_rad: f64) -> f64 {
+    angle_rad.rem_euclid(TAU)
 }
 
 /// Wraps an angle to `(−π, π]`, as heading differences are reported.
