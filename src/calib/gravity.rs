@@ -152,35 +152,38 @@ pub fn estimate_gravity(
     if speed_mps.len() >= 2 {
         motions.push(moving);
     }
+    // Each motion at the log's own time scale first, side by side (nothing to compare
+    // them with yet, so each is a whole pass), then the other time scales, each given
+    // up once it cannot win. The winner is the lowest score, ties going to the earlier
+    // trial in the order motion by motion, scale by scale.
+    let run = |motion: &Motion, gyro_scale: f64, losing_rad: f64| {
+        pass(
+            acc_in_body_mps2,
+            gyro_in_body_radps,
+            (gyro_scale, tau_s),
+            Direction::Forward,
+            motion,
+            losing_rad,
+        )
+    };
+    let own_scale = |(_, motion): (usize, &Motion)| run(motion, 1.0, f64::INFINITY);
+    let first = crate::par::on_each_part(motions.iter().enumerate(), own_scale)
+        .unwrap_or_else(|| motions.iter().enumerate().map(own_scale).collect());
     let mut best: Option<Setting> = None;
+    for (motion_idx, result) in first.into_iter().enumerate() {
+        let trial = (motion_idx * GYRO_TIME_SCALES.len(), motion_idx, 1.0);
+        Setting::keep_better(&mut best, trial, result);
+    }
     for (motion_idx, motion) in motions.iter().enumerate() {
-        for gyro_scale in GYRO_TIME_SCALES {
-            // Motion compensation is its own evidence; a changed time scale must halve
-            // the innovation.
-            let handicap = if gyro_scale == 1.0 { 1.0 } else { 2.0 };
-            let losing_rad = best
-                .as_ref()
-                .map_or(f64::INFINITY, |best| best.score / handicap);
-            let Some((downs, innovation)) = pass(
-                acc_in_body_mps2,
-                gyro_in_body_radps,
-                (gyro_scale, tau_s),
-                Direction::Forward,
-                motion,
-                losing_rad,
-            ) else {
-                continue;
-            };
-            let score = innovation * handicap;
-            if best.as_ref().is_none_or(|best| score < best.score) {
-                best = Some(Setting {
-                    forward: downs,
-                    score,
-                    motion_idx,
-                    gyro_scale,
-                    innovation_rad: innovation,
-                });
-            }
+        for (scale_idx, gyro_scale) in GYRO_TIME_SCALES.into_iter().enumerate().skip(1) {
+            let losing_rad = best.as_ref().map_or(f64::INFINITY, |best| best.score / 2.0);
+            let result = run(motion, gyro_scale, losing_rad);
+            let trial = (
+                motion_idx * GYRO_TIME_SCALES.len() + scale_idx,
+                motion_idx,
+                gyro_scale,
+            );
+            Setting::keep_better(&mut best, trial, result);
         }
     }
     let Some(Setting {
@@ -356,9 +359,40 @@ struct Setting {
     forward: Vec<Option<Vector3<f64>>>,
     /// The innovation, handicapped when the time scale is not the log's.
     score: f64,
+    /// Its place in the order of the trials (ties go to the earlier).
+    order: usize,
     motion_idx: usize,
     gyro_scale: f64,
     innovation_rad: f64,
+}
+
+impl Setting {
+    /// Keeps the trial `(order, motion_idx, gyro_scale)`'s pass in `best` when it scores
+    /// lower, or as low and earlier in the order. Motion compensation is its own
+    /// evidence; a changed time scale must halve the innovation.
+    fn keep_better(
+        best: &mut Option<Setting>,
+        (order, motion_idx, gyro_scale): (usize, usize, f64),
+        pass: Option<(Vec<Option<Vector3<f64>>>, f64)>,
+    ) {
+        let Some((forward, innovation_rad)) = pass else {
+            return;
+        };
+        let score = innovation_rad * if gyro_scale == 1.0 { 1.0 } else { 2.0 };
+        if best
+            .as_ref()
+            .is_none_or(|best| (score, order) < (best.score, best.order))
+        {
+            *best = Some(Setting {
+                forward,
+                score,
+                order,
+                motion_idx,
+                gyro_scale,
+                innovation_rad,
+            });
+        }
+    }
 }
 
 #[derive(Clone, Copy, PartialEq)]
@@ -373,7 +407,7 @@ enum Direction {
 /// accelerometer's down and the gyroscope's prediction (rad): how far the accelerometer
 /// leans on average, which a right motion compensation reduces.
 ///
-/// A pass whose innovation is sure to come out at `losing_rad` or more (another setting
+/// A pass whose innovation is sure to come out above `losing_rad` (another setting
 /// already does better) is abandoned: `None`. The blocks start at least
 /// [`INNOVATION_BLOCK_S`] apart, so the log's span bounds their number, and the RMS over
 /// the blocks so far divided by that bound can only grow. The answer is the same as
@@ -450,7 +484,7 @@ fn pass(
                                 if let Some((_, sum, count)) = block {
                                     sum_sq_innovation += (sum / count as f64).norm_squared();
                                     n_blocks += 1;
-                                    if sum_sq_innovation >= losing_sum_sq {
+                                    if sum_sq_innovation > losing_sum_sq {
                                         return None;
                                     }
                                 }
