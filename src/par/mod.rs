@@ -95,6 +95,14 @@ where
     }
 }
 
+/// Whether the small pieces of parallel work ([`map`], a pair of statistics, the
+/// gravity filter's two passes) use several threads: natively yes; in the threaded
+/// browser module no, where the pool's code compiled for each caller's types would
+/// outgrow the module's size budget for a few tens of milliseconds (the importers and
+/// the 3D fit, the long pieces, use the pool there).
+pub const SMALL_WORK_IN_PARALLEL: bool =
+    !cfg!(all(target_arch = "wasm32", target_feature = "atomics"));
+
 /// Below this many items a part is not worth a thread of its own (starting one costs
 /// tens of microseconds; an item of the per-sample maps below, tens of nanoseconds).
 const MIN_ITEMS_PER_PART: usize = 20_000;
@@ -115,7 +123,7 @@ where
             .collect()
     };
     let n_parts = n_threads().min(items.len() / MIN_ITEMS_PER_PART);
-    if n_parts < 2 {
+    if !SMALL_WORK_IN_PARALLEL || n_parts < 2 {
         return sequential();
     }
     let part_len = items.len().div_ceil(n_parts);
@@ -267,13 +275,26 @@ pub mod pool {
                 }
             }
         };
+        if !run_parts(inputs.len(), &run) {
+            return None;
+        }
+        outputs
+            .into_iter()
+            .map(|output| output.into_inner().ok().flatten())
+            .collect()
+    }
+
+    /// Runs `run(part_idx)` for every part, part 0 and any beyond the workers here, the
+    /// others on the workers; `false` if a worker failed. Not generic, so the pool's
+    /// code is compiled once rather than for every caller's types.
+    fn run_parts(n_parts: usize, run: &(dyn Fn(usize) + Sync)) -> bool {
         let ready = READY.load(Ordering::Acquire);
         let workers: Vec<usize> = (0..MAX_WORKERS)
             .filter(|&worker_idx| ready & (1 << worker_idx) != 0)
             .collect();
         // Parts 1.. to the workers, one each; the first, and any beyond the workers,
         // here.
-        let jobs: Vec<Box<dyn Fn() + Sync + '_>> = (1..inputs.len())
+        let jobs: Vec<Box<dyn Fn() + Sync + '_>> = (1..n_parts)
             .map(|part_idx| Box::new(move || run(part_idx)) as Box<dyn Fn() + Sync + '_>)
             .collect();
         let job_refs: Vec<&(dyn Fn() + Sync)> = jobs.iter().map(|job| job.as_ref()).collect();
@@ -320,13 +341,7 @@ pub mod pool {
         // Every job has returned or its worker is gone: the closures may be dropped.
         drop(job_refs);
         drop(jobs);
-        if failed {
-            return None;
-        }
-        outputs
-            .into_iter()
-            .map(|output| output.into_inner().ok().flatten())
-            .collect()
+        !failed
     }
 }
 
