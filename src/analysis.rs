@@ -27,6 +27,19 @@ pub enum Levelling {
     AssumedLevel,
 }
 
+impl Levelling {
+    /// How samples levelled with `gravity` are levelled.
+    pub fn of(gravity: &GravityEstimate) -> Levelling {
+        if gravity.specific_force_mps2.is_empty() {
+            Levelling::AssumedLevel
+        } else {
+            Levelling::Accelerometer {
+                window_s: gravity.tau_s(),
+            }
+        }
+    }
+}
+
 /// Why a file could not be analysed. Each message names the file and what to do.
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum AnalysisError {
@@ -156,14 +169,7 @@ pub fn tilted_samples(
             }
         });
     }
-    let estimate = gravity;
-    let gravity = &estimate.specific_force_mps2;
-    let window_s = estimate.tau_s();
-    let levelling = if gravity.is_empty() {
-        Levelling::AssumedLevel
-    } else {
-        Levelling::Accelerometer { window_s }
-    };
+    let levelling = Levelling::of(gravity);
     let mut samples = TiltedSamples {
         t_s: Vec::with_capacity(mag.len()),
         mag_ut: Vec::with_capacity(mag.len()),
@@ -175,6 +181,7 @@ pub fn tilted_samples(
         let tilt = match levelling {
             Levelling::AssumedLevel => Some(Tilt::LEVEL),
             Levelling::Accelerometer { .. } => gravity
+                .specific_force_mps2
                 .interpolate_at(sample_t_s, MAX_INTERPOLATION_GAP_S)
                 .and_then(Tilt::from_specific_force),
         };
@@ -190,8 +197,8 @@ pub fn tilted_samples(
     if levelling == Levelling::AssumedLevel {
         samples.notes.push("The log has no accelerometer, so the device was assumed level; tilt adds heading error.".to_string());
     } else {
-        match &estimate.source {
-            GravitySource::Accelerometer { reason, .. }
+        match &gravity.source {
+            GravitySource::Accelerometer { reason, window_s }
                 if !recording.gyro_in_body_radps.is_empty() =>
             {
                 samples.notes.push(format!(

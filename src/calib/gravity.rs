@@ -82,6 +82,9 @@ pub enum GravitySource {
 pub struct GravityEstimate {
     pub specific_force_mps2: Stream<Vector3<f64>>,
     pub source: GravitySource,
+    /// The fixes whose speed and course were taken out of the accelerometer (the
+    /// recording's GNSS when motion-compensated, else empty).
+    pub gnss_used: Stream<GnssFix>,
 }
 
 /// [`estimate_gravity`] on a recording's accelerometer, gyroscope and GNSS: computed
@@ -105,16 +108,12 @@ impl GravityEstimate {
         }
     }
 
-    /// Whether the estimate used the GNSS (its speeds' accelerations were taken out of
-    /// the accelerometer): if not, it does not change when fixes are left out.
-    pub fn uses_gnss(&self) -> bool {
-        matches!(
-            self.source,
-            GravitySource::GyroAided {
-                motion_compensated: true,
-                ..
-            }
-        )
+    /// Whether the estimate is the same with `gnss` as the recording's fixes (with the
+    /// same accelerometer and gyroscope): it used no fixes, or exactly these. A
+    /// calibration run again with fixes left out (the dead reckoning's outages) must
+    /// not level with speeds from the fixes it left out.
+    pub fn holds_with_gnss(&self, gnss: &Stream<GnssFix>) -> bool {
+        self.gnss_used.is_empty() || self.gnss_used == *gnss
     }
 }
 
@@ -133,6 +132,7 @@ pub fn estimate_gravity(
             window_s: tau_s,
             reason,
         },
+        gnss_used: Stream::default(),
     };
     if gyro_in_body_radps.len() < 2 {
         return fallback("the log has no gyroscope".to_string());
@@ -234,12 +234,18 @@ pub fn estimate_gravity(
     if fused.is_empty() {
         return fallback("the gyroscope does not overlap the accelerometer in time".to_string());
     }
+    let motion_compensated = matches!(motion, Motion::Forward { .. });
     GravityEstimate {
         specific_force_mps2: fused,
         source: GravitySource::GyroAided {
             tau_s,
-            motion_compensated: matches!(motion, Motion::Forward { .. }),
+            motion_compensated,
             gyro_time_scale: gyro_scale,
+        },
+        gnss_used: if motion_compensated {
+            gnss.clone()
+        } else {
+            Stream::default()
         },
     }
 }
@@ -607,6 +613,21 @@ mod tests {
             "{:?}",
             estimate.source
         );
+    }
+
+    #[test]
+    fn an_estimate_holds_with_other_fixes_only_if_it_used_none() {
+        let (acc, gyro, _) = swaying(3.0, 1.0, Vector3::zeros(), 1.0);
+        let without = estimate_gravity(&acc, &gyro, &Stream::default(), 1.0);
+        let mut fixes = Stream::default();
+        fixes.push(0.0, GnssFix::default());
+        assert!(without.holds_with_gnss(&fixes));
+        let with = GravityEstimate {
+            gnss_used: fixes.clone(),
+            ..without
+        };
+        assert!(with.holds_with_gnss(&fixes));
+        assert!(!with.holds_with_gnss(&Stream::default()));
     }
 
     #[test]

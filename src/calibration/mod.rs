@@ -361,13 +361,7 @@ impl Levelled {
 
     /// What `previous` levelled (its notes on the levelling are in its report).
     fn of_analysis(previous: &CalibrationAnalysis) -> Levelled {
-        let levelling = if previous.gravity.specific_force_mps2.is_empty() {
-            Levelling::AssumedLevel
-        } else {
-            Levelling::Accelerometer {
-                window_s: previous.gravity.tau_s(),
-            }
-        };
+        let levelling = Levelling::of(&previous.gravity);
         Levelled {
             gravity: previous.gravity.clone(),
             samples: TiltedSamples {
@@ -515,16 +509,17 @@ pub fn calibrate(
 /// options (another reference, split or methods) or fewer GNSS fixes, taking the
 /// levelled samples and the conditions from `previous` rather than computing them
 /// again. The caller vouches that the magnetometer, accelerometer and gyroscope are
-/// `previous`'s, and that fixes were left out only if `previous.gravity` did not use
-/// them ([`GravityEstimate::uses_gnss`]); a different gravity window, or a different
-/// number of magnetometer samples, computes everything afresh.
+/// `previous`'s. Everything is computed afresh when that cannot hold: another gravity
+/// window, another number of magnetometer samples, or other fixes where `previous`'s
+/// down took speeds from its fixes ([`GravityEstimate::holds_with_gnss`]).
 pub fn calibrate_again(
     previous: &CalibrationAnalysis,
     report: ImportReport,
     options: &CalibrationOptions,
 ) -> Result<CalibrationAnalysis, AnalysisError> {
     let same_sensors = previous.gravity.tau_s() == options.gravity_window_s
-        && previous.report.n_mag_samples == report.recording.mag_in_body_ut.len();
+        && previous.report.n_mag_samples == report.recording.mag_in_body_ut.len()
+        && previous.gravity.holds_with_gnss(&report.recording.gnss);
     let levelled = same_sensors.then(|| Levelled::of_analysis(previous));
     calibrate_levelled(report, options, levelled)
 }
@@ -703,6 +698,33 @@ mod tests {
             .method(method)
             .and_then(|report| report.heading_error_check)
             .map_or(f64::INFINITY, |stats| stats.rms_deg)
+    }
+
+    #[test]
+    fn a_calibration_run_again_gives_what_a_fresh_one_gives() {
+        let report = demo_like(23);
+        let first = calibrate(report.clone(), &CalibrationOptions::default()).expect("calibrates");
+        let other = CalibrationOptions {
+            train_until_s: Some(f64::INFINITY),
+            methods: vec![Method::MinMax, Method::Ellipse],
+            ..CalibrationOptions::default()
+        };
+        let fresh = calibrate(report.clone(), &other).expect("calibrates");
+        let again = calibrate_again(&first, report, &other).expect("calibrates");
+        assert!(std::sync::Arc::ptr_eq(&again.gravity, &first.gravity));
+        assert_eq!(again.t_s, fresh.t_s);
+        assert_eq!(again.tilt, fresh.tilt);
+        assert_eq!(again.gyro_heading_deg, fresh.gyro_heading_deg);
+        assert_eq!(again.headings_deg, fresh.headings_deg);
+        assert_eq!(again.report.methods, fresh.report.methods);
+        // Another gravity window is levelled afresh.
+        let wider = CalibrationOptions {
+            gravity_window_s: 2.0,
+            ..other
+        };
+        let rewound = calibrate_again(&first, demo_like(23), &wider).expect("calibrates");
+        assert!(!std::sync::Arc::ptr_eq(&rewound.gravity, &first.gravity));
+        assert_eq!(rewound.gravity.tau_s(), 2.0);
     }
 
     #[test]

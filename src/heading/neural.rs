@@ -73,29 +73,8 @@ fn coverage(values: &[Option<f64>]) -> f64 {
 }
 
 impl NeuralCorrection {
-    /// The network's input row at sample `idx`, `None` where an input is missing.
-    fn row(&self, heading_rad: f64, conditions: &Conditions<'_>, idx: usize) -> Option<Vec<f64>> {
-        input_row(heading_rad, conditions, idx, self.use_gyro, self.use_temp)
-    }
-
-    /// The corrected heading (radians) at sample `idx`, `None` where an input is missing.
-    pub fn correct_rad(
-        &self,
-        heading_rad: f64,
-        conditions: &Conditions<'_>,
-        idx: usize,
-    ) -> Option<f64> {
-        let row = self.row(heading_rad, conditions, idx)?;
-        let mut deviation_deg = [0.0];
-        self.model.predict_into(&row, &mut deviation_deg).ok()?;
-        let [deviation_deg] = deviation_deg;
-        deviation_deg
-            .is_finite()
-            .then(|| crate::angle::wrap_to_2pi(heading_rad + deviation_deg.to_radians()))
-    }
-
-    /// [`Self::correct_rad`] at every sample (`headings_rad[i]` is sample `i`'s base
-    /// heading), NaN where an input is missing: the same values, the network run on
+    /// The corrected heading (radians, `[0, 2π)`) at every sample (`headings_rad[i]` is
+    /// sample `i`'s base heading), NaN where an input is missing; the network runs on
     /// blocks of rows ([`crate::nn::Mlp::predict_rows`]).
     pub fn correct_all_rad(&self, headings_rad: &[f64], conditions: &Conditions<'_>) -> Vec<f64> {
         let mut corrected = vec![f64::NAN; headings_rad.len()];

@@ -5,7 +5,7 @@
 //! means removed first (two passes). A column that does not vary has no correlation:
 //! its entries are `None`, not NaN.
 
-use super::dataset::DataPart;
+use super::dataset::{check_finite, rows_of, DataPart};
 use super::error::NnError;
 
 /// A symmetric matrix of correlation coefficients in [−1, 1], row-major.
@@ -33,33 +33,14 @@ impl CorrelationMatrix {
 /// The correlation of the `width` columns of the row-major `rows` (at least two rows,
 /// every value finite).
 pub fn correlation_matrix(rows: &[f64], width: usize) -> Result<CorrelationMatrix, NnError> {
-    if width == 0 {
-        return Err(NnError::NoColumns {
-            part: DataPart::Input,
-        });
-    }
-    if !rows.len().is_multiple_of(width) {
-        return Err(NnError::RaggedRows {
-            part: DataPart::Input,
-            n_values: rows.len(),
-            width,
-        });
-    }
-    let n_rows = rows.len() / width;
+    let n_rows = rows_of(rows, width, DataPart::Input)?;
     if n_rows < 2 {
         return Err(NnError::TooFewSamples {
             n_samples: n_rows,
             min: 2,
         });
     }
-    if let Some(idx) = rows.iter().position(|value| !value.is_finite()) {
-        return Err(NnError::NonFinite {
-            part: DataPart::Input,
-            row: idx / width,
-            column: idx % width,
-            value: rows[idx],
-        });
-    }
+    check_finite(rows, width, DataPart::Input)?;
     let mut mean = vec![0.0; width];
     for row in rows.chunks_exact(width) {
         for (sum, value) in mean.iter_mut().zip(row) {

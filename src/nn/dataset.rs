@@ -99,7 +99,8 @@ impl Dataset {
     }
 }
 
-fn rows_of(values: &[f64], width: usize, part: DataPart) -> Result<usize, NnError> {
+/// The number of rows of `width` values in `values`, or why they do not make rows.
+pub(super) fn rows_of(values: &[f64], width: usize, part: DataPart) -> Result<usize, NnError> {
     if width == 0 {
         return Err(NnError::NoColumns { part });
     }
@@ -113,7 +114,8 @@ fn rows_of(values: &[f64], width: usize, part: DataPart) -> Result<usize, NnErro
     Ok(values.len() / width)
 }
 
-fn check_finite(values: &[f64], width: usize, part: DataPart) -> Result<(), NnError> {
+/// The first value that is not finite, by row and column, as an error.
+pub(super) fn check_finite(values: &[f64], width: usize, part: DataPart) -> Result<(), NnError> {
     match values.iter().position(|value| !value.is_finite()) {
         None => Ok(()),
         Some(idx) => Err(NnError::NonFinite {

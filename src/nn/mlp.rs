@@ -10,7 +10,7 @@
 //! (sizes consistent, every number finite) before it can be used.
 
 use super::activation::Activation;
-use super::dataset::{DataPart, Dataset};
+use super::dataset::{check_finite, rows_of, DataPart, Dataset};
 use super::error::NnError;
 use super::loss::{Batch, Shape, INPUT_CLAMP};
 use super::normalise::Standardiser;
@@ -246,21 +246,8 @@ impl Mlp {
     pub fn predict_rows(&self, rows: &[f64]) -> Result<Vec<f64>, NnError> {
         let shape = self.shape;
         let n_inputs = shape.n_inputs;
-        if !rows.len().is_multiple_of(n_inputs) {
-            return Err(NnError::RaggedRows {
-                part: DataPart::Input,
-                n_values: rows.len(),
-                width: n_inputs,
-            });
-        }
-        if let Some(position) = rows.iter().position(|value| !value.is_finite()) {
-            return Err(NnError::NonFinite {
-                part: DataPart::Input,
-                row: position / n_inputs,
-                column: position % n_inputs,
-                value: rows[position],
-            });
-        }
+        let n_rows = rows_of(rows, n_inputs, DataPart::Input)?;
+        check_finite(rows, n_inputs, DataPart::Input)?;
         let params = shape.split(&self.params);
         let single = |values: &[f64]| {
             values
@@ -272,7 +259,7 @@ impl Mlp {
             (single(params.hidden_weights), single(params.hidden_biases));
         let (output_weights, output_biases) =
             (single(params.output_weights), single(params.output_biases));
-        let mut outputs = Vec::with_capacity(rows.len() / n_inputs * shape.n_outputs);
+        let mut outputs = Vec::with_capacity(n_rows * shape.n_outputs);
         // Per block: the normalised inputs column by column, a neuron's pre-activations,
         // and each output's sum.
         let mut inputs = vec![0f32; n_inputs * PREDICT_BLOCK];

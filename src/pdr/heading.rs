@@ -10,9 +10,7 @@
 //! on a reference-heading column (in a test log that column is the truth), so that no
 //! fix inside an outage trains what bridges it.
 
-use crate::calibration::{
-    calibrate, calibrate_again, CalibrationAnalysis, CalibrationOptions, Method,
-};
+use crate::calibration::{calibrate_again, CalibrationAnalysis, CalibrationOptions, Method};
 use crate::heading::{HeadingAnalysis, HeadingOptions};
 use crate::io::ImportReport;
 use crate::recording::{GnssFix, Stream};
@@ -149,17 +147,11 @@ fn refit_on_gnss(
         // Nothing to reference the heading: the comparison's fit stands.
         return None;
     }
-    // The calibration's levelled samples, unless its down took speeds from fixes the
-    // outages now hide.
-    let reuse = gnss.len() == import.recording.gnss.len() || !calibration.gravity.uses_gnss();
+    // The calibration's levelled samples (computed afresh if its down took speeds from
+    // fixes the outages now hide).
     let mut report = import.clone();
     report.recording.gnss = gnss;
-    let refit = if reuse {
-        calibrate_again(calibration, report, &everything.calibration)
-    } else {
-        calibrate(report, &everything.calibration)
-    };
-    match refit {
+    match calibrate_again(calibration, report, &everything.calibration) {
         Ok(refit) if refit.report.reference.is_some() => {
             Some(crate::heading::compare(&refit, &everything))
         }
