@@ -414,12 +414,18 @@ pub(super) fn accumulate(
     };
     let (rho_a, g_a, w_a) = usable(first);
     let (rho_b, g_b, w_b) = usable(second);
-    for row in 0..N_MAX {
-        let (a, b) = (g_a[row] * w_a, g_b[row] * w_b);
-        for col in row..N_MAX {
-            normal.jtj[(row, col)] += a * g_a[col] + b * g_b[col];
+    let a: [f64; N_MAX] = std::array::from_fn(|row| g_a[row] * w_a);
+    let b: [f64; N_MAX] = std::array::from_fn(|row| g_b[row] * w_b);
+    // Column by column, so that the inner loop runs along the column-major storage and
+    // vectorises; each entry gets the same sum as row by row would give it.
+    for (col, column) in normal.jtj.as_mut_slice().chunks_exact_mut(N_MAX).enumerate() {
+        let (ga_col, gb_col) = (g_a[col], g_b[col]);
+        for ((entry, &a_row), &b_row) in column[..=col].iter_mut().zip(&a).zip(&b) {
+            *entry += a_row * ga_col + b_row * gb_col;
         }
-        normal.jtr[row] += a * rho_a + b * rho_b;
+    }
+    for row in 0..N_MAX {
+        normal.jtr[row] += a[row] * rho_a + b[row] * rho_b;
     }
     normal.cost += w_a * rho_a * rho_a + w_b * rho_b * rho_b;
 }
