@@ -434,7 +434,7 @@ pub fn fit_inertial(
     // material gives (weakly seen directions following a disturbance): then the
     // subset's plausible solution stands, with the full set's weights and covariance.
     if model.implausibility(&solution.state, options).is_some() {
-        solution = settle(&fit_set, start, options, model).ok_or(InertialError::NoConvergence)?;
+        solution = settle(&fit_set, start, model);
     }
     let mut fit = solution.report(&fit_set, mag_ut, options);
     fit.model_reason = reason;
@@ -491,23 +491,15 @@ fn best_solution(
     best.map(|(_, solution)| solution)
 }
 
-/// `state` as it is, with the weights and covariance of `set` (no step taken).
-fn settle(
-    set: &SampleSet,
-    state: State,
-    options: &InertialOptions,
-    model: SoftIronModel,
-) -> Option<Solution> {
+/// `state` as it is, with the weights of `set` (no step taken).
+fn settle(set: &SampleSet, state: State, model: SoftIronModel) -> Solution {
     let weights = weights(set, &state, Schedule::Warm.loss(0));
-    let normal = normal_equations(set, &state, &weights, options, &state);
-    let covariance =
-        posterior_covariance(&normal, autocorrelation_inflation(set, &state, &weights));
-    Some(Solution {
+    Solution {
         state,
         model,
         weights,
-        covariance,
-    })
+        prior_centre: state,
+    }
 }
 
 /// Samples, with the down vectors when the dip is used.
@@ -733,10 +725,22 @@ struct Solution {
     state: State,
     model: SoftIronModel,
     weights: Weights,
-    covariance: Option<ParamMat>,
+    /// Where the priors were centred (the start it was solved from).
+    prior_centre: State,
 }
 
 impl Solution {
+    /// The posterior covariance on `set` with the final weights (the frozen directions
+    /// keep their priors' uncertainty): only the solution that is reported needs it.
+    fn covariance(&self, set: &SampleSet, options: &InertialOptions) -> Option<ParamMat> {
+        let normal =
+            normal_equations(set, &self.state, &self.weights, options, &self.prior_centre);
+        posterior_covariance(
+            &normal,
+            autocorrelation_inflation(set, &self.state, &self.weights),
+        )
+    }
+
     /// Median absolute residuals, magnitude plus vertical (µT): comparable across starts.
     fn score(&self, set: &SampleSet) -> f64 {
         let (sigma_magnitude_ut, sigma_vertical_ut) =

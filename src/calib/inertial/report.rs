@@ -45,7 +45,7 @@ impl Solution {
             100.0 * variance.sqrt() / mean.max(f64::MIN_POSITIVE)
         };
         let n_in_f = n_in.max(1) as f64;
-        let covariance = self.covariance.unwrap_or(ParamMat::zeros());
+        let covariance = self.covariance(set, options).unwrap_or(ParamMat::zeros());
         let std_of = |idx: usize| covariance[(idx, idx)].max(0.0).sqrt();
         let scale = state
             .correction

@@ -45,16 +45,11 @@ pub(super) fn solve(
     if det.is_nan() || det <= 0.0 {
         return None;
     }
-    // The covariance at the end, with the final weights: the frozen directions keep
-    // their priors' uncertainty.
-    let normal = normal_equations(set, &state, &weights, options, &start);
-    let covariance =
-        posterior_covariance(&normal, autocorrelation_inflation(set, &state, &weights));
     Some(Solution {
         state,
         model,
         weights,
-        covariance,
+        prior_centre: start,
     })
 }
 
