@@ -32,7 +32,8 @@ impl HeadingErrorStats {
         is_train: &[bool],
         want_train: bool,
     ) -> Option<Self> {
-        Self::from_errors_rad(
+        let mut errors_deg = Vec::with_capacity(headings_rad.len());
+        errors_deg.extend(
             headings_rad
                 .iter()
                 .zip(reference_rad)
@@ -40,8 +41,11 @@ impl HeadingErrorStats {
                 .filter_map(|((&heading_rad, &reference_rad), &train)| {
                     (train == want_train)
                         .then_some(heading_difference_rad(heading_rad, reference_rad?))
-                }),
-        )
+                })
+                .filter(|error_rad| error_rad.is_finite())
+                .map(|error_rad| error_rad.to_degrees()),
+        );
+        Self::from_errors_deg(errors_deg)
     }
 
     /// [`Self::on_part`] of the train part and of the check part, side by side on two
@@ -67,40 +71,39 @@ impl HeadingErrorStats {
     /// Statistics of heading errors given in radians (wrapped here to ±π). Non-finite
     /// values are left out; `None` when nothing is left.
     pub fn from_errors_rad(errors_rad: impl IntoIterator<Item = f64>) -> Option<Self> {
-        let mut errors_deg: Vec<f64> = errors_rad
-            .into_iter()
-            .filter(|error_rad| error_rad.is_finite())
-            .map(|error_rad| wrap_to_pi(error_rad).to_degrees())
-            .collect();
+        Self::from_errors_deg(
+            errors_rad
+                .into_iter()
+                .filter(|error_rad| error_rad.is_finite())
+                .map(|error_rad| wrap_to_pi(error_rad).to_degrees())
+                .collect(),
+        )
+    }
+
+    /// The statistics of finite errors already wrapped to ±180°, in degrees, in three
+    /// passes (the mean; the spreads, counts and absolute values; the percentile).
+    fn from_errors_deg(mut errors_deg: Vec<f64>) -> Option<Self> {
         let n_samples = errors_deg.len();
         if n_samples == 0 {
             return None;
         }
         let n = n_samples as f64;
         let mean_deg = errors_deg.iter().sum::<f64>() / n;
-        let sum_sq_dev: f64 = errors_deg
-            .iter()
-            .map(|error_deg| (error_deg - mean_deg).powi(2))
-            .sum();
+        let (mut sum_sq_dev, mut sum_sq, mut within_5, mut max_abs_deg) = (0.0, 0.0, 0, 0.0f64);
+        for error_deg in &mut errors_deg {
+            sum_sq_dev += (*error_deg - mean_deg).powi(2);
+            sum_sq += *error_deg * *error_deg;
+            let abs_deg = error_deg.abs();
+            within_5 += usize::from(abs_deg <= 5.0);
+            max_abs_deg = max_abs_deg.max(abs_deg);
+            *error_deg = abs_deg;
+        }
         let std_deg = if n_samples > 1 {
             (sum_sq_dev / (n - 1.0)).sqrt()
         } else {
             0.0
         };
-        let rms_deg = (errors_deg
-            .iter()
-            .map(|error_deg| error_deg * error_deg)
-            .sum::<f64>()
-            / n)
-            .sqrt();
-        let within_5 = errors_deg
-            .iter()
-            .filter(|error_deg| error_deg.abs() <= 5.0)
-            .count();
-        for error_deg in &mut errors_deg {
-            *error_deg = error_deg.abs();
-        }
-        let max_abs_deg = errors_deg.iter().copied().fold(0.0, f64::max);
+        let rms_deg = (sum_sq / n).sqrt();
         // Nearest-rank percentile: a selection, not a sort (the heading comparison
         // scores hundreds of thousands of samples per method).
         let p95_rank = ((0.95 * n).ceil() as usize).clamp(1, n_samples);
