@@ -733,8 +733,7 @@ impl Solution {
     /// The posterior covariance on `set` with the final weights (the frozen directions
     /// keep their priors' uncertainty): only the solution that is reported needs it.
     fn covariance(&self, set: &SampleSet, options: &InertialOptions) -> Option<ParamMat> {
-        let normal =
-            normal_equations(set, &self.state, &self.weights, options, &self.prior_centre);
+        let normal = normal_equations(set, &self.state, &self.weights, options, &self.prior_centre);
         posterior_covariance(
             &normal,
             autocorrelation_inflation(set, &self.state, &self.weights),

@@ -418,7 +418,12 @@ pub(super) fn accumulate(
     let b: [f64; N_MAX] = std::array::from_fn(|row| g_b[row] * w_b);
     // Column by column, so that the inner loop runs along the column-major storage and
     // vectorises; each entry gets the same sum as row by row would give it.
-    for (col, column) in normal.jtj.as_mut_slice().chunks_exact_mut(N_MAX).enumerate() {
+    for (col, column) in normal
+        .jtj
+        .as_mut_slice()
+        .chunks_exact_mut(N_MAX)
+        .enumerate()
+    {
         let (ga_col, gb_col) = (g_a[col], g_b[col]);
         for ((entry, &a_row), &b_row) in column[..=col].iter_mut().zip(&a).zip(&b) {
             *entry += a_row * ga_col + b_row * gb_col;
