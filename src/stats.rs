@@ -57,8 +57,8 @@ impl HeadingErrorStats {
     ) -> (Option<Self>, Option<Self>) {
         let part = |want_train| Self::on_part(headings_rad, reference_rad, is_train, want_train);
         let long = headings_rad.len() >= 2 * MIN_SAMPLES_PER_THREAD;
-        let parts = if crate::par::SMALL_WORK_IN_PARALLEL && long {
-            crate::par::on_each_part([true, false].into_iter(), part)
+        let parts = if long {
+            crate::par::on_each_small_part([true, false].into_iter(), part)
         } else {
             None
         };

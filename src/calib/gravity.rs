@@ -167,12 +167,8 @@ pub fn estimate_gravity(
         )
     };
     let own_scale = |(_, motion): (usize, &Motion)| run(motion, 1.0, f64::INFINITY);
-    let first = if crate::par::SMALL_WORK_IN_PARALLEL {
-        crate::par::on_each_part(motions.iter().enumerate(), own_scale)
-    } else {
-        None
-    }
-    .unwrap_or_else(|| motions.iter().enumerate().map(own_scale).collect());
+    let first = crate::par::on_each_small_part(motions.iter().enumerate(), own_scale)
+        .unwrap_or_else(|| motions.iter().enumerate().map(own_scale).collect());
     let mut best: Option<Setting> = None;
     for (motion_idx, result) in first.into_iter().enumerate() {
         let trial = (motion_idx * GYRO_TIME_SCALES.len(), motion_idx, 1.0);

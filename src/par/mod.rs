@@ -103,6 +103,21 @@ where
 pub const SMALL_WORK_IN_PARALLEL: bool =
     !cfg!(all(target_arch = "wasm32", target_feature = "atomics"));
 
+/// [`on_each_part`] for a small piece of work: `None`, so that the caller works on
+/// one thread, where [`SMALL_WORK_IN_PARALLEL`] is false.
+pub fn on_each_small_part<I, R>(items: I, work: impl Fn(I::Item) -> R + Sync) -> Option<Vec<R>>
+where
+    I: Iterator,
+    I::Item: Send,
+    R: Send,
+{
+    if SMALL_WORK_IN_PARALLEL {
+        on_each_part(items, work)
+    } else {
+        None
+    }
+}
+
 /// Below this many items a part is not worth a thread of its own (starting one costs
 /// tens of microseconds; an item of the per-sample maps below, tens of nanoseconds).
 const MIN_ITEMS_PER_PART: usize = 20_000;
