@@ -3,7 +3,7 @@
 
 use serde::Serialize;
 
-use crate::angle::{heading_difference_rad, wrap_to_pi};
+use crate::angle::wrap_to_pi;
 
 /// Parts shorter than this are scored on one thread (a thread costs tens of µs).
 const MIN_SAMPLES_PER_THREAD: usize = 20_000;
@@ -32,20 +32,15 @@ impl HeadingErrorStats {
         is_train: &[bool],
         want_train: bool,
     ) -> Option<Self> {
-        let mut errors_deg = Vec::with_capacity(headings_rad.len());
-        errors_deg.extend(
+        Self::from_errors_rad(
             headings_rad
                 .iter()
                 .zip(reference_rad)
                 .zip(is_train)
                 .filter_map(|((&heading_rad, &reference_rad), &train)| {
-                    (train == want_train)
-                        .then_some(heading_difference_rad(heading_rad, reference_rad?))
-                })
-                .filter(|error_rad| error_rad.is_finite())
-                .map(|error_rad| error_rad.to_degrees()),
-        );
-        Self::from_errors_deg(errors_deg)
+                    (train == want_train).then_some(heading_rad - reference_rad?)
+                }),
+        )
     }
 
     /// [`Self::on_part`] of the train part and of the check part, side by side on two
@@ -71,18 +66,15 @@ impl HeadingErrorStats {
     /// Statistics of heading errors given in radians (wrapped here to ±π). Non-finite
     /// values are left out; `None` when nothing is left.
     pub fn from_errors_rad(errors_rad: impl IntoIterator<Item = f64>) -> Option<Self> {
-        Self::from_errors_deg(
+        let errors_rad = errors_rad.into_iter();
+        // Sized once: a part of an hour's log holds hundreds of thousands of errors.
+        let (_, at_most) = errors_rad.size_hint();
+        let mut errors_deg = Vec::with_capacity(at_most.unwrap_or(0));
+        errors_deg.extend(
             errors_rad
-                .into_iter()
                 .filter(|error_rad| error_rad.is_finite())
-                .map(|error_rad| wrap_to_pi(error_rad).to_degrees())
-                .collect(),
-        )
-    }
-
-    /// The statistics of finite errors already wrapped to ±180°, in degrees, in three
-    /// passes (the mean; the spreads, counts and absolute values; the percentile).
-    fn from_errors_deg(mut errors_deg: Vec<f64>) -> Option<Self> {
+                .map(|error_rad| wrap_to_pi(error_rad).to_degrees()),
+        );
         let n_samples = errors_deg.len();
         if n_samples == 0 {
             return None;
