@@ -13,6 +13,8 @@
 //!
 //!   cargo bench --bench fits --profile bench-import
 //!
+//! (`FITS_CASE=tyrex` keeps only the cases whose name contains `tyrex`.)
+//!
 //! fits each case once, prints the time and the outcome and writes the outcomes to
 //! `target/bench-results/fits.json` (the hard iron, the soft iron and the residual in full
 //! precision, to compare runs) and each case's samples to
@@ -262,7 +264,10 @@ mod native {
 
     pub fn main() {
         let measuring = is_measuring();
-        let cases = cases();
+        let mut cases = cases();
+        if let Ok(only) = std::env::var("FITS_CASE") {
+            cases.retain(|c| c.name.contains(&only));
+        }
         let mut entries = Vec::new();
         for case in &cases {
             let mut outcomes = Vec::new();

@@ -52,14 +52,20 @@
 //!    a 3D spread), a band start for yaw-only data (the samples' principal plane, a
 //!    direct ellipse fit in it, the vertical hard iron from the prior's dip), and
 //!    Kåsa's sphere. They are ranked by their median residuals as they stand; the
-//!    first [`MAX_SOLVED_STARTS`] (more while none is plausible) are refined on an
-//!    evenly spaced subset of at most [`MAX_START_SAMPLES`], and the plausible one with
-//!    the smallest median residuals continues, warm, on at most [`MAX_FIT_SAMPLES`].
+//!    first [`MAX_SOLVED_STARTS`] (more while none is plausible) are solved on one
+//!    evenly spaced subset of at most [`MAX_FIT_SAMPLES`], and the plausible solution
+//!    with the smallest median residuals is the fit.
 //! 2. Levenberg-Marquardt on the normal equations (13 parameters at most: the `N×13`
 //!    Jacobian is never formed, so 10⁴ samples take milliseconds), inside iteratively
 //!    reweighted least squares: Huber weights, then Cauchy weights, on residuals scaled
 //!    by their median absolute deviation. Samples near moving iron become outliers with
-//!    small weights, not a reason to give nothing.
+//!    small weights, not a reason to give nothing. Each solve first probes (two
+//!    reweightings, a few steps each) along every direction of the model, then
+//!    decides from the probe's normal equations which directions the data see, and
+//!    converges along those alone: along a direction the data do not see the cost is
+//!    flat, and a solve that wanders there spends its steps moving the hard iron by tens
+//!    of µT for nothing (on the TYREX phone walks, 55 steps per solve ended wherever the
+//!    step budget ran out).
 //! 3. The posterior covariance `(JᵀWJ + P)⁻¹`, inflated by the residuals' lag-one
 //!    autocorrelation (neighbouring samples share their tilt error), gives each
 //!    parameter's standard deviation and the heading's: its gradient through levelling,
@@ -130,19 +136,18 @@ const MAX_ABS_UT: f64 = 1e6;
 /// Below this spread (µT, RMS about the mean) the device did not turn.
 const MIN_SPREAD_UT: f64 = 2.0;
 
-/// The starts are refined on at most this many evenly spaced samples.
-pub const MAX_START_SAMPLES: usize = 1_500;
-
 /// The starts that fit best as they are are solved, this many of them; more only while
 /// none of those led to a plausible solution. Starts that fit worse rarely end better
 /// (each start's solve is most of the fit's time).
 const MAX_SOLVED_STARTS: usize = 2;
 
-/// The final fit uses at most this many evenly spaced samples: neighbouring samples
-/// share their tilt error and disturbance (see [`autocorrelation_inflation`]), so a log
-/// thinned to 2,000 keeps most of its independent information, and the parameters'
-/// noise from it is far below what tilt errors leave.
-pub const MAX_FIT_SAMPLES: usize = 2_000;
+/// The fit uses at most this many evenly spaced samples: neighbouring samples share
+/// their tilt error and disturbance (see [`autocorrelation_inflation`]), so a log
+/// thinned to 1,500 keeps most of its independent information, and the parameters'
+/// noise from it is far below what tilt errors leave. The starts are solved on the
+/// same samples, so the best of them is the fit (a second solve on another thinning
+/// would only wander again along what the data hardly see).
+pub const MAX_FIT_SAMPLES: usize = 1_500;
 
 /// Huber's constant and Cauchy's (in robust standard deviations): 95 % efficiency on
 /// Gaussian residuals for each.
@@ -396,46 +401,36 @@ pub fn fit_inertial(
         return Err(InertialError::NoRotation { spread_ut });
     }
 
-    let start_set = samples.evenly(MAX_START_SAMPLES);
     let fit_set = samples.evenly(MAX_FIT_SAMPLES);
-    let starts = ranked(&start_set, starts(&start_set, options));
+    let starts = ranked(&fit_set, starts(&fit_set, options));
     // The full model from the starts that fit best as they are; the plausible solution
     // that fits best wins.
     let mut first_reason = None;
-    let (model, start) = match best_solution(
-        &start_set,
+    let solution = match best_solution(
+        &fit_set,
         &starts,
         options,
         SoftIronModel::Full,
         &mut first_reason,
     ) {
-        Some(solution) => (SoftIronModel::Full, solution.state),
+        Some(solution) => solution,
         None => {
             // No plausible full model: the data cannot carry nine soft-iron entries (a
             // field that changes, tilt the accelerometer got wrong). Hard iron, one scale
             // and the dip, which only a changing field can spoil.
-            let solution = best_solution(
-                &start_set,
+            best_solution(
+                &fit_set,
                 &starts,
                 options,
                 SoftIronModel::Isotropic,
                 &mut first_reason,
             )
-            .ok_or(InertialError::NoConvergence)?;
-            (SoftIronModel::Isotropic, solution.state)
+            .ok_or(InertialError::NoConvergence)?
         }
     };
-    let mut solution = solve(&fit_set, start, options, model, Schedule::Warm)
-        .ok_or(InertialError::NoConvergence)?;
-    let reason = (model == SoftIronModel::Isotropic)
+    let reason = (solution.model == SoftIronModel::Isotropic)
         .then_some(first_reason)
         .flatten();
-    // More samples can carry a full model further than the subset did, into a shape no
-    // material gives (weakly seen directions following a disturbance): then the
-    // subset's plausible solution stands, with the full set's weights and covariance.
-    if model.implausibility(&solution.state, options).is_some() {
-        solution = settle(&fit_set, start, model);
-    }
     let mut fit = solution.report(&fit_set, mag_ut, options);
     fit.model_reason = reason;
     Ok(fit)
@@ -464,7 +459,7 @@ fn best_solution(
         let needed = MAX_SOLVED_STARTS.saturating_sub(n_solved).max(1);
         let width = needed.max(n_threads).min(starts.len() - n_solved);
         let batch = &starts[n_solved..n_solved + width];
-        let solve_one = |start: &State| solve(set, *start, options, model, Schedule::Cold);
+        let solve_one = |start: &State| solve(set, *start, options, model);
         let solutions = crate::par::on_each_part(batch.iter(), solve_one)
             .unwrap_or_else(|| batch.iter().map(solve_one).collect());
         for solution in solutions {
@@ -489,17 +484,6 @@ fn best_solution(
         }
     }
     best.map(|(_, solution)| solution)
-}
-
-/// `state` as it is, with the weights of `set` (no step taken).
-fn settle(set: &SampleSet, state: State, model: SoftIronModel) -> Solution {
-    let weights = weights(set, &state, Schedule::Warm.loss(0));
-    Solution {
-        state,
-        model,
-        weights,
-        prior_centre: state,
-    }
 }
 
 /// Samples, with the down vectors when the dip is used.
@@ -675,31 +659,44 @@ enum Loss {
 /// How a solve reweights.
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Schedule {
-    /// From a start: Huber weights twice (a start's misfit is not yet noise, and
-    /// Cauchy's would set good samples aside), then Cauchy's.
-    Cold,
-    /// From a solution of the same model (on a subset, or with more directions free):
-    /// Cauchy's weights from the first reweighting.
-    Warm,
+    /// From a start, to see which directions the data see: Huber weights twice (a
+    /// start's misfit is not yet noise, and Cauchy's would set good samples aside), a
+    /// few steps under each.
+    Probe,
+    /// From the probe, along the directions the data see: Cauchy's weights until the
+    /// parameters hold still.
+    Converge,
 }
 
 impl Schedule {
-    fn loss(self, reweighting: usize) -> Loss {
+    fn loss(self) -> Loss {
         match self {
-            Schedule::Cold if reweighting < 2 => Loss::Huber,
-            _ => Loss::Cauchy,
+            Schedule::Probe => Loss::Huber,
+            Schedule::Converge => Loss::Cauchy,
         }
     }
 
-    /// Reweightings before the outer loop may stop: at least one with Cauchy's weights.
     fn max_reweightings(self) -> usize {
-        N_REWEIGHTINGS
+        match self {
+            Schedule::Probe => 2,
+            Schedule::Converge => N_REWEIGHTINGS,
+        }
     }
 
+    /// Reweightings before the outer loop may stop.
     fn min_reweightings(self) -> usize {
         match self {
-            Schedule::Cold => 3,
-            Schedule::Warm => 1,
+            Schedule::Probe => 2,
+            Schedule::Converge => 1,
+        }
+    }
+
+    /// Levenberg-Marquardt iterations under the reweighting `reweighting`: weights that
+    /// will change again need no exact minimum under them.
+    fn max_iterations(self, reweighting: usize) -> usize {
+        match self {
+            Schedule::Converge if reweighting + 1 == self.max_reweightings() => MAX_LM_ITERATIONS,
+            _ => MAX_LM_ITERATIONS_BEFORE_LAST,
         }
     }
 }

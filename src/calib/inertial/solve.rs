@@ -12,7 +12,6 @@ pub(super) fn solve(
     start: State,
     options: &InertialOptions,
     model: SoftIronModel,
-    schedule: Schedule,
 ) -> Option<Solution> {
     let start = match model {
         SoftIronModel::Full => start,
@@ -27,19 +26,33 @@ pub(super) fn solve(
         (SoftIronModel::Full, None) => FreeDirections::symmetric(),
         (SoftIronModel::Isotropic, _) => FreeDirections::isotropic(),
     };
-    // First every direction of the model; then only those the data see at the noise
-    // that fit leaves (judged before it, a start's misfit would pass for noise and hide
-    // what the data do see), the others back at the start's values, which come from
-    // the priors.
-    let (first, first_weights) = iterate(set, start, &start, options, &model_directions, schedule)?;
+    // First a short probe along every direction of the model; then, to convergence,
+    // only those the data see at the noise the probe leaves (judged before it, a start's
+    // misfit would pass for noise and hide what the data do see), the others back at
+    // the start's values, which come from the priors.
+    let (first, first_weights) = iterate(
+        set,
+        start,
+        &start,
+        options,
+        &model_directions,
+        Schedule::Probe,
+    )?;
     let normal = normal_equations(set, &first, &first_weights, options, &start);
     let inflation = autocorrelation_inflation(set, &first, &first_weights);
     let observed = observed_directions(&normal, inflation, model_directions.clone());
     let (state, weights) = if observed.n_free < model_directions.n_free {
         let restart = start.with_params(&observed.project(&start.params(), &first.params()));
-        iterate(set, restart, &start, options, &observed, Schedule::Warm)?
+        iterate(set, restart, &start, options, &observed, Schedule::Converge)?
     } else {
-        (first, first_weights)
+        iterate(
+            set,
+            first,
+            &start,
+            options,
+            &model_directions,
+            Schedule::Converge,
+        )?
     };
     let det = state.correction.determinant();
     if det.is_nan() || det <= 0.0 {
@@ -68,14 +81,9 @@ pub(super) fn iterate(
     let mut last = None;
     for reweighting in 0..schedule.max_reweightings() {
         let before = state;
-        let weights = weights(set, &state, schedule.loss(reweighting));
+        let weights = weights(set, &state, schedule.loss());
         let mut normal = normal_equations(set, &state, &weights, options, start);
-        // Weights that will change again need no exact minimum under them.
-        let max_iterations = if reweighting + 1 == schedule.max_reweightings() {
-            MAX_LM_ITERATIONS
-        } else {
-            MAX_LM_ITERATIONS_BEFORE_LAST
-        };
+        let max_iterations = schedule.max_iterations(reweighting);
         for iteration in 0..max_iterations {
             let step = free.step(&normal.jtj, &normal.jtr, lambda)?;
             let trial = state.with_params(&(state.params() - step));
