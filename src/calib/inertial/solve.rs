@@ -41,19 +41,13 @@ pub(super) fn solve(
     let normal = normal_equations(set, &first, &first_weights, options, &start);
     let inflation = autocorrelation_inflation(set, &first, &first_weights);
     let observed = observed_directions(&normal, inflation, model_directions.clone());
-    let (state, weights) = if observed.n_free < model_directions.n_free {
+    let (from, free) = if observed.n_free < model_directions.n_free {
         let restart = start.with_params(&observed.project(&start.params(), &first.params()));
-        iterate(set, restart, &start, options, &observed, Schedule::Converge)?
+        (restart, &observed)
     } else {
-        iterate(
-            set,
-            first,
-            &start,
-            options,
-            &model_directions,
-            Schedule::Converge,
-        )?
+        (first, &model_directions)
     };
+    let (state, weights) = iterate(set, from, &start, options, free, Schedule::Converge)?;
     let det = state.correction.determinant();
     if det.is_nan() || det <= 0.0 {
         return None;
