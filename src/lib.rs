@@ -66,6 +66,7 @@
 
 pub mod analysis;
 pub mod angle;
+pub mod attitude;
 pub mod calib;
 pub mod calibration;
 pub mod civil;

@@ -11,6 +11,8 @@
 //! (so no fix inside an outage trains what bridges it) but does not choose again.
 
 use crate::analysis::AnalysisError;
+use crate::attitude::track::{attitude_of, FieldSource};
+use crate::attitude::{AttitudeError, AttitudeOptions, AttitudeTrack};
 use crate::calibration::selection::Choice;
 use crate::calibration::CalibrationOptions;
 use crate::calibration::{calibrate, CalibrationAnalysis, Method};
@@ -105,6 +107,42 @@ pub fn dead_reckoning(
 ) -> Result<PdrAnalysis, PdrError> {
     let (calibration, headings) = headings(import, &options.heading_options)?;
     dead_reckon(import, (&calibration, &headings), options)
+}
+
+/// The attitude filter ([`crate::attitude`]) on the recording, its field corrected by
+/// the analysis's device calibration (the one exported).
+pub fn attitude(
+    import: &ImportReport,
+    calibration: &CalibrationAnalysis,
+) -> Result<(AttitudeTrack, FieldSource), AttitudeError> {
+    let device = calibration.device_calibration().map(|(_, field)| field);
+    attitude_of(
+        &import.recording,
+        device.as_ref(),
+        &AttitudeOptions::default(),
+    )
+}
+
+/// [`attitude`] as CSV (see [`crate::attitude::track::attitude_csv`]): yaw from true
+/// north where the analysis knows the declination.
+pub fn attitude_csv(
+    import: &ImportReport,
+    calibration: &CalibrationAnalysis,
+) -> Result<String, AttitudeError> {
+    let (track, _) = attitude(import, calibration)?;
+    let declination = &calibration.report.declination;
+    let body_axes = calibration.report.mag_frame.as_ref().map_or_else(
+        || "as logged (x forward, y right, z down)".to_string(),
+        |frame| frame.describe(),
+    );
+    Ok(crate::attitude::track::attitude_csv(
+        &track,
+        declination
+            .is_known()
+            .then_some(declination.declination_deg),
+        &body_axes,
+        import.recording.start_unix_s,
+    ))
 }
 
 /// The calibration stage on the bytes of one log (any format [`crate::io::import`]

@@ -48,6 +48,22 @@ impl<T> Stream<T> {
         }
     }
 
+    /// The median of the positive intervals between successive samples (s); `None`
+    /// with fewer than two distinct times.
+    pub fn median_interval_s(&self) -> Option<f64> {
+        let mut intervals: Vec<f64> = self
+            .t_s
+            .windows(2)
+            .map(|pair| pair[1] - pair[0])
+            .filter(|dt| *dt > 0.0)
+            .collect();
+        if intervals.is_empty() {
+            return None;
+        }
+        let middle = intervals.len() / 2;
+        Some(*intervals.select_nth_unstable_by(middle, f64::total_cmp).1)
+    }
+
     /// Sorts the samples by time, keeping the order of equal times. Returns how many
     /// samples were out of order before sorting.
     pub fn sort_by_time(&mut self) -> usize

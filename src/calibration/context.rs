@@ -126,7 +126,7 @@ pub(super) fn declination_used(
             }
             DeclinationUsed {
                 declination_deg: 0.0,
-                source: "none known (0°)".to_string(),
+                source: super::NO_DECLINATION_SOURCE.to_string(),
             }
         }
     }

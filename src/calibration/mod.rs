@@ -145,6 +145,17 @@ pub struct DeclinationUsed {
     pub source: String,
 }
 
+/// The source of a declination nobody knows (0° is used).
+pub const NO_DECLINATION_SOURCE: &str = "none known (0°)";
+
+impl DeclinationUsed {
+    /// Whether the declination came from somewhere (the user, the magnetic model): a
+    /// heading with it added is then from true north.
+    pub fn is_known(&self) -> bool {
+        self.source != NO_DECLINATION_SOURCE
+    }
+}
+
 /// One method's result.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct MethodReport {

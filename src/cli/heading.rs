@@ -11,16 +11,30 @@ use compass_pdr::plot::draw_deviation_figure;
 use compass_pdr::stats::HeadingErrorStats;
 use plotters::prelude::{IntoDrawingArea, SVGBackend};
 
+/// Where `heading` writes, besides its report.
+pub(super) struct HeadingOutputs<'a> {
+    pub json: bool,
+    pub plot: Option<&'a Path>,
+    pub attitude_out: Option<&'a Path>,
+}
+
 pub(super) fn run_heading(
     input: &ImportArgs,
     options: &HeadingOptions,
-    json: bool,
-    plot: Option<&Path>,
+    outputs: &HeadingOutputs<'_>,
 ) -> Result<(), String> {
-    let report = import_paths(input)?;
-    let (_, analysis) = pipeline::headings(&report, options).map_err(|error| error.to_string())?;
+    let import = import_paths(input)?;
+    let (calibration, analysis) =
+        pipeline::headings(&import, options).map_err(|error| error.to_string())?;
     let report = &analysis.report;
     print_import_diagnostics(&report.file_name, &report.calibration.diagnostics);
+    if let Some(path) = outputs.attitude_out {
+        let text =
+            pipeline::attitude_csv(&import, &calibration).map_err(|error| error.to_string())?;
+        std::fs::write(path, text)
+            .map_err(|error| format!("cannot write {}: {error}", path.display()))?;
+    }
+    let (json, plot) = (outputs.json, outputs.plot);
     if let Some(plot) = plot {
         let root = SVGBackend::new(plot, (1400, 1000)).into_drawing_area();
         draw_deviation_figure(&root, &analysis)

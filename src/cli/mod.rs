@@ -87,6 +87,11 @@ enum Command {
         /// time and the online coefficients to this SVG file.
         #[arg(long)]
         plot: Option<PathBuf>,
+        /// Write the attitude filter's output (the gyroscope, the accelerometer and the
+        /// calibrated magnetometer fused) as CSV to this file:
+        /// `t_s,yaw_deg,pitch_deg,roll_deg,yaw_sigma_deg`.
+        #[arg(long)]
+        attitude_out: Option<PathBuf>,
     },
     /// Dead-reckon a walk: steps, step lengths trained on GNSS (or a known distance),
     /// headings from the best heading model, and the [E, N, l, a] EKF that bridges GNSS
@@ -140,7 +145,7 @@ mod simulate;
 
 use args::{AnalysisArgs, ImportArgs, MethodChoice, PdrArgs};
 use calibrate::{run_calibrate, Outputs};
-use heading::run_heading;
+use heading::{run_heading, HeadingOutputs};
 use inspect::run_inspect;
 use pdr::{run_pdr, run_report};
 use simulate::{run_simulate, Scenario};
@@ -198,6 +203,7 @@ pub fn main() -> ExitCode {
             analysis,
             json,
             plot,
+            attitude_out,
         } => analysis
             .options(Method::ALL.to_vec())
             .and_then(|calibration| {
@@ -205,7 +211,12 @@ pub fn main() -> ExitCode {
                     calibration,
                     ..HeadingOptions::default()
                 };
-                run_heading(&input, &options, json, plot.as_deref())
+                let outputs = HeadingOutputs {
+                    json,
+                    plot: plot.as_deref(),
+                    attitude_out: attitude_out.as_deref(),
+                };
+                run_heading(&input, &options, &outputs)
             }),
     };
     match result {

@@ -38,18 +38,10 @@ use crate::recording::{Recording, Stream};
 const MAX_GYRO_GAP_S: f64 = 0.5;
 
 /// The gap limit for this gyro stream: [`MAX_GYRO_GAP_S`], or three median intervals.
-fn gap_limit_s(t_s: &[f64]) -> f64 {
-    let mut intervals: Vec<f64> = t_s
-        .windows(2)
-        .map(|pair| pair[1] - pair[0])
-        .filter(|dt| *dt > 0.0)
-        .collect();
-    if intervals.is_empty() {
-        return MAX_GYRO_GAP_S;
-    }
-    let middle = intervals.len() / 2;
-    let median = *intervals.select_nth_unstable_by(middle, f64::total_cmp).1;
-    MAX_GYRO_GAP_S.max(3.0 * median)
+fn gap_limit_s<T>(stream: &Stream<T>) -> f64 {
+    stream
+        .median_interval_s()
+        .map_or(MAX_GYRO_GAP_S, |median| MAX_GYRO_GAP_S.max(3.0 * median))
 }
 /// How far apart (s) anchor samples must spread before a drift is fitted.
 const MIN_DRIFT_SPAN_S: f64 = 60.0;
@@ -99,7 +91,7 @@ pub fn gyro_heading(
     closed_loop: bool,
 ) -> Option<GyroHeading> {
     let gyro = &recording.gyro_in_body_radps;
-    let max_gap_s = gap_limit_s(&gyro.t_s);
+    let max_gap_s = gap_limit_s(gyro);
     let gravity = &gravity.specific_force_mps2;
     let mut relative = Stream::default();
     let mut heading_rad = 0.0;
@@ -260,7 +252,7 @@ fn loop_closing_drift(recording: &Recording, relative: &Stream<f64>) -> Option<(
     }
     // Each gyro step: (dt, heading, walking).
     let first_t_s = *relative.t_s.first()?;
-    let max_gap_s = gap_limit_s(&relative.t_s);
+    let max_gap_s = gap_limit_s(relative);
     let steps: Vec<(f64, f64, f64)> = relative
         .t_s
         .windows(2)
