@@ -10,3 +10,5 @@ cd "$ROOT"
 ensure_rust
 log "cargo bench --bench accuracy --profile bench-import (writes docs/ACCURACY.md)"
 cargo bench --bench accuracy --profile bench-import
+log "bench/attitude.sh (appends the attitude section to docs/ACCURACY.md)"
+bench/attitude.sh >> docs/ACCURACY.md

@@ -1,0 +1,138 @@
+//! The attitude filter's speed (`attitude::estimate_attitude`) on the same samples as
+//! its peers in `bench/attitude_peers.py` (imufusion's Fusion AHRS, the `ahrs` package's
+//! Madgwick): each TYREX trial in `../shared/data/tyrex-attitude`, imported as a user
+//! drops the folder, its field corrected by the phone's own hard-iron estimate (one
+//! filter run; `attitude_of` runs one per candidate correction). A trial that is
+//! absent is skipped with a message.
+//!
+//!   cargo bench --bench attitude --profile bench-import
+//!
+//! writes `target/bench-results/attitude_ours.json` (per trial: the samples the filter
+//! read, gyroscope + accelerometer + magnetometer, and the median seconds of 20 runs)
+//! for `bench/attitude.sh`; criterion's figures go to `target/criterion/attitude/`.
+//! Under `cargo test` (criterion's test mode) it runs each trial once.
+
+#[cfg(not(target_arch = "wasm32"))]
+#[path = "../tests/common/mod.rs"]
+mod common;
+
+#[cfg(not(target_arch = "wasm32"))]
+mod native {
+    use std::hint::black_box;
+    use std::time::{Duration, Instant};
+
+    use compass_pdr::attitude::gates::FieldReference;
+    use compass_pdr::attitude::{estimate_attitude, AttitudeOptions, Sensors};
+    use compass_pdr::recording::{Recording, Stream};
+    use criterion::{Criterion, SamplingMode, Throughput};
+    use nalgebra::Vector3;
+
+    use super::common;
+
+    /// The field corrected by the device's own estimate, and the gate's reference.
+    fn field_of(recording: &Recording) -> (Stream<Vector3<f64>>, Option<FieldReference>) {
+        let bias = &recording.mag_bias_in_body_ut;
+        let mut field = Stream::default();
+        for (&t_s, &raw) in recording
+            .mag_in_body_ut
+            .t_s
+            .iter()
+            .zip(&recording.mag_in_body_ut.values)
+        {
+            let correction = bias
+                .interpolate_at(t_s, f64::INFINITY)
+                .unwrap_or_else(Vector3::zeros);
+            field.push(t_s, raw - correction);
+        }
+        let mut down = Stream::default();
+        for (&t_s, force) in recording
+            .acc_in_body_mps2
+            .t_s
+            .iter()
+            .zip(&recording.acc_in_body_mps2.values)
+        {
+            down.push(t_s, -force.normalize());
+        }
+        let reference = FieldReference::of_log(&field, &down, (None, None));
+        (field, reference)
+    }
+
+    pub fn main() {
+        let measuring = std::env::args().any(|arg| arg == "--bench");
+        let Some(data) = common::shared_data() else {
+            return;
+        };
+        let trials = common::tyrex_trials(&data);
+        if trials.is_empty() {
+            eprintln!("skipped: no TYREX trials under {}", data.display());
+            return;
+        }
+        let options = AttitudeOptions::default();
+        let mut criterion = Criterion::default().configure_from_args();
+        let mut results = serde_json::Map::new();
+        for (name, paths) in &trials {
+            let recording = common::import_paths(paths).recording;
+            let (field, reference) = field_of(&recording);
+            let sensors = Sensors {
+                acc_in_body_mps2: &recording.acc_in_body_mps2,
+                gyro_in_body_radps: &recording.gyro_in_body_radps,
+                field_in_body_ut: &field,
+            };
+            let n_samples =
+                sensors.acc_in_body_mps2.len() + sensors.gyro_in_body_radps.len() + field.len();
+            let run = || {
+                estimate_attitude(black_box(sensors), reference, &options)
+                    .expect("a gyroscope and an accelerometer")
+            };
+            // An attitude per gyroscope sample from the first one after a force and a field.
+            let n_out = run().attitude.len();
+            assert!(
+                n_out + 100 >= sensors.gyro_in_body_radps.len() && n_out > 0,
+                "{name}: {n_out}"
+            );
+            if !measuring {
+                continue;
+            }
+            let mut seconds: Vec<f64> = (0..20)
+                .map(|_| {
+                    let start = Instant::now();
+                    black_box(run());
+                    start.elapsed().as_secs_f64()
+                })
+                .collect();
+            seconds.sort_by(f64::total_cmp);
+            let median_s = seconds[seconds.len() / 2];
+            results.insert(
+                name.clone(),
+                serde_json::json!({ "samples": n_samples, "median_s": median_s, "samples_per_s": n_samples as f64 / median_s }),
+            );
+            let mut group = criterion.benchmark_group("attitude");
+            group
+                .sample_size(20)
+                .sampling_mode(SamplingMode::Flat)
+                .warm_up_time(Duration::from_millis(300))
+                .measurement_time(Duration::from_secs(2))
+                .throughput(Throughput::Elements(n_samples as u64));
+            group.bench_function(name.as_str(), |bencher| bencher.iter(run));
+            group.finish();
+        }
+        if measuring {
+            let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("target/bench-results");
+            std::fs::create_dir_all(&dir).expect("target/bench-results can be made");
+            let text = serde_json::to_string_pretty(&serde_json::Value::Object(results))
+                .expect("JSON of numbers")
+                + "\n";
+            std::fs::write(dir.join("attitude_ours.json"), text)
+                .expect("attitude_ours.json can be written");
+        }
+        criterion.final_summary();
+    }
+}
+
+#[cfg(not(target_arch = "wasm32"))]
+fn main() {
+    native::main();
+}
+
+#[cfg(target_arch = "wasm32")]
+fn main() {}
