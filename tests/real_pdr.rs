@@ -57,6 +57,20 @@ fn hallway_loop_has_its_168_steps_and_closes_within_3_percent() {
         "indoor fixes are refused: {:?}",
         report.fixes
     );
+    // The gyro aligned to the attitude filter's heading (no rotation vector) closes the
+    // loop within 3 % (2.65 % today; issue 18 asks for 2 %).
+    let filtered = dead_reckon(
+        &paths,
+        &PdrOptions {
+            known_distance_m: Some(116.0),
+            closed_loop: true,
+            heading: compass_pdr::pdr::HeadingChoice::parse("gyro+ahrs"),
+            ..PdrOptions::default()
+        },
+    );
+    let closure = filtered.report.loop_closure.expect("a closed loop");
+    eprintln!("gyro+ahrs: closure {closure:?}");
+    assert!(closure.gap_pct < 3.0, "{closure:?}");
 }
 
 #[test]
@@ -72,8 +86,9 @@ fn indoor_walks_at_the_waypoints() {
     eprintln!("| walk | heading | north | step model | steps | path (m) | RMS (m) | RMS (%) | max (m) | distance error (%) |");
     let mut best = std::collections::HashMap::new();
     let mut chosen = std::collections::HashMap::new();
+    let mut filtered = std::collections::HashMap::new();
     for (floor, other_k) in [("F1", k_f4), ("F4", k_f1)] {
-        for heading in ["auto", "device", "gyro+device"] {
+        for heading in ["auto", "device", "gyro+device", "ahrs", "gyro+ahrs"] {
             for (k_label, k) in [("default K", None), ("K of the other walk", Some(other_k))] {
                 for (north, declination) in [
                     ("true (WMM −5.7°)", DeclinationChoice::Auto),
@@ -98,11 +113,14 @@ fn indoor_walks_at_the_waypoints() {
                 );
                     let entry = best.entry(floor).or_insert(f64::INFINITY);
                     *entry = f64::min(*entry, errors.rms_pct);
-                    if heading == "gyro+device"
-                        && k.is_some()
-                        && matches!(declination, DeclinationChoice::Degrees(_))
-                    {
-                        chosen.insert(floor, errors.rms_pct);
+                    if k.is_some() && matches!(declination, DeclinationChoice::Degrees(_)) {
+                        match heading {
+                            "gyro+device" => chosen.insert(floor, errors.rms_pct),
+                            "ahrs" | "gyro+ahrs" => {
+                                filtered.insert((floor, heading), errors.rms_pct)
+                            }
+                            _ => None,
+                        };
                     }
                 }
             }
@@ -115,4 +133,12 @@ fn indoor_walks_at_the_waypoints() {
     assert!(chosen["F1"] < 2.7, "{chosen:?}");
     assert!(chosen["F4"] < 2.5, "{chosen:?}");
     assert!(best["F1"] < 2.7 && best["F4"] < 2.5, "{best:?}");
+    // Without the phone's rotation vector: the attitude filter's causal heading, and the
+    // gyro aligned to it over the walk. Issue 18 asks for 2.5 % on both walks; these
+    // bounds hold what is reached today (F1 5.8 % and 2.5 %, F4 3.4 % and 4.1 %).
+    eprintln!("attitude filter, K of the other walk, magnetic north: {filtered:?}");
+    for floor in ["F1", "F4"] {
+        assert!(filtered[&(floor, "ahrs")] < 6.5, "{filtered:?}");
+        assert!(filtered[&(floor, "gyro+ahrs")] < 4.5, "{filtered:?}");
+    }
 }

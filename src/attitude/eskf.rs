@@ -20,10 +20,10 @@
 //!   `F = [[I, −R·Δt], [0, I]]`; the process noise adds the gyroscope's angle random walk
 //!   and a scale-factor term proportional to the rate (a 1 % scale error at 5 rad/s is
 //!   worth more than any noise) to `δθ`, and the bias's random walk to `δb`.
-//! - **Gravity**: a body at rest feels the specific force `f_n = (0, 0, −g)`, so the
-//!   unit specific force predicted in the body is `h = Rᵀ·(0, 0, −1)`; with
-//!   `R_true ≈ (I + [δθ]×)·R`, `f_b ≈ h + Rᵀ·[f̂_n]×·δθ`. The third column of `[f̂_n]×`
-//!   is zero: gravity never corrects the yaw.
+//! - **Gravity**: a body at rest feels the specific force `f_n = (0, 0, −g)`. With
+//!   `R_true ≈ (I + [δθ]×)·R`, the measured unit force turned by the filter's `R` is
+//!   `R·f̂_b ≈ (I − [δθ]×)·(0, 0, −1) = (δθ_y, −δθ_x, −1)`: its horizontal part
+//!   measures the tilt error, and gravity never corrects the yaw.
 //! - **Magnetic heading**: the calibrated field turned into the navigation frame, `m_n =
 //!   R·m_b`, points north where the yaw is right. Its angle from north,
 //!   `atan2(m_n,y, m_n,x)`, is `−δθ_z` to first order, plus a term in the tilt error times
@@ -34,7 +34,7 @@
 //! Each correction is injected (`q ← exp(δθ) ⊗ q`, `b ← b + δb`) and the error reset to
 //! zero; the covariance is kept (the reset's Jacobian is the identity to first order).
 
-use nalgebra::{Matrix3, Matrix6, SMatrix, UnitQuaternion, Vector3, Vector6};
+use nalgebra::{Matrix3, Matrix6, UnitQuaternion, Vector3, Vector6};
 
 /// The filter's tuning: every noise as the physical quantity it stands for.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -144,7 +144,8 @@ impl Eskf {
     }
 
     /// Fuses the direction of the specific force as that of gravity, with a 1σ of
-    /// `sigma_rad` on each axis; not applied beyond `max_nis` (3 degrees of freedom).
+    /// `sigma_rad` on each tilt axis; not applied beyond `max_nis` (2 degrees of
+    /// freedom).
     pub fn fuse_gravity(
         &mut self,
         specific_force_in_body: Vector3<f64>,
@@ -155,23 +156,36 @@ impl Eskf {
         if !(norm > 1e-6 && norm.is_finite()) {
             return Fused::Degenerate;
         }
-        let measured = specific_force_in_body / norm;
-        let body_from_nav = self
-            .nav_from_body
-            .to_rotation_matrix()
-            .into_inner()
-            .transpose();
-        let up_in_nav = Vector3::new(0.0, 0.0, -1.0);
-        let predicted = body_from_nav * up_in_nav;
-        let mut h = SMatrix::<f64, 3, 6>::zeros();
-        h.fixed_view_mut::<3, 3>(0, 0)
-            .copy_from(&(body_from_nav * up_in_nav.cross_matrix()));
-        let innovation = measured - predicted;
-        self.fuse(
-            &h,
-            innovation,
-            Matrix3::from_diagonal_element(sigma_rad.powi(2)),
+        let in_nav = self.nav_from_body * (specific_force_in_body / norm);
+        self.fuse_gravity_in_nav(
+            nalgebra::Vector2::new(in_nav.x, in_nav.y),
+            sigma_rad,
             max_nis,
+        )
+    }
+
+    /// [`Eskf::fuse_gravity`] given the horizontal part of the unit specific force
+    /// already turned into the navigation frame by this filter's attitude (or the mean of
+    /// several such, as the driver fuses them). That part is `(δθ_y, −δθ_x)` to first
+    /// order (`R·f̂_b = (I − [δθ]×)·(0, 0, −1)`): a two-dimensional measurement of the
+    /// tilt error with an isotropic noise (a rotation keeps it isotropic), the yaw absent.
+    pub fn fuse_gravity_in_nav(
+        &mut self,
+        horizontal_in_nav: nalgebra::Vector2<f64>,
+        sigma_rad: f64,
+        max_nis: f64,
+    ) -> Fused {
+        let variance = sigma_rad.powi(2);
+        let p = &self.covariance;
+        // S = H·P·Hᵀ + R for the rows (δθ_y, −δθ_x).
+        let (s11, s22, s12) = (p[(1, 1)] + variance, p[(0, 0)] + variance, -p[(1, 0)]);
+        let determinant = s11 * s22 - s12 * s12;
+        let (y1, y2) = (horizontal_in_nav.x, horizontal_in_nav.y);
+        let nis = (y1 * y1 * s22 - 2.0 * y1 * y2 * s12 + y2 * y2 * s11) / determinant;
+        self.fuse_rows(
+            &[(1, 1.0, y1), (0, -1.0, y2)],
+            variance,
+            (nis, max_nis),
             false,
         )
     }
@@ -186,41 +200,38 @@ impl Eskf {
     }
 
     /// Fuses the magnetic heading (see the module header) with a 1σ of `sigma_rad`; not
-    /// applied beyond `max_nis` (one degree of freedom).
+    /// applied beyond `max_nis` (one degree of freedom); the bias is corrected too, or
+    /// only considered.
     pub fn fuse_magnetic_heading(
         &mut self,
         field_in_body: Vector3<f64>,
         sigma_rad: f64,
         max_nis: f64,
+        corrects_bias: bool,
     ) -> Fused {
         let Some(angle_rad) = self.magnetic_heading_error(field_in_body) else {
             return Fused::Degenerate;
         };
-        let mut h = SMatrix::<f64, 1, 6>::zeros();
-        h[(0, 2)] = -1.0;
-        self.fuse(
-            &h,
-            nalgebra::Vector1::new(angle_rad),
-            nalgebra::Matrix1::new(sigma_rad.powi(2)),
-            max_nis,
-            false,
+        let variance = sigma_rad.powi(2);
+        let nis = angle_rad.powi(2) / (self.covariance[(2, 2)] + variance);
+        self.fuse_rows(
+            &[(2, -1.0, angle_rad)],
+            variance,
+            (nis, max_nis),
+            corrects_bias,
         )
     }
 
     /// Fuses "the body is not turning": the rate left after the bias is removed is
     /// the bias's error, with a 1σ of `sigma_radps`.
     pub fn fuse_zero_rate(&mut self, rate_in_body_radps: Vector3<f64>, sigma_radps: f64) -> Fused {
-        let mut h = SMatrix::<f64, 3, 6>::zeros();
-        h.fixed_view_mut::<3, 3>(0, 3)
-            .copy_from(&Matrix3::identity());
         let innovation = rate_in_body_radps - self.gyro_bias_radps;
-        self.fuse(
-            &h,
-            innovation,
-            Matrix3::from_diagonal_element(sigma_radps.powi(2)),
-            f64::INFINITY,
-            true,
-        )
+        let rows = [
+            (3, 1.0, innovation.x),
+            (4, 1.0, innovation.y),
+            (5, 1.0, innovation.z),
+        ];
+        self.fuse_rows(&rows, sigma_radps.powi(2), (0.0, f64::INFINITY), true)
     }
 
     /// Re-aims the yaw at the magnetometer's and sets its variance: the recovery after
@@ -238,42 +249,55 @@ impl Eskf {
         }
     }
 
-    /// One Kalman update with an `M`-dimensional measurement. Without `corrects_bias`
-    /// the bias is a *considered* state (Schmidt's filter): its uncertainty widens the
-    /// innovation's, but the measurement does not move it. Gravity's direction is fused
-    /// so: a walking body's acceleration is correlated with its attitude over a step,
-    /// and a bias learnt from it turns the heading (on the shared attitude trials, a
-    /// bias of 0.07 rad/s grew in two minutes of a phone in a pocket).
-    fn fuse<const M: usize>(
+    /// One Kalman update with a measurement whose rows each read one error-state
+    /// component (`(index, sign, innovation)`: `innovation = sign·δx[index] + noise`),
+    /// with independent noises of `variance`, processed one row after the other (exact
+    /// for independent noises, and one small routine instead of a matrix update per
+    /// measurement size). `nis` is the whole measurement's squared Mahalanobis distance,
+    /// refused beyond `max_nis`. Without `corrects_bias` the bias is a *considered*
+    /// state (Schmidt's filter): its uncertainty widens the innovation's, but the
+    /// measurement does not move it. Gravity's direction is fused so: a walking body's
+    /// acceleration is correlated with its attitude over a step, and a bias learnt from
+    /// it turns the heading (on the shared attitude trials, a bias of 0.07 rad/s grew in
+    /// two minutes of a phone in a pocket); the field, as the options say.
+    fn fuse_rows(
         &mut self,
-        h: &SMatrix<f64, M, 6>,
-        innovation: SMatrix<f64, M, 1>,
-        noise: SMatrix<f64, M, M>,
-        max_nis: f64,
+        rows: &[(usize, f64, f64)],
+        variance: f64,
+        (nis, max_nis): (f64, f64),
         corrects_bias: bool,
     ) -> Fused {
-        let p_ht = self.covariance * h.transpose();
-        let s = h * p_ht + noise;
-        let Some(s_inv) = s.try_inverse() else {
-            return Fused::Degenerate;
-        };
-        let nis = (innovation.transpose() * s_inv * innovation)[(0, 0)];
-        if !nis.is_finite() {
+        if !nis.is_finite() || variance.is_nan() || variance <= 0.0 {
             return Fused::Degenerate;
         }
         if nis > max_nis {
             return Fused::Gated { nis };
         }
-        let mut gain = p_ht * s_inv;
-        if !corrects_bias {
-            gain.fixed_view_mut::<3, M>(3, 0).fill(0.0);
+        let mut correction = Vector6::zeros();
+        for &(index, sign, innovation) in rows {
+            let p_h: Vector6<f64> = self.covariance.column(index) * sign;
+            let s = sign * p_h[index] + variance;
+            let mut gain = p_h / s;
+            if !corrects_bias {
+                gain.fixed_rows_mut::<3>(3).fill(0.0);
+            }
+            // The rows before this one moved the state: the innovation is taken from
+            // where they left it.
+            let residual = innovation - sign * correction[index];
+            correction += gain * residual;
+            // Joseph's form, expanded with P·hᵀ = k_opt·s: P − k·(Phᵀ)ᵀ − Phᵀ·kᵀ + s·k·kᵀ.
+            // It holds for any gain (Schmidt's too). Computed on one triangle and
+            // mirrored, so P stays exactly symmetric.
+            for col in 0..6 {
+                for row in 0..=col {
+                    let change =
+                        gain[row] * p_h[col] + p_h[row] * gain[col] - s * gain[row] * gain[col];
+                    let value = self.covariance[(row, col)] - change;
+                    self.covariance[(row, col)] = value;
+                    self.covariance[(col, row)] = value;
+                }
+            }
         }
-        let correction: Vector6<f64> = gain * innovation;
-        // Joseph's form holds for any gain (Schmidt's too) and keeps P symmetric and
-        // positive under rounding.
-        let i_kh = Matrix6::identity() - gain * h;
-        self.covariance =
-            symmetric6(i_kh * self.covariance * i_kh.transpose() + gain * noise * gain.transpose());
         let turn = Vector3::new(correction[0], correction[1], correction[2]);
         self.nav_from_body = UnitQuaternion::from_scaled_axis(turn) * self.nav_from_body;
         self.gyro_bias_radps += Vector3::new(correction[3], correction[4], correction[5]);
@@ -292,10 +316,6 @@ impl Eskf {
 }
 
 fn symmetric(m: Matrix3<f64>) -> Matrix3<f64> {
-    (m + m.transpose()) * 0.5
-}
-
-fn symmetric6(m: Matrix6<f64>) -> Matrix6<f64> {
     (m + m.transpose()) * 0.5
 }
 
@@ -361,7 +381,7 @@ mod tests {
             "gravity moved the yaw: {yaw_after_gravity}"
         );
         for _ in 0..50 {
-            filter.fuse_magnetic_heading(field, 0.05, f64::INFINITY);
+            filter.fuse_magnetic_heading(field, 0.05, f64::INFINITY, false);
         }
         let (_, _, yaw) = filter.roll_pitch_yaw_rad();
         assert!((yaw - 1.0).abs() < 1e-3, "{yaw}");
@@ -400,7 +420,7 @@ mod tests {
             let (field, force) = seen_by(truth);
             filter.fuse_gravity(force, 0.05, f64::INFINITY);
             if step % 4 == 0 {
-                filter.fuse_magnetic_heading(field, 0.05, f64::INFINITY);
+                filter.fuse_magnetic_heading(field, 0.05, f64::INFINITY, false);
             }
         }
         assert!(
@@ -434,7 +454,7 @@ mod tests {
         assert!(filter.yaw_sigma_rad() > before);
         let (field, _) = seen_by(UnitQuaternion::from_euler_angles(0.0, 0.0, FRAC_PI_2));
         assert!(matches!(
-            filter.fuse_magnetic_heading(field, 0.05, 9.0),
+            filter.fuse_magnetic_heading(field, 0.05, 9.0, false),
             Fused::Gated { .. }
         ));
         filter.reset_yaw_to(field, 0.1);

@@ -167,7 +167,7 @@ impl MagneticGate {
 pub struct QuasiStaticField {
     /// The open block: its start and the sums of the direction's cosine and sine.
     block: Option<(f64, f64, f64)>,
-    /// The mean directions of the last closed blocks, with their end times.
+    /// The mean directions of the last closed blocks, with their last samples' times.
     closed: std::collections::VecDeque<(f64, f64)>,
     steady: bool,
 }
@@ -189,10 +189,10 @@ impl QuasiStaticField {
         *cos_sum += direction_rad.cos();
         *sin_sum += direction_rad.sin();
         if t_s - *start_s >= QUASI_STATIC_BLOCK_S || t_s < *start_s {
-            let mean_rad = sin_sum.atan2(*cos_sum);
+            let (start_s, mean_rad) = (*start_s, sin_sum.atan2(*cos_sum));
             self.block = None;
             if self.closed.back().is_some_and(|&(end_s, _)| {
-                !(t_s - end_s <= 2.0 * QUASI_STATIC_BLOCK_S && t_s >= end_s)
+                !(start_s - end_s <= MAX_BLOCK_GAP_S && start_s >= end_s)
             }) {
                 // A gap: the blocks before it say nothing of the field after it.
                 self.closed.clear();
@@ -210,6 +210,11 @@ impl QuasiStaticField {
         self.steady
     }
 }
+
+/// Successive blocks further apart than this (s, from one's last sample to the next's
+/// first) are not compared: the field was not seen between them. A log of one sample a
+/// second still makes contiguous blocks.
+pub const MAX_BLOCK_GAP_S: f64 = 1.5;
 
 /// How much the body's own acceleration corrupts the specific force's direction: the
 /// spread of its magnitude about gravity's, smoothed over about [`ACCELERATION_TAU_S`].

@@ -8,12 +8,15 @@
 //! the field (Android's rotation vector, xioTechnologies' Fusion AHRS, PX4's EKF2); this
 //! is one, an error-state Kalman filter ([`eskf`]) with its gates ([`gates`]):
 //!
-//! - the **gyroscope's bias** is a state, learnt from the rate itself while the body is
-//!   at rest; gravity and the field do not move it (they are fused with the bias as a
-//!   *considered* state, Schmidt's filter): on the shared attitude trials a bias learnt
-//!   from a walking body's accelerations and from a field that passes the gates turned
-//!   the heading by tens of degrees in two minutes. Its uncertainty still widens the
-//!   yaw's, so the field counts for more the longer the body has not rested;
+//! - the **gyroscope's bias** is a state, learnt from the field's heading and from the
+//!   rate itself while the body is at rest; gravity does not move it (it is fused with
+//!   the bias as a *considered* state, Schmidt's filter): a bias learnt from a walking
+//!   body's accelerations turned the heading by tens of degrees in two minutes on the
+//!   shared attitude trials. Whether the field should move it is a trade
+//!   ([`AttitudeOptions::field_corrects_bias`]): a phone's gyroscope, its bias already
+//!   removed by the OS, is better without (the shared attitude trials), a raw one much
+//!   better with (the independent generator's walks drift 1.2 % of their length over a
+//!   ten-minute outage without, 0.8 % with); the default learns it;
 //! - the **accelerometer** corrects the tilt with a noise that grows with the body's own
 //!   acceleration (how far the specific force's magnitude is from gravity's), and not at
 //!   all when its direction is further from the predicted down than that noise allows;
@@ -47,6 +50,8 @@ pub const RECOVERY_S: f64 = 5.0;
 /// across it is not integrated, and the yaw's variance grows by [`GAP_RATE_RADPS`] over
 /// it.
 pub const MAX_GYRO_GAP_S: f64 = 0.5;
+/// Accelerometer samples within this time (s) of a block's first are fused as one.
+pub const GRAVITY_BLOCK_S: f64 = 0.02;
 /// The rate assumed unseen across a gap, for the variance only (rad/s).
 pub const GAP_RATE_RADPS: f64 = 1.0;
 
@@ -67,6 +72,9 @@ pub struct AttitudeOptions {
     pub gravity_sigma_rad: f64,
     /// Initial 1σ of the gyroscope's bias (rad/s).
     pub initial_bias_sigma_radps: f64,
+    /// Whether the field's heading corrects the bias (else only rest does, and the field
+    /// fuses the bias as a considered state).
+    pub field_corrects_bias: bool,
     /// The body counts as at rest while its bias-corrected rate stays under this (rad/s)
     /// and its specific force within [`AttitudeOptions::rest_acceleration_mps2`] of
     /// gravity for [`AttitudeOptions::rest_hold_s`].
@@ -90,7 +98,9 @@ impl Default for AttitudeOptions {
             heading_noise_rad_sqrt_s: 0.05,
             gravity_sigma_rad: 0.02,
             // An uncalibrated phone gyroscope is off by up to about 1°/s.
-            initial_bias_sigma_radps: 0.002,
+            // A raw gyroscope's bias is up to about 0.6°/s; the field learns it.
+            initial_bias_sigma_radps: 0.01,
+            field_corrects_bias: true,
             rest_rate_radps: 0.02,
             rest_acceleration_mps2: 0.15,
             rest_hold_s: 0.5,
@@ -203,6 +213,9 @@ struct Run<'a> {
     rest_since_s: Option<f64>,
     contradicting_since_s: Option<f64>,
     field_used: bool,
+    /// The accelerometer samples not fused yet: the first one's time, the sum of their
+    /// unit directions in the navigation frame, how many, the largest acceleration level.
+    gravity_block: Option<(f64, Vector3<f64>, usize, f64)>,
     cursors: [usize; 3],
     /// One field sample's 1σ (rad), from the noise density and the field's interval.
     heading_sigma_rad: f64,
@@ -232,6 +245,7 @@ impl<'a> Run<'a> {
             rest_since_s: None,
             contradicting_since_s: None,
             field_used: false,
+            gravity_block: None,
             cursors: [0; 3],
             heading_sigma_rad: options.heading_noise_rad_sqrt_s
                 / sensors
@@ -394,17 +408,36 @@ impl<'a> Run<'a> {
         if acceleration_mps2 > self.options.rest_acceleration_mps2 {
             self.rest_since_s = None;
         }
-        let sigma_rad = self
-            .options
-            .gravity_sigma_rad
+        let Some(filter) = self.filter.as_ref() else {
+            return;
+        };
+        // Samples closer than GRAVITY_BLOCK_S are fused as one: their directions turned
+        // into the navigation frame by the attitude at each are averaged (a fast
+        // accelerometer then costs the filter no more than a 50 Hz one). The sensor's
+        // share of the noise averages down; the body's acceleration, correlated over a
+        // block, does not.
+        let in_nav = filter.nav_from_body * (force_mps2 / magnitude);
+        let block = self
+            .gravity_block
+            .get_or_insert((t_s, Vector3::zeros(), 0, 0.0));
+        block.1 += in_nav;
+        block.2 += 1;
+        block.3 = block.3.max(acceleration_mps2);
+        if t_s - block.0 < GRAVITY_BLOCK_S && t_s >= block.0 {
+            return;
+        }
+        let (_, sum, n, acceleration_mps2) = *block;
+        self.gravity_block = None;
+        let mean = sum / n as f64;
+        let sigma_rad = (self.options.gravity_sigma_rad / (n as f64).sqrt())
             .hypot(acceleration_mps2 / crate::io::STANDARD_GRAVITY_MPS2);
         let Some(filter) = self.filter.as_mut() else {
             return;
         };
-        // 99.9 % of a χ² with 3 degrees of freedom.
-        match filter.fuse_gravity(force_mps2, sigma_rad, 16.3) {
-            Fused::Applied { .. } => self.summary.n_gravity_fused += 1,
-            _ => self.summary.n_gravity_refused += 1,
+        // 99.9 % of a χ² with 2 degrees of freedom.
+        match filter.fuse_gravity_in_nav(nalgebra::Vector2::new(mean.x, mean.y), sigma_rad, 13.8) {
+            Fused::Applied { .. } => self.summary.n_gravity_fused += n,
+            _ => self.summary.n_gravity_refused += n,
         }
     }
 
@@ -432,7 +465,8 @@ impl<'a> Run<'a> {
             return;
         }
         // 99.7 % of a χ² with one degree of freedom (3σ).
-        match filter.fuse_magnetic_heading(field_ut, heading_sigma_rad, 9.0) {
+        let corrects_bias = self.options.field_corrects_bias;
+        match filter.fuse_magnetic_heading(field_ut, heading_sigma_rad, 9.0, corrects_bias) {
             Fused::Applied { .. } => {
                 self.summary.n_field_fused += 1;
                 self.contradicting_since_s = None;

@@ -40,6 +40,7 @@ use crate::recording::Recording;
 use crate::reference::{choose_reference, ReferenceOptions, ReferenceSource};
 use crate::stats::HeadingErrorStats;
 
+mod attitude;
 mod context;
 mod methods;
 pub mod selection;
@@ -280,6 +281,10 @@ pub struct CalibrationAnalysis {
     /// temperature, and the integrated gyro heading (relative to its start).
     pub temp_c: Vec<Option<f64>>,
     pub gyro_heading_deg: Vec<Option<f64>>,
+    /// The attitude filter's heading at each sample (degrees from true north, NaN where
+    /// it has none), `None` without a gyroscope and an accelerometer: a base of the
+    /// heading comparison ([`attitude`]).
+    pub attitude_heading_deg: Option<Vec<f64>>,
     /// Down at each accelerometer sample, which levelled the samples and the gyro:
     /// estimated once, shared by the stages after (shared, not copied, by a clone).
     pub gravity: Arc<GravityEstimate>,
@@ -341,6 +346,9 @@ struct Levelled {
     samples: TiltedSamples,
     temp_c: Vec<Option<f64>>,
     gyro_heading_deg: Vec<Option<f64>>,
+    /// The attitude filter's heading when it was computed already (a calibration run
+    /// again on the same sensors keeps it).
+    attitude_heading_deg: Option<Option<Vec<f64>>>,
 }
 
 impl Levelled {
@@ -367,6 +375,7 @@ impl Levelled {
             samples,
             temp_c,
             gyro_heading_deg,
+            attitude_heading_deg: None,
         })
     }
 
@@ -384,6 +393,7 @@ impl Levelled {
             },
             temp_c: previous.temp_c.clone(),
             gyro_heading_deg: previous.gyro_heading_deg.clone(),
+            attitude_heading_deg: Some(previous.attitude_heading_deg.clone()),
         }
     }
 }
@@ -556,6 +566,7 @@ fn calibrate_levelled(
         samples,
         temp_c,
         gyro_heading_deg,
+        attitude_heading_deg,
     } = match levelled {
         Some(levelled) => levelled,
         None => Levelled::of(
@@ -655,6 +666,7 @@ fn calibrate_levelled(
         field_corrected_ut: field_corrected_ut.unwrap_or_default(),
         temp_c,
         gyro_heading_deg,
+        attitude_heading_deg: None,
         field_raw_ut,
         gravity,
     };
@@ -667,6 +679,9 @@ fn calibrate_levelled(
         .into_iter()
         .find(|method| method.key() == choice.key);
     report.choice = Some(choice);
+    analysis.attitude_heading_deg = attitude_heading_deg.unwrap_or_else(|| {
+        attitude::attitude_heading_deg(&recording, &analysis.report, &analysis.t_s)
+    });
     Ok(analysis)
 }
 

@@ -48,7 +48,8 @@ pub fn complexity(key: &str) -> u32 {
     let base = match parts.next().unwrap_or(RAW_KEY) {
         "raw" => 0,
         "min_max" | "fourier" => 1,
-        "ellipse" | "ellipsoid" | "mlp" => 2,
+        // The attitude filter learns nothing from the reference; its field is a 3D fit.
+        "ellipse" | "ellipsoid" | "mlp" | "ahrs" => 2,
         _ => 3,
     };
     base + parts

@@ -125,7 +125,7 @@ impl Table {
 pub fn compare(calibration: &CalibrationAnalysis, options: &HeadingOptions) -> HeadingAnalysis {
     let calibration_report = calibration.report.clone();
     let split = Split::of(calibration);
-    let bases = bases_of(calibration);
+    let bases = bases_of(calibration, &split);
     let mut table = Table::default();
     // The bases as the calibration scored them (its split is this one).
     for base in &bases {
@@ -188,8 +188,12 @@ pub fn compare(calibration: &CalibrationAnalysis, options: &HeadingOptions) -> H
     }
 }
 
-/// The uncalibrated heading, then each fitted field-domain method's.
-fn bases_of(calibration: &CalibrationAnalysis) -> Vec<Base<'_>> {
+/// The row key of the attitude filter's heading.
+pub const ATTITUDE_KEY: &str = "ahrs";
+
+/// The uncalibrated heading, then each fitted field-domain method's, then the attitude
+/// filter's (scored here: the calibration does not score it).
+fn bases_of<'a>(calibration: &'a CalibrationAnalysis, split: &Split) -> Vec<Base<'a>> {
     let radians = |headings_deg: &[f64]| headings_deg.iter().map(|deg| deg.to_radians()).collect();
     let report = &calibration.report;
     let mut bases = vec![Base {
@@ -210,6 +214,17 @@ fn bases_of(calibration: &CalibrationAnalysis) -> Vec<Base<'_>> {
             key: method.key().to_string(),
             label: method.label().to_string(),
             heading_rad: radians(headings_deg),
+            heading_deg: headings_deg,
+            scores,
+        });
+    }
+    if let Some(headings_deg) = &calibration.attitude_heading_deg {
+        let heading_rad: Vec<f64> = radians(headings_deg);
+        let scores = split.both_stats(&heading_rad);
+        bases.push(Base {
+            key: ATTITUDE_KEY.to_string(),
+            label: "attitude filter (gyro + acc + field)".to_string(),
+            heading_rad,
             heading_deg: headings_deg,
             scores,
         });
@@ -324,6 +339,7 @@ fn neural_stacks(
     let best_field_base = bases
         .iter()
         .skip(1)
+        .filter(|base| base.key != ATTITUDE_KEY)
         .filter_map(|base| Some((base, base.scores.0?.rms_deg)))
         .min_by(|a, b| a.1.total_cmp(&b.1))
         .map(|(base, _)| base);

@@ -36,7 +36,9 @@ fn fast_path(bytes: &[u8]) -> Option<f64> {
 /// checks what follows (a delimiter, the end of the line). Slice patterns walk the
 /// bytes without bounds checks. Inlined into the field loops, so that the division's
 /// latency overlaps with scanning the next field.
-#[inline(always)]
+// Always inlined natively (the import benchmark's speed); in wasm the compiler decides,
+// which keeps the page's module within its size budget (docs/development.md).
+#[cfg_attr(not(target_arch = "wasm32"), inline(always))]
 pub fn parse_prefix(bytes: &[u8]) -> Option<(f64, usize)> {
     let (negative, mut rest) = match bytes {
         [b'-', rest @ ..] => (true, rest),
@@ -120,7 +122,7 @@ const POWERS_OF_TEN_U64: [u64; 8] = [1, 10, 100, 1_000, 10_000, 100_000, 1_000_0
 /// line ending, so the words read may reach into the next line; near the end of
 /// `bytes`, and for runs of eight digits or more or an exponent, it hands over to
 /// [`parse_prefix`]. A test checks that both agree.
-#[inline(always)]
+#[cfg_attr(not(target_arch = "wasm32"), inline(always))]
 pub fn parse_prefix_at(bytes: &[u8], start: usize) -> Option<(f64, usize)> {
     let rest = bytes.get(start..)?;
     // A sign, at most seven digits, a point and at most seven digits fit in 17 bytes;
@@ -193,7 +195,7 @@ pub fn parse_prefix_at(bytes: &[u8], start: usize) -> Option<(f64, usize)> {
 
 /// The eight bytes from `offset` (at most 10) of an 18-byte window, as a little-endian
 /// word: the first byte is the lowest.
-#[inline(always)]
+#[cfg_attr(not(target_arch = "wasm32"), inline(always))]
 fn word_at(head: &[u8; 18], offset: usize) -> u64 {
     let mut word = [0u8; 8];
     if let Some(bytes) = head.get(offset..offset + 8) {
@@ -206,13 +208,13 @@ fn word_at(head: &[u8; 18], offset: usize) -> u64 {
 /// that was not an ASCII digit. A digit's byte is then in 0..=9 and every other byte is
 /// not: adding 0x76 to the low seven bits sets the high bit of those of 10 or more
 /// (without a carry into the next byte), and bytes of 0x80 or more have it already.
-#[inline(always)]
+#[cfg_attr(not(target_arch = "wasm32"), inline(always))]
 fn non_digit_bytes(offsets: u64) -> u64 {
     (((offsets & 0x7F7F_7F7F_7F7F_7F7F) + 0x7676_7676_7676_7676) | offsets) & 0x8080_8080_8080_8080
 }
 
 /// The mask of the first `n_bytes` (0 to 7) bytes of a word.
-#[inline(always)]
+#[cfg_attr(not(target_arch = "wasm32"), inline(always))]
 fn low_bytes(n_bytes: usize) -> u64 {
     (1u64 << ((8 * n_bytes) & 63)) - 1
 }
@@ -222,7 +224,7 @@ fn low_bytes(n_bytes: usize) -> u64 {
 /// read as a decimal integer: shifted so that they end the word (the bytes before them
 /// become leading zeros), then pairs, quadruples and octets of digits are combined by
 /// multiplication (D. Lemire, "Faster parsing of 8-digit integers", 2018; simdjson).
-#[inline(always)]
+#[cfg_attr(not(target_arch = "wasm32"), inline(always))]
 fn digits_value(offsets: u64, n_digits: usize) -> u64 {
     if n_digits == 0 || n_digits >= 8 {
         return 0;

@@ -95,11 +95,16 @@ fn compass_heading(
             ));
         }
     }
+    // A heading with gaps (the attitude filter's before it starts) keeps its samples:
+    // NaN would poison the means and the gyro's alignment.
+    let mut heading_rad = Stream::default();
+    for (&t_s, &deg) in source.t_s.iter().zip(&series.1) {
+        if deg.is_finite() {
+            heading_rad.push(t_s, deg.to_radians());
+        }
+    }
     Some(StepHeading {
-        heading_rad: Stream {
-            t_s: source.t_s.clone(),
-            values: series.1.iter().map(|deg| deg.to_radians()).collect(),
-        },
+        heading_rad,
         label: label_of(source, &key),
         key,
     })

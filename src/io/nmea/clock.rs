@@ -32,7 +32,7 @@ impl NmeaDate {
 }
 
 /// Two ASCII digits at `at`, as a number.
-#[inline(always)]
+#[cfg_attr(not(target_arch = "wasm32"), inline(always))]
 fn two_digits(bytes: &[u8], at: usize) -> Option<u8> {
     match bytes.get(at..at + 2)? {
         [tens @ b'0'..=b'9', ones @ b'0'..=b'9'] => Some((tens - b'0') * 10 + (ones - b'0')),
@@ -41,7 +41,7 @@ fn two_digits(bytes: &[u8], at: usize) -> Option<u8> {
 }
 
 /// `hhmmss` with optional decimals, as seconds since midnight.
-#[inline(always)]
+#[cfg_attr(not(target_arch = "wasm32"), inline(always))]
 pub(super) fn time_of_day_s(
     sentence: &'static str,
     text: &[u8],
@@ -68,7 +68,7 @@ pub(super) fn time_of_day_s(
 }
 
 /// `ddmmyy`. Two-digit years 80-99 are 1980-1999 (GPS began in 1980), the rest 20xx.
-#[inline(always)]
+#[cfg_attr(not(target_arch = "wasm32"), inline(always))]
 pub(super) fn parse_date(
     sentence: &'static str,
     text: &[u8],

@@ -46,7 +46,9 @@ pub(super) fn field_text(field: &[u8]) -> Cow<'_, str> {
 
 /// Parses the bytes of one line, which must be UTF-8 (text, or ASCII bytes): bytes
 /// rather than `str` so that an ASCII line needs no UTF-8 validation.
-#[inline(always)]
+// Always inlined natively (the import benchmark's speed); in wasm the compiler decides,
+// which keeps the page's module within its size budget (docs/development.md).
+#[cfg_attr(not(target_arch = "wasm32"), inline(always))]
 fn parse_line(bytes: &[u8]) -> Result<Parsed<'_>, SentenceError> {
     let mut bytes = bytes;
     while let Some(rest) = bytes.strip_prefix("\u{feff}".as_bytes()) {
@@ -133,7 +135,7 @@ fn parse_line(bytes: &[u8]) -> Result<Parsed<'_>, SentenceError> {
     }))
 }
 
-#[inline(always)]
+#[cfg_attr(not(target_arch = "wasm32"), inline(always))]
 fn hex_pair(high: u8, low: u8) -> Option<u8> {
     let digit = |byte: u8| (byte as char).to_digit(16);
     let value = digit(high)? * 16 + digit(low)?;
@@ -157,7 +159,7 @@ struct BodyScan {
 }
 
 impl BodyScan {
-    #[inline(always)]
+    #[cfg_attr(not(target_arch = "wasm32"), inline(always))]
     fn of(body: &[u8]) -> BodyScan {
         let mut scan = BodyScan {
             xor: 0,
@@ -203,7 +205,7 @@ impl BodyScan {
 
     /// Records the commas among the eight bytes of `word` (little-endian, so byte `k`
     /// is bits `8k..8k + 8`), which start at `word_start` in the body.
-    #[inline(always)]
+    #[cfg_attr(not(target_arch = "wasm32"), inline(always))]
     fn note_commas(&mut self, word: u64, word_start: usize) {
         const LOW_7_BITS: u64 = 0x7f7f_7f7f_7f7f_7f7f;
         const COMMAS: u64 = 0x2c2c_2c2c_2c2c_2c2c;
@@ -234,7 +236,7 @@ struct Fields<'a, 'b> {
 
 impl<'a> Fields<'a, '_> {
     /// The address: the body up to its first comma.
-    #[inline(always)]
+    #[cfg_attr(not(target_arch = "wasm32"), inline(always))]
     fn address(&self) -> &'a [u8] {
         let end = match self.scan.n_commas {
             0 => self.body.len(),
@@ -249,7 +251,7 @@ impl<'a> Fields<'a, '_> {
 
     /// The `N` fields after the address, trimmed; missing trailing fields are empty
     /// (null), extra ones ignored.
-    #[inline(always)]
+    #[cfg_attr(not(target_arch = "wasm32"), inline(always))]
     fn take<const N: usize>(&self) -> [&'a [u8]; N] {
         let mut taken: [&'a [u8]; N] = [&[]; N];
         let commas = self
@@ -277,7 +279,7 @@ impl<'a> Fields<'a, '_> {
 
 /// A field without surrounding ASCII whitespace; a field without any, the usual one,
 /// is seen as such from its two ends.
-#[inline(always)]
+#[cfg_attr(not(target_arch = "wasm32"), inline(always))]
 fn trim_field(field: &[u8]) -> &[u8] {
     match (field.first(), field.last()) {
         (Some(first), Some(last)) if first.is_ascii_whitespace() || last.is_ascii_whitespace() => {

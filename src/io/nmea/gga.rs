@@ -43,7 +43,7 @@ impl Gga {
     }
 }
 
-#[inline(always)]
+#[cfg_attr(not(target_arch = "wasm32"), inline(always))]
 pub(super) fn parse_gga(fields: [&[u8]; 12]) -> Result<Gga, SentenceError> {
     const S: &str = "GGA";
     let [time, lat, lat_ns, lon, lon_ew, quality, n_sats, hdop, alt, alt_unit, sep, sep_unit] =

@@ -59,7 +59,7 @@ pub(super) fn parse_hdg(fields: [&[u8]; 5]) -> Result<Hdg, SentenceError> {
     })
 }
 
-#[inline(always)]
+#[cfg_attr(not(target_arch = "wasm32"), inline(always))]
 pub(super) fn parse_heading_only(
     fields: [&[u8]; 2],
     sentence: &'static str,

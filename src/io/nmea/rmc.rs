@@ -46,7 +46,7 @@ impl Rmc {
     }
 }
 
-#[inline(always)]
+#[cfg_attr(not(target_arch = "wasm32"), inline(always))]
 pub(super) fn parse_rmc(fields: [&[u8]; 12]) -> Result<Rmc, SentenceError> {
     const S: &str = "RMC";
     let [time, status, lat, lat_ns, lon, lon_ew, knots, course_deg, date, var_deg, var_ew, mode] =

@@ -11,7 +11,7 @@ use super::framing::field_text;
 use super::SentenceError;
 
 /// The first character of a field.
-#[inline(always)]
+#[cfg_attr(not(target_arch = "wasm32"), inline(always))]
 pub(super) fn first_char(field: &[u8]) -> Option<char> {
     match field.first() {
         Some(&byte) if byte.is_ascii() => Some(char::from(byte)),
@@ -22,7 +22,7 @@ pub(super) fn first_char(field: &[u8]) -> Option<char> {
 
 /// A decimal number as [`crate::io::number::parse_f64`] reads it, from bytes: Clinger's
 /// fast path, else the standard library's parser.
-#[inline(always)]
+#[cfg_attr(not(target_arch = "wasm32"), inline(always))]
 pub(super) fn parse_f64_bytes(text: &[u8]) -> Option<f64> {
     match crate::io::number::parse_prefix(text) {
         Some((value, consumed)) if consumed == text.len() => Some(value),
@@ -31,7 +31,7 @@ pub(super) fn parse_f64_bytes(text: &[u8]) -> Option<f64> {
 }
 
 /// A finite decimal number, `None` for a null field.
-#[inline(always)]
+#[cfg_attr(not(target_arch = "wasm32"), inline(always))]
 pub(super) fn number(
     sentence: &'static str,
     field: &'static str,
@@ -48,7 +48,7 @@ pub(super) fn number(
 
 /// A whole number as `str::parse` reads it: up to nine plain digits directly, anything
 /// else (a sign, more digits) through `str::parse`.
-#[inline(always)]
+#[cfg_attr(not(target_arch = "wasm32"), inline(always))]
 pub(super) fn integer<T: std::str::FromStr + TryFrom<u32>>(
     sentence: &'static str,
     field: &'static str,
@@ -73,7 +73,7 @@ pub(super) fn integer<T: std::str::FromStr + TryFrom<u32>>(
 }
 
 /// A heading or course in degrees, 0 to 360, as radians in `[0, 2π)`.
-#[inline(always)]
+#[cfg_attr(not(target_arch = "wasm32"), inline(always))]
 pub(super) fn heading_rad(
     sentence: &'static str,
     field: &'static str,
@@ -95,7 +95,7 @@ pub(super) fn heading_rad(
 
 /// A heading already checked to lie in 0-360°, as radians in `[0, 2π)`. Only 360
 /// itself needs wrapping, which spares the hot path the remainder in `wrap_to_2pi`.
-#[inline(always)]
+#[cfg_attr(not(target_arch = "wasm32"), inline(always))]
 pub(super) fn heading_0_360_rad(heading_deg: f64) -> f64 {
     let heading_rad = heading_deg.to_radians();
     if heading_rad >= std::f64::consts::TAU {
@@ -107,7 +107,7 @@ pub(super) fn heading_0_360_rad(heading_deg: f64) -> f64 {
 
 /// An angle with an E/W letter, east positive. A value without its letter is dropped
 /// rather than guessed, and does not cost the rest of the sentence.
-#[inline(always)]
+#[cfg_attr(not(target_arch = "wasm32"), inline(always))]
 pub(super) fn east_positive_rad(
     sentence: &'static str,
     field: &'static str,
@@ -133,7 +133,7 @@ pub(super) enum Axis {
 
 /// `ddmm.mmmm` (latitude) or `dddmm.mmmm` (longitude) and its hemisphere letter, as
 /// decimal degrees, south and west negative.
-#[inline(always)]
+#[cfg_attr(not(target_arch = "wasm32"), inline(always))]
 pub(super) fn coordinate(
     sentence: &'static str,
     axis: Axis,

@@ -27,7 +27,7 @@ pub struct Vtg {
     pub mode: Option<char>,
 }
 
-#[inline(always)]
+#[cfg_attr(not(target_arch = "wasm32"), inline(always))]
 pub(super) fn parse_vtg(fields: [&[u8]; 9]) -> Result<Vtg, SentenceError> {
     const S: &str = "VTG";
     let [course_true, t_letter, course_magnetic, m_letter, knots, n_letter, kmph, k_letter, mode] =
