@@ -294,7 +294,7 @@ pub fn section(text: &mut String, data: &Path) {
             row(
                 text,
                 &format!("`tyrex-attitude` {name}"),
-                "Nexus 5, one person, ~2 min (motion-capture truth not read yet)",
+                "Nexus 5, one person, ~2 min (the motion-capture heading: \"Attitude against motion capture\" below)",
                 "the OS's hard iron (the Qualisys attitude is the heading filter's benchmark)",
                 &analysis,
             );
