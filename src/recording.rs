@@ -64,6 +64,13 @@ impl<T> Stream<T> {
         Some(*intervals.select_nth_unstable_by(middle, f64::total_cmp).1)
     }
 
+    /// The longest interval between samples that is not a gap: `min_gap_s`, or three of
+    /// the stream's typical intervals where that is longer (a log of per-second means).
+    pub fn gap_limit_s(&self, min_gap_s: f64) -> f64 {
+        self.median_interval_s()
+            .map_or(min_gap_s, |median| min_gap_s.max(3.0 * median))
+    }
+
     /// Sorts the samples by time, keeping the order of equal times. Returns how many
     /// samples were out of order before sorting.
     pub fn sort_by_time(&mut self) -> usize

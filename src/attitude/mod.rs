@@ -253,12 +253,7 @@ impl<'a> Run<'a> {
                     .median_interval_s()
                     .unwrap_or(0.02)
                     .sqrt(),
-            max_gyro_gap_s: MAX_GYRO_GAP_S.max(
-                3.0 * sensors
-                    .gyro_in_body_radps
-                    .median_interval_s()
-                    .unwrap_or(0.0),
-            ),
+            max_gyro_gap_s: sensors.gyro_in_body_radps.gap_limit_s(MAX_GYRO_GAP_S),
             output: Stream {
                 t_s: Vec::with_capacity(n_gyro),
                 values: Vec::with_capacity(n_gyro),

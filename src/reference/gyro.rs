@@ -37,12 +37,6 @@ use crate::recording::{Recording, Stream};
 /// across it is unknown.
 const MAX_GYRO_GAP_S: f64 = 0.5;
 
-/// The gap limit for this gyro stream: [`MAX_GYRO_GAP_S`], or three median intervals.
-fn gap_limit_s<T>(stream: &Stream<T>) -> f64 {
-    stream
-        .median_interval_s()
-        .map_or(MAX_GYRO_GAP_S, |median| MAX_GYRO_GAP_S.max(3.0 * median))
-}
 /// How far apart (s) anchor samples must spread before a drift is fitted.
 const MIN_DRIFT_SPAN_S: f64 = 60.0;
 /// The largest drift searched for a closed loop (rad/s, about 2.9°/s: far beyond any
@@ -91,7 +85,7 @@ pub fn gyro_heading(
     closed_loop: bool,
 ) -> Option<GyroHeading> {
     let gyro = &recording.gyro_in_body_radps;
-    let max_gap_s = gap_limit_s(gyro);
+    let max_gap_s = gyro.gap_limit_s(MAX_GYRO_GAP_S);
     let gravity = &gravity.specific_force_mps2;
     let mut relative = Stream::default();
     let mut heading_rad = 0.0;
@@ -252,7 +246,7 @@ fn loop_closing_drift(recording: &Recording, relative: &Stream<f64>) -> Option<(
     }
     // Each gyro step: (dt, heading, walking).
     let first_t_s = *relative.t_s.first()?;
-    let max_gap_s = gap_limit_s(relative);
+    let max_gap_s = relative.gap_limit_s(MAX_GYRO_GAP_S);
     let steps: Vec<(f64, f64, f64)> = relative
         .t_s
         .windows(2)

@@ -180,16 +180,7 @@ fn paired_difference(
     raw: &Stream<Vector3<f64>>,
     calibrated: &Stream<Vector3<f64>>,
 ) -> (Stream<Vector3<f64>>, usize) {
-    let mut intervals: Vec<f64> = raw
-        .t_s
-        .windows(2)
-        .map(|pair| pair[1] - pair[0])
-        .filter(|interval| *interval > 0.0)
-        .collect();
-    intervals.sort_by(f64::total_cmp);
-    let tolerance_s = intervals
-        .get(intervals.len() / 2)
-        .map_or(0.0, |median| 0.5 * median);
+    let tolerance_s = raw.median_interval_s().map_or(0.0, |median| 0.5 * median);
     let mut bias = Stream::default();
     let mut next_idx = 0usize;
     for (&t_s, raw_value) in raw.t_s.iter().zip(&raw.values) {
