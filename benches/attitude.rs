@@ -67,11 +67,11 @@ mod native {
             eprintln!("skipped: no TYREX trials under {}", data.display());
             return;
         }
-        let options = AttitudeOptions::default();
         let mut criterion = Criterion::default().configure_from_args();
         let mut results = serde_json::Map::new();
         for (name, paths) in &trials {
             let recording = common::import_paths(paths).recording;
+            let options = AttitudeOptions::for_gyro(recording.gyro_bias);
             let (field, reference) = field_of(&recording);
             let sensors = Sensors {
                 acc_in_body_mps2: &recording.acc_in_body_mps2,

@@ -119,7 +119,7 @@ pub fn attitude(
     attitude_of(
         &import.recording,
         device.as_ref(),
-        &AttitudeOptions::default(),
+        &AttitudeOptions::for_gyro(import.recording.gyro_bias),
     )
 }
 

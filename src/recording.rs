@@ -201,6 +201,20 @@ pub enum North {
     True,
 }
 
+/// What the device did to its gyroscope's samples before logging them: it sets how much
+/// bias the attitude filter expects ([`crate::attitude::AttitudeOptions::for_gyro`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum GyroBias {
+    /// Raw, or not said: a MEMS gyroscope's turn-on bias can reach about 1°/s.
+    #[default]
+    Unknown,
+    /// The OS subtracted its own running estimate of the bias: Android's
+    /// `TYPE_GYROSCOPE` (its `_UNCALIBRATED` twin is the raw rate), which the importers
+    /// name where the log says so.
+    RemovedByDevice,
+}
+
 /// A heading that a compass device computed itself (NMEA HDG/HDM/HDT, a compass
 /// module's HPR), clockwise from the stated north.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -218,6 +232,8 @@ pub struct Recording {
     /// Specific force in the body frame (a level device at rest reads z ≈ −9.81).
     pub acc_in_body_mps2: Stream<Vector3<f64>>,
     pub gyro_in_body_radps: Stream<Vector3<f64>>,
+    /// Whether the device removed the gyroscope's bias before logging it.
+    pub gyro_bias: GyroBias,
     pub mag_in_body_ut: Stream<Vector3<f64>>,
     /// The device's own hard-iron estimate, where it reports one (Android's
     /// `TYPE_MAGNETIC_FIELD_UNCALIBRATED`): raw field minus this is its calibrated field.
@@ -251,6 +267,12 @@ impl Recording {
             }
         }
         append(&mut self.acc_in_body_mps2, other.acc_in_body_mps2);
+        // Rates of two kinds in one stream can only be said to be raw.
+        if self.gyro_in_body_radps.is_empty() {
+            self.gyro_bias = other.gyro_bias;
+        } else if !other.gyro_in_body_radps.is_empty() && other.gyro_bias != self.gyro_bias {
+            self.gyro_bias = GyroBias::Unknown;
+        }
         append(&mut self.gyro_in_body_radps, other.gyro_in_body_radps);
         append(&mut self.mag_in_body_ut, other.mag_in_body_ut);
         append(&mut self.mag_bias_in_body_ut, other.mag_bias_in_body_ut);
@@ -358,5 +380,39 @@ mod tests {
         assert_eq!(s.sort_by_time(), 1);
         assert_eq!(s.t_s, vec![0.0, 1.0, 2.0, 3.0]);
         assert_eq!(s.values, vec![0.0, 1.0, 2.0, 3.0]);
+    }
+}
+
+#[cfg(test)]
+mod append_tests {
+    use super::*;
+
+    fn with_gyro(gyro_bias: GyroBias, n: usize) -> Recording {
+        let mut recording = Recording {
+            gyro_bias,
+            ..Recording::default()
+        };
+        for idx in 0..n {
+            recording
+                .gyro_in_body_radps
+                .push(idx as f64, Vector3::zeros());
+        }
+        recording
+    }
+
+    #[test]
+    fn the_gyroscope_keeps_its_bias_kind_unless_two_kinds_are_mixed() {
+        use GyroBias::{RemovedByDevice as Removed, Unknown};
+        for (first, second, expected) in [
+            (with_gyro(Unknown, 0), with_gyro(Removed, 2), Removed),
+            (with_gyro(Removed, 2), with_gyro(Unknown, 0), Removed),
+            (with_gyro(Removed, 2), with_gyro(Removed, 2), Removed),
+            (with_gyro(Removed, 2), with_gyro(Unknown, 2), Unknown),
+            (with_gyro(Unknown, 2), with_gyro(Removed, 2), Unknown),
+        ] {
+            let mut merged = first.clone();
+            merged.append(second.clone());
+            assert_eq!(merged.gyro_bias, expected, "{first:?} + {second:?}");
+        }
     }
 }

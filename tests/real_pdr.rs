@@ -58,7 +58,10 @@ fn hallway_loop_has_its_168_steps_and_closes_within_3_percent() {
         report.fixes
     );
     // The gyro aligned to the attitude filter's heading (no rotation vector) closes the
-    // loop within 3 % (2.65 % today; issue 18 asks for 2 %).
+    // loop within 3 % (2.65 % today; issue 18 asks for 2 %). phyphox's CSV does not say
+    // whether its gyroscope is Android's bias-free `TYPE_GYROSCOPE` or iOS's raw rate, so
+    // the filter starts from a raw gyroscope's bias prior; with the bias-free one the loop
+    // closes within 1.5 %.
     let filtered = dead_reckon(
         &paths,
         &PdrOptions {
@@ -134,11 +137,12 @@ fn indoor_walks_at_the_waypoints() {
     assert!(chosen["F4"] < 2.5, "{chosen:?}");
     assert!(best["F1"] < 2.7 && best["F4"] < 2.5, "{best:?}");
     // Without the phone's rotation vector: the attitude filter's causal heading, and the
-    // gyro aligned to it over the walk. Issue 18 asks for 2.5 % on both walks; these
-    // bounds hold what is reached today (F1 5.8 % and 2.5 %, F4 3.4 % and 4.1 %).
+    // gyro aligned to it over the walk. Issue 18 asks for 2.5 % on both walks: the gyro
+    // aligned to the filter reaches it (2.42 % on both, the logs' `TYPE_GYROSCOPE` read as
+    // bias-free); the filter alone does not on F1 (4.8 %; F4 2.8 %).
     eprintln!("attitude filter, K of the other walk, magnetic north: {filtered:?}");
     for floor in ["F1", "F4"] {
-        assert!(filtered[&(floor, "ahrs")] < 6.5, "{filtered:?}");
-        assert!(filtered[&(floor, "gyro+ahrs")] < 4.5, "{filtered:?}");
+        assert!(filtered[&(floor, "ahrs")] < 5.0, "{filtered:?}");
+        assert!(filtered[&(floor, "gyro+ahrs")] < 2.5, "{filtered:?}");
     }
 }

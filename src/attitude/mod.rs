@@ -12,11 +12,12 @@
 //!   rate itself while the body is at rest; gravity does not move it (it is fused with
 //!   the bias as a *considered* state, Schmidt's filter): a bias learnt from a walking
 //!   body's accelerations turned the heading by tens of degrees in two minutes on the
-//!   shared attitude trials. Whether the field should move it is a trade
-//!   ([`AttitudeOptions::field_corrects_bias`]): a phone's gyroscope, its bias already
-//!   removed by the OS, is better without (the shared attitude trials), a raw one much
-//!   better with (the independent generator's walks drift 1.2 % of their length over a
-//!   ten-minute outage without, 0.8 % with); the default learns it;
+//!   shared attitude trials. How far the bias may be from zero at the start is what
+//!   the log says of the gyroscope ([`AttitudeOptions::for_gyro`]): a raw one's up to
+//!   about 0.6°/s, which the field then learns (the independent generator's walks drift
+//!   1.2 % of their length over a ten-minute outage without that learning, 0.8 % with);
+//!   one whose bias the OS removed (Android's `TYPE_GYROSCOPE`) only about 0.1°/s, so
+//!   that a disturbed field passing the gates cannot teach it a false one;
 //! - the **accelerometer** corrects the tilt with a noise that grows with the body's own
 //!   acceleration (how far the specific force's magnitude is from gravity's), and not at
 //!   all when its direction is further from the predicted down than that noise allows;
@@ -38,7 +39,7 @@ pub mod track;
 use nalgebra::Vector3;
 use serde::Serialize;
 
-use crate::recording::Stream;
+use crate::recording::{GyroBias, Stream};
 use eskf::{Eskf, Fused, NoiseModel};
 use gates::{dip_of, AccelerationLevel, FieldReference, MagneticGate, QuasiStaticField};
 
@@ -97,13 +98,34 @@ impl Default for AttitudeOptions {
             },
             heading_noise_rad_sqrt_s: 0.05,
             gravity_sigma_rad: 0.02,
-            // An uncalibrated phone gyroscope is off by up to about 1°/s.
-            // A raw gyroscope's bias is up to about 0.6°/s; the field learns it.
-            initial_bias_sigma_radps: 0.01,
+            initial_bias_sigma_radps: RAW_BIAS_SIGMA_RADPS,
             field_corrects_bias: true,
             rest_rate_radps: 0.02,
             rest_acceleration_mps2: 0.15,
             rest_hold_s: 0.5,
+        }
+    }
+}
+
+/// Initial 1σ of a raw gyroscope's bias (rad/s, about 0.6°/s): a MEMS gyroscope's
+/// turn-on bias, which rest and the field then learn.
+pub const RAW_BIAS_SIGMA_RADPS: f64 = 0.01;
+
+/// Initial 1σ of the bias left once the OS has removed its own estimate (rad/s, about
+/// 0.1°/s). A prior this tight keeps the field from teaching the filter a bias that is
+/// the disturbance's: on the shared attitude trials (already bias-free) the raw prior
+/// turned 4.5° of heading error into 16.6° in a pocket walked past iron.
+pub const REMOVED_BIAS_SIGMA_RADPS: f64 = 0.002;
+
+impl AttitudeOptions {
+    /// The defaults, with the bias prior of a gyroscope as the log says it is.
+    pub fn for_gyro(gyro_bias: GyroBias) -> AttitudeOptions {
+        AttitudeOptions {
+            initial_bias_sigma_radps: match gyro_bias {
+                GyroBias::Unknown => RAW_BIAS_SIGMA_RADPS,
+                GyroBias::RemovedByDevice => REMOVED_BIAS_SIGMA_RADPS,
+            },
+            ..AttitudeOptions::default()
         }
     }
 }

@@ -24,7 +24,12 @@ pub(super) fn attitude_heading_deg(
     t_s: &[f64],
 ) -> Option<Vec<f64>> {
     let device = selection::device_calibration(report).map(|(_, field)| field);
-    let (track, _) = attitude_of(recording, device.as_ref(), &AttitudeOptions::default()).ok()?;
+    let (track, _) = attitude_of(
+        recording,
+        device.as_ref(),
+        &AttitudeOptions::for_gyro(recording.gyro_bias),
+    )
+    .ok()?;
     let yaw = Stream {
         t_s: track.attitude.t_s,
         values: track

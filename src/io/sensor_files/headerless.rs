@@ -28,7 +28,7 @@ use super::{notes_only, utc_text, Role, SensorFileReader, SensorImport, HEADERLE
 use crate::io::delimited::{RawImport, SensorAxes};
 use crate::io::number::parse_f64;
 use crate::io::{shorten, Diagnostics, ImportError, ImportReport, MagUnit};
-use crate::recording::{Recording, Stream};
+use crate::recording::{GyroBias, Recording, Stream};
 
 /// The headerless per-sensor files.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -263,6 +263,7 @@ pub(super) fn headerless_import(
         }
         HeaderlessFile::GyroscopeCalibrated => {
             recording.gyro_in_body_radps = streams.vector;
+            recording.gyro_bias = GyroBias::RemovedByDevice;
             notes.push(format!(
                 "{n} gyroscope samples (t x y z: s, rad/s, the OS's drift removed), Android device axes"
             ));
@@ -274,6 +275,7 @@ pub(super) fn headerless_import(
                 *rate -= drift;
             }
             recording.gyro_in_body_radps = gyro;
+            recording.gyro_bias = GyroBias::RemovedByDevice;
             notes.push(format!(
                 "{n} gyroscope samples (t x y z bx by bz: s, rad/s): the raw rate minus the OS's \
                  drift estimate, Android device axes"

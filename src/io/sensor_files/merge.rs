@@ -8,7 +8,7 @@ use nalgebra::Vector3;
 
 use super::{base_name, utc_text, Role, SensorImport, HEADERLESS_TEXT, SENSOR_LOGGER};
 use crate::io::delimited::RawImport;
-use crate::recording::{Recording, Stream};
+use crate::recording::{GyroBias, Recording, Stream};
 
 /// The merge's choices among per-sensor files, in file order: an alternative
 /// accelerometer or gyroscope is used only without the other; a raw magnetometer is the
@@ -63,6 +63,7 @@ pub fn choose(files: Vec<(String, SensorImport)>) -> (Vec<(String, RawImport)>, 
             }
             Role::Gyroscope { alternative: true } if main_gyro.is_some() => {
                 recording.gyro_in_body_radps = Stream::default();
+                recording.gyro_bias = GyroBias::default();
                 notes.push(format!(
                     "{}: not used, {} is the gyroscope",
                     base_name(&name),

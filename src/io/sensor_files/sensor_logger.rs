@@ -37,6 +37,7 @@ use super::{Role, SensorFile, SensorImport, SENSOR_LOGGER};
 use crate::io::delimited::{self, RawImport, SensorAxes, XyzColumns};
 use crate::io::number::parse_f64;
 use crate::io::shorten;
+use crate::recording::GyroBias;
 
 /// Sensor Logger's per-sensor files.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -236,6 +237,9 @@ pub fn finish_logger(
     report.notes = notes;
     if kind.xyz_columns().is_some() {
         raw.axes = SensorAxes::AndroidDevice;
+    }
+    if kind == LoggerFile::Gyroscope {
+        report.recording.gyro_bias = GyroBias::RemovedByDevice;
     }
     SensorImport {
         raw,

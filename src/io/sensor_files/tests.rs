@@ -7,6 +7,7 @@ use nalgebra::Vector3;
 use super::*;
 use crate::io::import::import_files;
 use crate::io::MagUnit;
+use crate::recording::GyroBias;
 
 fn lines(text: &str) -> Vec<&str> {
     text.lines()
@@ -123,6 +124,28 @@ fn a_sensor_logger_folder_gives_each_file_its_meaning() {
 }
 
 #[test]
+fn sensor_loggers_gyroscope_is_bias_free_and_its_uncalibrated_twin_is_raw() {
+    const RATES: &str = "time,seconds_elapsed,z,y,x\n\
+        1679068247375690000,0.17668994140625,0.01,0.02,0.03\n\
+        1679068247395690000,0.19668994140625,0.01,0.02,0.03\n";
+    let gyro_bias = |names: &[&'static str]| {
+        let mut files: Vec<(&str, &[u8])> = vec![("TotalAcceleration.csv", TOTAL.as_bytes())];
+        files.extend(names.iter().map(|name| (*name, RATES.as_bytes())));
+        let report = import_files(&files).expect("imports");
+        assert_eq!(report.recording.gyro_in_body_radps.len(), 2, "{names:?}");
+        report.recording.gyro_bias
+    };
+    assert_eq!(gyro_bias(&["Gyroscope.csv"]), GyroBias::RemovedByDevice);
+    assert_eq!(gyro_bias(&["GyroscopeUncalibrated.csv"]), GyroBias::Unknown);
+    for names in [
+        ["Gyroscope.csv", "GyroscopeUncalibrated.csv"],
+        ["GyroscopeUncalibrated.csv", "Gyroscope.csv"],
+    ] {
+        assert_eq!(gyro_bias(&names), GyroBias::RemovedByDevice, "{names:?}");
+    }
+}
+
+#[test]
 fn the_calibrated_magnetometer_alone_is_the_magnetometer() {
     let files: Vec<(&str, &[u8])> = vec![
         ("Magnetometer.csv", CALIBRATED.as_bytes()),
@@ -167,6 +190,11 @@ fn a_headerless_trial_folder_gives_acc_gyro_mag_and_the_os_bias() {
     let r = &report.recording;
     assert_eq!(r.acc_in_body_mps2.len(), 2);
     assert_eq!(r.gyro_in_body_radps.len(), 1);
+    assert_eq!(
+        r.gyro_bias,
+        GyroBias::RemovedByDevice,
+        "the OS's drift removed"
+    );
     assert_eq!(r.mag_in_body_ut.len(), 2, "not the rotation vector's");
     assert_eq!(r.mag_bias_in_body_ut.len(), 2);
     assert_eq!(r.start_unix_s, Some(1_464_686_052.0));

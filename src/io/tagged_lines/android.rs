@@ -226,6 +226,8 @@ mod tests {
         assert_eq!(report.header, None);
         assert_eq!(report.n_data_lines, 13);
         let r = &report.recording;
+        // TYPE_GYROSCOPE is the rate with the OS's drift estimate removed.
+        assert_eq!(r.gyro_bias, crate::recording::GyroBias::RemovedByDevice);
 
         // Times count from the startTime header, in seconds.
         assert_eq!(r.acc_in_body_mps2.len(), 2);

@@ -11,7 +11,7 @@ use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector2, Vector3};
 use crate::angle::wrap_to_2pi;
 use crate::io::axes::PhoneMount;
 use crate::io::{shorten, Diagnostics, ImportError, ImportReport, MagUnit, SensorFrame};
-use crate::recording::{Attitude, GnssFix, Recording, Stream};
+use crate::recording::{Attitude, GnssFix, GyroBias, Recording, Stream};
 
 /// Distinct ignored tags listed by name; past this they are only counted, so that a
 /// file of garbage cannot grow the list without bound.
@@ -198,6 +198,8 @@ impl Collector {
         let mut recording = Recording {
             acc_in_body_mps2: convert(&self.acc_in_device_mps2, to_s, to_body),
             gyro_in_body_radps: convert(&self.gyro_in_device_radps, to_s, to_body),
+            // Both dialects log Android's `TYPE_GYROSCOPE`, the OS's drift removed.
+            gyro_bias: GyroBias::RemovedByDevice,
             temp_c: convert(&self.temp_c, to_s, |v| *v),
             pressure_hpa: convert(&self.pressure_hpa, to_s, |v| *v),
             gnss: convert(&self.gnss, to_s, |v| *v),

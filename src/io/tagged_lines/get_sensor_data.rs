@@ -459,6 +459,8 @@ mod tests {
         assert_eq!(report.format, GET_SENSOR_DATA);
         assert_eq!(report.n_data_lines, 17);
         let r = &report.recording;
+        // GYRO is Android's TYPE_GYROSCOPE.
+        assert_eq!(r.gyro_bias, crate::recording::GyroBias::RemovedByDevice);
 
         // AppTimestamp is the time, unchanged.
         assert_eq!(r.acc_in_body_mps2.t_s, vec![0.012, 0.032]);
