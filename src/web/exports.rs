@@ -1,5 +1,6 @@
 //! The exports: every file the page offers for download, written by the core (calibration
-//! JSON and C snippet, corrected CSV, the track as GeoJSON and GPX, the HTML report) or
+//! JSON and C snippet, corrected CSV, the attitude filter's headings, the track as GeoJSON
+//! and GPX, the HTML report) or
 //! taken from a canvas (PNG), and the download itself.
 
 use std::rc::Rc;
@@ -14,15 +15,18 @@ use super::dom::set_text;
 use super::page::{Page, Results};
 use crate::calib::export::{c_snippet, CalibrationExport};
 use crate::pdr::export::{track_text, TrackFormat};
+use crate::pipeline;
+use crate::recording::Recording;
 use crate::report::{
     corrected_csv, device_export, escape_html, html_report, ReportFigure, ReportSection,
 };
 
 /// The analysis exports: button id, what it writes.
-const ANALYSIS_EXPORTS: [(&str, Export); 6] = [
+const ANALYSIS_EXPORTS: [(&str, Export); 7] = [
     ("export-calibration", Export::CalibrationJson),
     ("export-snippet", Export::CSnippet),
     ("export-csv", Export::CorrectedCsv),
+    ("export-attitude", Export::AttitudeCsv),
     ("export-geojson", Export::Track(TrackFormat::GeoJson)),
     ("export-gpx", Export::Track(TrackFormat::Gpx)),
     ("export-report", Export::HtmlReport),
@@ -33,6 +37,7 @@ enum Export {
     CalibrationJson,
     CSnippet,
     CorrectedCsv,
+    AttitudeCsv,
     Track(TrackFormat),
     HtmlReport,
 }
@@ -46,7 +51,7 @@ pub fn wire(page: &Rc<Page>) {
         let page = Rc::clone(page);
         EventListener::new(&button, "click", move |_| {
             let message = match page.results() {
-                Some(results) => write(&page.document, &results, export).err(),
+                Some(results) => write(&page, &results, export).err(),
                 None => Some("Nothing to export yet: drop a log first.".to_string()),
             };
             set_text(
@@ -57,12 +62,14 @@ pub fn wire(page: &Rc<Page>) {
         })
         .forget();
     }
-    enable(&page.document, None);
+    enable(&page.document, None, None);
     add_png_buttons(&page.document);
 }
 
-/// Enables the analysis exports that `results` can give (none without results).
-pub fn enable(document: &Document, results: Option<&Rc<Results>>) {
+/// Enables the analysis exports that `results` (and the `recording` it came from) can
+/// give: none without results.
+pub fn enable(document: &Document, results: Option<&Rc<Results>>, recording: Option<&Recording>) {
+    let attitude_missing = recording.and_then(attitude_missing);
     for (id, export) in ANALYSIS_EXPORTS {
         let Some(button) = document
             .get_element_by_id(id)
@@ -78,6 +85,7 @@ pub fn enable(document: &Document, results: Option<&Rc<Results>>) {
                 results.pdr.as_ref().is_ok_and(|pdr| pdr.frame.is_some())
             }
             Export::Track(TrackFormat::Csv) => results.pdr.is_ok(),
+            Export::AttitudeCsv => recording.is_some() && attitude_missing.is_none(),
             Export::CorrectedCsv | Export::HtmlReport => true,
         });
         button.set_disabled(!available);
@@ -91,6 +99,11 @@ pub fn enable(document: &Document, results: Option<&Rc<Results>>) {
                 ),
                 Ok(_) => None,
             },
+            (Some(_), Export::AttitudeCsv) => Some(
+                attitude_missing
+                    .clone()
+                    .unwrap_or_else(|| "The log this analysis came from is gone.".to_string()),
+            ),
             (Some(results), Export::CalibrationJson | Export::CSnippet)
                 if results.calibration.device_calibration().is_none() =>
             {
@@ -112,8 +125,26 @@ pub fn enable(document: &Document, results: Option<&Rc<Results>>) {
     set_text(document, "export-status", "");
 }
 
+/// Why the attitude filter cannot run on `recording`, if it cannot.
+pub(super) fn attitude_missing(recording: &Recording) -> Option<String> {
+    let missing: Vec<&str> = [
+        ("gyroscope", recording.gyro_in_body_radps.is_empty()),
+        ("accelerometer", recording.acc_in_body_mps2.is_empty()),
+    ]
+    .into_iter()
+    .filter_map(|(sensor, absent)| absent.then_some(sensor))
+    .collect();
+    (!missing.is_empty()).then(|| {
+        format!(
+            "The attitude filter needs a gyroscope and an accelerometer; this log has no {}.",
+            missing.join(" and no ")
+        )
+    })
+}
+
 /// Writes one export of `results` and offers it for download.
-fn write(document: &Document, results: &Results, export: Export) -> Result<(), String> {
+fn write(page: &Page, results: &Results, export: Export) -> Result<(), String> {
+    let document = &page.document;
     let stem = file_stem(&results.calibration.report.file_name);
     match export {
         Export::CalibrationJson => {
@@ -143,6 +174,19 @@ fn write(document: &Document, results: &Results, export: Export) -> Result<(), S
             corrected_csv(&results.calibration).as_bytes(),
             "text/csv",
         ),
+        Export::AttitudeCsv => {
+            let import = page
+                .import()
+                .ok_or("the log this analysis came from is gone: drop it again")?;
+            let text = pipeline::attitude_csv(&import, &results.calibration)
+                .map_err(|error| error.to_string())?;
+            download_bytes(
+                document,
+                &format!("{stem}-attitude.csv"),
+                text.as_bytes(),
+                "text/csv",
+            );
+        }
         Export::Track(format) => {
             let pdr = results.pdr.as_ref().map_err(Clone::clone)?;
             let text = track_text(pdr, format)?;

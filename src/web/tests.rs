@@ -252,3 +252,25 @@ fn plots_are_drawn_at_the_device_pixel_ratio_and_laid_out_in_css_pixels() {
     assert_eq!(canvas.width(), (300.0 * ratio).round() as u32);
     assert!(n_drawn_pixels(&canvas) > 100);
 }
+
+#[wasm_bindgen_test]
+fn the_attitude_download_says_which_sensors_a_log_lacks() {
+    use crate::recording::{Recording, Stream};
+    let walk = crate::io::import::import("walk.csv", &simulated_csv()).expect("readable");
+    assert_eq!(super::exports::attitude_missing(&walk.recording), None);
+    let compass_only = Recording {
+        mag_in_body_ut: walk.recording.mag_in_body_ut.clone(),
+        ..Recording::default()
+    };
+    assert_eq!(
+        super::exports::attitude_missing(&compass_only).as_deref(),
+        Some(
+            "The attitude filter needs a gyroscope and an accelerometer; this log has no \
+             gyroscope and no accelerometer."
+        )
+    );
+    let mut no_gyro = walk.recording;
+    no_gyro.gyro_in_body_radps = Stream::default();
+    assert!(super::exports::attitude_missing(&no_gyro)
+        .is_some_and(|message| message.ends_with("this log has no gyroscope.")));
+}

@@ -57,6 +57,24 @@ test('every export of the demo analysis downloads and reads back', async () => {
   const rms = Math.sqrt(errors.reduce((sum, e) => sum + e * e, 0) / errors.length);
   assert.ok(rms < 5, `the corrected headings follow the reference (RMS ${rms.toFixed(2)}°)`);
 
+  // The attitude filter's headings: the CLI's `--attitude-out` file, one row per gyroscope
+  // sample, its yaw from true north following the demo's true heading.
+  const attitude = await download(page, '#export-attitude');
+  assert.equal(attitude.name, 'demo-walk-attitude.csv');
+  const attitudeLines = attitude.bytes.toString('utf8').trimEnd().split('\n');
+  assert.match(attitudeLines[1], /^# yaw_deg: heading of the body x axis, clockwise from true north/);
+  const columnsAt = attitudeLines.findIndex((line) => !line.startsWith('#'));
+  assert.equal(attitudeLines[columnsAt], 't_s,yaw_deg,pitch_deg,roll_deg,yaw_sigma_deg');
+  const attitudeRows = attitudeLines.slice(columnsAt + 1).map((row) => row.split(',').map(Number));
+  assert.ok(attitudeRows.length >= 11900, `${attitudeRows.length} rows`);
+  const refAt = new Map(csv.slice(1).map((row) => row.split(','))
+    .filter((cells) => cells[refColumn] !== '').map((cells) => [Number(cells[0]).toFixed(2), Number(cells[refColumn])]));
+  const yawErrors = attitudeRows.filter(([t]) => refAt.has(t.toFixed(2)))
+    .map(([t, yaw]) => ((yaw - refAt.get(t.toFixed(2)) + 540) % 360) - 180);
+  assert.ok(yawErrors.length > 10000, `${yawErrors.length} rows with a reference`);
+  const yawRms = Math.sqrt(yawErrors.reduce((sum, e) => sum + e * e, 0) / yawErrors.length);
+  assert.ok(yawRms < 4, `the filter's yaw follows the true heading (RMS ${yawRms.toFixed(2)}°)`);
+  assert.ok(attitudeRows.every((cells) => cells.length === 5 && cells[4] > 0), 'every row has a positive yaw σ');
 
   // The HTML report: self-contained, with the table, the figures and the PDR summary.
   const report = await download(page, '#export-report');
@@ -101,6 +119,7 @@ test('every export of the demo analysis downloads and reads back', async () => {
   await page.setInputFiles('#file-input', join(out, 'drop-walk.csv'));
   await waitForState(page, 'ready', 'drop-walk.csv');
   assert.equal(await page.isDisabled('#export-geojson'), true);
+  assert.equal(await page.isDisabled('#export-attitude'), false, 'a walk with a gyroscope has an attitude');
   assert.match(await page.getAttribute('#export-geojson', 'title'), /no latitude and longitude/);
 
   assert.deepEqual(problems, []);

@@ -186,6 +186,11 @@ impl Page {
         }
     }
 
+    /// The import the latest analysis came from, if there is one.
+    pub fn import(&self) -> Option<Rc<ImportReport>> {
+        self.import.borrow().clone()
+    }
+
     /// The latest analysis, if there is one.
     pub fn results(&self) -> Option<Rc<Results>> {
         self.results.borrow().clone()

@@ -53,7 +53,12 @@ impl Page {
     /// Keeps the analysis for the exports and enables their buttons.
     pub(super) fn keep_results(&self, results: Results) {
         let results = Rc::new(results);
-        crate::web::exports::enable(&self.document, Some(&results));
+        let import = self.import();
+        crate::web::exports::enable(
+            &self.document,
+            Some(&results),
+            import.as_ref().map(|import| &import.recording),
+        );
         *self.results.borrow_mut() = Some(results);
         self.show_timeline();
     }
@@ -229,7 +234,7 @@ impl Page {
     /// the previous file so that none of them is taken for this one's.
     pub(crate) fn show_error(&self, message: &str) {
         self.results.borrow_mut().take();
-        crate::web::exports::enable(&self.document, None);
+        crate::web::exports::enable(&self.document, None, None);
         self.body.remove_attribute("data-file").ok();
         self.set_text("result-file", "—");
         for id in [
