@@ -159,6 +159,8 @@ pub struct AttitudeSummary {
     pub n_rest_updates: usize,
     /// The gyroscope's bias at the end (rad/s, body axes).
     pub final_gyro_bias_radps: [f64; 3],
+    /// Its 1σ (rad/s, body axes).
+    pub final_gyro_bias_sigma_radps: [f64; 3],
     pub field_reference: Option<FieldReference>,
 }
 
@@ -291,6 +293,7 @@ impl<'a> Run<'a> {
                 n_recoveries: 0,
                 n_rest_updates: 0,
                 final_gyro_bias_radps: [0.0; 3],
+                final_gyro_bias_sigma_radps: [0.0; 3],
                 field_reference: reference,
             },
         }
@@ -337,6 +340,8 @@ impl<'a> Run<'a> {
         }
         if let Some(filter) = &self.filter {
             self.summary.final_gyro_bias_radps = filter.gyro_bias_radps.into();
+            self.summary.final_gyro_bias_sigma_radps =
+                std::array::from_fn(|axis| filter.covariance[(3 + axis, 3 + axis)].sqrt());
         }
     }
 

@@ -10,6 +10,7 @@ use compass_pdr::heading::HeadingOptions;
 use compass_pdr::pdr::fusion::{GnssPolicy, Outage};
 use compass_pdr::pdr::step_length::StepModelKind;
 use compass_pdr::pdr::{HeadingChoice, PdrOptions};
+use compass_pdr::recording::GyroBias;
 use compass_pdr::reference::{ReferenceChoice, ReferenceOptions};
 
 /// The files to read, and how to read their columns.
@@ -25,6 +26,39 @@ pub(super) struct ImportArgs {
     /// files with the same header, in $XDG_CONFIG_HOME/compass-pdr/mappings.json.
     #[arg(long)]
     pub(super) map: Option<String>,
+    /// What the device did to the gyroscope's rates before logging them: `removed` (the
+    /// OS subtracted its own bias estimate, as Android's TYPE_GYROSCOPE does, which is
+    /// what phyphox and most apps on Android read) or `raw`. By default what the log
+    /// says: Android sensor dumps, GetSensorData, TYREX's files and Sensor Logger's
+    /// Gyroscope.csv say `removed`, and other logs are taken as raw. It sets how large a
+    /// bias the attitude filter expects.
+    #[arg(long, value_enum)]
+    pub(super) gyro_bias: Option<GyroBiasArg>,
+}
+
+/// `--gyro-bias`.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub(super) enum GyroBiasArg {
+    Removed,
+    Raw,
+}
+
+impl GyroBiasArg {
+    pub(super) fn gyro_bias(self) -> GyroBias {
+        match self {
+            GyroBiasArg::Removed => GyroBias::RemovedByDevice,
+            GyroBiasArg::Raw => GyroBias::Unknown,
+        }
+    }
+
+    pub(super) fn note(self) -> &'static str {
+        match self {
+            GyroBiasArg::Removed => {
+                "--gyro-bias removed: the gyroscope's rates are taken as having the OS's bias estimate removed"
+            }
+            GyroBiasArg::Raw => "--gyro-bias raw: the gyroscope's rates are taken as raw, their bias in them",
+        }
+    }
 }
 
 /// The choices every analysis shares: the split, the reference, the declination.

@@ -66,7 +66,12 @@ pub(super) fn import_paths(input: &ImportArgs) -> Result<ImportReport, String> {
     if let Err(message) = store.save_if_changed() {
         eprintln!("warning: {message}");
     }
-    merge(results).map_err(|error| error.to_string())
+    let mut report = merge(results).map_err(|error| error.to_string())?;
+    if let Some(stated) = input.gyro_bias {
+        report.recording.gyro_bias = stated.gyro_bias();
+        report.notes.push(stated.note().to_string());
+    }
+    Ok(report)
 }
 
 pub(super) fn run_inspect(input: &ImportArgs, json: bool) -> Result<(), String> {
