@@ -69,9 +69,17 @@ pub(super) fn heading_text(report: &HeadingReport) -> String {
         "  declination: {:.2}° ({})",
         report.calibration.declination.declination_deg, report.calibration.declination.source
     );
+    // The label column as wide as its longest label, so that the numbers line up.
+    let width = report
+        .rows
+        .iter()
+        .map(|row| row.label.chars().count())
+        .max()
+        .unwrap_or(0)
+        .max(36);
     let _ = writeln!(
         text,
-        "  {:<36} {:>9} {:>16} {:>9} {:>9} {:>8}",
+        "  {:<width$} {:>9} {:>16} {:>9} {:>9} {:>8}",
         "heading method", "train RMS", "check mean±std", "check RMS", "check p95", "±5°"
     );
     let cell = |stats: Option<HeadingErrorStats>, pick: fn(&HeadingErrorStats) -> String| {
@@ -79,7 +87,7 @@ pub(super) fn heading_text(report: &HeadingReport) -> String {
     };
     for row in &report.rows {
         if let Some(error) = &row.error {
-            let _ = writeln!(text, "  {:<36} not fitted: {error}", row.label);
+            let _ = writeln!(text, "  {:<width$} not fitted: {error}", row.label);
             continue;
         }
         let best = if report.best.as_deref() == Some(row.key.as_str()) {
@@ -89,7 +97,7 @@ pub(super) fn heading_text(report: &HeadingReport) -> String {
         };
         let _ = writeln!(
             text,
-            "  {:<36} {:>9} {:>16} {:>9} {:>9} {:>8}{best}",
+            "  {:<width$} {:>9} {:>16} {:>9} {:>9} {:>8}{best}",
             row.label,
             cell(row.train, |stats| format!("{:.2}°", stats.rms_deg)),
             cell(row.check, |stats| format!(
