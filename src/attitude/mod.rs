@@ -157,6 +157,8 @@ pub struct AttitudeSummary {
     pub n_field_contradicting: usize,
     pub n_recoveries: usize,
     pub n_rest_updates: usize,
+    /// The prior 1σ of the gyroscope's bias (rad/s): [`AttitudeOptions::initial_bias_sigma_radps`].
+    pub initial_gyro_bias_sigma_radps: f64,
     /// The gyroscope's bias at the end (rad/s, body axes).
     pub final_gyro_bias_radps: [f64; 3],
     /// Its 1σ (rad/s, body axes).
@@ -292,6 +294,7 @@ impl<'a> Run<'a> {
                 n_field_contradicting: 0,
                 n_recoveries: 0,
                 n_rest_updates: 0,
+                initial_gyro_bias_sigma_radps: options.initial_bias_sigma_radps,
                 final_gyro_bias_radps: [0.0; 3],
                 final_gyro_bias_sigma_radps: [0.0; 3],
                 field_reference: reference,

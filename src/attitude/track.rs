@@ -132,6 +132,15 @@ pub fn attitude_csv(
     let _ = writeln!(text, "# body axes: {body_axes}");
     let _ = writeln!(text, "# pitch_deg, roll_deg: body x forward, y right, z down relative to north-east-down (ZYX Euler angles)");
     let _ = writeln!(text, "# yaw_sigma_deg: the filter's 1-sigma of the yaw");
+    let summary = &track.summary;
+    let deg = |radps: f64| radps.to_degrees();
+    let [bx, by, bz] = summary.final_gyro_bias_radps.map(deg);
+    let [sx, sy, sz] = summary.final_gyro_bias_sigma_radps.map(deg);
+    let _ = writeln!(
+        text,
+        "# gyroscope bias (deg/s, body x y z): prior 1-sigma {:.2}; at the end ({bx:.3}, {by:.3}, {bz:.3}) +- ({sx:.3}, {sy:.3}, {sz:.3})",
+        deg(summary.initial_gyro_bias_sigma_radps)
+    );
     match start_unix_s {
         Some(start_s) => {
             let _ = writeln!(
