@@ -4,7 +4,7 @@
 use nalgebra::Vector3;
 use serde::Serialize;
 
-use crate::recording::{GyroBias, Recording, Stream};
+use crate::recording::{Recording, Stream};
 
 /// One stream of a recording, summarised.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -39,13 +39,7 @@ pub fn summarize(recording: &Recording) -> Vec<StreamSummary> {
         }
     };
     vector("accelerometer", "m/s²", &recording.acc_in_body_mps2);
-    // Whether the OS removed the bias says how far the user can trust the rates (and
-    // sets the attitude filter's prior): the name says so where the log does.
-    let gyroscope = match recording.gyro_bias {
-        GyroBias::RemovedByDevice => "gyroscope (OS bias removed)",
-        GyroBias::Unknown => "gyroscope",
-    };
-    vector(gyroscope, "rad/s", &recording.gyro_in_body_radps);
+    vector("gyroscope", "rad/s", &recording.gyro_in_body_radps);
     vector("magnetometer", "µT", &recording.mag_in_body_ut);
     vector(
         "magnetometer bias (device's own)",

@@ -190,6 +190,12 @@ impl Collector {
                 .collect();
             notes.push(format!("read {} samples", counts.join(", ")));
         }
+        if !self.gyro_in_device_radps.is_empty() {
+            notes.push(
+                "gyroscope: Android's TYPE_GYROSCOPE, the rate with the OS's bias estimate removed"
+                    .to_string(),
+            );
+        }
         notes.push(clock.note.clone());
         let mount = detect_mount(&self.acc_in_device_mps2, &mut notes);
 
