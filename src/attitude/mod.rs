@@ -29,10 +29,13 @@
 //!   re-aimed at it (the filter, not the field, was wrong);
 //! - every output carries the yaw's 1σ, which grows while the field is refused.
 //!
-//! It runs sample by sample in time order, so the same code serves a file and a live
-//! stream; nothing here looks ahead.
+//! It runs sample by sample in time order ([`filter::AttitudeFilter`]), so the same code
+//! serves a file ([`estimate_attitude`]) and a live stream; nothing in it looks ahead.
+//! From a file, only the field's sample interval and the gyroscope's gap limit are read
+//! off the whole log ([`StreamTiming::of`]); a live caller states them.
 
 pub mod eskf;
+pub mod filter;
 pub mod gates;
 pub mod track;
 
@@ -40,8 +43,9 @@ use nalgebra::Vector3;
 use serde::Serialize;
 
 use crate::recording::{GyroBias, Stream};
-use eskf::{Eskf, Fused, NoiseModel};
-use gates::{dip_of, AccelerationLevel, FieldReference, MagneticGate, QuasiStaticField};
+use eskf::NoiseModel;
+pub use filter::{AttitudeFilter, StreamTiming};
+use gates::FieldReference;
 
 /// A heading the field contradicts (beyond the gate) for this long (s), while its
 /// magnitude and dip look undisturbed, is re-aimed at the field.
@@ -206,11 +210,37 @@ pub fn estimate_attitude(
     if sensors.acc_in_body_mps2.is_empty() {
         return Err(AttitudeError::NoAccelerometer);
     }
-    let mut run = Run::new(sensors, reference, *options);
-    run.all();
+    let mut filter = AttitudeFilter::new(reference, StreamTiming::of(&sensors), options);
+    let n_gyro = sensors.gyro_in_body_radps.len();
+    let mut attitude = Stream {
+        t_s: Vec::with_capacity(n_gyro),
+        values: Vec::with_capacity(n_gyro),
+    };
+    let mut cursors = [0usize; 3];
+    while let Some((which, t_s)) = next(&sensors, &cursors) {
+        match which {
+            Next::Gyro => {
+                let rate = sensors.gyro_in_body_radps.values[cursors[0]];
+                cursors[0] += 1;
+                if let Some(estimate) = filter.gyro(t_s, rate) {
+                    attitude.push(t_s, estimate);
+                }
+            }
+            Next::Acc => {
+                let force = sensors.acc_in_body_mps2.values[cursors[1]];
+                cursors[1] += 1;
+                filter.acc(t_s, force);
+            }
+            Next::Field => {
+                let field = sensors.field_in_body_ut.values[cursors[2]];
+                cursors[2] += 1;
+                filter.field(t_s, field);
+            }
+        }
+    }
     Ok(AttitudeTrack {
-        attitude: run.output,
-        summary: run.summary,
+        attitude,
+        summary: filter.summary(),
     })
 }
 
@@ -222,292 +252,21 @@ enum Next {
     Field,
 }
 
-/// One pass of the filter: the streams' cursors, the filter, its gates and its output.
-struct Run<'a> {
-    sensors: Sensors<'a>,
-    options: AttitudeOptions,
-    filter: Option<Eskf>,
-    gate: Option<MagneticGate>,
-    quasi_static: QuasiStaticField,
-    acceleration: AccelerationLevel,
-    /// The latest specific force and field, for the initial attitude.
-    last_force: Option<Vector3<f64>>,
-    last_field: Option<Vector3<f64>>,
-    last_gyro_t_s: Option<f64>,
-    /// Since when the body has looked at rest, and since when the field has contradicted
-    /// the heading while looking undisturbed.
-    rest_since_s: Option<f64>,
-    contradicting_since_s: Option<f64>,
-    field_used: bool,
-    /// The accelerometer samples not fused yet: the first one's time, the sum of their
-    /// unit directions in the navigation frame, how many, the largest acceleration level.
-    gravity_block: Option<(f64, Vector3<f64>, usize, f64)>,
-    cursors: [usize; 3],
-    /// One field sample's 1σ (rad), from the noise density and the field's interval.
-    heading_sigma_rad: f64,
-    /// The longest gyroscope interval integrated (s).
-    max_gyro_gap_s: f64,
-    output: Stream<AttitudeEstimate>,
-    summary: AttitudeSummary,
-}
-
-impl<'a> Run<'a> {
-    fn new(
-        sensors: Sensors<'a>,
-        reference: Option<FieldReference>,
-        options: AttitudeOptions,
-    ) -> Run<'a> {
-        let n_gyro = sensors.gyro_in_body_radps.len();
-        Run {
-            sensors,
-            options,
-            filter: None,
-            gate: reference.map(MagneticGate::new),
-            quasi_static: QuasiStaticField::default(),
-            acceleration: AccelerationLevel::new(),
-            last_force: None,
-            last_field: None,
-            last_gyro_t_s: None,
-            rest_since_s: None,
-            contradicting_since_s: None,
-            field_used: false,
-            gravity_block: None,
-            cursors: [0; 3],
-            heading_sigma_rad: options.heading_noise_rad_sqrt_s
-                / sensors
-                    .field_in_body_ut
-                    .median_interval_s()
-                    .unwrap_or(0.02)
-                    .sqrt(),
-            max_gyro_gap_s: sensors.gyro_in_body_radps.gap_limit_s(MAX_GYRO_GAP_S),
-            output: Stream {
-                t_s: Vec::with_capacity(n_gyro),
-                values: Vec::with_capacity(n_gyro),
-            },
-            summary: AttitudeSummary {
-                n_gyro_samples: 0,
-                n_gyro_gaps: 0,
-                n_gravity_fused: 0,
-                n_gravity_refused: 0,
-                n_field_fused: 0,
-                n_field_disturbed: 0,
-                n_field_contradicting: 0,
-                n_recoveries: 0,
-                n_rest_updates: 0,
-                initial_gyro_bias_sigma_radps: options.initial_bias_sigma_radps,
-                final_gyro_bias_radps: [0.0; 3],
-                final_gyro_bias_sigma_radps: [0.0; 3],
-                field_reference: reference,
-            },
+/// The earliest unread sample, gyroscope first at equal times (the attitude is carried
+/// to a time before it is corrected there).
+fn next(sensors: &Sensors<'_>, cursors: &[usize; 3]) -> Option<(Next, f64)> {
+    let times = [
+        (Next::Gyro, &sensors.gyro_in_body_radps.t_s),
+        (Next::Acc, &sensors.acc_in_body_mps2.t_s),
+        (Next::Field, &sensors.field_in_body_ut.t_s),
+    ];
+    let mut best: Option<(Next, f64)> = None;
+    for (idx, (which, t_s)) in times.into_iter().enumerate() {
+        if let Some(&t) = t_s.get(cursors[idx]) {
+            if best.is_none_or(|(_, best_t)| t < best_t) {
+                best = Some((which, t));
+            }
         }
     }
-
-    /// The earliest unread sample, gyroscope first at equal times (the attitude is
-    /// carried to a time before it is corrected there).
-    fn next(&self) -> Option<(Next, f64)> {
-        let times = [
-            (Next::Gyro, &self.sensors.gyro_in_body_radps.t_s),
-            (Next::Acc, &self.sensors.acc_in_body_mps2.t_s),
-            (Next::Field, &self.sensors.field_in_body_ut.t_s),
-        ];
-        let mut best: Option<(Next, f64)> = None;
-        for (idx, (which, t_s)) in times.into_iter().enumerate() {
-            if let Some(&t) = t_s.get(self.cursors[idx]) {
-                if best.is_none_or(|(_, best_t)| t < best_t) {
-                    best = Some((which, t));
-                }
-            }
-        }
-        best
-    }
-
-    fn all(&mut self) {
-        while let Some((which, t_s)) = self.next() {
-            match which {
-                Next::Gyro => {
-                    let rate = self.sensors.gyro_in_body_radps.values[self.cursors[0]];
-                    self.cursors[0] += 1;
-                    self.gyro(t_s, rate);
-                }
-                Next::Acc => {
-                    let force = self.sensors.acc_in_body_mps2.values[self.cursors[1]];
-                    self.cursors[1] += 1;
-                    self.acc(t_s, force);
-                }
-                Next::Field => {
-                    let field = self.sensors.field_in_body_ut.values[self.cursors[2]];
-                    self.cursors[2] += 1;
-                    self.field(t_s, field);
-                }
-            }
-        }
-        if let Some(filter) = &self.filter {
-            self.summary.final_gyro_bias_radps = filter.gyro_bias_radps.into();
-            self.summary.final_gyro_bias_sigma_radps =
-                std::array::from_fn(|axis| filter.covariance[(3 + axis, 3 + axis)].sqrt());
-        }
-    }
-
-    /// The filter, started at the first gyroscope sample after a specific force (and a
-    /// field, when the log has one and a reference for it) was seen.
-    fn start(&mut self) {
-        if self.filter.is_none() {
-            let Some(force) = self.last_force else {
-                return;
-            };
-            let wants_field = self.gate.is_some() && !self.sensors.field_in_body_ut.is_empty();
-            if wants_field && self.last_field.is_none() {
-                return;
-            }
-            let field = self.last_field.filter(|_| wants_field);
-            let yaw_sigma_rad = if field.is_some() {
-                0.2
-            } else {
-                std::f64::consts::PI
-            };
-            self.filter = Some(Eskf::new(
-                eskf::attitude_from(force, field),
-                (0.05, yaw_sigma_rad, self.options.initial_bias_sigma_radps),
-                self.options.noise,
-            ));
-        }
-    }
-
-    fn gyro(&mut self, t_s: f64, rate_radps: Vector3<f64>) {
-        if !rate_radps.iter().all(|v| v.is_finite()) {
-            return;
-        }
-        let dt_s = self.last_gyro_t_s.map(|last_s| t_s - last_s);
-        self.last_gyro_t_s = Some(t_s);
-        let options = self.options;
-        self.start();
-        let Some(filter) = self.filter.as_mut() else {
-            return;
-        };
-        match dt_s {
-            Some(dt_s) if dt_s > 0.0 && dt_s <= self.max_gyro_gap_s => {
-                filter.propagate(rate_radps, dt_s)
-            }
-            Some(dt_s) if dt_s > self.max_gyro_gap_s => {
-                filter.inflate_yaw(
-                    (GAP_RATE_RADPS * dt_s)
-                        .powi(2)
-                        .min(std::f64::consts::PI.powi(2)),
-                );
-                self.summary.n_gyro_gaps += 1;
-            }
-            _ => {}
-        }
-        // At rest the gyroscope reads its bias.
-        let corrected = rate_radps - filter.gyro_bias_radps;
-        if corrected.norm() < options.rest_rate_radps {
-            let since_s = *self.rest_since_s.get_or_insert(t_s);
-            if t_s - since_s >= options.rest_hold_s {
-                filter.fuse_zero_rate(rate_radps, options.rest_rate_radps);
-                self.summary.n_rest_updates += 1;
-            }
-        } else {
-            self.rest_since_s = None;
-        }
-        let (roll_rad, pitch_rad, yaw_rad) = filter.roll_pitch_yaw_rad();
-        let estimate = AttitudeEstimate {
-            roll_rad,
-            pitch_rad,
-            yaw_rad,
-            yaw_sigma_rad: filter.yaw_sigma_rad(),
-            field_used: self.field_used,
-        };
-        self.output.push(t_s, estimate);
-        self.summary.n_gyro_samples += 1;
-    }
-
-    fn acc(&mut self, t_s: f64, force_mps2: Vector3<f64>) {
-        let magnitude = force_mps2.norm();
-        if !magnitude.is_finite() {
-            return;
-        }
-        self.last_force = Some(force_mps2);
-        let acceleration_mps2 =
-            self.acceleration
-                .add(t_s, magnitude, crate::io::STANDARD_GRAVITY_MPS2);
-        if acceleration_mps2 > self.options.rest_acceleration_mps2 {
-            self.rest_since_s = None;
-        }
-        let Some(filter) = self.filter.as_ref() else {
-            return;
-        };
-        // Samples closer than GRAVITY_BLOCK_S are fused as one: their directions turned
-        // into the navigation frame by the attitude at each are averaged (a fast
-        // accelerometer then costs the filter no more than a 50 Hz one). The sensor's
-        // share of the noise averages down; the body's acceleration, correlated over a
-        // block, does not.
-        let in_nav = filter.nav_from_body * (force_mps2 / magnitude);
-        let block = self
-            .gravity_block
-            .get_or_insert((t_s, Vector3::zeros(), 0, 0.0));
-        block.1 += in_nav;
-        block.2 += 1;
-        block.3 = block.3.max(acceleration_mps2);
-        if t_s - block.0 < GRAVITY_BLOCK_S && t_s >= block.0 {
-            return;
-        }
-        let (_, sum, n, acceleration_mps2) = *block;
-        self.gravity_block = None;
-        let mean = sum / n as f64;
-        let sigma_rad = (self.options.gravity_sigma_rad / (n as f64).sqrt())
-            .hypot(acceleration_mps2 / crate::io::STANDARD_GRAVITY_MPS2);
-        let Some(filter) = self.filter.as_mut() else {
-            return;
-        };
-        // 99.9 % of a χ² with 2 degrees of freedom.
-        match filter.fuse_gravity_in_nav(nalgebra::Vector2::new(mean.x, mean.y), sigma_rad, 13.8) {
-            Fused::Applied { .. } => self.summary.n_gravity_fused += n,
-            _ => self.summary.n_gravity_refused += n,
-        }
-    }
-
-    fn field(&mut self, t_s: f64, field_ut: Vector3<f64>) {
-        if !field_ut.iter().all(|v| v.is_finite()) {
-            return;
-        }
-        self.last_field = Some(field_ut);
-        let heading_sigma_rad = self.heading_sigma_rad;
-        let (Some(filter), Some(gate)) = (self.filter.as_mut(), self.gate.as_mut()) else {
-            return;
-        };
-        let down_in_body = filter.nav_from_body.inverse() * Vector3::z();
-        let Some(dip_rad) = dip_of(field_ut, down_in_body) else {
-            return;
-        };
-        let steady = filter
-            .magnetic_heading_error(field_ut)
-            .is_some_and(|direction_rad| self.quasi_static.steady(t_s, direction_rad));
-        let undisturbed = gate.open(t_s, field_ut.norm(), dip_rad);
-        if !(undisturbed && steady) {
-            self.summary.n_field_disturbed += 1;
-            self.contradicting_since_s = None;
-            self.field_used = false;
-            return;
-        }
-        // 99.7 % of a χ² with one degree of freedom (3σ).
-        let corrects_bias = self.options.field_corrects_bias;
-        match filter.fuse_magnetic_heading(field_ut, heading_sigma_rad, 9.0, corrects_bias) {
-            Fused::Applied { .. } => {
-                self.summary.n_field_fused += 1;
-                self.contradicting_since_s = None;
-                self.field_used = true;
-            }
-            Fused::Gated { .. } => {
-                self.summary.n_field_contradicting += 1;
-                self.field_used = false;
-                let since_s = *self.contradicting_since_s.get_or_insert(t_s);
-                if t_s - since_s >= RECOVERY_S {
-                    filter.reset_yaw_to(field_ut, heading_sigma_rad);
-                    self.summary.n_recoveries += 1;
-                    self.contradicting_since_s = None;
-                }
-            }
-            Fused::Degenerate => self.field_used = false,
-        }
-    }
+    best
 }

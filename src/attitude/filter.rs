@@ -1,0 +1,365 @@
+//! The attitude filter sample by sample ([`super`]): what each gyroscope,
+//! accelerometer and field sample does to the error-state filter ([`super::eskf`]),
+//! behind the gates ([`super::gates`]). [`super::estimate_attitude`] feeds it a log's
+//! streams in time order; a live stream can feed it as the samples come.
+
+use nalgebra::Vector3;
+
+use super::eskf::{self, Eskf, Fused};
+use super::gates::{dip_of, AccelerationLevel, FieldReference, MagneticGate, QuasiStaticField};
+use super::{
+    AttitudeEstimate, AttitudeOptions, AttitudeSummary, Sensors, GAP_RATE_RADPS, GRAVITY_BLOCK_S,
+    MAX_GYRO_GAP_S, RECOVERY_S,
+};
+
+/// What the filter must know of the streams before their samples come.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StreamTiming {
+    /// The field's sample interval (s): one field sample's 1σ is the heading noise
+    /// density over its root.
+    pub field_interval_s: f64,
+    /// The longest gyroscope interval integrated (s); a longer one is a gap.
+    pub max_gyro_gap_s: f64,
+    /// Whether a field will come: the filter then waits for its first sample to start
+    /// with a heading.
+    pub expects_field: bool,
+}
+
+impl StreamTiming {
+    /// From a log's streams: the field's median interval (50 Hz without one), the gap
+    /// limit relative to the gyroscope's own rate.
+    pub fn of(sensors: &Sensors<'_>) -> StreamTiming {
+        StreamTiming {
+            field_interval_s: sensors.field_in_body_ut.median_interval_s().unwrap_or(0.02),
+            max_gyro_gap_s: sensors.gyro_in_body_radps.gap_limit_s(MAX_GYRO_GAP_S),
+            expects_field: !sensors.field_in_body_ut.is_empty(),
+        }
+    }
+}
+
+/// The filter, its gates and what it has done: fed one sample at a time, in time order.
+#[derive(Debug, Clone)]
+pub struct AttitudeFilter {
+    options: AttitudeOptions,
+    timing: StreamTiming,
+    filter: Option<Eskf>,
+    gate: Option<MagneticGate>,
+    quasi_static: QuasiStaticField,
+    acceleration: AccelerationLevel,
+    /// The latest specific force and field, for the initial attitude.
+    last_force: Option<Vector3<f64>>,
+    last_field: Option<Vector3<f64>>,
+    last_gyro_t_s: Option<f64>,
+    /// Since when the body has looked at rest, and since when the field has contradicted
+    /// the heading while looking undisturbed.
+    rest_since_s: Option<f64>,
+    contradicting_since_s: Option<f64>,
+    field_used: bool,
+    /// The accelerometer samples not fused yet: the first one's time, the sum of their
+    /// unit directions in the navigation frame, how many, the largest acceleration level.
+    gravity_block: Option<(f64, Vector3<f64>, usize, f64)>,
+    /// One field sample's 1σ (rad), from the noise density and the field's interval.
+    heading_sigma_rad: f64,
+    summary: AttitudeSummary,
+}
+
+impl AttitudeFilter {
+    /// A filter that has seen nothing yet. Without a `reference` the field is never
+    /// trusted, and the yaw is relative to the first sample's.
+    pub fn new(
+        reference: Option<FieldReference>,
+        timing: StreamTiming,
+        options: &AttitudeOptions,
+    ) -> AttitudeFilter {
+        AttitudeFilter {
+            options: *options,
+            timing,
+            filter: None,
+            gate: reference.map(MagneticGate::new),
+            quasi_static: QuasiStaticField::default(),
+            acceleration: AccelerationLevel::new(),
+            last_force: None,
+            last_field: None,
+            last_gyro_t_s: None,
+            rest_since_s: None,
+            contradicting_since_s: None,
+            field_used: false,
+            gravity_block: None,
+            heading_sigma_rad: options.heading_noise_rad_sqrt_s / timing.field_interval_s.sqrt(),
+            summary: AttitudeSummary {
+                n_gyro_samples: 0,
+                n_gyro_gaps: 0,
+                n_gravity_fused: 0,
+                n_gravity_refused: 0,
+                n_field_fused: 0,
+                n_field_disturbed: 0,
+                n_field_contradicting: 0,
+                n_recoveries: 0,
+                n_rest_updates: 0,
+                initial_gyro_bias_sigma_radps: options.initial_bias_sigma_radps,
+                final_gyro_bias_radps: [0.0; 3],
+                final_gyro_bias_sigma_radps: [0.0; 3],
+                field_reference: reference,
+            },
+        }
+    }
+
+    /// What the filter has done so far, with the gyroscope's bias as it stands.
+    pub fn summary(&self) -> AttitudeSummary {
+        let mut summary = self.summary;
+        if let Some(filter) = &self.filter {
+            summary.final_gyro_bias_radps = filter.gyro_bias_radps.into();
+            summary.final_gyro_bias_sigma_radps =
+                std::array::from_fn(|axis| filter.covariance[(3 + axis, 3 + axis)].sqrt());
+        }
+        summary
+    }
+
+    fn start(&mut self) {
+        if self.filter.is_none() {
+            let Some(force) = self.last_force else {
+                return;
+            };
+            let wants_field = self.gate.is_some() && self.timing.expects_field;
+            if wants_field && self.last_field.is_none() {
+                return;
+            }
+            let field = self.last_field.filter(|_| wants_field);
+            let yaw_sigma_rad = if field.is_some() {
+                0.2
+            } else {
+                std::f64::consts::PI
+            };
+            self.filter = Some(Eskf::new(
+                eskf::attitude_from(force, field),
+                (0.05, yaw_sigma_rad, self.options.initial_bias_sigma_radps),
+                self.options.noise,
+            ));
+        }
+    }
+
+    /// Carries the attitude to `t_s` with the rate (rad/s, body axes) and returns it;
+    /// `None` before the filter has started (it waits for a specific force, and for a
+    /// field when one is expected) or for a rate that is not finite.
+    pub fn gyro(&mut self, t_s: f64, rate_radps: Vector3<f64>) -> Option<AttitudeEstimate> {
+        if !rate_radps.iter().all(|v| v.is_finite()) {
+            return None;
+        }
+        let dt_s = self.last_gyro_t_s.map(|last_s| t_s - last_s);
+        self.last_gyro_t_s = Some(t_s);
+        let options = self.options;
+        self.start();
+        let filter = self.filter.as_mut()?;
+        match dt_s {
+            Some(dt_s) if dt_s > 0.0 && dt_s <= self.timing.max_gyro_gap_s => {
+                filter.propagate(rate_radps, dt_s)
+            }
+            Some(dt_s) if dt_s > self.timing.max_gyro_gap_s => {
+                filter.inflate_yaw(
+                    (GAP_RATE_RADPS * dt_s)
+                        .powi(2)
+                        .min(std::f64::consts::PI.powi(2)),
+                );
+                self.summary.n_gyro_gaps += 1;
+            }
+            _ => {}
+        }
+        // At rest the gyroscope reads its bias.
+        let corrected = rate_radps - filter.gyro_bias_radps;
+        if corrected.norm() < options.rest_rate_radps {
+            let since_s = *self.rest_since_s.get_or_insert(t_s);
+            if t_s - since_s >= options.rest_hold_s {
+                filter.fuse_zero_rate(rate_radps, options.rest_rate_radps);
+                self.summary.n_rest_updates += 1;
+            }
+        } else {
+            self.rest_since_s = None;
+        }
+        let (roll_rad, pitch_rad, yaw_rad) = filter.roll_pitch_yaw_rad();
+        let estimate = AttitudeEstimate {
+            roll_rad,
+            pitch_rad,
+            yaw_rad,
+            yaw_sigma_rad: filter.yaw_sigma_rad(),
+            field_used: self.field_used,
+        };
+        self.summary.n_gyro_samples += 1;
+        Some(estimate)
+    }
+
+    /// Corrects the tilt with a specific force (m/s², body axes), in blocks of
+    /// [`GRAVITY_BLOCK_S`].
+    pub fn acc(&mut self, t_s: f64, force_mps2: Vector3<f64>) {
+        let magnitude = force_mps2.norm();
+        if !magnitude.is_finite() {
+            return;
+        }
+        self.last_force = Some(force_mps2);
+        let acceleration_mps2 =
+            self.acceleration
+                .add(t_s, magnitude, crate::io::STANDARD_GRAVITY_MPS2);
+        if acceleration_mps2 > self.options.rest_acceleration_mps2 {
+            self.rest_since_s = None;
+        }
+        let Some(filter) = self.filter.as_ref() else {
+            return;
+        };
+        // Samples closer than GRAVITY_BLOCK_S are fused as one: their directions turned
+        // into the navigation frame by the attitude at each are averaged (a fast
+        // accelerometer then costs the filter no more than a 50 Hz one). The sensor's
+        // share of the noise averages down; the body's acceleration, correlated over a
+        // block, does not.
+        let in_nav = filter.nav_from_body * (force_mps2 / magnitude);
+        let block = self
+            .gravity_block
+            .get_or_insert((t_s, Vector3::zeros(), 0, 0.0));
+        block.1 += in_nav;
+        block.2 += 1;
+        block.3 = block.3.max(acceleration_mps2);
+        if t_s - block.0 < GRAVITY_BLOCK_S && t_s >= block.0 {
+            return;
+        }
+        let (_, sum, n, acceleration_mps2) = *block;
+        self.gravity_block = None;
+        let mean = sum / n as f64;
+        let sigma_rad = (self.options.gravity_sigma_rad / (n as f64).sqrt())
+            .hypot(acceleration_mps2 / crate::io::STANDARD_GRAVITY_MPS2);
+        let Some(filter) = self.filter.as_mut() else {
+            return;
+        };
+        // 99.9 % of a χ² with 2 degrees of freedom.
+        match filter.fuse_gravity_in_nav(nalgebra::Vector2::new(mean.x, mean.y), sigma_rad, 13.8) {
+            Fused::Applied { .. } => self.summary.n_gravity_fused += n,
+            _ => self.summary.n_gravity_refused += n,
+        }
+    }
+
+    /// Corrects the yaw with a calibrated field (µT, body axes) when the gates let it.
+    pub fn field(&mut self, t_s: f64, field_ut: Vector3<f64>) {
+        if !field_ut.iter().all(|v| v.is_finite()) {
+            return;
+        }
+        self.last_field = Some(field_ut);
+        let heading_sigma_rad = self.heading_sigma_rad;
+        let (Some(filter), Some(gate)) = (self.filter.as_mut(), self.gate.as_mut()) else {
+            return;
+        };
+        let down_in_body = filter.nav_from_body.inverse() * Vector3::z();
+        let Some(dip_rad) = dip_of(field_ut, down_in_body) else {
+            return;
+        };
+        let steady = filter
+            .magnetic_heading_error(field_ut)
+            .is_some_and(|direction_rad| self.quasi_static.steady(t_s, direction_rad));
+        let undisturbed = gate.open(t_s, field_ut.norm(), dip_rad);
+        if !(undisturbed && steady) {
+            self.summary.n_field_disturbed += 1;
+            self.contradicting_since_s = None;
+            self.field_used = false;
+            return;
+        }
+        // 99.7 % of a χ² with one degree of freedom (3σ).
+        let corrects_bias = self.options.field_corrects_bias;
+        match filter.fuse_magnetic_heading(field_ut, heading_sigma_rad, 9.0, corrects_bias) {
+            Fused::Applied { .. } => {
+                self.summary.n_field_fused += 1;
+                self.contradicting_since_s = None;
+                self.field_used = true;
+            }
+            Fused::Gated { .. } => {
+                self.summary.n_field_contradicting += 1;
+                self.field_used = false;
+                let since_s = *self.contradicting_since_s.get_or_insert(t_s);
+                if t_s - since_s >= RECOVERY_S {
+                    filter.reset_yaw_to(field_ut, heading_sigma_rad);
+                    self.summary.n_recoveries += 1;
+                    self.contradicting_since_s = None;
+                }
+            }
+            Fused::Degenerate => self.field_used = false,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::attitude::{estimate_attitude, AttitudeOptions};
+    use crate::recording::Stream;
+    use crate::sim::walk::{simulate, WalkConfig};
+
+    /// A simulated walk's streams, its field calibrated exactly, and its true heading
+    /// (degrees; the walk's declination is 0).
+    fn walk(seed: u64) -> ([Stream<Vector3<f64>>; 3], Stream<f64>) {
+        let config = WalkConfig::from_seed(seed, 120.0);
+        let (hard_iron, scale) = (
+            Vector3::from(config.hard_iron_ut),
+            Vector3::from(config.scale),
+        );
+        let mut streams: [Stream<Vector3<f64>>; 3] = Default::default();
+        let mut truth = Stream::default();
+        for row in simulate(&config) {
+            if let Some(heading_deg) = row.ref_heading_deg {
+                truth.push(row.t_s, heading_deg);
+            }
+            if let (Some(acc), Some(gyro), Some(mag)) = (row.acc_mps2, row.gyro_radps, row.mag_ut) {
+                streams[0].push(row.t_s, acc);
+                streams[1].push(row.t_s, gyro);
+                streams[2].push(row.t_s, (mag - hard_iron).component_div(&scale));
+            }
+        }
+        (streams, truth)
+    }
+
+    #[test]
+    fn fed_one_sample_at_a_time_it_gives_the_log_s_track_and_follows_the_heading() {
+        let options = AttitudeOptions::default();
+        for seed in 1..=3 {
+            let config = WalkConfig::from_seed(seed, 120.0);
+            let ([acc, gyro, field], truth) = walk(seed);
+            let sensors = Sensors {
+                acc_in_body_mps2: &acc,
+                gyro_in_body_radps: &gyro,
+                field_in_body_ut: &field,
+            };
+            let down = Stream {
+                t_s: acc.t_s.clone(),
+                values: acc.values.iter().map(|force| -force.normalize()).collect(),
+            };
+            let reference = FieldReference::of_log(&field, &down, (None, None));
+            let whole = estimate_attitude(sensors, reference, &options).expect("a track");
+            // As a live stream would: each row's samples as they come, into a filter told
+            // the stream's rate beforehand (here the log's own, so that the two agree to
+            // the bit).
+            let timing = StreamTiming::of(&sensors);
+            assert!((timing.field_interval_s - 1.0 / config.sample_rate_hz).abs() < 1e-9);
+            assert_eq!(timing.max_gyro_gap_s, MAX_GYRO_GAP_S);
+            let mut live = AttitudeFilter::new(reference, timing, &options);
+            let mut yaw_errors_deg = Vec::new();
+            for idx in 0..gyro.len() {
+                let t_s = gyro.t_s[idx];
+                let estimate = live.gyro(t_s, gyro.values[idx]);
+                live.acc(t_s, acc.values[idx]);
+                live.field(t_s, field.values[idx]);
+                let Some(estimate) = estimate else { continue };
+                let position = whole.attitude.t_s.iter().position(|&t| t == t_s);
+                assert_eq!(
+                    position.map(|at| whole.attitude.values[at]),
+                    Some(estimate),
+                    "seed {seed}, t {t_s}"
+                );
+                if let Some(truth_deg) = truth.interpolate_at(t_s, 0.1) {
+                    let error_rad = (estimate.yaw_rad - truth_deg.to_radians()).sin_cos();
+                    yaw_errors_deg.push(error_rad.0.atan2(error_rad.1).to_degrees());
+                }
+            }
+            assert_eq!(live.summary(), whole.summary);
+            let rms_deg = (yaw_errors_deg.iter().map(|e| e * e).sum::<f64>()
+                / yaw_errors_deg.len().max(1) as f64)
+                .sqrt();
+            assert!(yaw_errors_deg.len() > 5000, "{}", yaw_errors_deg.len());
+            eprintln!("seed {seed}: yaw RMS {rms_deg:.2}° against the true heading");
+            assert!(rms_deg < 4.0, "seed {seed}: yaw RMS {rms_deg:.2}°");
+        }
+    }
+}
