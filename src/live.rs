@@ -27,6 +27,8 @@
 //!
 //! No clock here: the page passes each chunk's arrival time.
 
+mod attitude;
+
 use nalgebra::Vector3;
 use serde::Serialize;
 
@@ -84,6 +86,8 @@ pub struct LiveSession {
     expected_field_ut: Option<f64>,
     quality: Option<LiveQuality>,
     sent: Option<Sent>,
+    /// The attitude filter, from the first fit on, for a stream with a gyroscope.
+    attitude: Option<attitude::LiveAttitude>,
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -180,6 +184,7 @@ impl LiveSession {
             expected_field_ut: None,
             quality: None,
             sent: None,
+            attitude: None,
         }
     }
 
@@ -262,10 +267,19 @@ impl LiveSession {
             .map(|&v_in_body| sensor_to_body(v_in_body))
     }
 
+    /// The attitude filter's heading and its 1σ (radians; magnetic north, clockwise),
+    /// for a stream with a gyroscope and an accelerometer, once the field has corrected
+    /// it after the first fit: the dial's second needle, which a steel tool brought
+    /// near the board bends by the gyroscope's drift rather than by the tool.
+    pub fn filter_heading_rad(&self) -> Option<(f64, f64)> {
+        let attitude = self.attitude.as_ref()?;
+        Some((attitude.heading_rad()?, attitude.heading_sigma_rad()?))
+    }
+
     /// The heading (radians from magnetic north, clockwise) of the latest sample through
     /// the latest fit, levelled with the latest accelerometer sample when the stream has
     /// one (the PDR paper's and the compass paper's Eq. 4 tilt compensation); `None`
-    /// before the first fit.
+    /// before the first fit. The dial's needle: the calibration's direct reading.
     pub fn latest_heading_rad(&self) -> Option<f64> {
         let quality = self.quality.as_ref()?;
         let corrected_in_sensor = quality.calibration.apply(self.latest_mag_ut()?);
@@ -297,6 +311,11 @@ impl LiveSession {
             .solve(EllipsoidModel::Auto, None)
             .map_err(|error| describe_fit_error(&error))?;
         let quality = self.measure(fit.calibration, fit.model, n_samples);
+        let recording = self.reader.recording();
+        match &mut self.attitude {
+            Some(attitude) => attitude.recalibrate(recording, &quality.calibration),
+            None => self.attitude = attitude::LiveAttitude::start(recording, &quality.calibration),
+        }
         Ok(self.quality.insert(quality))
     }
 
@@ -367,6 +386,9 @@ impl LiveSession {
                 }
             }
             self.n_mag_used += 1;
+        }
+        if let (Some(attitude), Some(quality)) = (&mut self.attitude, &self.quality) {
+            attitude.take(self.reader.recording(), &quality.calibration);
         }
     }
 

@@ -104,6 +104,16 @@ impl AttitudeFilter {
         }
     }
 
+    /// Compares the field with `reference` from now on (a live session's new fit); the
+    /// gate's hold goes on.
+    pub fn set_reference(&mut self, reference: FieldReference) {
+        match &mut self.gate {
+            Some(gate) => gate.set_reference(reference),
+            None => self.gate = Some(MagneticGate::new(reference)),
+        }
+        self.summary.field_reference = Some(reference);
+    }
+
     /// What the filter has done so far, with the gyroscope's bias as it stands.
     pub fn summary(&self) -> AttitudeSummary {
         let mut summary = self.summary;

@@ -143,6 +143,12 @@ impl MagneticGate {
         &self.reference
     }
 
+    /// Compares with `reference` from now on (a live session's new fit), keeping when
+    /// the field last looked disturbed.
+    pub fn set_reference(&mut self, reference: FieldReference) {
+        self.reference = reference;
+    }
+
     /// Whether the field seen at `t_s` may correct the heading.
     pub fn open(&mut self, t_s: f64, field_ut: f64, dip_rad: f64) -> bool {
         if !self.reference.holds(field_ut, dip_rad) {

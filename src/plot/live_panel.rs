@@ -177,6 +177,7 @@ pub fn draw_coverage_map<DB: DrawingBackend>(
 pub fn draw_heading_dial<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
     heading_rad: Option<f64>,
+    filter_heading_rad: Option<(f64, f64)>,
 ) -> Result<(), PlotError> {
     let error = PlotError::from_backend::<DrawingAreaErrorKind<DB::ErrorType>>("heading dial");
     area.fill(&WHITE).map_err(&error)?;
@@ -219,6 +220,15 @@ pub fn draw_heading_dial<DB: DrawingBackend>(
     let caption_style = TextStyle::from(("sans-serif", 16).into_font())
         .pos(Pos::new(HPos::Center, VPos::Top))
         .color(&BLACK);
+    let filter = filter_heading_rad.filter(|(rad, sigma)| rad.is_finite() && sigma.is_finite());
+    if let Some((filter_rad, _)) = filter {
+        // The attitude filter's needle: thinner, blue, under the compass's.
+        area.draw(&PathElement::new(
+            vec![at(filter_rad, radius * 0.2), at(filter_rad, radius * 0.95)],
+            FIT_COLOR.stroke_width(3),
+        ))
+        .map_err(&error)?;
+    }
     match heading_rad.filter(|rad| rad.is_finite()) {
         Some(heading_rad) => {
             let heading_rad = heading_rad.rem_euclid(TAU);
@@ -230,8 +240,17 @@ pub fn draw_heading_dial<DB: DrawingBackend>(
                 MISSING_EDGE_COLOR.stroke_width(4),
             ))
             .map_err(&error)?;
+            let caption = match filter {
+                Some((filter_rad, sigma_rad)) => format!(
+                    "Compass {:.0}°, gyro filter {:.0}° ± {:.0}° (magnetic)",
+                    heading_rad.to_degrees(),
+                    filter_rad.rem_euclid(TAU).to_degrees(),
+                    sigma_rad.to_degrees().max(1.0)
+                ),
+                None => format!("Heading {:.0}° (magnetic)", heading_rad.to_degrees()),
+            };
             area.draw(&Text::new(
-                format!("Heading {:.0}° (magnetic)", heading_rad.to_degrees()),
+                caption,
                 ((width / 2.0).round() as i32, 4),
                 caption_style,
             ))
@@ -294,7 +313,12 @@ mod tests {
         let mut svg = String::new();
         {
             let area = SVGBackend::with_string(&mut svg, (400, 400)).into_drawing_area();
-            draw_heading_dial(&area, session.latest_heading_rad()).expect("draws");
+            draw_heading_dial(
+                &area,
+                session.latest_heading_rad(),
+                session.filter_heading_rad(),
+            )
+            .expect("draws");
         }
         assert!(svg.contains("(magnetic)"));
         // Nothing yet: the plots say so rather than fail.
@@ -303,7 +327,7 @@ mod tests {
             let area = SVGBackend::with_string(&mut svg, (400, 400)).into_drawing_area();
             draw_live_clouds(&area, &[], None).expect("draws");
             draw_coverage_map(&area, None).expect("draws");
-            draw_heading_dial(&area, None).expect("draws");
+            draw_heading_dial(&area, None, None).expect("draws");
         }
         assert!(svg.contains("no fit yet"));
     }

@@ -67,7 +67,7 @@ pub struct DanceTruth {
 /// one that puts the field's direction, in the sensor's axes, on a spiral from the
 /// sensor's +z pole to its −z pole (`turns` turns round it), spun about that direction
 /// twice over the dance so that gravity takes every direction too.
-fn attitude(config: &DanceConfig, t_s: f64) -> Rotation3<f64> {
+pub fn board_attitude(config: &DanceConfig, t_s: f64) -> Rotation3<f64> {
     let phase = (t_s / config.duration_s.max(f64::MIN_POSITIVE)).clamp(0.0, 1.0);
     let z = 1.0 - 2.0 * phase;
     let azimuth = std::f64::consts::TAU * config.turns * phase;
@@ -92,7 +92,7 @@ pub fn motioncal_raw_lines(config: &DanceConfig) -> (String, DanceTruth) {
     let mut text = String::with_capacity(n_lines * 48);
     for line_idx in 0..n_lines {
         let t_s = line_idx as f64 * dt_s;
-        let ned_from_sensor = attitude(config, t_s);
+        let ned_from_sensor = board_attitude(config, t_s);
         let sensor_from_ned = ned_from_sensor.inverse();
         // The Earth's field in the sensor's axes, distorted (Eq. 5).
         let field = sensor_from_ned * truth.field_in_ned_ut();
@@ -102,8 +102,8 @@ pub fn motioncal_raw_lines(config: &DanceConfig) -> (String, DanceTruth) {
         let acc_mps2 = sensor_from_ned * Vector3::new(0.0, 0.0, -STANDARD_GRAVITY_MPS2);
         // Rate of turn at the line's time: the change of attitude over one line centred
         // on it (a gyroscope samples the rate when the accelerometer samples gravity).
-        let before = attitude(config, t_s - dt_s / 2.0);
-        let after = attitude(config, t_s + dt_s / 2.0);
+        let before = board_attitude(config, t_s - dt_s / 2.0);
+        let after = board_attitude(config, t_s + dt_s / 2.0);
         let delta = before.inverse() * after;
         let rate_dps = delta.scaled_axis() / dt_s * (180.0 / std::f64::consts::PI);
         let counts = |value: f64, per_unit: f64| (value * per_unit).round() as i64;
@@ -214,7 +214,7 @@ mod tests {
         config.truth.soft_iron = Matrix3::identity();
         config.truth.noise_ut = 0.0;
         // At the start the field points along the board's +z axis.
-        let start = attitude(&config, 0.0);
+        let start = board_attitude(&config, 0.0);
         let field_in_sensor = start.inverse() * config.truth.field_in_ned_ut().normalize();
         assert!(
             (field_in_sensor - Vector3::z()).norm() < 1e-9,

@@ -120,9 +120,13 @@ pub fn draw_timeline(
 }
 
 /// The live panel's heading dial.
-pub fn draw_dial(canvas: &HtmlCanvasElement, heading_rad: Option<f64>) -> Result<(), String> {
+pub fn draw_dial(
+    canvas: &HtmlCanvasElement,
+    heading_rad: Option<f64>,
+    filter_heading_rad: Option<(f64, f64)>,
+) -> Result<(), String> {
     draw_with(canvas, |area| {
-        crate::plot::live_panel::draw_heading_dial(area, heading_rad)
+        crate::plot::live_panel::draw_heading_dial(area, heading_rad, filter_heading_rad)
     })
 }
 

@@ -289,6 +289,16 @@ test('a browser without Web Serial says so, the rest of the page works, and a si
   for (const id of ['live-clouds', 'live-coverage', 'live-dial']) {
     assert.ok(await drawnPixels(page, id) > 5_000, `#${id} is drawn`);
   }
+  // The dance's board prints its gyroscope: the dial has the attitude filter's blue needle.
+  const blueNeedle = await page.$eval('#live-dial', (canvas) => {
+    const data = canvas.getContext('2d').getImageData(0, 0, canvas.width, canvas.height).data;
+    let n = 0;
+    for (let i = 0; i < data.length; i += 4) {
+      if (Math.abs(data[i] - 30) < 20 && Math.abs(data[i + 1] - 100) < 20 && Math.abs(data[i + 2] - 200) < 20) n += 1;
+    }
+    return n;
+  });
+  assert.ok(blueNeedle > 100, `the filter's needle: ${blueNeedle} blue pixels`);
   await page.locator('#live').screenshot({ path: join(out, 'live-simulated.png') });
   assert.deepEqual(problems, []);
   await close();

@@ -97,7 +97,10 @@ impl LivePanel {
             &self.coverage,
             canvas::draw_coverage(&self.coverage, quality.map(|quality| &quality.coverage)),
         );
-        drop_errors(&self.dial, canvas::draw_dial(&self.dial, heading));
+        drop_errors(
+            &self.dial,
+            canvas::draw_dial(&self.dial, heading, session.filter_heading_rad()),
+        );
         drop(session);
         self.update_buttons();
     }

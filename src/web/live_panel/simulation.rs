@@ -78,11 +78,18 @@ impl LivePanel {
             let start = playing.sent;
             let end = (start + playing.bytes_per_tick).min(playing.text.len());
             playing.sent = end;
-            playing.text.get(start..end).map(<[u8]>::to_vec)
+            // On the board's clock (the dance's time at the piece's last byte), not the
+            // page's, which runs ten times slower: the attitude filter integrates the
+            // gyroscope over these times.
+            let board_t_s = end as f64 / playing.text.len().max(1) as f64 * SIMULATED_DANCE_S;
+            playing
+                .text
+                .get(start..end)
+                .map(|piece| (piece.to_vec(), board_t_s))
         };
         match piece {
-            Some(piece) if !piece.is_empty() => {
-                self.session.borrow_mut().feed(&piece, now_ms() / 1e3);
+            Some((piece, board_t_s)) if !piece.is_empty() => {
+                self.session.borrow_mut().feed(&piece, board_t_s);
                 self.dirty.set(true);
             }
             _ => self.stop_simulation(),
