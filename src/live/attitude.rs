@@ -337,4 +337,45 @@ mod tests {
             assert!(rms(filter_under) * 2.0 < rms(compass_under), "seed {seed}");
         }
     }
+
+    /// The dance as the page's simulated board plays it: pieces of half a second cut
+    /// anywhere in a line, on the board's clock (its lines at its rate), a refit every
+    /// five seconds. (On a clock of the share of bytes sent, which drifts by seconds
+    /// over the dance since lines differ in length, the filter was 35-40° off.)
+    #[test]
+    fn the_filter_follows_the_dance_played_as_the_page_plays_it() {
+        for seed in 1..=3 {
+            let config = DanceConfig::from_seed(seed, 60.0);
+            let (text, _) = motioncal_raw_lines(&config);
+            let bytes = text.as_bytes();
+            let piece_len = (bytes.len() as f64 / config.duration_s * 0.5).ceil() as usize;
+            let mut session = LiveSession::new();
+            let (mut errors_deg, mut lines) = (Vec::new(), 0usize);
+            for (piece_idx, piece) in bytes.chunks(piece_len).enumerate() {
+                lines += piece.iter().filter(|&&byte| byte == b'\n').count();
+                let board_t_s = lines as f64 / config.rate_hz;
+                session.feed(piece, board_t_s);
+                if piece_idx % 10 == 9 {
+                    let _ = session.refit();
+                }
+                let body_x_in_ned = board_attitude(&config, board_t_s) * nalgebra::Vector3::x();
+                if body_x_in_ned.z.abs() > 0.7 || board_t_s < 10.0 {
+                    continue;
+                }
+                if let Some((heading_rad, _)) = session.filter_heading_rad() {
+                    let error_rad = heading_rad - body_x_in_ned.y.atan2(body_x_in_ned.x);
+                    errors_deg.push(error_rad.sin().atan2(error_rad.cos()).to_degrees());
+                }
+            }
+            let rms_deg = (errors_deg.iter().map(|e| e * e).sum::<f64>()
+                / errors_deg.len().max(1) as f64)
+                .sqrt();
+            eprintln!(
+                "dance seed {seed} as the page plays it: filter {rms_deg:.2}° RMS over {} readings",
+                errors_deg.len()
+            );
+            assert!(errors_deg.len() > 50, "{}", errors_deg.len());
+            assert!(rms_deg < 12.0, "seed {seed}: {rms_deg:.2}°");
+        }
+    }
 }

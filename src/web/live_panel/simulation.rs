@@ -18,6 +18,9 @@ const SIMULATION_TICK_MS: f64 = 50.0;
 pub(super) struct Simulation {
     text: Vec<u8>,
     sent: usize,
+    /// Lines sent so far, and the board's lines per second: the board's clock.
+    lines_sent: usize,
+    rate_hz: f64,
     bytes_per_tick: usize,
     truth: DanceTruth,
 }
@@ -62,6 +65,8 @@ impl LivePanel {
             Simulation {
                 text: text.into_bytes(),
                 sent: 0,
+                lines_sent: 0,
+                rate_hz: config.rate_hz,
                 bytes_per_tick: bytes_per_tick.max(1),
                 truth,
             },
@@ -78,10 +83,16 @@ impl LivePanel {
             let start = playing.sent;
             let end = (start + playing.bytes_per_tick).min(playing.text.len());
             playing.sent = end;
-            // On the board's clock (the dance's time at the piece's last byte), not the
-            // page's, which runs ten times slower: the attitude filter integrates the
-            // gyroscope over these times.
-            let board_t_s = end as f64 / playing.text.len().max(1) as f64 * SIMULATED_DANCE_S;
+            // On the board's clock (the lines printed so far at its rate), not the page's,
+            // which runs ten times slower, nor the share of bytes sent (lines differ in
+            // length, and that clock drifted by seconds over the dance): the attitude
+            // filter integrates the gyroscope over these times.
+            let piece_lines = playing.text[start..end]
+                .iter()
+                .filter(|&&byte| byte == b'\n')
+                .count();
+            playing.lines_sent += piece_lines;
+            let board_t_s = playing.lines_sent as f64 / playing.rate_hz;
             playing
                 .text
                 .get(start..end)
