@@ -221,14 +221,6 @@ pub fn draw_heading_dial<DB: DrawingBackend>(
         .pos(Pos::new(HPos::Center, VPos::Top))
         .color(&BLACK);
     let filter = filter_heading_rad.filter(|(rad, sigma)| rad.is_finite() && sigma.is_finite());
-    if let Some((filter_rad, _)) = filter {
-        // The attitude filter's needle: thinner, blue, under the compass's.
-        area.draw(&PathElement::new(
-            vec![at(filter_rad, radius * 0.2), at(filter_rad, radius * 0.95)],
-            FIT_COLOR.stroke_width(3),
-        ))
-        .map_err(&error)?;
-    }
     match heading_rad.filter(|rad| rad.is_finite()) {
         Some(heading_rad) => {
             let heading_rad = heading_rad.rem_euclid(TAU);
@@ -240,6 +232,15 @@ pub fn draw_heading_dial<DB: DrawingBackend>(
                 MISSING_EDGE_COLOR.stroke_width(4),
             ))
             .map_err(&error)?;
+            if let Some((filter_rad, _)) = filter {
+                // The attitude filter's needle: thinner, blue, over the compass's (the
+                // two agree where the field is clean).
+                area.draw(&PathElement::new(
+                    vec![at(filter_rad, radius * 0.2), at(filter_rad, radius * 0.95)],
+                    FIT_COLOR.stroke_width(3),
+                ))
+                .map_err(&error)?;
+            }
             let caption = match filter {
                 Some((filter_rad, sigma_rad)) => format!(
                     "Compass {:.0}°, gyro filter {:.0}° ± {:.0}° (magnetic)",
