@@ -76,28 +76,17 @@ fn hallway_loop_has_its_168_steps_and_closes_within_3_percent() {
     // whether its gyroscope is Android's bias-free `TYPE_GYROSCOPE` or iOS's raw rate, so
     // the filter starts from a raw gyroscope's bias prior; stated bias-free (as
     // `--gyro-bias removed` does) the loop closes within 2 % (1.53 %).
-    let filtered = dead_reckon(
-        &paths,
-        &PdrOptions {
-            known_distance_m: Some(116.0),
-            closed_loop: true,
-            heading: compass_pdr::pdr::HeadingChoice::parse("gyro+ahrs"),
-            ..PdrOptions::default()
-        },
-    );
+    let gyro_ahrs = PdrOptions {
+        known_distance_m: Some(116.0),
+        closed_loop: true,
+        heading: compass_pdr::pdr::HeadingChoice::parse("gyro+ahrs"),
+        ..PdrOptions::default()
+    };
+    let filtered = dead_reckon(&paths, &gyro_ahrs);
     let closure = filtered.report.loop_closure.expect("a closed loop");
     eprintln!("gyro+ahrs: closure {closure:?}");
     assert!(closure.gap_pct < 3.0, "{closure:?}");
-    let stated = dead_reckon_stated(
-        &paths,
-        &PdrOptions {
-            known_distance_m: Some(116.0),
-            closed_loop: true,
-            heading: compass_pdr::pdr::HeadingChoice::parse("gyro+ahrs"),
-            ..PdrOptions::default()
-        },
-        Some(GyroBias::RemovedByDevice),
-    );
+    let stated = dead_reckon_stated(&paths, &gyro_ahrs, Some(GyroBias::RemovedByDevice));
     let closure = stated.report.loop_closure.expect("a closed loop");
     eprintln!("gyro+ahrs, --gyro-bias removed: closure {closure:?}");
     assert!(closure.gap_pct < 2.0, "{closure:?}");
