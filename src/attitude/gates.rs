@@ -61,17 +61,29 @@ impl FieldReference {
         (field_ut, dip_rad): (Option<f64>, Option<f64>),
     ) -> Option<FieldReference> {
         let (magnitudes, dips) = magnitudes_and_dips(field_in_body_ut, down_in_body);
-        let median_field_ut = median(&mut magnitudes.clone())?;
+        FieldReference::of_samples(&magnitudes, &dips, (field_ut, dip_rad))
+    }
+
+    /// [`FieldReference::of_log`] from each field sample's magnitude (µT) and dip (rad),
+    /// however they were paired with a down direction (a live session pairs each with
+    /// the latest specific force).
+    pub fn of_samples(
+        magnitudes: &[f64],
+        dips: &[f64],
+        (field_ut, dip_rad): (Option<f64>, Option<f64>),
+    ) -> Option<FieldReference> {
+        let median_field_ut = median(&mut magnitudes.to_vec())?;
         let field_ut = field_ut
             .filter(|f| f.is_finite() && *f > 0.0)
             .unwrap_or(median_field_ut);
         let mut undisturbed_dips: Vec<f64> = magnitudes
             .iter()
-            .zip(&dips)
+            .zip(dips)
             .filter(|(magnitude, _)| (*magnitude / field_ut - 1.0).abs() <= MAGNITUDE_TOLERANCE)
             .map(|(_, dip)| *dip)
             .collect();
-        let median_dip_rad = median(&mut undisturbed_dips).or_else(|| median(&mut dips.clone()))?;
+        let median_dip_rad =
+            median(&mut undisturbed_dips).or_else(|| median(&mut dips.to_vec()))?;
         let dip_rad = dip_rad.filter(|d| d.is_finite()).unwrap_or(median_dip_rad);
         Some(FieldReference {
             field_ut,

@@ -14,7 +14,7 @@
 
 use nalgebra::Vector3;
 
-use crate::attitude::gates::{dip_of, FieldReference, DIP_TOLERANCE_RAD, MAGNITUDE_TOLERANCE};
+use crate::attitude::gates::{dip_of, FieldReference};
 use crate::attitude::{
     AttitudeEstimate, AttitudeFilter, AttitudeOptions, StreamTiming, MAX_GYRO_GAP_S,
 };
@@ -181,16 +181,17 @@ fn spread(
     }
 }
 
-/// The gate's reference: the calibrated sphere's radius, and the median dip of the
-/// session's field samples whose magnitude is within [`MAGNITUDE_TOLERANCE`] of it, each
-/// against the latest specific force at or before it.
+/// The gate's reference ([`FieldReference::of_samples`]): the calibrated sphere's radius,
+/// and the median dip of the session's undisturbed field samples, each against the
+/// latest specific force at or before it (a chunk's samples share their time, so none
+/// is interpolated between).
 fn reference(recording: &Recording, calibration: &FieldCalibration) -> Option<FieldReference> {
     let field_ut = calibration.field_ut;
     if !(field_ut.is_finite() && field_ut > 0.0) {
         return None;
     }
     let (mag, acc) = (&recording.mag_in_body_ut, &recording.acc_in_body_mps2);
-    let mut dips = Vec::new();
+    let (mut magnitudes, mut dips) = (Vec::new(), Vec::new());
     let mut acc_idx = 0usize;
     for (&t_s, &raw) in mag.t_s.iter().zip(&mag.values) {
         while acc
@@ -200,30 +201,20 @@ fn reference(recording: &Recording, calibration: &FieldCalibration) -> Option<Fi
         {
             acc_idx += 1;
         }
-        let Some(force) = acc.values.get(acc_idx) else {
-            break;
-        };
-        let Some(down) = (-force).try_normalize(1e-9) else {
+        let Some(down) = acc
+            .values
+            .get(acc_idx)
+            .and_then(|force| (-force).try_normalize(1e-9))
+        else {
             continue;
         };
         let field = corrected_in_body(calibration, raw);
-        if (field.norm() / field_ut - 1.0).abs() > MAGNITUDE_TOLERANCE {
-            continue;
-        }
         if let Some(dip) = dip_of(field, down).filter(|dip| dip.is_finite()) {
+            magnitudes.push(field.norm());
             dips.push(dip);
         }
     }
-    if dips.is_empty() {
-        return None;
-    }
-    dips.sort_by(f64::total_cmp);
-    Some(FieldReference {
-        field_ut,
-        dip_rad: dips[dips.len() / 2],
-        magnitude_tolerance: MAGNITUDE_TOLERANCE,
-        dip_tolerance_rad: DIP_TOLERANCE_RAD,
-    })
+    FieldReference::of_samples(&magnitudes, &dips, (Some(field_ut), None))
 }
 
 #[cfg(test)]
