@@ -93,6 +93,7 @@ impl AttitudeFilter {
                 n_gravity_refused: 0,
                 n_field_fused: 0,
                 n_field_disturbed: 0,
+                n_field_turning: 0,
                 n_field_contradicting: 0,
                 n_recoveries: 0,
                 n_rest_updates: 0,
@@ -263,7 +264,11 @@ impl AttitudeFilter {
             .is_some_and(|direction_rad| self.quasi_static.steady(t_s, direction_rad));
         let undisturbed = gate.open(t_s, field_ut.norm(), dip_rad);
         if !(undisturbed && steady) {
-            self.summary.n_field_disturbed += 1;
+            if undisturbed {
+                self.summary.n_field_turning += 1;
+            } else {
+                self.summary.n_field_disturbed += 1;
+            }
             self.contradicting_since_s = None;
             self.field_used = false;
             return;

@@ -155,8 +155,12 @@ pub struct AttitudeSummary {
     pub n_gravity_fused: usize,
     pub n_gravity_refused: usize,
     pub n_field_fused: usize,
-    /// Field samples refused because their magnitude or dip said "disturbed".
+    /// Field samples refused because their magnitude or dip said "disturbed" (or the
+    /// gate still held them back after a disturbance).
     pub n_field_disturbed: usize,
+    /// Field samples within the gate's tolerances whose direction in the navigation
+    /// frame was turning (the quasi-static test).
+    pub n_field_turning: usize,
     /// Field samples that looked undisturbed but contradicted the heading.
     pub n_field_contradicting: usize,
     pub n_recoveries: usize,

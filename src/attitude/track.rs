@@ -4,7 +4,9 @@
 use nalgebra::Vector3;
 
 use super::gates::FieldReference;
-use super::{estimate_attitude, AttitudeError, AttitudeOptions, AttitudeTrack, Sensors};
+use super::{
+    estimate_attitude, AttitudeError, AttitudeOptions, AttitudeTrack, Sensors, RECOVERY_S,
+};
 use crate::angle::wrap_to_2pi;
 use crate::calib::model::FieldCalibration;
 use crate::calib::tilt::smooth_specific_force;
@@ -141,6 +143,22 @@ pub fn attitude_csv(
         "# gyroscope bias (deg/s, body x y z): prior 1-sigma {:.2}; at the end ({bx:.3}, {by:.3}, {bz:.3}) +- ({sx:.3}, {sy:.3}, {sz:.3})",
         deg(summary.initial_gyro_bias_sigma_radps)
     );
+    let field_samples = summary.n_field_fused
+        + summary.n_field_disturbed
+        + summary.n_field_turning
+        + summary.n_field_contradicting;
+    if field_samples > 0 {
+        let pct = |n: usize| 100.0 * n as f64 / field_samples as f64;
+        let _ = writeln!(
+            text,
+            "# magnetometer: {field_samples} samples after the filter started: {:.1} % corrected the yaw, {:.1} % refused as disturbed by their magnitude or dip, {:.1} % as turning in the navigation frame, {:.1} % refused as contradicting the gyroscope; {} yaw resets after {RECOVERY_S} s of contradiction",
+            pct(summary.n_field_fused),
+            pct(summary.n_field_disturbed),
+            pct(summary.n_field_turning),
+            pct(summary.n_field_contradicting),
+            summary.n_recoveries,
+        );
+    }
     match start_unix_s {
         Some(start_s) => {
             let _ = writeln!(
