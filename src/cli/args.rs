@@ -27,11 +27,11 @@ pub(super) struct ImportArgs {
     #[arg(long)]
     pub(super) map: Option<String>,
     /// What the device did to the gyroscope's rates before logging them: `removed` (the
-    /// OS subtracted its own bias estimate, as Android's TYPE_GYROSCOPE does, which is
-    /// what phyphox and most apps on Android read) or `raw`. By default what the log
-    /// says: Android sensor dumps, GetSensorData, TYREX's files and Sensor Logger's
-    /// Gyroscope.csv say `removed`, and other logs are taken as raw. It sets how large a
-    /// bias the attitude filter expects.
+    /// OS subtracted its own bias estimate, as Android's TYPE_GYROSCOPE and iOS's
+    /// device-motion rate do) or `raw`. By default what the log says: Android sensor
+    /// dumps, GetSensorData, phyphox, TYREX's files and Sensor Logger's Gyroscope.csv say
+    /// `removed`, and other logs are taken as raw. It sets how large a bias the attitude
+    /// filter expects.
     #[arg(long, value_enum)]
     pub(super) gyro_bias: Option<GyroBiasArg>,
 }

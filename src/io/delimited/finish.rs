@@ -10,7 +10,7 @@ use super::header::{Header, Quantity, Setting, DEG_TO_RAD, WHITESPACE};
 use super::{DelimitedReader, RawImport, SensorAxes, FORMAT_NAME};
 use crate::io::frame::RAW_COUNT_MAGNITUDES;
 use crate::io::{shorten, HeaderInfo, ImportError, ImportReport, MagUnit, STANDARD_GRAVITY_MPS2};
-use crate::recording::{Recording, Stream};
+use crate::recording::{GyroBias, Recording, Stream};
 
 /// How many settings lines the notes list.
 const MAX_SETTINGS_NOTED: usize = 8;
@@ -59,6 +59,10 @@ impl DelimitedReader {
             &mut notes,
         );
         let mag_unit = values_to_units(recording, &header, &mut notes);
+        if !recording.gyro_in_body_radps.is_empty() && is_phyphox_gyroscope(&header) {
+            recording.gyro_bias = GyroBias::RemovedByDevice;
+            notes.push(PHYPHOX_GYROSCOPE_NOTE.to_string());
+        }
         // Every stream's times are some of the rows' times, in the rows' order: when
         // those never go back, no stream needs sorting (or the pass that looks).
         let n_out_of_order = if self.row_times.went_back {
@@ -179,6 +183,32 @@ impl DelimitedReader {
         }
         notes
     }
+}
+
+/// What [`is_phyphox_gyroscope`] means for the filter, said in the import's notes.
+const PHYPHOX_GYROSCOPE_NOTE: &str = "gyroscope: phyphox's rotation rate, with the OS's bias \
+     estimate removed (Android's TYPE_GYROSCOPE; on iOS Core Motion's device-motion rate)";
+
+/// Whether the header is phyphox's export of its gyroscope: `"Time (s)"` then
+/// `"X (rad/s)"`… (one sensor's experiment) or `"Gyroscope x (rad/s)"`… (several
+/// sensors'). phyphox reads Android's `TYPE_GYROSCOPE` (`SensorInput.java`) and on iOS
+/// Core Motion's `CMDeviceMotion.rotationRate` (`ExperimentSensorInput.swift`), which
+/// Apple documents as the rate "whose bias has been removed by Core Motion
+/// algorithms": both are bias-removed. Other apps' names say nothing of the bias.
+fn is_phyphox_gyroscope(header: &Header) -> bool {
+    let names: Vec<String> = header
+        .names
+        .iter()
+        .map(|name| name.to_lowercase())
+        .collect();
+    let has = |name: &str| names.iter().any(|n| n == name);
+    has("time (s)")
+        && (["x", "y", "z"]
+            .iter()
+            .all(|axis| has(&format!("{axis} (rad/s)")))
+            || ["x", "y", "z"]
+                .iter()
+                .all(|axis| has(&format!("gyroscope {axis} (rad/s)"))))
 }
 
 /// The factor to this crate's unit of a quantity's column, where the header gives it.

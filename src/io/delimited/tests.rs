@@ -44,6 +44,35 @@ fn phyphox_headers_say_the_sensor_by_their_unit() {
 }
 
 #[test]
+fn phyphox_gyroscopes_are_bias_removed_and_other_rate_columns_are_not_said_to_be() {
+    use crate::recording::GyroBias;
+    for (text, expected) in [
+        // phyphox, one sensor's experiment and several sensors'.
+        (
+            "\"Time (s)\",\"X (rad/s)\",\"Y (rad/s)\",\"Z (rad/s)\"\n0.01,0.1,0.2,0.3\n",
+            GyroBias::RemovedByDevice,
+        ),
+        (
+            "\"Time (s)\",\"Gyroscope x (rad/s)\",\"Gyroscope y (rad/s)\",\"Gyroscope z (rad/s)\",\"Absolute (rad/s)\"\n0.01,0.1,0.2,0.3,0.37\n",
+            GyroBias::RemovedByDevice,
+        ),
+        // Any other naming of the same rates says nothing of the bias.
+        ("t_s,gyro_x,gyro_y,gyro_z\n0,0.1,0.2,0.3\n", GyroBias::Unknown),
+        ("t_s,gyro_x_dps,gyro_y_dps,gyro_z_dps\n0,1,2,3\n", GyroBias::Unknown),
+    ] {
+        let report = read_text(text);
+        assert_eq!(report.recording.gyro_in_body_radps.len(), 1, "{text}");
+        assert_eq!(report.recording.gyro_bias, expected, "{text}");
+        assert_eq!(
+            report.notes.iter().any(|note| note.contains("phyphox's rotation rate")),
+            expected == GyroBias::RemovedByDevice,
+            "{text}: {:?}",
+            report.notes
+        );
+    }
+}
+
+#[test]
 fn units_in_suffixes_are_converted() {
     let report = read_text("t_s,mag_x_gauss,mag_y_gauss,mag_z_gauss,acc_x_g,acc_y_g,acc_z_g,gyro_x_dps,gyro_y_dps,gyro_z_dps\n0,0.25,-0.3,-0.4,0,0,-1,90,0,0\n");
     let recording = &report.recording;
