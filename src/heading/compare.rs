@@ -330,10 +330,31 @@ fn neural_stacks(
                 .to_degrees()
         })
         .collect();
+    // The paper's "gyro heading" is the gyroscope's heading; the attitude filter's is
+    // that heading with its drift held by gravity and the field (issue 18), so it is the
+    // input where the log has one, else the gyroscope integrated from its start.
+    let filter_heading_deg: Option<Vec<Option<f64>>> =
+        calibration.attitude_heading_deg.as_ref().map(|headings| {
+            headings
+                .iter()
+                .map(|&deg| deg.is_finite().then_some(deg))
+                .collect()
+        });
+    let (gyro_heading_deg, gyro_heading_source) = match &filter_heading_deg {
+        Some(headings) => (
+            headings.as_slice(),
+            neural::GyroHeadingSource::AttitudeFilter,
+        ),
+        None => (
+            calibration.gyro_heading_deg.as_slice(),
+            neural::GyroHeadingSource::IntegratedGyroscope,
+        ),
+    };
     let conditions = neural::Conditions {
         horizontal_ut: &horizontal_ut,
         dip_deg: &dip_deg,
-        gyro_heading_deg: &calibration.gyro_heading_deg,
+        gyro_heading_deg,
+        gyro_heading_source,
         temp_c: &calibration.temp_c,
     };
     let best_field_base = bases

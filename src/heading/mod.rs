@@ -394,7 +394,13 @@ mod tests {
             .expect("trained");
         assert_eq!(
             neural.inputs,
-            vec!["heading", "|H|", "gyro heading", "dip", "temperature"]
+            vec![
+                "heading",
+                "|H|",
+                "gyro heading (attitude filter)",
+                "dip",
+                "temperature"
+            ]
         );
         assert_eq!(neural.correlation.len(), 25);
     }

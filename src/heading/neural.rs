@@ -33,7 +33,19 @@ pub struct Conditions<'a> {
     pub horizontal_ut: &'a [f64],
     pub dip_deg: &'a [f64],
     pub gyro_heading_deg: &'a [Option<f64>],
+    pub gyro_heading_source: GyroHeadingSource,
     pub temp_c: &'a [Option<f64>],
+}
+
+/// Where the "gyro heading" input comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum GyroHeadingSource {
+    /// The attitude filter's heading ([`crate::attitude`]): the gyroscope's, with its
+    /// drift held by gravity and the field.
+    AttitudeFilter,
+    /// The gyroscope integrated from the start of the log (relative, drifting).
+    IntegratedGyroscope,
 }
 
 /// What the network learned from and how training went.
@@ -173,7 +185,10 @@ pub fn train_correction(
     let mut inputs = vec!["heading", "|H|"];
     let mut missing = Vec::new();
     if use_gyro {
-        inputs.push("gyro heading");
+        inputs.push(match conditions.gyro_heading_source {
+            GyroHeadingSource::AttitudeFilter => "gyro heading (attitude filter)",
+            GyroHeadingSource::IntegratedGyroscope => "gyro heading",
+        });
     } else {
         missing.push("gyro heading");
     }
