@@ -10,11 +10,24 @@
 
 use super::{selection, CalibrationReport};
 use crate::attitude::track::attitude_of;
-use crate::attitude::AttitudeOptions;
+use crate::attitude::{AttitudeOptions, AttitudeTrack};
 use crate::recording::{Recording, Stream};
 
 /// Gyroscope outputs further apart than this (s) are not interpolated across.
 const MAX_OUTPUT_GAP_S: f64 = 1.0;
+
+/// The filter's track over `recording`, its field corrected as for the comparison's
+/// `ahrs` row; `None` without a gyroscope and an accelerometer.
+pub fn attitude_track(recording: &Recording, report: &CalibrationReport) -> Option<AttitudeTrack> {
+    let device = selection::device_calibration(report).map(|(_, field)| field);
+    attitude_of(
+        recording,
+        device.as_ref(),
+        &AttitudeOptions::for_gyro(recording.gyro_bias),
+    )
+    .ok()
+    .map(|(track, _)| track)
+}
 
 /// The filter's heading (degrees clockwise from true north, in [0, 360); NaN where it
 /// has none) at each of `t_s`; `None` without a gyroscope and an accelerometer.
@@ -23,13 +36,7 @@ pub(super) fn attitude_heading_deg(
     report: &CalibrationReport,
     t_s: &[f64],
 ) -> Option<Vec<f64>> {
-    let device = selection::device_calibration(report).map(|(_, field)| field);
-    let (track, _) = attitude_of(
-        recording,
-        device.as_ref(),
-        &AttitudeOptions::for_gyro(recording.gyro_bias),
-    )
-    .ok()?;
+    let track = attitude_track(recording, report)?;
     let yaw = Stream {
         t_s: track.attitude.t_s,
         values: track

@@ -45,6 +45,7 @@ mod context;
 mod methods;
 pub mod selection;
 
+pub use attitude::attitude_track;
 use context::{
     conditions, declination_used, field_and_reference_notes, split, turn_onto_raw_heading, Split,
 };

@@ -23,7 +23,7 @@ pub mod fourier;
 pub mod neural;
 pub mod rls;
 
-pub use compare::compare;
+pub use compare::{compare, ATTITUDE_KEY};
 
 use serde::Serialize;
 

@@ -100,9 +100,15 @@ impl PdrEkf {
     }
 
     /// One step: the measured length and heading update `l` and `a`, then Eq. 13
-    /// moves the position by the step and lets `l` and `a` walk.
-    pub fn step(&mut self, measured_length_m: f64, measured_heading_rad: f64) {
-        self.update_length_heading(measured_length_m, measured_heading_rad);
+    /// moves the position by the step and lets `l` and `a` walk. The heading's 1σ is
+    /// `heading_sigma_rad` where its source states one, else the noise model's.
+    pub fn step(
+        &mut self,
+        measured_length_m: f64,
+        measured_heading_rad: f64,
+        heading_sigma_rad: Option<f64>,
+    ) {
+        self.update_length_heading(measured_length_m, measured_heading_rad, heading_sigma_rad);
         self.predict();
     }
 
@@ -147,15 +153,24 @@ impl PdrEkf {
         self.x[1] += l * cos_a;
     }
 
-    /// The measurement update with `z = [l, a]` (heading innovation wrapped).
-    pub fn update_length_heading(&mut self, measured_length_m: f64, measured_heading_rad: f64) {
+    /// The measurement update with `z = [l, a]` (heading innovation wrapped), the
+    /// heading's 1σ `heading_sigma_rad` or else the noise model's.
+    pub fn update_length_heading(
+        &mut self,
+        measured_length_m: f64,
+        measured_heading_rad: f64,
+        heading_sigma_rad: Option<f64>,
+    ) {
         let innovation = [
             measured_length_m - self.x[2],
             wrap_to_pi(measured_heading_rad - self.x[3]),
         ];
+        let heading_sigma_rad = heading_sigma_rad
+            .filter(|sigma| sigma.is_finite() && *sigma > 0.0)
+            .unwrap_or(self.noise.heading_measurement_rad);
         let r = [
             self.noise.step_length_measurement_m.powi(2),
-            self.noise.heading_measurement_rad.powi(2),
+            heading_sigma_rad.powi(2),
         ];
         self.update_pair(2, innovation, r);
         self.x[3] = wrap_to_2pi(self.x[3]);
@@ -301,7 +316,7 @@ mod tests {
     fn updates_match_the_dense_kalman_form() {
         let mut ekf = PdrEkf::new([0.0, 0.0], 3.0, 0.7, 0.2, EkfNoise::default());
         for _ in 0..5 {
-            ekf.step(0.7, 0.25);
+            ekf.step(0.7, 0.25, None);
         }
         let before = ekf;
         let z = [4.0, 1.0];
@@ -325,17 +340,46 @@ mod tests {
             359f64.to_radians(),
             EkfNoise::default(),
         );
-        ekf.update_length_heading(0.7, 1f64.to_radians());
+        ekf.update_length_heading(0.7, 1f64.to_radians(), None);
         // Pulled towards 1° through north, not back through 180°.
         let heading_deg = ekf.x[3].to_degrees();
         assert!(!(10.0..350.0).contains(&heading_deg), "{heading_deg}");
     }
 
     #[test]
+    fn a_stated_heading_sigma_weighs_the_heading_and_a_missing_one_falls_back() {
+        let noise = EkfNoise::default();
+        let updated = |sigma: Option<f64>| {
+            let mut ekf = PdrEkf::new([0.0, 0.0], 1.0, 0.7, 0.0, noise);
+            ekf.update_length_heading(0.7, 10f64.to_radians(), sigma);
+            (ekf.x[3].to_degrees(), ekf.p[3][3].sqrt().to_degrees())
+        };
+        // The prior's 1σ is the noise model's (5°): an equal σ meets it halfway, a
+        // tenfold smaller one is nearly all of the answer.
+        let (halfway_deg, halfway_sigma_deg) = updated(Some(noise.heading_measurement_rad));
+        assert!((halfway_deg - 5.0).abs() < 1e-9, "{halfway_deg}");
+        assert!((halfway_sigma_deg - 5.0 / 2f64.sqrt()).abs() < 1e-9);
+        let (tight_deg, tight_sigma_deg) = updated(Some(0.5f64.to_radians()));
+        assert!(
+            (tight_deg - 10.0 * 25.0 / 25.25).abs() < 1e-9,
+            "{tight_deg}"
+        );
+        assert!(tight_sigma_deg < 0.5);
+        // None, NaN and zero use the noise model's.
+        for sigma in [None, Some(f64::NAN), Some(0.0)] {
+            assert_eq!(
+                updated(sigma),
+                (halfway_deg, halfway_sigma_deg),
+                "{sigma:?}"
+            );
+        }
+    }
+
+    #[test]
     fn straight_steps_walk_straight_and_fixes_pull_back() {
         let mut ekf = PdrEkf::new([0.0, 0.0], 0.1, 0.7, 0.0, EkfNoise::default());
         for _ in 0..100 {
-            ekf.step(0.7, 0.0);
+            ekf.step(0.7, 0.0, None);
         }
         assert!(ekf.x[0].abs() < 1e-9);
         assert!((ekf.x[1] - 70.0).abs() < 1e-6, "{:?}", ekf.x);

@@ -115,6 +115,9 @@ pub struct StepInput {
     pub t_s: f64,
     pub length_m: f64,
     pub heading_rad: f64,
+    /// The heading's 1σ (rad) where its source states one (the attitude filter), else
+    /// the filter's [`EkfNoise::heading_measurement_rad`].
+    pub heading_sigma_rad: Option<f64>,
 }
 
 /// A GNSS fix in the local frame.
@@ -238,7 +241,7 @@ pub fn fuse(
             };
             fix_use.push(decision);
         }
-        ekf.step(step.length_m, step.heading_rad);
+        ekf.step(step.length_m, step.heading_rad, step.heading_sigma_rad);
         track.push(TrackPoint {
             t_s: step.t_s,
             east_m: ekf.x[0],
@@ -279,6 +282,7 @@ mod tests {
                 t_s: 0.5 * (k + 1) as f64,
                 length_m: 0.7,
                 heading_rad: 0.0,
+                heading_sigma_rad: None,
             })
             .collect()
     }

@@ -10,7 +10,10 @@
 //! on a reference-heading column (in a test log that column is the truth), so that no
 //! fix inside an outage trains what bridges it.
 
-use crate::calibration::{calibrate_again, CalibrationAnalysis, CalibrationOptions, Method};
+use crate::calibration::{
+    attitude_track, calibrate_again, CalibrationAnalysis, CalibrationOptions, Method,
+};
+use crate::heading::ATTITUDE_KEY;
 use crate::heading::{HeadingAnalysis, HeadingOptions};
 use crate::io::ImportReport;
 use crate::recording::{GnssFix, Stream};
@@ -20,9 +23,11 @@ use crate::reference::{ReferenceChoice, ReferenceOptions};
 use super::fusion::Outage;
 use super::{HeadingBase, PdrOptions};
 
-/// A heading per sample (rad, clockwise from true north), with its row key and label.
+/// A heading per sample (rad, clockwise from true north), with its row key and label,
+/// and its 1σ (rad) where the heading states one (the attitude filter's).
 pub struct StepHeading {
     pub heading_rad: Stream<f64>,
+    pub sigma_rad: Option<Stream<f64>>,
     pub key: String,
     pub label: String,
 }
@@ -48,8 +53,11 @@ pub fn step_heading(
         Some(&base.heading_rad),
         false,
     ) {
+        // The gyroscope aligned over the whole walk has errors of its own, not the
+        // base's: no σ is stated for it.
         Some(gyro) => Some(StepHeading {
             heading_rad: gyro.heading_rad,
+            sigma_rad: None,
             key: format!("gyro+{}", base.key),
             label: format!("the gyro aligned to {}", base.label),
         }),
@@ -103,8 +111,20 @@ fn compass_heading(
             heading_rad.push(t_s, deg.to_radians());
         }
     }
+    // The attitude filter states its yaw's 1σ: the dead reckoning's heading noise.
+    let sigma_rad = (key == ATTITUDE_KEY)
+        .then(|| attitude_track(&import.recording, &source.report.calibration))
+        .flatten()
+        .map(|track| {
+            let mut sigma_rad = Stream::default();
+            for (&t_s, estimate) in track.attitude.t_s.iter().zip(&track.attitude.values) {
+                sigma_rad.push(t_s, estimate.yaw_sigma_rad);
+            }
+            sigma_rad
+        });
     Some(StepHeading {
         heading_rad,
+        sigma_rad,
         label: label_of(source, &key),
         key,
     })
@@ -198,6 +218,7 @@ fn device_heading(
     }
     Some(StepHeading {
         heading_rad: device,
+        sigma_rad: None,
         key: "device".to_string(),
         label: "the device's own yaw (rotation vector) with the declination".to_string(),
     })
@@ -251,6 +272,18 @@ pub fn mean_heading(heading: &Stream<f64>, start_s: f64, end_s: f64) -> f64 {
     heading
         .interpolate_angle_at(0.5 * (start_s + end_s), 1.0)
         .unwrap_or(f64::NAN)
+}
+
+/// The mean of a 1σ stream over a step, else its value at the step's middle (within a
+/// second); `None` when there is none.
+pub fn mean_sigma(sigma: &Stream<f64>, start_s: f64, end_s: f64) -> Option<f64> {
+    let first = sigma.t_s.partition_point(|&t| t < start_s);
+    let last = sigma.t_s.partition_point(|&t| t < end_s);
+    let values = sigma.values.get(first..last).unwrap_or(&[]);
+    if !values.is_empty() {
+        return Some(values.iter().sum::<f64>() / values.len() as f64);
+    }
+    sigma.interpolate_at(0.5 * (start_s + end_s), 1.0)
 }
 
 /// Each NaN replaced by the last finite value before it (the first finite one at the

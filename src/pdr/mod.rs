@@ -57,7 +57,7 @@ use crate::recording::{Recording, Stream};
 
 use ekf::EkfNoise;
 use fusion::{fuse, FixInput, FixUse, Fused, GnssPolicy, StepInput, TrackPoint};
-use heading::{fill_forward, mean_heading, step_heading, StepHeading};
+use heading::{fill_forward, mean_heading, mean_sigma, step_heading, StepHeading};
 use metrics::{LoopClosure, MeanStd, PositionErrors};
 use references::{
     first_good_fix, gnss_step_references, reference_positions, start_position,
@@ -177,6 +177,7 @@ pub fn dead_reckon(
     // 1. The heading: the comparison's choice, fitted again outside the outages.
     let Some(StepHeading {
         heading_rad: heading_stream,
+        sigma_rad: heading_sigma_stream,
         key: heading_key,
         label: heading_label,
     }) = step_heading(import, (calibration, headings), options, &mut notes)
@@ -198,6 +199,14 @@ pub fn dead_reckon(
         });
     }
     let step_headings_rad = step_headings(&steps, &heading_stream, &mut notes);
+    let step_heading_sigmas_rad: Vec<Option<f64>> = steps
+        .iter()
+        .map(|step| {
+            heading_sigma_stream
+                .as_ref()
+                .and_then(|sigma| mean_sigma(sigma, step.t_start_s, step.t_end_s))
+        })
+        .collect();
 
     // 3. The local frame, the fixes and the reference positions.
     let (frame, fixes) = local_fixes(recording, &options.gnss);
@@ -224,7 +233,7 @@ pub fn dead_reckon(
     let fused = run_filter(
         &steps,
         &step_lengths_m,
-        &step_headings_rad,
+        (&step_headings_rad, &step_heading_sigmas_rad),
         &fixes,
         &reference_en_m,
         options,
@@ -308,7 +317,7 @@ fn step_headings(steps: &[Step], heading: &Stream<f64>, notes: &mut Vec<String>)
 fn run_filter(
     steps: &[Step],
     step_lengths_m: &[f64],
-    step_headings_rad: &[f64],
+    (step_headings_rad, step_heading_sigmas_rad): (&[f64], &[Option<f64>]),
     fixes: &[FixInput],
     reference_en_m: &[(f64, [f64; 2])],
     options: &PdrOptions,
@@ -321,13 +330,16 @@ fn run_filter(
     let inputs: Vec<StepInput> = steps
         .iter()
         .zip(step_lengths_m)
-        .zip(step_headings_rad)
-        .map(|((step, &length_m), &heading_rad)| StepInput {
-            t_start_s: step.t_start_s,
-            t_s: step.t_end_s,
-            length_m,
-            heading_rad,
-        })
+        .zip(step_headings_rad.iter().zip(step_heading_sigmas_rad))
+        .map(
+            |((step, &length_m), (&heading_rad, &heading_sigma_rad))| StepInput {
+                t_start_s: step.t_start_s,
+                t_s: step.t_end_s,
+                length_m,
+                heading_rad,
+                heading_sigma_rad,
+            },
+        )
         .collect();
     fuse(
         &inputs,
