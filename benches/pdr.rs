@@ -103,7 +103,7 @@ mod native {
     fn run_filter(start: PdrEkf, inputs: &[[f64; 2]]) -> PdrEkf {
         let mut ekf = start;
         for &[length_m, heading_rad] in inputs {
-            ekf.step(length_m, heading_rad);
+            ekf.step(length_m, heading_rad, None);
         }
         ekf
     }
@@ -223,6 +223,7 @@ mod native {
                 t_s: step.t_end_s,
                 length_m,
                 heading_rad,
+                heading_sigma_rad: None,
             })
             .collect();
         let fixes: Vec<FixInput> = analysis.fixes.iter().map(|(fix, _)| *fix).collect();

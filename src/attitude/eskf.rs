@@ -249,6 +249,28 @@ impl Eskf {
         }
     }
 
+    /// Re-levels the attitude on `specific_force_in_body` taken as gravity's direction,
+    /// keeping the heading of the body x axis: a tilt lost (a gyroscope saturated while
+    /// the body tumbled) that the gate on gravity would refuse to mend forever. The tilt's
+    /// variance restarts at `tilt_sigma_rad`² and its correlations at zero.
+    pub fn reset_tilt_to(&mut self, specific_force_in_body: Vector3<f64>, tilt_sigma_rad: f64) {
+        let norm = specific_force_in_body.norm();
+        if !(norm > 1e-6 && norm.is_finite()) {
+            return;
+        }
+        let levelled = attitude_from(specific_force_in_body, None);
+        let (_, _, yaw_rad) = self.nav_from_body.euler_angles();
+        let (roll_rad, pitch_rad, _) = levelled.euler_angles();
+        self.nav_from_body = UnitQuaternion::from_euler_angles(roll_rad, pitch_rad, yaw_rad);
+        for row in 0..2 {
+            for idx in 0..6 {
+                self.covariance[(row, idx)] = 0.0;
+                self.covariance[(idx, row)] = 0.0;
+            }
+            self.covariance[(row, row)] = tilt_sigma_rad.powi(2);
+        }
+    }
+
     /// One Kalman update with a measurement whose rows each read one error-state
     /// component (`(index, sign, innovation)`: `innovation = sign·δx[index] + noise`),
     /// with independent noises of `variance`, processed one row after the other (exact

@@ -37,6 +37,12 @@ impl StreamTiming {
     }
 }
 
+/// 1σ of the tilt (rad, about 3°) when it is taken from one specific force: at the
+/// start, and when gravity re-levels a lost tilt.
+const INITIAL_TILT_SIGMA_RAD: f64 = 0.05;
+/// 1σ of the yaw (rad, about 11°) when it is taken from one field sample.
+const INITIAL_YAW_SIGMA_RAD: f64 = 0.2;
+
 /// The filter, its gates and what it has done: fed one sample at a time, in time order.
 #[derive(Debug, Clone)]
 pub struct AttitudeFilter {
@@ -54,6 +60,8 @@ pub struct AttitudeFilter {
     /// the heading while looking undisturbed.
     rest_since_s: Option<f64>,
     contradicting_since_s: Option<f64>,
+    /// Since when gravity's direction has contradicted the tilt beyond its gate.
+    tilt_contradicted_since_s: Option<f64>,
     field_used: bool,
     /// The accelerometer samples not fused yet: the first one's time, the sum of their
     /// unit directions in the navigation frame, how many, the largest acceleration level.
@@ -83,6 +91,7 @@ impl AttitudeFilter {
             last_gyro_t_s: None,
             rest_since_s: None,
             contradicting_since_s: None,
+            tilt_contradicted_since_s: None,
             field_used: false,
             gravity_block: None,
             heading_sigma_rad: options.heading_noise_rad_sqrt_s / timing.field_interval_s.sqrt(),
@@ -96,6 +105,7 @@ impl AttitudeFilter {
                 n_field_turning: 0,
                 n_field_contradicting: 0,
                 n_recoveries: 0,
+                n_tilt_recoveries: 0,
                 n_rest_updates: 0,
                 initial_gyro_bias_sigma_radps: options.initial_bias_sigma_radps,
                 final_gyro_bias_radps: [0.0; 3],
@@ -137,13 +147,17 @@ impl AttitudeFilter {
             }
             let field = self.last_field.filter(|_| wants_field);
             let yaw_sigma_rad = if field.is_some() {
-                0.2
+                INITIAL_YAW_SIGMA_RAD
             } else {
                 std::f64::consts::PI
             };
             self.filter = Some(Eskf::new(
                 eskf::attitude_from(force, field),
-                (0.05, yaw_sigma_rad, self.options.initial_bias_sigma_radps),
+                (
+                    INITIAL_TILT_SIGMA_RAD,
+                    yaw_sigma_rad,
+                    self.options.initial_bias_sigma_radps,
+                ),
                 self.options.noise,
             ));
         }
@@ -238,10 +252,40 @@ impl AttitudeFilter {
         let Some(filter) = self.filter.as_mut() else {
             return;
         };
-        // 99.9 % of a χ² with 2 degrees of freedom.
-        match filter.fuse_gravity_in_nav(nalgebra::Vector2::new(mean.x, mean.y), sigma_rad, 13.8) {
-            Fused::Applied { .. } => self.summary.n_gravity_fused += n,
-            _ => self.summary.n_gravity_refused += n,
+        // A specific force pointing down in the navigation frame is a tilt more than a
+        // quarter turn off, which the linearised update cannot see (the horizontal part
+        // of an upside-down gravity is small too): it contradicts, never fuses.
+        let fused = if mean.z > 0.0 {
+            Fused::Gated { nis: f64::INFINITY }
+        } else {
+            // 99.9 % of a χ² with 2 degrees of freedom.
+            filter.fuse_gravity_in_nav(nalgebra::Vector2::new(mean.x, mean.y), sigma_rad, 13.8)
+        };
+        match fused {
+            Fused::Applied { .. } => {
+                self.summary.n_gravity_fused += n;
+                self.tilt_contradicted_since_s = None;
+            }
+            Fused::Gated { .. } => {
+                self.summary.n_gravity_refused += n;
+                // Gravity that contradicts the tilt for RECOVERY_S, as the field's
+                // heading does (Fusion AHRS's acceleration recovery), re-levels it on the
+                // latest force: nothing else would mend a tilt lost past the gate.
+                let since_s = *self.tilt_contradicted_since_s.get_or_insert(t_s);
+                // A tilt lost so far lost the heading with it: the latest field (when
+                // the stream has one) re-aims it as at the start.
+                if t_s - since_s >= RECOVERY_S {
+                    if let Some(force) = self.last_force {
+                        filter.reset_tilt_to(force, sigma_rad.max(INITIAL_TILT_SIGMA_RAD));
+                        if let (Some(field), Some(_)) = (self.last_field, self.gate.as_ref()) {
+                            filter.reset_yaw_to(field, INITIAL_YAW_SIGMA_RAD);
+                        }
+                        self.summary.n_tilt_recoveries += 1;
+                    }
+                    self.tilt_contradicted_since_s = None;
+                }
+            }
+            Fused::Degenerate => self.summary.n_gravity_refused += n,
         }
     }
 
@@ -376,5 +420,50 @@ mod tests {
             eprintln!("seed {seed}: yaw RMS {rms_deg:.2}° against the true heading");
             assert!(rms_deg < 4.0, "seed {seed}: yaw RMS {rms_deg:.2}°");
         }
+    }
+
+    /// A gyroscope that reads a half turn the body never made (a sensor saturated, a
+    /// bad sample) leaves the filter upside down, where gravity's update is refused (or
+    /// blind: an upside-down gravity's horizontal part is small too). After
+    /// [`RECOVERY_S`] of gravity contradicting the tilt, the filter re-levels on it.
+    #[test]
+    fn a_tilt_lost_to_a_false_half_turn_is_re_levelled_on_gravity() {
+        let timing = StreamTiming {
+            field_interval_s: 0.01,
+            max_gyro_gap_s: MAX_GYRO_GAP_S,
+            expects_field: false,
+        };
+        let mut filter = AttitudeFilter::new(None, timing, &AttitudeOptions::default());
+        let at_rest = Vector3::new(0.0, 0.0, -crate::io::STANDARD_GRAVITY_MPS2);
+        let mut roll_deg = Vec::new();
+        for idx in 0..2000 {
+            let t_s = idx as f64 * 0.01;
+            // A false half turn about x between 2 s and 3 s.
+            let rate = if (200..300).contains(&idx) {
+                Vector3::new(std::f64::consts::PI, 0.0, 0.0)
+            } else {
+                Vector3::zeros()
+            };
+            if let Some(estimate) = filter.gyro(t_s, rate) {
+                roll_deg.push((t_s, estimate.roll_rad.to_degrees()));
+            }
+            filter.acc(t_s, at_rest);
+        }
+        let roll_at = |at_s: f64| {
+            roll_deg
+                .iter()
+                .find(|(t_s, _)| *t_s >= at_s)
+                .map_or(f64::NAN, |(_, roll)| *roll)
+        };
+        // Upside down after the false turn, level again once gravity has contradicted
+        // the tilt for RECOVERY_S.
+        assert!(roll_at(4.0).abs() > 150.0, "{}", roll_at(4.0));
+        assert!(
+            roll_at(3.0 + RECOVERY_S + 1.0).abs() < 3.0,
+            "{}",
+            roll_at(9.0)
+        );
+        assert!(roll_at(19.9).abs() < 1.0, "{}", roll_at(19.9));
+        assert_eq!(filter.summary().n_tilt_recoveries, 1);
     }
 }

@@ -164,6 +164,8 @@ pub struct AttitudeSummary {
     /// Field samples that looked undisturbed but contradicted the heading.
     pub n_field_contradicting: usize,
     pub n_recoveries: usize,
+    /// Tilts re-levelled on gravity after [`RECOVERY_S`] of contradicting it.
+    pub n_tilt_recoveries: usize,
     pub n_rest_updates: usize,
     /// The prior 1σ of the gyroscope's bias (rad/s): [`AttitudeOptions::initial_bias_sigma_radps`].
     pub initial_gyro_bias_sigma_radps: f64,

@@ -159,6 +159,16 @@ pub fn attitude_csv(
             summary.n_recoveries,
         );
     }
+    let gravity_samples = summary.n_gravity_fused + summary.n_gravity_refused;
+    if gravity_samples > 0 {
+        let _ = writeln!(
+            text,
+            "# accelerometer: {gravity_samples} samples after the filter started: {:.1} % corrected the tilt as gravity, {:.1} % refused (the body accelerating, or contradicting the tilt); {} tilts re-levelled after {RECOVERY_S} s of contradiction",
+            100.0 * summary.n_gravity_fused as f64 / gravity_samples as f64,
+            100.0 * summary.n_gravity_refused as f64 / gravity_samples as f64,
+            summary.n_tilt_recoveries,
+        );
+    }
     match start_unix_s {
         Some(start_s) => {
             let _ = writeln!(

@@ -45,7 +45,7 @@ pub fn pdr_ekf_steps(
         EkfNoise::default(),
     );
     for pair in steps.chunks_exact(2).take(n_steps) {
-        ekf.step(pair[0], pair[1]);
+        ekf.step(pair[0], pair[1], None);
     }
     Ok(ekf
         .x
