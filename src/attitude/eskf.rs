@@ -250,7 +250,7 @@ impl Eskf {
     }
 
     /// Re-levels the attitude on `specific_force_in_body` taken as gravity's direction,
-    /// keeping the heading of the body x axis: a tilt lost (a gyroscope saturated while
+    /// turning it as little as that takes: a tilt lost (a gyroscope saturated while
     /// the body tumbled) that the gate on gravity would refuse to mend forever. The tilt's
     /// variance restarts at `tilt_sigma_rad`² and its correlations at zero.
     pub fn reset_tilt_to(&mut self, specific_force_in_body: Vector3<f64>, tilt_sigma_rad: f64) {
@@ -258,10 +258,15 @@ impl Eskf {
         if !(norm > 1e-6 && norm.is_finite()) {
             return;
         }
-        let levelled = attitude_from(specific_force_in_body, None);
-        let (_, _, yaw_rad) = self.nav_from_body.euler_angles();
-        let (roll_rad, pitch_rad, _) = levelled.euler_angles();
-        self.nav_from_body = UnitQuaternion::from_euler_angles(roll_rad, pitch_rad, yaw_rad);
+        // The smallest turn of the navigation frame that points the force up: about a
+        // horizontal axis, so a level body keeps its heading (a half turn about north
+        // when the force points straight down).
+        let up_in_nav = self.nav_from_body * (specific_force_in_body / norm);
+        let turn =
+            UnitQuaternion::rotation_between(&up_in_nav, &-Vector3::z()).unwrap_or_else(|| {
+                UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI)
+            });
+        self.nav_from_body = turn * self.nav_from_body;
         for row in 0..2 {
             for idx in 0..6 {
                 self.covariance[(row, idx)] = 0.0;

@@ -274,18 +274,6 @@ pub fn mean_heading(heading: &Stream<f64>, start_s: f64, end_s: f64) -> f64 {
         .unwrap_or(f64::NAN)
 }
 
-/// The mean of a 1σ stream over a step, else its value at the step's middle (within a
-/// second); `None` when there is none.
-pub fn mean_sigma(sigma: &Stream<f64>, start_s: f64, end_s: f64) -> Option<f64> {
-    let first = sigma.t_s.partition_point(|&t| t < start_s);
-    let last = sigma.t_s.partition_point(|&t| t < end_s);
-    let values = sigma.values.get(first..last).unwrap_or(&[]);
-    if !values.is_empty() {
-        return Some(values.iter().sum::<f64>() / values.len() as f64);
-    }
-    sigma.interpolate_at(0.5 * (start_s + end_s), 1.0)
-}
-
 /// Each NaN replaced by the last finite value before it (the first finite one at the
 /// start; 0 when there is none).
 pub fn fill_forward(values: Vec<f64>) -> Vec<f64> {

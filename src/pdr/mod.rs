@@ -57,7 +57,7 @@ use crate::recording::{Recording, Stream};
 
 use ekf::EkfNoise;
 use fusion::{fuse, FixInput, FixUse, Fused, GnssPolicy, StepInput, TrackPoint};
-use heading::{fill_forward, mean_heading, mean_sigma, step_heading, StepHeading};
+use heading::{fill_forward, mean_heading, step_heading, StepHeading};
 use metrics::{LoopClosure, MeanStd, PositionErrors};
 use references::{
     first_good_fix, gnss_step_references, reference_positions, start_position,
@@ -199,12 +199,13 @@ pub fn dead_reckon(
         });
     }
     let step_headings_rad = step_headings(&steps, &heading_stream, &mut notes);
+    // The heading's 1σ at each step's middle (the filter's changes slowly).
     let step_heading_sigmas_rad: Vec<Option<f64>> = steps
         .iter()
         .map(|step| {
             heading_sigma_stream
                 .as_ref()
-                .and_then(|sigma| mean_sigma(sigma, step.t_start_s, step.t_end_s))
+                .and_then(|sigma| sigma.interpolate_at(step.mid_s(), 1.0))
         })
         .collect();
 

@@ -189,26 +189,25 @@ impl DelimitedReader {
 const PHYPHOX_GYROSCOPE_NOTE: &str = "gyroscope: phyphox's rotation rate, with the OS's bias \
      estimate removed (Android's TYPE_GYROSCOPE; on iOS Core Motion's device-motion rate)";
 
-/// Whether the header is phyphox's export of its gyroscope: `"Time (s)"` then
-/// `"X (rad/s)"`… (one sensor's experiment) or `"Gyroscope x (rad/s)"`… (several
-/// sensors'). phyphox reads Android's `TYPE_GYROSCOPE` (`SensorInput.java`) and on iOS
+/// Whether the header is phyphox's export of its gyroscope, named as phyphox writes
+/// it: `"Time (s)"` then `"X (rad/s)"`… (one sensor's experiment) or
+/// `"Gyroscope x (rad/s)"`… (several sensors'). phyphox reads Android's `TYPE_GYROSCOPE` (`SensorInput.java`) and on iOS
 /// Core Motion's `CMDeviceMotion.rotationRate` (`ExperimentSensorInput.swift`), which
 /// Apple documents as the rate "whose bias has been removed by Core Motion
 /// algorithms": both are bias-removed. Other apps' names say nothing of the bias.
+#[inline(never)]
 fn is_phyphox_gyroscope(header: &Header) -> bool {
-    let names: Vec<String> = header
-        .names
-        .iter()
-        .map(|name| name.to_lowercase())
-        .collect();
-    let has = |name: &str| names.iter().any(|n| n == name);
-    has("time (s)")
-        && (["x", "y", "z"]
-            .iter()
-            .all(|axis| has(&format!("{axis} (rad/s)")))
-            || ["x", "y", "z"]
-                .iter()
-                .all(|axis| has(&format!("gyroscope {axis} (rad/s)"))))
+    const NAMES: [&str; 7] = [
+        "Time (s)",
+        "X (rad/s)",
+        "Y (rad/s)",
+        "Z (rad/s)",
+        "Gyroscope x (rad/s)",
+        "Gyroscope y (rad/s)",
+        "Gyroscope z (rad/s)",
+    ];
+    let has = |idx: usize| header.names.iter().any(|name| name == NAMES[idx]);
+    has(0) && ((1..4).all(has) || (4..7).all(has))
 }
 
 /// The factor to this crate's unit of a quantity's column, where the header gives it.
