@@ -40,6 +40,10 @@ impl StreamTiming {
 /// 1σ of the tilt (rad, about 3°) when it is taken from one specific force: at the
 /// start, and when gravity re-levels a lost tilt.
 const INITIAL_TILT_SIGMA_RAD: f64 = 0.05;
+/// How far (rad, 30°) gravity must be from the filter's down, for [`RECOVERY_S`], for the
+/// tilt to count as lost: a sustained acceleration of tan 30° · g (5.7 m/s²) is beyond a
+/// walker's or a car's for that long.
+const LOST_TILT_RAD: f64 = std::f64::consts::FRAC_PI_6;
 /// 1σ of the yaw (rad, about 11°) when it is taken from one field sample.
 const INITIAL_YAW_SIGMA_RAD: f64 = 0.2;
 
@@ -268,9 +272,18 @@ impl AttitudeFilter {
             }
             Fused::Gated { .. } => {
                 self.summary.n_gravity_refused += n;
-                // Gravity that contradicts the tilt for RECOVERY_S, as the field's
-                // heading does (Fusion AHRS's acceleration recovery), re-levels it on the
-                // latest force: nothing else would mend a tilt lost past the gate.
+                // Gravity more than LOST_TILT_RAD from the filter's down for RECOVERY_S
+                // (as the field's heading is re-aimed after as long) re-levels the tilt on
+                // the latest force: nothing else would mend a tilt lost past the gate.
+                // Nearer, it is the body accelerating (a car in a long curve at 1 Hz), which
+                // must not restart the attitude.
+                let off_rad = (-mean.z / mean.norm().max(f64::MIN_POSITIVE))
+                    .clamp(-1.0, 1.0)
+                    .acos();
+                if off_rad <= LOST_TILT_RAD {
+                    self.tilt_contradicted_since_s = None;
+                    return;
+                }
                 let since_s = *self.tilt_contradicted_since_s.get_or_insert(t_s);
                 // A tilt lost so far lost the heading with it: the latest field (when
                 // the stream has one) re-aims it as at the start.
