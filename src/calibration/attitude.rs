@@ -17,10 +17,8 @@ use crate::recording::{Recording, Stream};
 const MAX_OUTPUT_GAP_S: f64 = 1.0;
 
 /// The filter's track over `recording`, its field corrected as for the comparison's
-/// `ahrs` row; `None` without a gyroscope and an accelerometer. Never inlined: its two
-/// callers (this comparison and the dead reckoning's heading noise) would each get a
-/// copy of the whole filter, which the page's module cannot afford.
-#[inline(never)]
+/// `ahrs` row; `None` without a gyroscope and an accelerometer. The dead reckoning's
+/// heading noise calls it too.
 pub fn attitude_track(recording: &Recording, report: &CalibrationReport) -> Option<AttitudeTrack> {
     let device = selection::device_calibration(report).map(|(_, field)| field);
     attitude_of(
