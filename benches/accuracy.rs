@@ -76,7 +76,7 @@ mod report {
         analysis: &HeadingAnalysis,
         verdicts: &mut Vec<String>,
     ) -> String {
-        let row = |key: &str| analysis.report.rows.iter().find(|row| row.key == key);
+        let row = |key: &str| analysis.report.row(key);
         let stats = |key: &str| {
             row(key)
                 .map(|row| (row.train, row.check))
@@ -266,9 +266,7 @@ mod report {
             let check_rms = |key: &str| {
                 vehicle_headings
                     .report
-                    .rows
-                    .iter()
-                    .find(|row| row.key == key)
+                    .row(key)
                     .and_then(|row| row.check)
                     .map(|stats| stats.rms_deg)
             };

@@ -40,9 +40,7 @@ fn analyse(
 fn row<'a>(analysis: &'a HeadingAnalysis, key: &str) -> &'a HeadingRow {
     analysis
         .report
-        .rows
-        .iter()
-        .find(|row| row.key == key)
+        .row(key)
         .unwrap_or_else(|| panic!("no row {key}: {:?}", analysis.report.rows))
 }
 

@@ -35,9 +35,7 @@ fn heading_cells(analysis: &CalibrationAnalysis) -> (String, String) {
     let report = &headings.report;
     let rms_of = |key: &str| {
         report
-            .rows
-            .iter()
-            .find(|row| row.key == key)
+            .row(key)
             .and_then(|row| row.check.or(row.train))
             .map(|stats| stats.rms_deg)
     };

@@ -134,6 +134,11 @@ pub struct HeadingReport {
 }
 
 impl HeadingReport {
+    /// The row keyed `key` (`raw`, `ellipse+fourier`, …), if the comparison has one.
+    pub fn row(&self, key: &str) -> Option<&HeadingRow> {
+        self.rows.iter().find(|row| row.key == key)
+    }
+
     /// The Fourier model the plots feature: of those with all five terms, the one that
     /// fits its train part best; else the one on the raw heading.
     pub fn featured_fourier(&self) -> Option<&FourierReport> {
@@ -377,9 +382,7 @@ mod tests {
         let check_rms = |key: &str| {
             analysis
                 .report
-                .rows
-                .iter()
-                .find(|row| row.key == key)
+                .row(key)
                 .and_then(|row| row.check)
                 .map_or(f64::INFINITY, |stats| stats.rms_deg)
         };

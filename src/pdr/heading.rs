@@ -242,9 +242,7 @@ pub fn without_outages(gnss: &Stream<GnssFix>, outages: &[Outage]) -> Stream<Gns
 fn label_of(headings: &HeadingAnalysis, key: &str) -> String {
     headings
         .report
-        .rows
-        .iter()
-        .find(|row| row.key == key)
+        .row(key)
         .map_or_else(|| key.to_string(), |row| row.label.clone())
 }
 

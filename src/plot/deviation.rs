@@ -210,9 +210,7 @@ pub fn draw_heading_errors<DB: DrawingBackend>(
         .unwrap_or_else(|| "raw".to_string());
     let best_label = analysis
         .report
-        .rows
-        .iter()
-        .find(|row| row.key == best_key)
+        .row(&best_key)
         .map_or(best_key.clone(), |row| row.label.clone());
     let (raw, best) = (series("raw"), series(&best_key));
     let limit_deg = raw
