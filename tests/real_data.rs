@@ -873,7 +873,7 @@ fn the_live_filter_needle_follows_a_real_board_s_two_turns() {
         turns_start_s,
     ));
     let mut session = LiveSession::new();
-    let (mut turns_deg, mut compass_deg, mut differences_deg) =
+    let (mut turns_deg, mut compass_deg, mut differences_rad) =
         (Vec::new(), Vec::new(), Vec::new());
     let (mut piece, mut piece_end_s, mut n_pieces) = (String::new(), 0.5, 0usize);
     for (idx, (t_s, line)) in lines.iter().enumerate() {
@@ -900,7 +900,7 @@ fn the_live_filter_needle_follows_a_real_board_s_two_turns() {
         }
         turns_deg.push(filter_rad.to_degrees());
         compass_deg.push(compass_rad.to_degrees());
-        differences_deg.push(compass_pdr::angle::wrap_to_pi(filter_rad - compass_rad).to_degrees());
+        differences_rad.push(filter_rad - compass_rad);
     }
     let turned = |headings_deg: &[f64]| -> f64 {
         headings_deg
@@ -911,9 +911,9 @@ fn the_live_filter_needle_follows_a_real_board_s_two_turns() {
             .sum()
     };
     let (filter_turned_deg, compass_turned_deg) = (turned(&turns_deg), turned(&compass_deg));
-    let rms_deg = (differences_deg.iter().map(|d| d * d).sum::<f64>()
-        / differences_deg.len().max(1) as f64)
-        .sqrt();
+    let rms_deg =
+        compass_pdr::stats::HeadingErrorStats::from_errors_rad(differences_rad.iter().copied())
+            .map_or(0.0, |stats| stats.rms_deg);
     eprintln!(
         "live replay, the two turns after the tumble: {} readings; the filter's needle turned {filter_turned_deg:.1}°, the compass's {compass_turned_deg:.1}°; filter − compass {rms_deg:.2}° RMS",
         turns_deg.len()

@@ -359,6 +359,7 @@ mod tests {
     use crate::attitude::{estimate_attitude, AttitudeOptions};
     use crate::recording::Stream;
     use crate::sim::walk::{simulate, WalkConfig};
+    use crate::stats::HeadingErrorStats;
 
     /// A simulated walk's streams, its field calibrated exactly, and its true heading
     /// (degrees; the walk's declination is 0).
@@ -407,7 +408,7 @@ mod tests {
             assert!((timing.field_interval_s - 1.0 / config.sample_rate_hz).abs() < 1e-9);
             assert_eq!(timing.max_gyro_gap_s, MAX_GYRO_GAP_S);
             let mut live = AttitudeFilter::new(reference, timing, &options);
-            let mut yaw_errors_deg = Vec::new();
+            let mut yaw_errors_rad = Vec::new();
             for idx in 0..gyro.len() {
                 let t_s = gyro.t_s[idx];
                 let estimate = live.gyro(t_s, gyro.values[idx]);
@@ -421,15 +422,13 @@ mod tests {
                     "seed {seed}, t {t_s}"
                 );
                 if let Some(truth_deg) = truth.interpolate_at(t_s, 0.1) {
-                    let error_rad = (estimate.yaw_rad - truth_deg.to_radians()).sin_cos();
-                    yaw_errors_deg.push(error_rad.0.atan2(error_rad.1).to_degrees());
+                    yaw_errors_rad.push(estimate.yaw_rad - truth_deg.to_radians());
                 }
             }
             assert_eq!(live.summary(), whole.summary);
-            let rms_deg = (yaw_errors_deg.iter().map(|e| e * e).sum::<f64>()
-                / yaw_errors_deg.len().max(1) as f64)
-                .sqrt();
-            assert!(yaw_errors_deg.len() > 5000, "{}", yaw_errors_deg.len());
+            let rms_deg = HeadingErrorStats::from_errors_rad(yaw_errors_rad.iter().copied())
+                .map_or(0.0, |stats| stats.rms_deg);
+            assert!(yaw_errors_rad.len() > 5000, "{}", yaw_errors_rad.len());
             eprintln!("seed {seed}: yaw RMS {rms_deg:.2}° against the true heading");
             assert!(rms_deg < 4.0, "seed {seed}: yaw RMS {rms_deg:.2}°");
         }

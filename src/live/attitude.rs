@@ -220,6 +220,7 @@ fn reference(recording: &Recording, calibration: &FieldCalibration) -> Option<Fi
 #[cfg(test)]
 mod tests {
     use super::super::LiveSession;
+    use crate::stats::HeadingErrorStats;
 
     #[test]
     fn a_board_that_prints_zeros_for_its_gyroscope_gets_no_filter() {
@@ -293,21 +294,19 @@ mod tests {
                     continue;
                 }
                 let truth_rad = body_x_in_ned.y.atan2(body_x_in_ned.x);
-                let error_deg = |heading_rad: f64| {
-                    let (sin, cos) = (heading_rad - truth_rad).sin_cos();
-                    sin.atan2(cos).to_degrees()
-                };
+                let error_rad = |heading_rad: f64| heading_rad - truth_rad;
                 let (filter, compass) = &mut errors[usize::from((TOOL.0..TOOL.1).contains(&t_s))];
                 if let Some((heading_rad, sigma_rad)) = session.filter_heading_rad() {
                     assert!(sigma_rad > 0.0 && sigma_rad < 0.5, "{sigma_rad}");
-                    filter.push(error_deg(heading_rad));
+                    filter.push(error_rad(heading_rad));
                 }
                 if let Some(heading_rad) = session.latest_heading_rad() {
-                    compass.push(error_deg(heading_rad));
+                    compass.push(error_rad(heading_rad));
                 }
             }
-            let rms = |errors: &[f64]| {
-                (errors.iter().map(|e| e * e).sum::<f64>() / errors.len().max(1) as f64).sqrt()
+            let rms = |errors_rad: &[f64]| {
+                HeadingErrorStats::from_errors_rad(errors_rad.iter().copied())
+                    .map_or(0.0, |stats| stats.rms_deg)
             };
             let [(filter_out, compass_out), (filter_under, compass_under)] = &errors;
             eprintln!(
@@ -341,7 +340,7 @@ mod tests {
             let bytes = text.as_bytes();
             let piece_len = (bytes.len() as f64 / config.duration_s * 0.5).ceil() as usize;
             let mut session = LiveSession::new();
-            let (mut errors_deg, mut lines) = (Vec::new(), 0usize);
+            let (mut errors_rad, mut lines) = (Vec::new(), 0usize);
             for (piece_idx, piece) in bytes.chunks(piece_len).enumerate() {
                 lines += piece.iter().filter(|&&byte| byte == b'\n').count();
                 let board_t_s = lines as f64 / config.rate_hz;
@@ -354,18 +353,16 @@ mod tests {
                     continue;
                 }
                 if let Some((heading_rad, _)) = session.filter_heading_rad() {
-                    let error_rad = heading_rad - body_x_in_ned.y.atan2(body_x_in_ned.x);
-                    errors_deg.push(error_rad.sin().atan2(error_rad.cos()).to_degrees());
+                    errors_rad.push(heading_rad - body_x_in_ned.y.atan2(body_x_in_ned.x));
                 }
             }
-            let rms_deg = (errors_deg.iter().map(|e| e * e).sum::<f64>()
-                / errors_deg.len().max(1) as f64)
-                .sqrt();
+            let rms_deg = HeadingErrorStats::from_errors_rad(errors_rad.iter().copied())
+                .map_or(0.0, |stats| stats.rms_deg);
             eprintln!(
                 "dance seed {seed} as the page plays it: filter {rms_deg:.2}° RMS over {} readings",
-                errors_deg.len()
+                errors_rad.len()
             );
-            assert!(errors_deg.len() > 50, "{}", errors_deg.len());
+            assert!(errors_rad.len() > 50, "{}", errors_rad.len());
             assert!(rms_deg < 12.0, "seed {seed}: {rms_deg:.2}°");
         }
     }
