@@ -10,52 +10,63 @@
 
 use super::{selection, CalibrationReport};
 use crate::attitude::track::attitude_of;
-use crate::attitude::{AttitudeOptions, AttitudeTrack};
+use crate::attitude::AttitudeOptions;
 use crate::recording::{Recording, Stream};
 
 /// Gyroscope outputs further apart than this (s) are not interpolated across.
 const MAX_OUTPUT_GAP_S: f64 = 1.0;
 
-/// The filter's track over `recording`, its field corrected as for the comparison's
-/// `ahrs` row; `None` without a gyroscope and an accelerometer. The dead reckoning's
-/// heading noise calls it too.
-pub fn attitude_track(recording: &Recording, report: &CalibrationReport) -> Option<AttitudeTrack> {
+/// The attitude filter's heading at each calibration sample, with its 1σ.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AttitudeHeading {
+    /// Degrees clockwise from true north, in [0, 360); NaN where the filter has none.
+    pub heading_deg: Vec<f64>,
+    /// The yaw's 1σ (degrees); NaN where the filter has none.
+    pub sigma_deg: Vec<f64>,
+}
+
+/// The filter's heading and its 1σ at each of `t_s`, its field corrected as the device
+/// would correct it; `None` without a gyroscope and an accelerometer.
+pub(super) fn attitude_heading(
+    recording: &Recording,
+    report: &CalibrationReport,
+    t_s: &[f64],
+) -> Option<AttitudeHeading> {
     let device = selection::device_calibration(report).map(|(_, field)| field);
-    attitude_of(
+    let (track, _) = attitude_of(
         recording,
         device.as_ref(),
         &AttitudeOptions::for_gyro(recording.gyro_bias),
     )
-    .ok()
-    .map(|(track, _)| track)
-}
-
-/// The filter's heading (degrees clockwise from true north, in [0, 360); NaN where it
-/// has none) at each of `t_s`; `None` without a gyroscope and an accelerometer.
-pub(super) fn attitude_heading_deg(
-    recording: &Recording,
-    report: &CalibrationReport,
-    t_s: &[f64],
-) -> Option<Vec<f64>> {
-    let track = attitude_track(recording, report)?;
-    let yaw = Stream {
-        t_s: track.attitude.t_s,
-        values: track
-            .attitude
-            .values
-            .iter()
-            .map(|estimate| estimate.yaw_rad)
-            .collect(),
+    .ok()?;
+    let (yaw, sigma) = {
+        let (mut yaw, mut sigma) = (Stream::default(), Stream::default());
+        for (&t_s, estimate) in track.attitude.t_s.iter().zip(&track.attitude.values) {
+            yaw.push(t_s, estimate.yaw_rad);
+            sigma.push(t_s, estimate.yaw_sigma_rad);
+        }
+        (yaw, sigma)
     };
     let declination_rad = report.declination.declination_deg.to_radians();
-    Some(
-        t_s.iter()
-            .map(|&t_s| {
-                yaw.interpolate_angle_at(t_s, MAX_OUTPUT_GAP_S)
-                    .map_or(f64::NAN, |yaw_rad| {
-                        crate::angle::wrap_to_2pi(yaw_rad + declination_rad).to_degrees()
-                    })
-            })
-            .collect(),
-    )
+    let heading_deg = t_s
+        .iter()
+        .map(|&t_s| {
+            yaw.interpolate_angle_at(t_s, MAX_OUTPUT_GAP_S)
+                .map_or(f64::NAN, |yaw_rad| {
+                    crate::angle::wrap_to_2pi(yaw_rad + declination_rad).to_degrees()
+                })
+        })
+        .collect();
+    let sigma_deg = t_s
+        .iter()
+        .map(|&t_s| {
+            sigma
+                .interpolate_at(t_s, MAX_OUTPUT_GAP_S)
+                .map_or(f64::NAN, f64::to_degrees)
+        })
+        .collect();
+    Some(AttitudeHeading {
+        heading_deg,
+        sigma_deg,
+    })
 }

@@ -45,7 +45,7 @@ mod context;
 mod methods;
 pub mod selection;
 
-pub use attitude::attitude_track;
+pub use attitude::AttitudeHeading;
 use context::{
     conditions, declination_used, field_and_reference_notes, split, turn_onto_raw_heading, Split,
 };
@@ -282,10 +282,10 @@ pub struct CalibrationAnalysis {
     /// temperature, and the integrated gyro heading (relative to its start).
     pub temp_c: Vec<Option<f64>>,
     pub gyro_heading_deg: Vec<Option<f64>>,
-    /// The attitude filter's heading at each sample (degrees from true north, NaN where
-    /// it has none), `None` without a gyroscope and an accelerometer: a base of the
-    /// heading comparison ([`attitude`]).
-    pub attitude_heading_deg: Option<Vec<f64>>,
+    /// The attitude filter's heading and its 1σ at each sample, `None` without a
+    /// gyroscope and an accelerometer: a base of the heading comparison, the network's
+    /// gyro heading and the dead reckoning's heading noise ([`attitude`]).
+    pub attitude_heading: Option<AttitudeHeading>,
     /// Down at each accelerometer sample, which levelled the samples and the gyro:
     /// estimated once, shared by the stages after (shared, not copied, by a clone).
     pub gravity: Arc<GravityEstimate>,
@@ -349,7 +349,7 @@ struct Levelled {
     gyro_heading_deg: Vec<Option<f64>>,
     /// The attitude filter's heading when it was computed already (a calibration run
     /// again on the same sensors keeps it).
-    attitude_heading_deg: Option<Option<Vec<f64>>>,
+    attitude_heading: Option<Option<AttitudeHeading>>,
 }
 
 impl Levelled {
@@ -376,7 +376,7 @@ impl Levelled {
             samples,
             temp_c,
             gyro_heading_deg,
-            attitude_heading_deg: None,
+            attitude_heading: None,
         })
     }
 
@@ -394,7 +394,7 @@ impl Levelled {
             },
             temp_c: previous.temp_c.clone(),
             gyro_heading_deg: previous.gyro_heading_deg.clone(),
-            attitude_heading_deg: Some(previous.attitude_heading_deg.clone()),
+            attitude_heading: Some(previous.attitude_heading.clone()),
         }
     }
 }
@@ -567,7 +567,7 @@ fn calibrate_levelled(
         samples,
         temp_c,
         gyro_heading_deg,
-        attitude_heading_deg,
+        attitude_heading,
     } = match levelled {
         Some(levelled) => levelled,
         None => Levelled::of(
@@ -667,7 +667,7 @@ fn calibrate_levelled(
         field_corrected_ut: field_corrected_ut.unwrap_or_default(),
         temp_c,
         gyro_heading_deg,
-        attitude_heading_deg: None,
+        attitude_heading: None,
         field_raw_ut,
         gravity,
     };
@@ -680,9 +680,8 @@ fn calibrate_levelled(
         .into_iter()
         .find(|method| method.key() == choice.key);
     report.choice = Some(choice);
-    analysis.attitude_heading_deg = attitude_heading_deg.unwrap_or_else(|| {
-        attitude::attitude_heading_deg(&recording, &analysis.report, &analysis.t_s)
-    });
+    analysis.attitude_heading = attitude_heading
+        .unwrap_or_else(|| attitude::attitude_heading(&recording, &analysis.report, &analysis.t_s));
     Ok(analysis)
 }
 

@@ -218,7 +218,8 @@ fn bases_of<'a>(calibration: &'a CalibrationAnalysis, split: &Split) -> Vec<Base
             scores,
         });
     }
-    if let Some(headings_deg) = &calibration.attitude_heading_deg {
+    if let Some(attitude) = &calibration.attitude_heading {
+        let headings_deg = &attitude.heading_deg;
         let heading_rad: Vec<f64> = radians(headings_deg);
         let scores = split.both_stats(&heading_rad);
         bases.push(Base {
@@ -334,8 +335,9 @@ fn neural_stacks(
     // that heading with its drift held by gravity and the field (issue 18), so it is the
     // input where the log has one, else the gyroscope integrated from its start.
     let filter_heading_deg: Option<Vec<Option<f64>>> =
-        calibration.attitude_heading_deg.as_ref().map(|headings| {
-            headings
+        calibration.attitude_heading.as_ref().map(|attitude| {
+            attitude
+                .heading_deg
                 .iter()
                 .map(|&deg| deg.is_finite().then_some(deg))
                 .collect()

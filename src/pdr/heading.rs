@@ -10,9 +10,7 @@
 //! on a reference-heading column (in a test log that column is the truth), so that no
 //! fix inside an outage trains what bridges it.
 
-use crate::calibration::{
-    attitude_track, calibrate_again, CalibrationAnalysis, CalibrationOptions, Method,
-};
+use crate::calibration::{calibrate_again, CalibrationAnalysis, CalibrationOptions, Method};
 use crate::heading::ATTITUDE_KEY;
 use crate::heading::{HeadingAnalysis, HeadingOptions};
 use crate::io::ImportReport;
@@ -111,14 +109,17 @@ fn compass_heading(
             heading_rad.push(t_s, deg.to_radians());
         }
     }
-    // The attitude filter states its yaw's 1σ: the dead reckoning's heading noise.
+    // The attitude filter states its yaw's 1σ: the dead reckoning's heading noise. (A
+    // calibration fitted again keeps the first one's filter run, and so its σ.)
     let sigma_rad = (key == ATTITUDE_KEY)
-        .then(|| attitude_track(&import.recording, &source.report.calibration))
+        .then_some(calibration.attitude_heading.as_ref())
         .flatten()
-        .map(|track| {
+        .map(|attitude| {
             let mut sigma_rad = Stream::default();
-            for (&t_s, estimate) in track.attitude.t_s.iter().zip(&track.attitude.values) {
-                sigma_rad.push(t_s, estimate.yaw_sigma_rad);
+            for (&t_s, &deg) in calibration.t_s.iter().zip(&attitude.sigma_deg) {
+                if deg.is_finite() {
+                    sigma_rad.push(t_s, deg.to_radians());
+                }
             }
             sigma_rad
         });
