@@ -561,6 +561,7 @@ fn calibrate_levelled(
         n_data_lines,
         mut notes,
         mag_frame,
+        autopilot: _,
     } = report;
     let Levelled {
         gravity,
@@ -821,6 +822,7 @@ mod tests {
                 .push(idx as f64 * 0.01, sample.mag_ut);
         }
         let report = ImportReport {
+            autopilot: None,
             file_name: "cap.csv".to_string(),
             format: "test",
             recording,

@@ -4,6 +4,7 @@
 //! with its line number and the reason, and the rest of the file is still read. Only a
 //! file from which nothing at all can be read is an [`ImportError`].
 
+pub mod autopilot;
 pub mod axes;
 pub mod canonical_csv;
 pub mod delimited;
@@ -113,6 +114,8 @@ pub struct ImportReport {
     /// How the magnetometer's body-axes µT values were made from the log's raw values;
     /// `None` when the recording has no magnetometer.
     pub mag_frame: Option<SensorFrame>,
+    /// An autopilot log's parameters and compasses ([`autopilot`]); `None` for others.
+    pub autopilot: Option<autopilot::AutopilotLog>,
 }
 
 /// The header of a delimited file: its column names as written and its line number.

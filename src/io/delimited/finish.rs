@@ -81,6 +81,7 @@ impl DelimitedReader {
         shrink_all(recording);
         Ok(RawImport {
             report: ImportReport {
+                autopilot: None,
                 file_name,
                 format: FORMAT_NAME,
                 recording: std::mem::take(recording),

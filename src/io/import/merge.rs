@@ -46,6 +46,7 @@ pub fn merge(
 
     let names: Vec<String> = imports.iter().map(|(name, _)| name.clone()).collect();
     let mut merged = ImportReport {
+        autopilot: None,
         file_name: names.join(" + "),
         format: "",
         recording: Recording::default(),
@@ -128,6 +129,7 @@ fn merge_files(
     if let Some(recording) = device_recording {
         let raw = RawImport {
             report: ImportReport {
+                autopilot: None,
                 recording,
                 ..empty_like(merged)
             },
@@ -214,6 +216,7 @@ fn merge_into_parts(
 
 fn empty_like(report: &ImportReport) -> ImportReport {
     ImportReport {
+        autopilot: None,
         file_name: report.file_name.clone(),
         format: delimited::FORMAT_NAME,
         recording: Recording::default(),

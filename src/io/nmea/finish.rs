@@ -89,6 +89,7 @@ impl NmeaReader {
             );
         }
         Ok(ImportReport {
+            autopilot: None,
             file_name,
             format: FORMAT_NAME,
             recording,

@@ -305,6 +305,7 @@ pub(super) fn headerless_import(
     Ok(SensorImport {
         raw: RawImport {
             report: ImportReport {
+                autopilot: None,
                 file_name: file_name.to_string(),
                 format: HEADERLESS_TEXT,
                 recording,

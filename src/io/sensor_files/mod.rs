@@ -127,6 +127,7 @@ fn notes_only(
     SensorImport {
         raw: RawImport {
             report: ImportReport {
+                autopilot: None,
                 file_name: file_name.to_string(),
                 format,
                 recording: Recording::default(),

@@ -134,6 +134,7 @@ impl SerialReader {
         }
 
         let report = ImportReport {
+            autopilot: None,
             file_name: file_name.to_string(),
             format: FORMAT_NAME,
             recording: self.recording,

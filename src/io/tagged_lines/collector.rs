@@ -283,6 +283,7 @@ impl Collector {
         }
 
         Ok(ImportReport {
+            autopilot: None,
             file_name,
             format,
             recording,
