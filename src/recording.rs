@@ -245,6 +245,10 @@ pub struct Recording {
     pub device_heading: Stream<DeviceHeading>,
     /// Reference (true) heading, clockwise from true north.
     pub ref_heading_rad: Stream<f64>,
+    /// The heading an autopilot's own estimator logged (ArduPilot's `ATT`, PX4's
+    /// `vehicle_attitude`), clockwise from true north: the reference for a vehicle whose
+    /// GPS course is not where it points (a multicopter flies sideways).
+    pub autopilot_heading_rad: Stream<f64>,
     /// Reference positions (landmarks, waypoints), metres east and north of a local
     /// origin.
     pub ref_position_en_m: Stream<Vector2<f64>>,
@@ -282,6 +286,7 @@ impl Recording {
         append(&mut self.attitude, other.attitude);
         append(&mut self.device_heading, other.device_heading);
         append(&mut self.ref_heading_rad, other.ref_heading_rad);
+        append(&mut self.autopilot_heading_rad, other.autopilot_heading_rad);
         append(&mut self.ref_position_en_m, other.ref_position_en_m);
         append(
             &mut self.ref_position_lat_lon_deg,
@@ -301,6 +306,7 @@ impl Recording {
             + self.attitude.sort_by_time()
             + self.device_heading.sort_by_time()
             + self.ref_heading_rad.sort_by_time()
+            + self.autopilot_heading_rad.sort_by_time()
             + self.ref_position_en_m.sort_by_time()
             + self.ref_position_lat_lon_deg.sort_by_time()
     }

@@ -41,6 +41,7 @@ use crate::reference::{choose_reference, ReferenceOptions, ReferenceSource};
 use crate::stats::HeadingErrorStats;
 
 mod attitude;
+pub mod autopilot;
 mod context;
 mod methods;
 pub mod selection;
@@ -249,6 +250,9 @@ pub struct CalibrationReport {
     /// fitted in: what an exported calibration is turned back with
     /// ([`crate::calib::export::SensorCalibration`]).
     pub mag_frame: Option<SensorFrame>,
+    /// An autopilot log's compasses calibrated and written back as its parameters.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub autopilot: Option<autopilot::AutopilotCalibration>,
 }
 
 /// An ellipse as (centre, the matrix mapping a circle of the radius onto it, radius).
@@ -561,8 +565,11 @@ fn calibrate_levelled(
         n_data_lines,
         mut notes,
         mag_frame,
-        autopilot: _,
+        autopilot,
     } = report;
+    let autopilot_calibration = autopilot
+        .as_ref()
+        .and_then(|log| autopilot::autopilot_calibration(log, &recording.attitude));
     let Levelled {
         gravity,
         samples,
@@ -649,6 +656,7 @@ fn calibrate_levelled(
             notes,
             diagnostics,
             mag_frame,
+            autopilot: autopilot_calibration,
         },
         t_s: samples.t_s,
         mag_ut: samples.mag_ut,

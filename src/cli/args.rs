@@ -68,10 +68,10 @@ pub(super) struct AnalysisArgs {
     /// (default: half-way through the part that has a reference heading).
     #[arg(long)]
     pub(super) train_until: Option<f64>,
-    /// The reference heading: `auto` (the log's reference column, else GPS course, else
-    /// map legs between reference positions, else the gyro over a --closed-loop),
-    /// `column`, `gps`, `legs`, or `gyro` (the integrated gyro, anchored to the best
-    /// of the others).
+    /// The reference heading: `auto` (the log's reference column, else an autopilot's
+    /// own heading, else GPS course, else map legs between reference positions, else
+    /// the gyro over a --closed-loop), `column`, `autopilot`, `gps`, `legs`, or `gyro`
+    /// (the integrated gyro, anchored to the best of the others).
     #[arg(long, value_enum, default_value_t = ReferenceArg::Auto)]
     pub(super) reference: ReferenceArg,
     /// The walk ends where and as it started: the gyro's turn over it is whole turns,
@@ -187,6 +187,7 @@ impl PdrArgs {
 pub(super) enum ReferenceArg {
     Auto,
     Column,
+    Autopilot,
     Gps,
     Legs,
     Gyro,
@@ -216,6 +217,7 @@ impl AnalysisArgs {
                     ReferenceArg::Column => ReferenceChoice::Column,
                     ReferenceArg::Gps => ReferenceChoice::Gps,
                     ReferenceArg::Legs => ReferenceChoice::Legs,
+                    ReferenceArg::Autopilot => ReferenceChoice::Autopilot,
                     ReferenceArg::Gyro => ReferenceChoice::Gyro,
                 },
                 min_course_speed_mps: self.min_course_speed,

@@ -8,6 +8,7 @@ use super::inspect::{import_paths, print_import_diagnostics};
 use super::{print_out, print_report};
 use compass_pdr::calib::export::{c_snippet, motioncal_packet};
 use compass_pdr::calib::plane::SoftIronModel;
+use compass_pdr::calibration::autopilot::AutopilotCalibration;
 use compass_pdr::calibration::{CalibrationOptions, CalibrationReport, MethodParameters};
 use compass_pdr::heading::HeadingOptions;
 use compass_pdr::pipeline;
@@ -22,6 +23,7 @@ pub(super) struct Outputs<'a> {
     pub(super) plot: Option<&'a Path>,
     pub(super) export_c: Option<&'a Path>,
     pub(super) export_packet: Option<&'a Path>,
+    pub(super) param_out: Option<&'a Path>,
 }
 
 pub(super) fn run_calibrate(
@@ -86,6 +88,23 @@ pub(super) fn run_calibrate(
             ));
         }
     }
+    if let Some(path) = outputs.param_out {
+        let Some(autopilot) = &report.autopilot else {
+            return Err(format!(
+                "--param-out {}: {} is not an autopilot log with its compasses' raw fields and \
+                 attitude, so there are no autopilot parameters to write",
+                path.display(),
+                report.file_name
+            ));
+        };
+        std::fs::write(path, &autopilot.param_file)
+            .map_err(|error| format!("cannot write {}: {error}", path.display()))?;
+        written.push(format!(
+            "{} parameters written to {}",
+            autopilot.autopilot,
+            path.display()
+        ));
+    }
     if outputs.json {
         let output = CalibrateOutput {
             report,
@@ -98,6 +117,9 @@ pub(super) fn run_calibrate(
     text.push_str("  device calibration:\n");
     for line in device_calibration_lines(&analysis) {
         text.push_str(&format!("    {line}\n"));
+    }
+    if let Some(autopilot) = &report.autopilot {
+        text.push_str(&autopilot_text(autopilot));
     }
     for line in &written {
         text.push_str(&format!("  {line}\n"));
@@ -243,6 +265,74 @@ pub(super) fn calibration_text(report: &CalibrationReport) -> String {
     }
     for note in &report.notes {
         let _ = writeln!(text, "  note: {note}");
+    }
+    text
+}
+
+/// The autopilot section: each compass's new parameters against those in force.
+fn autopilot_text(autopilot: &AutopilotCalibration) -> String {
+    let mut text = format!(
+        "  {} compass calibration (attitude-aided, against the Earth's field seen through the \
+         autopilot's attitude):\n",
+        autopilot.autopilot
+    );
+    let degrees = |value: Option<f64>| value.map_or_else(|| "-".to_string(), |v| format!("{v:.1}°"));
+    for compass in &autopilot.compasses {
+        text.push_str(&format!(
+            "    {} ({} samples): {} chosen on the held-back second half (heading RMS: offsets {}, \
+             offsets and soft iron {}, parameters in force {})\n",
+            compass.source,
+            compass.n_samples,
+            compass.model,
+            degrees(compass.check_offsets_deg),
+            degrees(compass.check_soft_iron_deg),
+            degrees(compass.check_in_force_deg),
+        ));
+        let fitted = &compass.fitted;
+        match &compass.in_force {
+            Some(in_force) => text.push_str(&format!(
+                "      whole log, heading RMS {:.1}° (in force {:.1}°), |B| spread {:.2} % (in force \
+                 {:.2} %): {}\n",
+                fitted.heading_rms_deg,
+                in_force.heading_rms_deg,
+                fitted.spread_pct,
+                in_force.spread_pct,
+                if fitted.spread_pct <= in_force.spread_pct {
+                    format!(
+                        "the spread {:.0} % smaller",
+                        100.0 * (1.0 - fitted.spread_pct / in_force.spread_pct)
+                    )
+                } else {
+                    format!(
+                        "the spread {:.0} % LARGER than the parameters in force give: keep those",
+                        100.0 * (fitted.spread_pct / in_force.spread_pct - 1.0)
+                    )
+                }
+            )),
+            None => text.push_str(&format!(
+                "      whole log, heading RMS {:.1}°, |B| spread {:.2} % (no calibration in force in the log)\n",
+                fitted.heading_rms_deg, fitted.spread_pct
+            )),
+        }
+        let sigma = compass.offsets_sigma;
+        let line: Vec<String> = compass
+            .params
+            .iter()
+            .map(|(name, value)| format!("{name} {value:.4}"))
+            .collect();
+        text.push_str(&format!(
+            "      {} (offsets ±{:.1}, {:.1}, {:.1} mG formal 1σ{})\n",
+            line.join(", "),
+            sigma[0],
+            sigma[1],
+            sigma[2],
+            compass
+                .soft_iron_sigma
+                .map_or_else(String::new, |s| format!(", soft iron ±{s:.3}"))
+        ));
+    }
+    for note in &autopilot.notes {
+        text.push_str(&format!("    note: {note}\n"));
     }
     text
 }

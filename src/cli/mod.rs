@@ -71,6 +71,10 @@ enum Command {
         /// Write the device calibration as a MotionCal 68-byte packet to this file.
         #[arg(long)]
         export_packet: Option<PathBuf>,
+        /// Write an autopilot log's new compass calibration as an ArduPilot .param file
+        /// (Mission Planner's "Load from file", MAVProxy's `param load`).
+        #[arg(long)]
+        param_out: Option<PathBuf>,
     },
     /// Learn the heading error from a reference (the unified Fourier model of the PDR
     /// paper, adapted online too) on top of every calibration method, and compare every
@@ -189,12 +193,14 @@ pub fn main() -> ExitCode {
             plot,
             export_c,
             export_packet,
+            param_out,
         } => analysis.options(method.methods()).and_then(|options| {
             let outputs = Outputs {
                 json,
                 plot: plot.as_deref(),
                 export_c: export_c.as_deref(),
                 export_packet: export_packet.as_deref(),
+                param_out: param_out.as_deref(),
             };
             run_calibrate(&input, &options, &outputs)
         }),

@@ -6,6 +6,7 @@
 
 pub mod autopilot;
 pub mod axes;
+pub mod dataflash;
 pub mod canonical_csv;
 pub mod delimited;
 pub mod frame;

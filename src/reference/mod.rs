@@ -5,10 +5,12 @@
 //!
 //! 1. a reference-heading column in the log (`ref_heading_deg`: a simulator's truth, a
 //!    survey);
-//! 2. the GPS course over ground, gated by speed and accuracy ([`gps`]);
-//! 3. the map-direction constraint: straight legs between reference positions
+//! 2. an autopilot's own heading (ArduPilot's `ATT`, PX4's `vehicle_attitude`): a drone
+//!    log's best, since a multicopter's course is not its heading;
+//! 3. the GPS course over ground, gated by speed and accuracy ([`gps`]);
+//! 4. the map-direction constraint: straight legs between reference positions
 //!    ([`legs`]);
-//! 4. the integrated gyro heading ([`gyro`]), anchored to whichever of the above exists,
+//! 5. the integrated gyro heading ([`gyro`]), anchored to whichever of the above exists,
 //!    else relative (and drift-corrected when the user says the walk is a closed loop).
 //!
 //! A relative reference has no absolute offset: a heading model fitted against it
@@ -34,6 +36,7 @@ pub enum ReferenceChoice {
     #[default]
     Auto,
     Column,
+    Autopilot,
     Gps,
     Legs,
     Gyro,
@@ -44,6 +47,7 @@ impl ReferenceChoice {
         match text.trim().to_ascii_lowercase().as_str() {
             "auto" => Some(ReferenceChoice::Auto),
             "column" => Some(ReferenceChoice::Column),
+            "autopilot" => Some(ReferenceChoice::Autopilot),
             "gps" => Some(ReferenceChoice::Gps),
             "legs" => Some(ReferenceChoice::Legs),
             "gyro" => Some(ReferenceChoice::Gyro),
@@ -58,6 +62,8 @@ impl ReferenceChoice {
 pub enum ReferenceSource {
     /// The log's own reference-heading column.
     Column,
+    /// The autopilot's own heading estimate.
+    Autopilot,
     /// GPS course over ground through the gates.
     GpsCourse {
         min_speed_mps: f64,
@@ -92,6 +98,10 @@ impl ReferenceSource {
     pub fn describe(&self) -> String {
         match self {
             ReferenceSource::Column => "the log's reference-heading column".to_string(),
+            ReferenceSource::Autopilot => "the autopilot's own heading (its estimator fuses \
+                the compass with its calibration in force, the gyroscopes and GPS, so it \
+                leans slightly towards the calibration in force)"
+                .to_string(),
             ReferenceSource::GpsCourse {
                 min_speed_mps,
                 max_hacc_m,
@@ -145,6 +155,7 @@ impl ReferenceSource {
     pub fn label(&self) -> &'static str {
         match self {
             ReferenceSource::Column => "reference column",
+            ReferenceSource::Autopilot => "autopilot heading",
             ReferenceSource::GpsCourse { .. } => "GPS course",
             ReferenceSource::Legs { .. } => "map legs",
             ReferenceSource::Gyro { .. } => "gyro",
@@ -191,6 +202,14 @@ fn column_reference(recording: &Recording) -> Option<Reference> {
     (!recording.ref_heading_rad.is_empty()).then(|| Reference {
         source: ReferenceSource::Column,
         heading_rad: recording.ref_heading_rad.clone(),
+        max_gap_s: MAX_REFERENCE_GAP_S,
+    })
+}
+
+fn autopilot_reference(recording: &Recording) -> Option<Reference> {
+    (!recording.autopilot_heading_rad.is_empty()).then(|| Reference {
+        source: ReferenceSource::Autopilot,
+        heading_rad: recording.autopilot_heading_rad.clone(),
         max_gap_s: MAX_REFERENCE_GAP_S,
     })
 }
@@ -256,6 +275,7 @@ pub fn choose_reference(
 ) -> Option<Reference> {
     let absolute = || {
         column_reference(recording)
+            .or_else(|| autopilot_reference(recording))
             .or_else(|| gps_reference(recording, options))
             .or_else(|| legs_reference(recording))
     };
@@ -268,6 +288,7 @@ pub fn choose_reference(
                 .flatten()
         }),
         ReferenceChoice::Column => column_reference(recording),
+        ReferenceChoice::Autopilot => autopilot_reference(recording),
         ReferenceChoice::Gps => gps_reference(recording, options),
         ReferenceChoice::Legs => legs_reference(recording),
         ReferenceChoice::Gyro => gyro_reference(recording, gravity, options, absolute()),

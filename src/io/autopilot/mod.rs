@@ -7,6 +7,8 @@
 //! The readers are `dataflash/` (binary `.bin` and text `.log`) and `ulog/`; both fill
 //! an [`AutopilotLog`] and put their primary compass's raw field in the recording.
 
+pub mod ardupilot;
+
 use nalgebra::Vector3;
 
 use crate::recording::Stream;

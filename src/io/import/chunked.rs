@@ -9,7 +9,7 @@ use crate::io::lines::{Line, LineDecoder};
 use crate::io::sensor_files::{self, SensorFile, SensorFileReader};
 use crate::io::tagged_lines::LineReader as _;
 use crate::io::{
-    first_binary_offset, nmea, serial_lines, tagged_lines, ImportError, MAX_LINE_BYTES,
+    dataflash, first_binary_offset, nmea, serial_lines, tagged_lines, ImportError, MAX_LINE_BYTES,
 };
 
 /// How many leading bytes a chunked import holds back to tell the format.
@@ -39,6 +39,8 @@ pub struct ChunkedImport {
 /// How a chunked import reads, once the format is known.
 enum Reading {
     Lines(LineDecoder, FormatReader),
+    /// A binary autopilot log, read message by message.
+    Binary(Box<dataflash::BinaryReader>),
     Blocks {
         reader: BlockReader,
         /// The unfinished line at the end of the last chunk.
@@ -78,6 +80,7 @@ impl Reading {
     fn feed(&mut self, chunk: &[u8]) {
         match self {
             Reading::Lines(decoder, reader) => decoder.feed(chunk, |line| reader.read_line(&line)),
+            Reading::Binary(reader) => reader.feed(chunk),
             Reading::Blocks {
                 reader,
                 carry,
@@ -124,12 +127,15 @@ impl Reading {
                 decoder.feed(&carry, |line| reader.read_line(&line));
                 Reading::Lines(decoder, reader)
             }
-            lines @ Reading::Lines(..) => lines,
+            other @ (Reading::Lines(..) | Reading::Binary(_)) => other,
         }
     }
 
     fn finish(self, file_name: &str) -> Result<FileImport, ImportError> {
         match self {
+            Reading::Binary(reader) => Ok(FileImport::Final(dataflash::finish_binary(
+                *reader, file_name,
+            )?)),
             Reading::Lines(mut decoder, mut reader) => {
                 decoder.finish(|line| reader.read_line(&line));
                 reader.finish(file_name)
@@ -155,6 +161,7 @@ enum FormatReader {
     Serial(serial_lines::SerialReader),
     Android(tagged_lines::AndroidReader),
     GetSensorData(tagged_lines::GetSensorDataReader),
+    DataflashText(dataflash::TextReader),
 }
 
 impl FormatReader {
@@ -170,6 +177,7 @@ impl FormatReader {
             FormatReader::GetSensorData(reader) => {
                 reader.read_line(line.number, &line.text, line.truncated)
             }
+            FormatReader::DataflashText(reader) => reader.read_line(line.number, &line.text),
         }
     }
 
@@ -184,6 +192,9 @@ impl FormatReader {
             }
             FormatReader::GetSensorData(reader) => {
                 FileImport::Final(reader.finish(file_name.to_string())?)
+            }
+            FormatReader::DataflashText(reader) => {
+                FileImport::Final(dataflash::finish_text(reader, file_name)?)
             }
         })
     }
@@ -240,6 +251,12 @@ impl ChunkedImport {
 
     /// Tells the format from the held-back prefix and replays it into the reader.
     fn start_reading(&mut self) -> Result<(), ImportError> {
+        if dataflash::looks_like_binary(&self.prefix) {
+            let mut reader = Box::<dataflash::BinaryReader>::default();
+            reader.feed(&std::mem::take(&mut self.prefix));
+            self.reader = Some(Reading::Binary(reader));
+            return Ok(());
+        }
         if let Some(byte_offset) = first_binary_offset(&self.prefix) {
             return Err(ImportError::NotText {
                 file_name: self.file_name.clone(),
@@ -270,6 +287,9 @@ impl ChunkedImport {
             Some(Format::SerialLines) => FormatReader::Serial(serial_lines::SerialReader::new(
                 serial_lines::ASSUMED_FILE_RATE_HZ,
             )),
+            Some(Format::DataflashText) => {
+                FormatReader::DataflashText(dataflash::TextReader::default())
+            }
             Some(Format::Delimited) | None => FormatReader::Delimited(
                 DelimitedReader::new(self.size_hint_bytes).with_mapping(self.mapping.clone()),
             ),
@@ -341,7 +361,10 @@ impl ChunkedImport {
                 )?;
                 (BlockReader::Delimited(reader), data_start, n_lines)
             }
-            Format::AndroidDump | Format::GetSensorData | Format::SerialLines => return None,
+            Format::AndroidDump
+            | Format::GetSensorData
+            | Format::SerialLines
+            | Format::DataflashText => return None,
         };
         let reading = Reading::Blocks {
             reader,

@@ -20,7 +20,7 @@ use super::lines::decode_all;
 use super::sensor_files::{self, SensorImport};
 use super::summary::{summarize, StreamSummary};
 use super::{
-    ensure_text, nmea, serial_lines, tagged_lines, Diagnostics, ImportError, ImportReport,
+    dataflash, ensure_text, nmea, serial_lines, tagged_lines, Diagnostics, ImportError, ImportReport,
     SensorFrame,
 };
 
@@ -37,6 +37,7 @@ pub enum Format {
     GetSensorData,
     Delimited,
     SerialLines,
+    DataflashText,
 }
 
 /// The first non-blank lines of a file's first bytes, trimmed, for telling its format.
@@ -69,7 +70,9 @@ fn format_for(sample: &[&str], mapping: Option<&ColumnMapping>) -> Option<Format
 }
 
 fn detect_lines(sample: &[&str]) -> Option<Format> {
-    if nmea::looks_like(sample) {
+    if dataflash::looks_like_text(sample) {
+        Some(Format::DataflashText)
+    } else if nmea::looks_like(sample) {
         Some(Format::Nmea)
     } else if tagged_lines::looks_like_android_dump(sample) {
         Some(Format::AndroidDump)
@@ -119,6 +122,9 @@ fn import_one(
     bytes: &[u8],
     mapping: Option<&ColumnMapping>,
 ) -> Result<FileImport, ImportError> {
+    if dataflash::looks_like_binary(bytes) {
+        return Ok(FileImport::Final(dataflash::read_binary(file_name, bytes)?));
+    }
     ensure_text(file_name, bytes)?;
     let sample_lines = sample_lines(bytes);
     let sample: Vec<&str> = sample_lines.iter().map(String::as_str).collect();
@@ -137,6 +143,7 @@ fn import_one(
             FileImport::Final(tagged_lines::read_get_sensor_data(file_name, bytes)?)
         }
         Some(Format::SerialLines) => FileImport::Final(serial_lines::read(file_name, bytes)?),
+        Some(Format::DataflashText) => FileImport::Final(dataflash::read_text(file_name, bytes)?),
         // Delimited text, or nothing recognisable: the delimited reader's error says
         // which header it found and what names it expects.
         Some(Format::Delimited) | None => {

@@ -24,7 +24,8 @@
 
 use nalgebra::Vector3;
 
-use super::{notes_only, utc_text, Role, SensorFileReader, SensorImport, HEADERLESS_TEXT};
+use super::{notes_only, Role, SensorFileReader, SensorImport, HEADERLESS_TEXT};
+use crate::civil::utc_text;
 use crate::io::delimited::{RawImport, SensorAxes};
 use crate::io::number::parse_f64;
 use crate::io::{shorten, Diagnostics, ImportError, ImportReport, MagUnit};

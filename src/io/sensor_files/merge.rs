@@ -6,7 +6,8 @@
 
 use nalgebra::Vector3;
 
-use super::{base_name, utc_text, Role, SensorImport, HEADERLESS_TEXT, SENSOR_LOGGER};
+use super::{base_name, Role, SensorImport, HEADERLESS_TEXT, SENSOR_LOGGER};
+use crate::civil::utc_text;
 use crate::io::delimited::RawImport;
 use crate::recording::{GyroBias, Recording, Stream};
 

@@ -104,18 +104,6 @@ pub fn recognise(file_name: &str, sample_lines: &[&str]) -> Option<SensorFile> {
     is_properties.then_some(SensorFile::RecordProperties)
 }
 
-/// A date and time for people, `2023-03-17 14:50:47.2 UTC`.
-fn utc_text(unix_s: f64) -> String {
-    let Some((year, month, day)) = crate::civil::civil_from_unix_s(unix_s) else {
-        return format!("{unix_s:.1} s after 1970");
-    };
-    let seconds_of_day = unix_s - (unix_s / 86_400.0).floor() * 86_400.0;
-    let hours = (seconds_of_day / 3600.0).floor();
-    let minutes = ((seconds_of_day - hours * 3600.0) / 60.0).floor();
-    let seconds = seconds_of_day - hours * 3600.0 - minutes * 60.0;
-    format!("{year:04}-{month:02}-{day:02} {hours:02.0}:{minutes:02.0}:{seconds:04.1} UTC")
-}
-
 /// An import that gives only notes (a file that is recognised and not used, or one of
 /// metadata).
 fn notes_only(
