@@ -13,8 +13,10 @@
 use nalgebra::{Rotation3, Vector3};
 use serde::Serialize;
 
-use crate::calib::attitude_aided::{agreement, fit_aided, AidedFit, AidedModel, AidedSample, Agreement};
-use crate::io::autopilot::ardupilot::{param_file, parse_param_file, ArduPilotCompass};
+use crate::calib::attitude_aided::{agreement, fit_aided, Agreement, AidedModel, AidedSample};
+use crate::io::autopilot::ardupilot::{
+    compass_param, param_file, parse_param_file, ArduPilotCompass, MOTOR_BY_CURRENT,
+};
 use crate::io::autopilot::{Autopilot, AutopilotLog, CompassLog};
 use crate::recording::{Attitude, Stream};
 
@@ -22,6 +24,11 @@ use crate::recording::{Attitude, Stream};
 const UT_PER_MG: f64 = 0.1;
 /// The longest time (s) between a compass sample and the attitude it is paired with.
 const MAX_ATTITUDE_GAP_S: f64 = 0.1;
+/// The longest time (s) between a compass sample and the current it is paired with.
+const MAX_CURRENT_GAP_S: f64 = 0.5;
+/// The battery current must span this much (A) for the motor term to be fitted: a
+/// hover draws several amperes more than the ground.
+const MIN_CURRENT_RANGE_A: f64 = 3.0;
 
 /// How a calibration agrees with the Earth's field, for people and the page.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -42,27 +49,35 @@ impl From<Agreement> for Agreed {
     }
 }
 
+/// One model's fit on the first half, scored on the held-back second half.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Candidate {
+    pub model: String,
+    pub check_heading_rms_deg: Option<f64>,
+}
+
 /// One compass's new calibration beside the one in force.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct CompassResult {
     pub instance: usize,
     pub source: String,
     pub n_samples: usize,
-    /// The model chosen on the held-back half: "offsets" or "offsets and soft iron".
-    pub model: &'static str,
-    /// The held-back half's heading RMS of each model fitted on the first half, and of
-    /// the calibration in force.
-    pub check_offsets_deg: Option<f64>,
-    pub check_soft_iron_deg: Option<f64>,
+    /// The model chosen on the held-back half.
+    pub model: String,
+    /// Every model's heading RMS on the held-back half, fitted on the first.
+    pub candidates: Vec<Candidate>,
+    /// The calibration in force on the held-back half.
     pub check_in_force_deg: Option<f64>,
     /// On the whole log: the calibration in force, and the new one as its `.param`
     /// lines read back give it.
     pub in_force: Option<Agreed>,
     pub fitted: Agreed,
-    /// The new parameters, and their formal 1σ for the offsets (mG).
+    /// The new parameters, with the formal 1σ of the offsets (mG) and of the motor
+    /// compensation (mG/A).
     pub params: Vec<(String, f64)>,
     pub offsets_sigma: [f64; 3],
     pub soft_iron_sigma: Option<f64>,
+    pub motor_sigma: Option<[f64; 3]>,
 }
 
 /// The calibration of every compass of an autopilot log.
@@ -75,22 +90,27 @@ pub struct AutopilotCalibration {
     pub notes: Vec<String>,
 }
 
-/// Pairs each raw sample with the attitude nearest in time (within 0.1 s).
-fn aided_samples(raw_ut: &Stream<Vector3<f64>>, attitude: &Stream<Attitude>) -> Vec<AidedSample> {
+/// The index of the sample of `times` nearest to `t_s`, within `max_gap_s`.
+fn nearest(times: &[f64], t_s: f64, max_gap_s: f64) -> Option<usize> {
+    let after = times.partition_point(|&t| t < t_s);
+    [after.checked_sub(1), Some(after)]
+        .into_iter()
+        .flatten()
+        .filter(|&idx| idx < times.len())
+        .min_by(|&a, &b| (times[a] - t_s).abs().total_cmp(&(times[b] - t_s).abs()))
+        .filter(|&idx| (times[idx] - t_s).abs() <= max_gap_s)
+}
+
+/// Pairs each raw sample with the attitude nearest in time (within 0.1 s) and the
+/// battery current (within 0.5 s, else 0).
+fn aided_samples(
+    raw_ut: &Stream<Vector3<f64>>,
+    attitude: &Stream<Attitude>,
+    current_a: &Stream<f64>,
+) -> Vec<AidedSample> {
     let mut samples = Vec::with_capacity(raw_ut.len());
     for (&t_s, raw) in raw_ut.t_s.iter().zip(&raw_ut.values) {
-        let after = attitude.t_s.partition_point(|&a| a < t_s);
-        let nearest = [after.checked_sub(1), Some(after)]
-            .into_iter()
-            .flatten()
-            .filter(|&idx| idx < attitude.len())
-            .min_by(|&a, &b| {
-                (attitude.t_s[a] - t_s)
-                    .abs()
-                    .total_cmp(&(attitude.t_s[b] - t_s).abs())
-            });
-        let Some(idx) = nearest.filter(|&idx| (attitude.t_s[idx] - t_s).abs() <= MAX_ATTITUDE_GAP_S)
-        else {
+        let Some(idx) = nearest(&attitude.t_s, t_s, MAX_ATTITUDE_GAP_S) else {
             continue;
         };
         let Attitude {
@@ -101,13 +121,27 @@ fn aided_samples(raw_ut: &Stream<Vector3<f64>>, attitude: &Stream<Attitude>) -> 
         else {
             continue;
         };
+        let current_a = nearest(&current_a.t_s, t_s, MAX_CURRENT_GAP_S)
+            .map_or(0.0, |idx| current_a.values[idx]);
         samples.push(AidedSample {
             t_s,
             raw: raw / UT_PER_MG,
             body_to_ned: Rotation3::from_euler_angles(roll_rad, pitch_rad, yaw_rad),
+            current_a,
         });
     }
     samples
+}
+
+fn model_label(model: &AidedModel) -> String {
+    let mut label = match model.held_soft_iron {
+        Some(_) => "offsets".to_string(),
+        None => "offsets, soft iron".to_string(),
+    };
+    if model.motor {
+        label.push_str(", motor (current)");
+    }
+    label
 }
 
 fn compass_result(
@@ -116,35 +150,50 @@ fn compass_result(
     attitude: &Stream<Attitude>,
     notes: &mut Vec<String>,
 ) -> Option<CompassResult> {
-    let samples = aided_samples(compass.raw_in_body_ut.as_ref()?, attitude);
+    let samples = aided_samples(compass.raw_in_body_ut.as_ref()?, attitude, &log.current_a);
     let lookup = |name: &str| log.param(name).filter(|value| value.is_finite());
     let in_force = ArduPilotCompass::from_params(&lookup, compass.instance);
-    let held_soft_iron = in_force.map_or_else(nalgebra::Matrix3::identity, |c| c.soft_iron);
+    let held = in_force.map_or_else(nalgebra::Matrix3::identity, |c| c.soft_iron);
+    // The current must vary for its term to be seen: hover against ground.
+    let current_range = samples.iter().map(|s| s.current_a).fold(0.0, f64::max)
+        - samples
+            .iter()
+            .map(|s| s.current_a)
+            .fold(f64::INFINITY, f64::min);
+    let motor_options: &[bool] = if current_range >= MIN_CURRENT_RANGE_A {
+        &[false, true]
+    } else {
+        &[false]
+    };
     let half = samples.len() / 2;
     let (train, check) = samples.split_at(half);
-    let check_of = |fit: Option<AidedFit>| {
-        fit.and_then(|fit| agreement(check, |raw| fit.apply(raw)))
-            .map(|agreed| agreed.heading_rms_deg)
-    };
-    let offsets_model = AidedModel::Offsets {
-        soft_iron: held_soft_iron,
-    };
-    let check_offsets_deg = check_of(fit_aided(train, offsets_model));
-    let check_soft_iron_deg = check_of(fit_aided(train, AidedModel::OffsetsAndSoftIron));
+    let mut candidates = Vec::new();
+    let mut best: Option<(AidedModel, f64)> = None;
+    for held_soft_iron in [Some(held), None] {
+        for &motor in motor_options {
+            let model = AidedModel {
+                held_soft_iron,
+                motor,
+            };
+            let check_deg = fit_aided(train, model)
+                .and_then(|fit| agreement(check, |raw, current| fit.apply(raw, current)))
+                .map(|agreed| agreed.heading_rms_deg);
+            if let Some(deg) = check_deg {
+                if best.is_none_or(|(_, best_deg)| deg < best_deg) {
+                    best = Some((model, deg));
+                }
+            }
+            candidates.push(Candidate {
+                model: model_label(&model),
+                check_heading_rms_deg: check_deg,
+            });
+        }
+    }
     let check_in_force_deg = in_force
-        .and_then(|c| agreement(check, |raw| c.apply(raw)))
+        .and_then(|c| agreement(check, |raw, current| c.apply(raw, current)))
         .map(|agreed| agreed.heading_rms_deg);
-    let soft_iron_wins = match (check_soft_iron_deg, check_offsets_deg) {
-        (Some(soft), Some(offsets)) => soft < offsets,
-        (Some(_), None) => true,
-        _ => false,
-    };
-    let (model, label) = if soft_iron_wins {
-        (AidedModel::OffsetsAndSoftIron, "offsets and soft iron")
-    } else {
-        (offsets_model, "offsets")
-    };
-    let Some(fit) = fit_aided(&samples, model) else {
+    let fit = best.and_then(|(model, _)| fit_aided(&samples, model));
+    let (Some((model, _)), Some(fit)) = (best, fit) else {
         notes.push(format!(
             "{}: the attitude-aided fit failed ({} samples paired with an attitude): the \
              flight did not turn the vehicle enough to tell the offsets from the Earth's \
@@ -159,17 +208,17 @@ fn compass_result(
         offsets_mg: fit.offsets,
         soft_iron: fit.soft_iron,
         scale: 1.0,
+        motor_mg_per_a: fit.motor_per_a,
     };
     let mut params = new.params();
     // COMPASS_SCALE is folded into M: write 1 where the log had another.
     if in_force.is_some_and(|c| c.scale != 1.0) {
-        params.push((
-            crate::io::autopilot::ardupilot::compass_param("SCALE", compass.instance, ""),
-            1.0,
-        ));
+        params.push((compass_param("SCALE", compass.instance, ""), 1.0));
     }
-    // What the written lines give, read back and applied as ArduPilot applies them.
-    let written = parse_param_file(&param_file(&[], &params));
+    // What the written lines give, read back and applied as ArduPilot applies them
+    // (COMPASS_MOTCT as the whole file sets it).
+    let mut written = parse_param_file(&param_file(&[], &params));
+    written.push(("COMPASS_MOTCT".to_string(), MOTOR_BY_CURRENT));
     let written_lookup = |name: &str| {
         written
             .iter()
@@ -178,22 +227,22 @@ fn compass_result(
             .or_else(|| lookup(name))
     };
     let read_back = ArduPilotCompass::from_params(&written_lookup, compass.instance)?;
-    let fitted = agreement(&samples, |raw| read_back.apply(raw))?;
+    let fitted = agreement(&samples, |raw, current| read_back.apply(raw, current))?;
     Some(CompassResult {
         instance: compass.instance,
         source: compass.source.clone(),
         n_samples: samples.len(),
-        model: label,
-        check_offsets_deg,
-        check_soft_iron_deg,
+        model: model_label(&model),
+        candidates,
         check_in_force_deg,
         in_force: in_force
-            .and_then(|c| agreement(&samples, |raw| c.apply(raw)))
+            .and_then(|c| agreement(&samples, |raw, current| c.apply(raw, current)))
             .map(Agreed::from),
         fitted: fitted.into(),
         params,
         offsets_sigma: fit.offsets_sigma.into(),
         soft_iron_sigma: fit.soft_iron_sigma,
+        motor_sigma: model.motor.then(|| fit.motor_sigma.into()),
     })
 }
 
@@ -223,6 +272,7 @@ pub fn autopilot_calibration(
         "corrected = M · (raw + COMPASS_OFS), M from COMPASS_DIA and COMPASS_ODI (mG)".to_string(),
     ];
     let mut params = Vec::new();
+    params.push(("COMPASS_MOTCT".to_string(), MOTOR_BY_CURRENT));
     for compass in &compasses {
         header.push(format!(
             "{} ({}): heading {:.1}° RMS against the Earth's field seen through ATT, |B| \
@@ -231,16 +281,22 @@ pub fn autopilot_calibration(
             compass.model,
             compass.fitted.heading_rms_deg,
             compass.fitted.spread_pct,
-            compass.in_force.map_or_else(String::new, |in_force| format!(
-                "; parameters in force: {:.1}°, {:.2} %",
-                in_force.heading_rms_deg, in_force.spread_pct
-            ))
+            compass
+                .in_force
+                .map_or_else(String::new, |in_force| format!(
+                    "; parameters in force: {:.1}°, {:.2} %",
+                    in_force.heading_rms_deg, in_force.spread_pct
+                ))
         ));
         params.extend(compass.params.iter().cloned());
     }
-    notes.push(
-        "COMPASS_MOT (motor interference) not fitted: the parameters in force are kept".to_string(),
-    );
+    if log.current_a.is_empty() {
+        notes.push(
+            "no battery current in the log (CURR, BAT): motor interference not fitted, \
+             COMPASS_MOT written as 0"
+                .to_string(),
+        );
+    }
     Some(AutopilotCalibration {
         autopilot: log.autopilot.name(),
         param_file: param_file(&header, &params),

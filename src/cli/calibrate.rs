@@ -276,16 +276,27 @@ fn autopilot_text(autopilot: &AutopilotCalibration) -> String {
          autopilot's attitude):\n",
         autopilot.autopilot
     );
-    let degrees = |value: Option<f64>| value.map_or_else(|| "-".to_string(), |v| format!("{v:.1}°"));
+    let degrees =
+        |value: Option<f64>| value.map_or_else(|| "-".to_string(), |v| format!("{v:.1}°"));
     for compass in &autopilot.compasses {
+        let candidates: Vec<String> = compass
+            .candidates
+            .iter()
+            .map(|candidate| {
+                format!(
+                    "{} {}",
+                    candidate.model,
+                    degrees(candidate.check_heading_rms_deg)
+                )
+            })
+            .collect();
         text.push_str(&format!(
-            "    {} ({} samples): {} chosen on the held-back second half (heading RMS: offsets {}, \
-             offsets and soft iron {}, parameters in force {})\n",
+            "    {} ({} samples): {} chosen on the held-back second half (heading RMS: {}; \
+             parameters in force {})\n",
             compass.source,
             compass.n_samples,
             compass.model,
-            degrees(compass.check_offsets_deg),
-            degrees(compass.check_soft_iron_deg),
+            candidates.join(", "),
             degrees(compass.check_in_force_deg),
         ));
         let fitted = &compass.fitted;
@@ -321,7 +332,7 @@ fn autopilot_text(autopilot: &AutopilotCalibration) -> String {
             .map(|(name, value)| format!("{name} {value:.4}"))
             .collect();
         text.push_str(&format!(
-            "      {} (offsets ±{:.1}, {:.1}, {:.1} mG formal 1σ{})\n",
+            "      {} (formal 1σ: offsets ±{:.1}, {:.1}, {:.1} mG{})\n",
             line.join(", "),
             sigma[0],
             sigma[1],
@@ -329,6 +340,10 @@ fn autopilot_text(autopilot: &AutopilotCalibration) -> String {
             compass
                 .soft_iron_sigma
                 .map_or_else(String::new, |s| format!(", soft iron ±{s:.3}"))
+                + &compass.motor_sigma.map_or_else(String::new, |s| format!(
+                    ", motor ±{:.2}, {:.2}, {:.2} mG/A",
+                    s[0], s[1], s[2]
+                ))
         ));
     }
     for note in &autopilot.notes {

@@ -6,8 +6,8 @@
 
 pub mod autopilot;
 pub mod axes;
-pub mod dataflash;
 pub mod canonical_csv;
+pub mod dataflash;
 pub mod delimited;
 pub mod frame;
 pub mod import;

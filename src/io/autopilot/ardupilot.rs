@@ -16,6 +16,9 @@
 
 use nalgebra::{Matrix3, Vector3};
 
+/// `COMPASS_MOTCT` for compensation by battery current.
+pub const MOTOR_BY_CURRENT: f64 = 2.0;
+
 /// `AP_Compass`'s sanity range for `COMPASS_SCALE`.
 const SCALE_APPLIED: std::ops::Range<f64> = 0.85..1.4;
 
@@ -43,6 +46,9 @@ pub struct ArduPilotCompass {
     pub soft_iron: Matrix3<f64>,
     /// `COMPASS_SCALE*` where ArduPilot applies it, else 1.
     pub scale: f64,
+    /// `COMPASS_MOT*` (mG per ampere) where `COMPASS_MOTCT` is 2 (current); zero
+    /// otherwise (compensation by throttle, type 1, is not modelled).
+    pub motor_mg_per_a: Vector3<f64>,
 }
 
 impl ArduPilotCompass {
@@ -64,17 +70,23 @@ impl ArduPilotCompass {
         let scale = get("SCALE", "")
             .filter(|scale| SCALE_APPLIED.contains(scale))
             .unwrap_or(1.0);
+        let by_current = params("COMPASS_MOTCT") == Some(MOTOR_BY_CURRENT);
+        let motor_mg_per_a = match (get("MOT", "X"), get("MOT", "Y"), get("MOT", "Z")) {
+            (Some(x), Some(y), Some(z)) if by_current => Vector3::new(x, y, z),
+            _ => Vector3::zeros(),
+        };
         Some(ArduPilotCompass {
             instance,
             offsets_mg,
             soft_iron,
             scale,
+            motor_mg_per_a: motor_mg_per_a.map(|v| if v.is_finite() { v } else { 0.0 }),
         })
     }
 
-    /// The corrected field of a raw one (mG), motor compensation apart.
-    pub fn apply(&self, raw_mg: Vector3<f64>) -> Vector3<f64> {
-        self.soft_iron * (raw_mg + self.offsets_mg) * self.scale
+    /// The corrected field of a raw one (mG) at a battery current (A).
+    pub fn apply(&self, raw_mg: Vector3<f64>, current_a: f64) -> Vector3<f64> {
+        self.soft_iron * (raw_mg + self.offsets_mg) * self.scale + self.motor_mg_per_a * current_a
     }
 
     /// The raw field of a corrected one; `None` when `M` cannot be inverted.
@@ -83,15 +95,21 @@ impl ArduPilotCompass {
         Some(inverse * corrected_mg / self.scale - self.offsets_mg)
     }
 
-    /// The parameters that set it: offsets, diagonals and off-diagonals (the scale is
-    /// left as it is: a fit folds it into `M`).
+    /// The parameters that set it: offsets, diagonals, off-diagonals and the motor
+    /// compensation per ampere (`COMPASS_MOTCT` is one for all compasses: the caller
+    /// writes it).
     pub fn params(&self) -> Vec<(String, f64)> {
         let m = &self.soft_iron;
-        let mut params = Vec::with_capacity(9);
+        let mot = &self.motor_mg_per_a;
+        let mut params = Vec::with_capacity(12);
         for (base, values) in [
-            ("OFS", [self.offsets_mg.x, self.offsets_mg.y, self.offsets_mg.z]),
+            (
+                "OFS",
+                [self.offsets_mg.x, self.offsets_mg.y, self.offsets_mg.z],
+            ),
             ("DIA", [m[(0, 0)], m[(1, 1)], m[(2, 2)]]),
             ("ODI", [m[(0, 1)], m[(0, 2)], m[(1, 2)]]),
+            ("MOT", [mot.x, mot.y, mot.z]),
         ] {
             for (axis, value) in ["X", "Y", "Z"].iter().zip(values) {
                 params.push((compass_param(base, self.instance, axis), value));
@@ -148,17 +166,22 @@ mod tests {
         let compass = ArduPilotCompass {
             instance: 1,
             offsets_mg: Vector3::new(-97.79, 118.1, 213.18),
-            soft_iron: Matrix3::new(0.99, 0.018, -0.0027, 0.018, 1.008, -0.0042, -0.0027, -0.0042, 1.0027),
+            soft_iron: Matrix3::new(
+                0.99, 0.018, -0.0027, 0.018, 1.008, -0.0042, -0.0027, -0.0042, 1.0027,
+            ),
             scale: 1.0,
+            motor_mg_per_a: Vector3::new(1.5, -2.0, 4.0),
         };
-        let text = param_file(&["a test".to_string()], &compass.params());
+        let mut params = compass.params();
+        params.push(("COMPASS_MOTCT".to_string(), MOTOR_BY_CURRENT));
+        let text = param_file(&["a test".to_string()], &params);
         assert!(text.starts_with("# a test\nCOMPASS_OFS2_X,-97.79"));
         let params = parse_param_file(&text);
         let lookup = |name: &str| params.iter().find(|(n, _)| n == name).map(|&(_, v)| v);
         let back = ArduPilotCompass::from_params(&lookup, 1).unwrap();
         let raw = Vector3::new(300.0, -120.0, -800.0);
-        assert!((back.apply(raw) - compass.apply(raw)).amax() < 1e-3);
-        assert!((back.undo(back.apply(raw)).unwrap() - raw).amax() < 1e-9);
+        assert!((back.apply(raw, 12.0) - compass.apply(raw, 12.0)).amax() < 1e-3);
+        assert!((back.undo(back.apply(raw, 0.0)).unwrap() - raw).amax() < 1e-9);
     }
 
     #[test]
@@ -176,6 +199,9 @@ mod tests {
         let compass = ArduPilotCompass::from_params(&lookup, 0).unwrap();
         assert_eq!(compass.soft_iron, Matrix3::identity());
         assert_eq!(compass.scale, 1.0);
-        assert_eq!(compass.apply(Vector3::zeros()), Vector3::new(1.0, 2.0, 3.0));
+        assert_eq!(
+            compass.apply(Vector3::zeros(), 10.0),
+            Vector3::new(1.0, 2.0, 3.0)
+        );
     }
 }

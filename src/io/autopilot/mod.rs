@@ -58,6 +58,8 @@ pub struct AutopilotLog {
     /// Parameters whose value changed during the log, with their last value.
     pub params_changed: Vec<(String, f64)>,
     pub compasses: Vec<CompassLog>,
+    /// The battery current (A), for the motor-interference fit; empty where not logged.
+    pub current_a: Stream<f64>,
 }
 
 impl AutopilotLog {

@@ -69,9 +69,9 @@ impl FieldType {
 
     pub fn size(self) -> usize {
         match self {
-            FieldType::Number { size, .. } | FieldType::Text { size } | FieldType::Skip { size } => {
-                size
-            }
+            FieldType::Number { size, .. }
+            | FieldType::Text { size }
+            | FieldType::Skip { size } => size,
         }
     }
 }

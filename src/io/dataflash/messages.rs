@@ -7,8 +7,8 @@
 
 use nalgebra::Vector3;
 
-use super::format::MessageFormat;
-use crate::recording::{Attitude, GnssFix, Recording};
+use super::format::{FieldType, MessageFormat, NumberKind};
+use crate::recording::{Attitude, GnssFix, Recording, Stream};
 
 /// Reads a field of one message, binary or text.
 pub trait Fields {
@@ -63,7 +63,10 @@ fn vector(fields: &dyn Fields, columns: [usize; 3]) -> Option<Vector3<f64>> {
         fields.number(columns[1])?,
         fields.number(columns[2])?,
     );
-    vector.iter().all(|value| value.is_finite()).then_some(vector)
+    vector
+        .iter()
+        .all(|value| value.is_finite())
+        .then_some(vector)
 }
 
 /// The instance of a sensor message: its `I` column where it has one (logs from 2019 on
@@ -136,6 +139,14 @@ pub enum Plan {
         name: usize,
         value: usize,
     },
+    /// The battery current: `CURR` (centiamperes in integer columns, before 2016),
+    /// `BAT` (amperes); the first battery only.
+    Current {
+        time: Time,
+        instance: Option<usize>,
+        current: usize,
+        a_per_unit: f64,
+    },
     Message {
         text: usize,
     },
@@ -171,7 +182,11 @@ impl Plan {
         if let Some(instance) = instance_of(format, "GPS") {
             // Old logs: TimeMS is the GPS time of week, T the boot time in ms.
             let (boot, week_ms, week) = match (format.column("TimeUS"), format.column("T")) {
-                (Some(_), _) => (Time::of(format)?, format.column("GMS"), format.column("GWk")),
+                (Some(_), _) => (
+                    Time::of(format)?,
+                    format.column("GMS"),
+                    format.column("GWk"),
+                ),
                 (None, Some(column)) => (
                     Time {
                         column,
@@ -203,6 +218,29 @@ impl Plan {
                 name: format.column("Name")?,
                 value: format.column("Value")?,
             }),
+            "CURR" | "BAT" => {
+                let current = format.column("Curr")?;
+                let is_integer = format
+                    .fields
+                    .as_ref()
+                    .and_then(|fields| fields.get(current))
+                    .is_some_and(|(field, _)| {
+                        matches!(
+                            field,
+                            FieldType::Number {
+                                kind: NumberKind::Signed | NumberKind::Unsigned,
+                                scale,
+                                ..
+                            } if *scale == 1.0
+                        )
+                    });
+                Some(Plan::Current {
+                    time: Time::of(format)?,
+                    instance: format.column("Inst").or_else(|| format.column("I")),
+                    current,
+                    a_per_unit: if is_integer { 0.01 } else { 1.0 },
+                })
+            }
             "MSG" => Some(Plan::Message {
                 text: format.column("Message")?,
             }),
@@ -241,6 +279,8 @@ pub struct Collector {
     pub n_gps_without_fix: usize,
     /// The GPS clock's Unix time minus the boot time, from the first 3D fix with a week.
     pub utc_minus_boot_s: Option<f64>,
+    /// The first battery's current (A).
+    pub current_a: Stream<f64>,
 }
 
 /// Seconds between the Unix and GPS epochs (1970-01-01 to 1980-01-06).
@@ -336,6 +376,21 @@ impl Collector {
                 }
                 _ => false,
             },
+            Plan::Current {
+                time,
+                instance,
+                current,
+                a_per_unit,
+            } => {
+                let first = instance.is_none_or(|column| fields.number(column) == Some(0.0));
+                match (time.read(fields), fields.number(current)) {
+                    (Some(t_s), Some(value)) if first && value.is_finite() => {
+                        self.current_a.push(t_s, value * a_per_unit);
+                        true
+                    }
+                    _ => false,
+                }
+            }
             Plan::Message { text } => {
                 if let Some(text) = fields.text(text) {
                     let is_firmware = text.contains(" V") || text.starts_with('V');
@@ -363,12 +418,18 @@ impl Collector {
         motor: Option<[usize; 3]>,
         fields: &dyn Fields,
     ) -> bool {
-        let (Some(t_s), Some(instance), Some(field)) =
-            (time.read(fields), instance.read(fields), vector(fields, field))
-        else {
+        let (Some(t_s), Some(instance), Some(field)) = (
+            time.read(fields),
+            instance.read(fields),
+            vector(fields, field),
+        ) else {
             return false;
         };
-        let track = match self.mags.iter().position(|track| track.instance == instance) {
+        let track = match self
+            .mags
+            .iter()
+            .position(|track| track.instance == instance)
+        {
             Some(idx) => &mut self.mags[idx],
             None => {
                 self.mags.push(MagTrack {
@@ -384,7 +445,9 @@ impl Collector {
         track.t_s.push(t_s);
         track.field_mg.push(field);
         if let Some(columns) = offsets {
-            track.offsets_mg.push(vector(fields, columns).unwrap_or(zero));
+            track
+                .offsets_mg
+                .push(vector(fields, columns).unwrap_or(zero));
         }
         if let Some(columns) = motor {
             track.motor_mg.push(vector(fields, columns).unwrap_or(zero));
@@ -420,16 +483,14 @@ impl Collector {
             return false;
         }
         let number = |column: Option<usize>| column.and_then(|c| fields.number(c));
-        let (Some(lat_deg), Some(lon_deg)) =
-            (fields.number(lat_lon[0]), fields.number(lat_lon[1]))
+        let (Some(lat_deg), Some(lon_deg)) = (fields.number(lat_lon[0]), fields.number(lat_lon[1]))
         else {
             return false;
         };
         if self.utc_minus_boot_s.is_none() {
             if let (Some(week_ms), Some(week)) = (number(week_ms), number(week)) {
                 if week > 0.0 {
-                    let gps_as_unix_s =
-                        GPS_EPOCH_UNIX_S + week * SECONDS_PER_WEEK + week_ms * 1e-3;
+                    let gps_as_unix_s = GPS_EPOCH_UNIX_S + week * SECONDS_PER_WEEK + week_ms * 1e-3;
                     let utc_s = gps_as_unix_s - leap_seconds(gps_as_unix_s);
                     self.utc_minus_boot_s = Some(utc_s - t_s);
                 }

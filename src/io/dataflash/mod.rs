@@ -30,8 +30,8 @@ mod text;
 use nalgebra::{Matrix3, Vector3};
 
 pub use self::binary::BinaryReader;
-pub use self::text::{looks_like as looks_like_text, TextReader};
 use self::messages::{Collector, MagTrack};
+pub use self::text::{looks_like as looks_like_text, TextReader};
 use super::autopilot::ardupilot::ArduPilotCompass;
 use super::autopilot::{Autopilot, AutopilotLog, CompassLog};
 use super::frame::{MagUnit, SensorFrame};
@@ -182,7 +182,13 @@ fn compass_of(track: &MagTrack, params: &AutopilotLog) -> CompassLog {
                     "no motor compensation logged"
                 }
             );
-            (Some(Stream { t_s: track.t_s.clone(), values }), how)
+            (
+                Some(Stream {
+                    t_s: track.t_s.clone(),
+                    values,
+                }),
+                how,
+            )
         }
         (None, _) => (
             None,
@@ -228,6 +234,7 @@ fn finish(
         n_other_instances,
         n_gps_without_fix,
         utc_minus_boot_s,
+        current_a,
     } = collector;
     if n_messages == 0 {
         return Err(ImportError::NothingRecognised {
@@ -248,8 +255,12 @@ fn finish(
         params,
         params_changed,
         compasses: Vec::new(),
+        current_a,
     };
-    autopilot.compasses = mags.iter().map(|track| compass_of(track, &autopilot)).collect();
+    autopilot.compasses = mags
+        .iter()
+        .map(|track| compass_of(track, &autopilot))
+        .collect();
 
     let mut notes = vec![summary];
     let read: Vec<String> = counts

@@ -76,7 +76,10 @@ fn a_built_log_gives_its_compass_raw_with_the_calibration_undone() {
     assert_eq!(mag.len(), 50);
     assert!((mag.t_s[0] - 1.0).abs() < 1e-12);
     let autopilot = report.autopilot.as_ref().unwrap();
-    assert_eq!(autopilot.param("COMPASS_DIA_X").map(|v| v as f32), Some(1.1));
+    assert_eq!(
+        autopilot.param("COMPASS_DIA_X").map(|v| v as f32),
+        Some(1.1)
+    );
     // Applying ArduPilot's correction to the raw field gives the logged one back.
     let lookup = |name: &str| autopilot.param(name);
     let m = ArduPilotCompass::from_params(&lookup, 0).unwrap().soft_iron;
@@ -97,7 +100,11 @@ fn any_chunking_gives_the_same_report() {
         for piece in bytes.chunks(chunk) {
             reader.feed(piece);
         }
-        assert_eq!(finish_binary(reader, "small.bin").unwrap(), whole, "chunks of {chunk}");
+        assert_eq!(
+            finish_binary(reader, "small.bin").unwrap(),
+            whole,
+            "chunks of {chunk}"
+        );
     }
 }
 
@@ -110,13 +117,21 @@ fn a_log_cut_anywhere_keeps_every_whole_message_before_the_cut() {
         match read_binary("cut.bin", &bytes[..cut]) {
             Ok(report) => {
                 let n_whole = cut.saturating_sub(first_mag) / 25;
-                assert_eq!(report.recording.mag_in_body_ut.len(), n_whole, "cut at {cut}");
+                assert_eq!(
+                    report.recording.mag_in_body_ut.len(),
+                    n_whole,
+                    "cut at {cut}"
+                );
                 assert_eq!(
                     report.recording.mag_in_body_ut.values[..],
                     whole.recording.mag_in_body_ut.values[..n_whole]
                 );
                 if (cut - first_mag.min(cut)) % 25 != 0 {
-                    assert!(report.diagnostics.kept.iter().any(|d| d.message.contains("byte")));
+                    assert!(report
+                        .diagnostics
+                        .kept
+                        .iter()
+                        .any(|d| d.message.contains("byte")));
                 }
             }
             Err(error) => assert!(cut < 89 * 3, "cut at {cut}: {error}"),
@@ -146,7 +161,9 @@ fn flipped_bytes_lose_only_the_messages_they_hit() {
     noisy.extend_from_slice(&bytes[first_mag + 250..]);
     let report = read_binary("noisy.bin", &noisy).unwrap();
     assert_eq!(report.recording.mag_in_body_ut.len(), 50);
-    assert!(report.diagnostics.kept[0].message.starts_with(&format!("bytes {}", first_mag + 250)));
+    assert!(report.diagnostics.kept[0]
+        .message
+        .starts_with(&format!("bytes {}", first_mag + 250)));
 }
 
 #[test]

@@ -70,10 +70,7 @@ impl TextReader {
                 self.n_undefined += 1;
                 self.diagnostics.push(
                     Some(number),
-                    format!(
-                        "\"{}\" has no FMT line before it: skipped",
-                        shorten(name)
-                    ),
+                    format!("\"{}\" has no FMT line before it: skipped", shorten(name)),
                 );
             }
         }

@@ -20,8 +20,8 @@ use super::lines::decode_all;
 use super::sensor_files::{self, SensorImport};
 use super::summary::{summarize, StreamSummary};
 use super::{
-    dataflash, ensure_text, nmea, serial_lines, tagged_lines, Diagnostics, ImportError, ImportReport,
-    SensorFrame,
+    dataflash, ensure_text, nmea, serial_lines, tagged_lines, Diagnostics, ImportError,
+    ImportReport, SensorFrame,
 };
 
 /// How many leading lines detection looks at.

@@ -1,0 +1,163 @@
+//! Autopilot logs from `../shared/data`: ArduPilot DataFlash (binary and text), read
+//! whole and in chunks, and the `.param` file written for log171 read back and applied
+//! as ArduPilot applies it. Skipped, with a message, where the folder is absent.
+
+mod common;
+
+use compass_pdr::calibration::{calibrate, CalibrationOptions};
+use compass_pdr::io::autopilot::ardupilot::{parse_param_file, ArduPilotCompass};
+use compass_pdr::io::autopilot::AutopilotLog;
+use compass_pdr::io::import::{ChunkedImport, FileImport};
+use compass_pdr::io::ImportReport;
+use nalgebra::Vector3;
+
+fn log171() -> Option<(String, Vec<u8>)> {
+    let data = common::shared_data()?;
+    let path = data.join("ardupilot-copter-log171/log171.bin");
+    Some(common::read_named(&[path]).remove(0))
+}
+
+#[test]
+fn log171_gives_every_stream_the_parameters_in_force_and_three_raw_compasses() {
+    let Some((name, bytes)) = log171() else {
+        return;
+    };
+    let report = compass_pdr::io::import::import(&name, &bytes).unwrap();
+    let recording = &report.recording;
+    // Counts as pymavlink reads them (MAG 2384, IMU 11916, ATT 2383; GPS 1199 of which
+    // 161 have no 3D fix).
+    assert_eq!(recording.mag_in_body_ut.len(), 2384);
+    assert_eq!(recording.acc_in_body_mps2.len(), 11_916);
+    assert_eq!(recording.attitude.len(), 2383);
+    assert_eq!(recording.gnss.len(), 1199 - 161);
+    let autopilot = report.autopilot.as_ref().unwrap();
+    assert_eq!(autopilot.params.len(), 491);
+    assert_eq!(autopilot.compasses.len(), 3);
+    assert!(autopilot.current_a.len() > 2000);
+    // Dated by the GPS week: 2015-11-21.
+    let start = recording.start_unix_s.unwrap();
+    assert!(
+        (1_448_064_000.0..1_448_150_400.0).contains(&start),
+        "{start}"
+    );
+    // The raw field, corrected as ArduPilot corrects it, is the field as logged.
+    for compass in &autopilot.compasses {
+        let lookup = |name: &str| autopilot.param(name);
+        let in_force = ArduPilotCompass::from_params(&lookup, compass.instance).unwrap();
+        let raw = compass.raw_in_body_ut.as_ref().unwrap();
+        for (raw_ut, logged_ut) in raw.values.iter().zip(&compass.logged_in_body_ut.values) {
+            let corrected_ut = in_force.apply(raw_ut * 10.0, 0.0) / 10.0;
+            // Logged offsets are whole mG, the PARMs' are not: within half a mG.
+            assert!(
+                (corrected_ut - logged_ut).amax() < 0.06,
+                "{}",
+                compass.source
+            );
+        }
+    }
+    // The chunked import (the CLI's and the page's) gives the same report.
+    let mut chunked = ChunkedImport::new(&name, Some(bytes.len()));
+    for chunk in bytes.chunks(65_536 - 7) {
+        chunked.feed(chunk).unwrap();
+    }
+    let Ok(FileImport::Final(chunked)) = chunked.finish() else {
+        panic!("a DataFlash log is read to its end")
+    };
+    assert_eq!(chunked, report);
+}
+
+#[test]
+fn the_text_log_gives_its_streams_and_nan_parameters() {
+    let Some(data) = common::shared_data() else {
+        return;
+    };
+    let report = common::import_paths(&[data.join("ardupilot-text-log/nan.log")]);
+    assert_eq!(report.format, compass_pdr::io::dataflash::TEXT);
+    let recording = &report.recording;
+    assert_eq!(recording.mag_in_body_ut.len(), 141);
+    assert_eq!(recording.acc_in_body_mps2.len(), 705);
+    assert_eq!(recording.attitude.len(), 141);
+    assert_eq!(recording.gnss.len(), 73);
+    let autopilot = report.autopilot.as_ref().unwrap();
+    assert_eq!(autopilot.params.len(), 330);
+    assert!(autopilot.param("COMPASS_MOT_X").unwrap().is_nan());
+    assert_eq!(autopilot.compasses.len(), 2);
+    assert!(autopilot.firmware.as_deref().unwrap().contains("V3.1.1"));
+    assert!(report.diagnostics.is_empty(), "{:?}", report.diagnostics);
+}
+
+/// The spread of |B| (standard deviation over mean, %) of `raw` corrected by `compass`
+/// at the battery current nearest in time.
+fn spread_pct(
+    compass: &ArduPilotCompass,
+    raw_mg: &[(f64, Vector3<f64>)],
+    log: &AutopilotLog,
+) -> f64 {
+    let current = &log.current_a;
+    let magnitudes: Vec<f64> = raw_mg
+        .iter()
+        .map(|&(t_s, raw)| {
+            let idx = current
+                .t_s
+                .partition_point(|&t| t < t_s)
+                .min(current.len() - 1);
+            compass.apply(raw, current.values[idx]).norm()
+        })
+        .collect();
+    let n = magnitudes.len() as f64;
+    let mean = magnitudes.iter().sum::<f64>() / n;
+    let variance = magnitudes.iter().map(|m| (m - mean).powi(2)).sum::<f64>() / n;
+    100.0 * variance.sqrt() / mean
+}
+
+#[test]
+fn log171_s_param_file_applied_as_ardupilot_applies_it_narrows_the_field() {
+    let Some((name, bytes)) = log171() else {
+        return;
+    };
+    let report: ImportReport = compass_pdr::io::import::import(&name, &bytes).unwrap();
+    let log = report.autopilot.clone().unwrap();
+    let analysis = calibrate(report, &CalibrationOptions::default()).unwrap();
+    let calibration = analysis.report.autopilot.as_ref().unwrap();
+    assert_eq!(calibration.compasses.len(), 3);
+    // The file as the user gets it, read back; parameters it does not set stay as in
+    // the log.
+    let written = parse_param_file(&calibration.param_file);
+    let lookup = |name: &str| {
+        written
+            .iter()
+            .find(|(known, _)| known == name)
+            .map(|&(_, value)| value)
+            .or_else(|| log.param(name))
+    };
+    for compass in &log.compasses {
+        let raw = compass.raw_in_body_ut.as_ref().unwrap();
+        let raw_mg: Vec<(f64, Vector3<f64>)> = raw
+            .t_s
+            .iter()
+            .zip(&raw.values)
+            .map(|(&t, &v)| (t, v * 10.0))
+            .collect();
+        let in_force_lookup = |name: &str| log.param(name);
+        let in_force = ArduPilotCompass::from_params(&in_force_lookup, compass.instance).unwrap();
+        let new = ArduPilotCompass::from_params(&lookup, compass.instance).unwrap();
+        let (before, after) = (
+            spread_pct(&in_force, &raw_mg, &log),
+            spread_pct(&new, &raw_mg, &log),
+        );
+        eprintln!(
+            "{}: |B| spread {before:.2} % in force, {after:.2} % written",
+            compass.source
+        );
+        assert!(
+            after <= before,
+            "{}: {after:.2} % against {before:.2} %",
+            compass.source
+        );
+        let result = &calibration.compasses[compass.instance];
+        assert!((result.fitted.spread_pct - after).abs() < 0.05);
+    }
+    // The primary compass's heading agrees better with the autopilot's attitude.
+    let primary = &calibration.compasses[0];
+    assert!(primary.fitted.heading_rms_deg < primary.in_force.unwrap().heading_rms_deg);
+}
