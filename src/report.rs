@@ -12,6 +12,7 @@ use plotters::prelude::*;
 use serde::Serialize;
 
 use crate::calib::export::{CalibrationExport, SensorCalibration};
+use crate::calibration::autopilot::AutopilotCalibration;
 use crate::calibration::{CalibrationAnalysis, CalibrationReport, Method};
 use crate::heading::{HeadingAnalysis, HeadingReport};
 use crate::io::SensorFrame;
@@ -119,10 +120,102 @@ pub fn decimals_for_unit(ut_per_unit: f64) -> usize {
     }
 }
 
+/// An autopilot log's new compass calibration, compass by compass, against the one in
+/// force: what `calibrate` prints, the page lists and the report holds.
+pub fn autopilot_calibration_lines(autopilot: &AutopilotCalibration) -> Vec<String> {
+    let mut lines = vec![format!(
+        "{} compass calibration, attitude-aided (the corrected field against one Earth field \
+         seen through the autopilot's attitude); its .param file loads in Mission Planner or \
+         MAVProxy",
+        autopilot.autopilot
+    )];
+    let degrees =
+        |value: Option<f64>| value.map_or_else(|| "-".to_string(), |v| format!("{v:.1}°"));
+    for compass in &autopilot.compasses {
+        let fitted = &compass.fitted;
+        let against = match &compass.in_force {
+            Some(in_force) => format!(
+                "heading {:.1}° RMS (parameters in force {:.1}°), |B| spread {:.2} % (in force \
+                 {:.2} %): {}",
+                fitted.heading_rms_deg,
+                in_force.heading_rms_deg,
+                fitted.spread_pct,
+                in_force.spread_pct,
+                if fitted.spread_pct <= in_force.spread_pct {
+                    format!(
+                        "the spread {:.0} % smaller",
+                        100.0 * (1.0 - fitted.spread_pct / in_force.spread_pct)
+                    )
+                } else {
+                    format!(
+                        "the spread {:.0} % larger than the parameters in force give: keep those",
+                        100.0 * (fitted.spread_pct / in_force.spread_pct - 1.0)
+                    )
+                }
+            ),
+            None => format!(
+                "heading {:.1}° RMS, |B| spread {:.2} % (no calibration in force in the log)",
+                fitted.heading_rms_deg, fitted.spread_pct
+            ),
+        };
+        lines.push(format!(
+            "{} ({} samples), {}: {against}",
+            compass.source, compass.n_samples, compass.model
+        ));
+        let candidates: Vec<String> = compass
+            .candidates
+            .iter()
+            .map(|candidate| format!("{} {}", candidate.model, degrees(candidate.check_heading_rms_deg)))
+            .collect();
+        lines.push(format!(
+            "{}: the model chosen on the held-back second half, fitted on the first (heading \
+             RMS: {}; parameters in force {}), then refitted on the whole log",
+            compass.source,
+            candidates.join(", "),
+            degrees(compass.check_in_force_deg)
+        ));
+        let params: Vec<String> = compass
+            .params
+            .iter()
+            .map(|(name, value)| format!("{name} {value:.4}"))
+            .collect();
+        let sigma = compass.offsets_sigma;
+        lines.push(format!(
+            "{} (formal 1σ: offsets ±{:.1}, {:.1}, {:.1} mG{}{})",
+            params.join(", "),
+            sigma[0],
+            sigma[1],
+            sigma[2],
+            compass
+                .soft_iron_sigma
+                .map_or_else(String::new, |s| format!(", soft iron ±{s:.3}")),
+            compass.motor_sigma.map_or_else(String::new, |s| format!(
+                ", motor ±{:.2}, {:.2}, {:.2} mG/A",
+                s[0], s[1], s[2]
+            ))
+        ));
+    }
+    lines.extend(autopilot.notes.iter().cloned());
+    lines
+}
+
 /// The calibration to store in the device, as numbers a person can copy: in the
 /// magnetometer's own axes and unit, with how to apply it, then (where they differ) the
 /// MotionCal packet's µT and the analysis's own body axes.
 pub fn device_calibration_lines(analysis: &CalibrationAnalysis) -> Vec<String> {
+    // An autopilot's own parameters first: they are what its user loads.
+    let mut lines = analysis
+        .report
+        .autopilot
+        .as_ref()
+        .map(autopilot_calibration_lines)
+        .unwrap_or_default();
+    lines.extend(sensor_calibration_lines(analysis));
+    lines
+}
+
+/// The 3D calibration in the sensor's own axes and unit.
+fn sensor_calibration_lines(analysis: &CalibrationAnalysis) -> Vec<String> {
     let Some(export) = device_export(analysis) else {
         return vec![
             "No 3D calibration: the ellipse and ellipsoid methods both failed (see the table)."

@@ -8,7 +8,6 @@ use super::inspect::{import_paths, print_import_diagnostics};
 use super::{print_out, print_report};
 use compass_pdr::calib::export::{c_snippet, motioncal_packet};
 use compass_pdr::calib::plane::SoftIronModel;
-use compass_pdr::calibration::autopilot::AutopilotCalibration;
 use compass_pdr::calibration::{CalibrationOptions, CalibrationReport, MethodParameters};
 use compass_pdr::heading::HeadingOptions;
 use compass_pdr::pipeline;
@@ -117,9 +116,6 @@ pub(super) fn run_calibrate(
     text.push_str("  device calibration:\n");
     for line in device_calibration_lines(&analysis) {
         text.push_str(&format!("    {line}\n"));
-    }
-    if let Some(autopilot) = &report.autopilot {
-        text.push_str(&autopilot_text(autopilot));
     }
     for line in &written {
         text.push_str(&format!("  {line}\n"));
@@ -269,85 +265,3 @@ pub(super) fn calibration_text(report: &CalibrationReport) -> String {
     text
 }
 
-/// The autopilot section: each compass's new parameters against those in force.
-fn autopilot_text(autopilot: &AutopilotCalibration) -> String {
-    let mut text = format!(
-        "  {} compass calibration (attitude-aided, against the Earth's field seen through the \
-         autopilot's attitude):\n",
-        autopilot.autopilot
-    );
-    let degrees =
-        |value: Option<f64>| value.map_or_else(|| "-".to_string(), |v| format!("{v:.1}°"));
-    for compass in &autopilot.compasses {
-        let candidates: Vec<String> = compass
-            .candidates
-            .iter()
-            .map(|candidate| {
-                format!(
-                    "{} {}",
-                    candidate.model,
-                    degrees(candidate.check_heading_rms_deg)
-                )
-            })
-            .collect();
-        text.push_str(&format!(
-            "    {} ({} samples): {} chosen on the held-back second half (heading RMS: {}; \
-             parameters in force {})\n",
-            compass.source,
-            compass.n_samples,
-            compass.model,
-            candidates.join(", "),
-            degrees(compass.check_in_force_deg),
-        ));
-        let fitted = &compass.fitted;
-        match &compass.in_force {
-            Some(in_force) => text.push_str(&format!(
-                "      whole log, heading RMS {:.1}° (in force {:.1}°), |B| spread {:.2} % (in force \
-                 {:.2} %): {}\n",
-                fitted.heading_rms_deg,
-                in_force.heading_rms_deg,
-                fitted.spread_pct,
-                in_force.spread_pct,
-                if fitted.spread_pct <= in_force.spread_pct {
-                    format!(
-                        "the spread {:.0} % smaller",
-                        100.0 * (1.0 - fitted.spread_pct / in_force.spread_pct)
-                    )
-                } else {
-                    format!(
-                        "the spread {:.0} % LARGER than the parameters in force give: keep those",
-                        100.0 * (fitted.spread_pct / in_force.spread_pct - 1.0)
-                    )
-                }
-            )),
-            None => text.push_str(&format!(
-                "      whole log, heading RMS {:.1}°, |B| spread {:.2} % (no calibration in force in the log)\n",
-                fitted.heading_rms_deg, fitted.spread_pct
-            )),
-        }
-        let sigma = compass.offsets_sigma;
-        let line: Vec<String> = compass
-            .params
-            .iter()
-            .map(|(name, value)| format!("{name} {value:.4}"))
-            .collect();
-        text.push_str(&format!(
-            "      {} (formal 1σ: offsets ±{:.1}, {:.1}, {:.1} mG{})\n",
-            line.join(", "),
-            sigma[0],
-            sigma[1],
-            sigma[2],
-            compass
-                .soft_iron_sigma
-                .map_or_else(String::new, |s| format!(", soft iron ±{s:.3}"))
-                + &compass.motor_sigma.map_or_else(String::new, |s| format!(
-                    ", motor ±{:.2}, {:.2}, {:.2} mG/A",
-                    s[0], s[1], s[2]
-                ))
-        ));
-    }
-    for note in &autopilot.notes {
-        text.push_str(&format!("    note: {note}\n"));
-    }
-    text
-}

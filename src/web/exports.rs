@@ -22,9 +22,10 @@ use crate::report::{
 };
 
 /// The analysis exports: button id, what it writes.
-const ANALYSIS_EXPORTS: [(&str, Export); 7] = [
+const ANALYSIS_EXPORTS: [(&str, Export); 8] = [
     ("export-calibration", Export::CalibrationJson),
     ("export-snippet", Export::CSnippet),
+    ("export-param", Export::AutopilotParams),
     ("export-csv", Export::CorrectedCsv),
     ("export-attitude", Export::AttitudeCsv),
     ("export-geojson", Export::Track(TrackFormat::GeoJson)),
@@ -36,6 +37,7 @@ const ANALYSIS_EXPORTS: [(&str, Export); 7] = [
 enum Export {
     CalibrationJson,
     CSnippet,
+    AutopilotParams,
     CorrectedCsv,
     AttitudeCsv,
     Track(TrackFormat),
@@ -86,6 +88,7 @@ pub fn enable(document: &Document, results: Option<&Rc<Results>>, recording: Opt
             }
             Export::Track(TrackFormat::Csv) => results.pdr.is_ok(),
             Export::AttitudeCsv => recording.is_some() && attitude_missing.is_none(),
+            Export::AutopilotParams => results.calibration.report.autopilot.is_some(),
             Export::CorrectedCsv | Export::HtmlReport => true,
         });
         button.set_disabled(!available);
@@ -99,6 +102,10 @@ pub fn enable(document: &Document, results: Option<&Rc<Results>>, recording: Opt
                 ),
                 Ok(_) => None,
             },
+            (Some(_), Export::AutopilotParams) => Some(
+                "Only for an autopilot log (ArduPilot .bin or .log) with its compasses and attitude."
+                    .to_string(),
+            ),
             (Some(_), Export::AttitudeCsv) => Some(
                 attitude_missing
                     .clone()
@@ -165,6 +172,20 @@ fn write(page: &Page, results: &Results, export: Export) -> Result<(), String> {
                 document,
                 &format!("{stem}-calibration.h"),
                 c_snippet(&export.calibration).as_bytes(),
+                "text/plain",
+            );
+        }
+        Export::AutopilotParams => {
+            let autopilot = results
+                .calibration
+                .report
+                .autopilot
+                .as_ref()
+                .ok_or("not an autopilot log with its compasses and attitude")?;
+            download_bytes(
+                document,
+                &format!("{stem}-compass.param"),
+                autopilot.param_file.as_bytes(),
                 "text/plain",
             );
         }
