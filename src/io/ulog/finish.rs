@@ -215,6 +215,12 @@ impl UlogReader {
                 };
                 prime
             });
+            if series.n_repeated > 0 {
+                how_device += &format!(
+                    "{} repeats of the sample before (same sample time) skipped; ",
+                    thousands(series.n_repeated)
+                );
+            }
             if series.n_other_device > 0 {
                 how_device += &format!(
                     "{} samples from another device_id than the first skipped; ",

@@ -41,6 +41,37 @@ impl Topic {
     }
 }
 
+impl Topic {
+    /// The fields read, in the order of the `*_AT` indices below.
+    fn field_names(self) -> &'static [&'static str] {
+        match self {
+            Topic::SensorCombined => &[
+                "gyro_rad",
+                "accelerometer_m_s2",
+                "accelerometer_timestamp_relative",
+                "magnetometer_ga",
+                "magnetometer_timestamp_relative",
+            ],
+            Topic::SensorMag => &["x", "y", "z", "device_id"],
+            Topic::VehicleMagnetometer => &["magnetometer_ga", "device_id"],
+            Topic::VehicleAttitude => &["q"],
+            Topic::VehicleGpsPosition | Topic::SensorGps => &[
+                "fix_type",
+                "latitude_deg",
+                "lat",
+                "longitude_deg",
+                "lon",
+                "altitude_msl_m",
+                "alt",
+                "vel_m_s",
+                "cog_rad",
+                "eph",
+                "time_utc_usec",
+            ],
+        }
+    }
+}
+
 /// A subscription (`A`): its topic's layout; `topic` is `None` for topics not read.
 #[derive(Debug, Clone)]
 pub(super) struct Subscription {
@@ -48,6 +79,18 @@ pub(super) struct Subscription {
     pub multi_id: u8,
     pub layout: Layout,
     timestamp: Option<FieldAt>,
+    /// Where each of the topic's [`Topic::field_names`] lies, found once.
+    fields: Vec<Option<FieldAt>>,
+}
+
+impl Subscription {
+    fn field(&self, idx: usize) -> Option<&FieldAt> {
+        self.fields.get(idx).and_then(Option::as_ref)
+    }
+
+    fn scalar(&self, idx: usize, data: &[u8]) -> Option<f64> {
+        self.field(idx)?.read(data, 0)
+    }
 }
 
 /// One magnetometer topic instance as logged, gauss, in the topic's own axes.
@@ -56,6 +99,10 @@ pub(super) struct MagSeries {
     pub device_id: Option<u32>,
     /// Samples whose device id differed from the first one's, not kept.
     pub n_other_device: usize,
+    /// Samples repeated from the message before (same sample time), not kept: old
+    /// `sensor_combined` repeats its last magnetometer sample at the gyro's rate.
+    pub n_repeated: usize,
+    last_t_us: Option<i64>,
     pub field_ga: Stream<Vector3<f64>>,
 }
 
@@ -87,8 +134,9 @@ fn vector3(field: Option<&FieldAt>, data: &[u8]) -> Option<Vector3<f64>> {
     ))
 }
 
-fn scalar(layout: &Layout, name: &str, data: &[u8]) -> Option<f64> {
-    layout.fields.get(name)?.read(data, 0)
+/// µs to s.
+fn seconds(t_us: i64) -> f64 {
+    t_us as f64 / 1e6
 }
 
 impl UlogReader {
@@ -115,14 +163,22 @@ impl UlogReader {
             );
             return;
         };
+        let topic = Topic::from_name(name);
         let timestamp = layout.fields.get("timestamp").copied();
+        let fields = topic
+            .map(Topic::field_names)
+            .unwrap_or_default()
+            .iter()
+            .map(|field_name| layout.fields.get(*field_name).copied())
+            .collect();
         self.subscriptions.insert(
             msg_id,
             Subscription {
-                topic: Topic::from_name(name),
+                topic,
                 multi_id,
                 layout,
                 timestamp,
+                fields,
             },
         );
     }
@@ -161,8 +217,8 @@ impl UlogReader {
         let Some(t_us) = sub.timestamp.and_then(|field| field.read_u64(data)) else {
             return;
         };
-        let t_s = t_us as f64 / 1e6;
-        let layout = &sub.layout;
+        let t_us = t_us as i64;
+        let t_s = seconds(t_us);
         let multi_id = sub.multi_id;
         let collected = &mut self.collected;
         let single = |collected: &mut Collected| {
@@ -173,54 +229,55 @@ impl UlogReader {
         };
         match topic {
             Topic::SensorCombined if single(collected) => {
-                if let Some(gyro) = vector3(layout.fields.get("gyro_rad"), data) {
+                const GYRO_AT: usize = 0;
+                const ACC_AT: usize = 1;
+                const ACC_RELATIVE_AT: usize = 2;
+                const MAG_AT: usize = 3;
+                const MAG_RELATIVE_AT: usize = 4;
+                if let Some(gyro) = vector3(sub.field(GYRO_AT), data) {
                     collected.gyro_radps.push(t_s, gyro);
                 }
-                let relative = |name: &str| {
-                    scalar(layout, name, data).filter(|&dt| dt != RELATIVE_TIMESTAMP_INVALID)
+                // In whole µs, so that a sample repeated by the next message has the
+                // very same time.
+                let relative = |idx: usize| {
+                    sub.scalar(idx, data)
+                        .filter(|&dt| dt != RELATIVE_TIMESTAMP_INVALID)
+                        .map(|dt_us| t_us + dt_us as i64)
                 };
-                if let (Some(acc), Some(dt_us)) = (
-                    vector3(layout.fields.get("accelerometer_m_s2"), data),
-                    relative("accelerometer_timestamp_relative"),
-                ) {
-                    collected.acc_mps2.push(t_s + dt_us / 1e6, acc);
+                if let (Some(acc), Some(acc_t_us)) =
+                    (vector3(sub.field(ACC_AT), data), relative(ACC_RELATIVE_AT))
+                {
+                    collected.acc_mps2.push(seconds(acc_t_us), acc);
                 }
-                if let (Some(mag), Some(dt_us)) = (
-                    vector3(layout.fields.get("magnetometer_ga"), data),
-                    relative("magnetometer_timestamp_relative"),
-                ) {
-                    collected.combined_mag.field_ga.push(t_s + dt_us / 1e6, mag);
+                if let (Some(mag), Some(mag_t_us)) =
+                    (vector3(sub.field(MAG_AT), data), relative(MAG_RELATIVE_AT))
+                {
+                    collected.combined_mag.push(mag_t_us, mag, None);
                 }
             }
-            Topic::SensorMag | Topic::VehicleMagnetometer => {
-                let field = match topic {
-                    Topic::SensorMag => (|| {
-                        Some(Vector3::new(
-                            scalar(layout, "x", data)?,
-                            scalar(layout, "y", data)?,
-                            scalar(layout, "z", data)?,
-                        ))
-                    })(),
-                    _ => vector3(layout.fields.get("magnetometer_ga"), data),
-                };
-                let device_id = scalar(layout, "device_id", data).map(|id| id as u32);
-                let series = match topic {
-                    Topic::SensorMag => collected.sensor_mag.entry(multi_id).or_default(),
-                    _ => collected.vehicle_mag.entry(multi_id).or_default(),
-                };
+            Topic::SensorMag => {
+                let field = (|| {
+                    Some(Vector3::new(
+                        sub.scalar(0, data)?,
+                        sub.scalar(1, data)?,
+                        sub.scalar(2, data)?,
+                    ))
+                })();
+                let device_id = sub.scalar(3, data).map(|id| id as u32);
                 if let Some(field) = field {
-                    if series.field_ga.is_empty() {
-                        series.device_id = device_id;
-                    }
-                    if device_id == series.device_id {
-                        series.field_ga.push(t_s, field);
-                    } else {
-                        series.n_other_device += 1;
-                    }
+                    let series = collected.sensor_mag.entry(multi_id).or_default();
+                    series.push(t_us, field, device_id);
+                }
+            }
+            Topic::VehicleMagnetometer => {
+                let device_id = sub.scalar(1, data).map(|id| id as u32);
+                if let Some(field) = vector3(sub.field(0), data) {
+                    let series = collected.vehicle_mag.entry(multi_id).or_default();
+                    series.push(t_us, field, device_id);
                 }
             }
             Topic::VehicleAttitude if single(collected) => {
-                let q = layout.fields.get("q");
+                let q = sub.field(0);
                 let components = (0..4)
                     .map(|idx| q.and_then(|q| q.read(data, idx)))
                     .collect::<Option<Vec<f64>>>();
@@ -245,9 +302,27 @@ impl UlogReader {
             }
             Topic::VehicleGpsPosition | Topic::SensorGps if single(collected) => {
                 let source = usize::from(topic == Topic::SensorGps);
-                gnss_fix(layout, data, t_s, source, collected);
+                gnss_fix(sub, data, t_s, source, collected);
             }
             _ => {}
+        }
+    }
+}
+
+impl MagSeries {
+    /// Adds a sample unless it repeats the last one's time, or comes from another
+    /// device than the first sample.
+    fn push(&mut self, t_us: i64, field_ga: Vector3<f64>, device_id: Option<u32>) {
+        if self.field_ga.is_empty() {
+            self.device_id = device_id;
+        }
+        if device_id != self.device_id {
+            self.n_other_device += 1;
+        } else if self.last_t_us == Some(t_us) {
+            self.n_repeated += 1;
+        } else {
+            self.last_t_us = Some(t_us);
+            self.field_ga.push(seconds(t_us), field_ga);
         }
     }
 }
@@ -255,24 +330,24 @@ impl UlogReader {
 /// One GNSS fix (`vehicle_gps_position.msg`, `sensor_gps.msg`): lat/lon in 1e-7 deg
 /// (or `latitude_deg` doubles in newer logs), alt in mm (or `altitude_msl_m`), fixes
 /// below 2D (`fix_type` < 2) skipped; `time_utc_usec` is µs since 1970, 0 if unknown.
-fn gnss_fix(layout: &Layout, data: &[u8], t_s: f64, source: usize, collected: &mut Collected) {
-    if scalar(layout, "fix_type", data).is_some_and(|fix_type| fix_type < 2.0) {
+fn gnss_fix(sub: &Subscription, data: &[u8], t_s: f64, source: usize, collected: &mut Collected) {
+    let value = |idx: usize| sub.scalar(idx, data);
+    if value(0).is_some_and(|fix_type| fix_type < 2.0) {
         collected.n_fixes_without_position += 1;
         return;
     }
-    let degrees = |double: &str, scaled: &str| {
-        scalar(layout, double, data).or_else(|| scalar(layout, scaled, data).map(|v| v * 1e-7))
+    let degrees = |double: usize, scaled: usize| {
+        value(double).or_else(|| value(scaled).map(|deg_e7| deg_e7 * 1e-7))
     };
     let fix = GnssFix {
-        lat_deg: degrees("latitude_deg", "lat"),
-        lon_deg: degrees("longitude_deg", "lon"),
-        alt_m: scalar(layout, "altitude_msl_m", data)
-            .or_else(|| scalar(layout, "alt", data).map(|alt_mm| alt_mm / 1e3)),
-        speed_mps: scalar(layout, "vel_m_s", data),
-        course_rad: scalar(layout, "cog_rad", data),
-        hacc_m: scalar(layout, "eph", data),
+        lat_deg: degrees(1, 2),
+        lon_deg: degrees(3, 4),
+        alt_m: value(5).or_else(|| value(6).map(|alt_mm| alt_mm / 1e3)),
+        speed_mps: value(7),
+        course_rad: value(8),
+        hacc_m: value(9),
     };
-    if let Some(utc_us) = scalar(layout, "time_utc_usec", data).filter(|&utc_us| utc_us > 0.0) {
+    if let Some(utc_us) = value(10).filter(|&utc_us| utc_us > 0.0) {
         collected.first_utc[source].get_or_insert((t_s, utc_us / 1e6));
     }
     collected.gnss[source].push(t_s, fix);
