@@ -7,8 +7,8 @@
 //! `CAL_MAGn_XODIAG/YODIAG/ZODIAG` off it (`Magnetometer.cpp`, `set_offdiagonal`:
 //! `S = [[xs, xod, yod], [xod, ys, zod], [yod, zod, zs]]`), and `R` the rotation
 //! `CAL_MAGn_ROT` of an external compass, or for an internal one (`ROT` −1) the
-//! board's, `SENS_BOARD_ROT` after the level trim `SENS_BOARD_X/Y/Z_OFF` (degrees;
-//! `Utilities.cpp`, `GetBoardRotationMatrix`). `n` is the slot whose `CAL_MAGn_ID` is
+//! board's, `SENS_BOARD_ROT` (`Utilities.cpp`, `GetBoardRotationMatrix`, which leaves
+//! the level trim `SENS_BOARD_X/Y/Z_OFF` out). `n` is the slot whose `CAL_MAGn_ID` is
 //! the sensor's device id.
 
 use nalgebra::{Matrix3, Rotation3, Vector3};
@@ -121,14 +121,9 @@ pub(super) fn calibration(
         )
     } else {
         let board_code = param("SENS_BOARD_ROT").unwrap_or(0.0) as i32;
-        let trim = euler_deg(
-            param("SENS_BOARD_X_OFF").unwrap_or(0.0),
-            param("SENS_BOARD_Y_OFF").unwrap_or(0.0),
-            param("SENS_BOARD_Z_OFF").unwrap_or(0.0),
-        );
         (
-            px4_rotation(board_code).map(|board| trim * board),
-            format!("internal: SENS_BOARD_ROT {board_code} with the level trim SENS_BOARD_*_OFF"),
+            px4_rotation(board_code),
+            format!("internal: SENS_BOARD_ROT {board_code}"),
         )
     };
     let (xs, ys, zs) = (get("XSCALE", 1.0), get("YSCALE", 1.0), get("ZSCALE", 1.0));

@@ -339,6 +339,46 @@ fn an_unknown_incompatible_flag_refuses_the_log_as_pyulog_does() {
 }
 
 #[test]
+fn appended_data_is_read_from_its_offset_as_pyulog_does() {
+    // The fifth sensor_combined message is cut 10 bytes short where appended data
+    // starts: pyulog drops the message that crosses the offset and goes on there.
+    let log = synthetic();
+    let appended_at = log.combined_ends[4] - 10;
+    let mut bytes = log.bytes[..appended_at].to_vec();
+    bytes.extend_from_slice(&log.bytes[log.combined_ends[4]..]);
+    bytes[16 + 3 + 8] = 1; // incompat_flags[0]: DATA_APPENDED
+    bytes[16 + 3 + 16..16 + 3 + 24].copy_from_slice(&(appended_at as u64).to_le_bytes());
+    let report = read("appended.ulg", &bytes).expect("readable");
+    assert_eq!(report.recording.gyro_in_body_radps.len(), 19);
+    assert!(report.diagnostics.is_empty(), "{:?}", report.diagnostics);
+}
+
+#[test]
+fn a_compass_without_calibration_slot_is_kept_as_logged() {
+    let mut bytes = synthetic().bytes;
+    let key = b"int32_t CAL_MAG0_ID";
+    let at = bytes
+        .windows(key.len())
+        .position(|window| window == key)
+        .expect("param");
+    bytes[at + key.len()] ^= 1; // another device id
+    let report = read("uncalibrated.ulg", &bytes).expect("readable");
+    let compass = &report.autopilot.as_ref().expect("autopilot").compasses[0];
+    assert_eq!(compass.raw_in_body_ut, None);
+    assert!(
+        compass.how_raw.contains("no CAL_MAGn_ID is 592905"),
+        "{}",
+        compass.how_raw
+    );
+    assert_eq!(report.recording.mag_in_body_ut, compass.logged_in_body_ut);
+    assert!((compass.logged_in_body_ut.values[0] - Vector3::new(30.0, 10.0, 40.0)).norm() < 1e-4);
+    assert_eq!(
+        report.mag_frame.expect("frame").axes,
+        crate::io::frame::BODY_AXES
+    );
+}
+
+#[test]
 fn nothing_readable_is_an_error() {
     assert!(matches!(
         read("empty.ulg", b""),
