@@ -147,6 +147,9 @@ pub const ANDROID_DEVICE_AXES: &str =
 /// Delimited files whose columns are read as body axes (canonical names, plain x, y, z).
 pub const COLUMNS_AS_BODY_AXES: &str =
     "the log's x, y, z columns as written (read as body axes: x forward, y right, z down)";
+/// PX4's `sensor_mag` x, y, z: the driver's axes, before the calibration's rotation
+/// (`CAL_MAGn_ROT`, or the board's for an internal compass).
+pub const PX4_SENSOR_MAG_AXES: &str = "PX4 sensor_mag axes (the driver's)";
 /// Body axes themselves, for a calibration that says nothing else.
 pub const BODY_AXES: &str = "body axes (x forward, y right, z down)";
 

@@ -18,6 +18,7 @@ pub mod sensor_files;
 pub mod serial_lines;
 pub mod summary;
 pub mod tagged_lines;
+pub mod ulog;
 
 use serde::Serialize;
 use thiserror::Error;
