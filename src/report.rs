@@ -165,7 +165,13 @@ pub fn autopilot_calibration_lines(autopilot: &AutopilotCalibration) -> Vec<Stri
         let candidates: Vec<String> = compass
             .candidates
             .iter()
-            .map(|candidate| format!("{} {}", candidate.model, degrees(candidate.check_heading_rms_deg)))
+            .map(|candidate| {
+                format!(
+                    "{} {}",
+                    candidate.model,
+                    degrees(candidate.check_heading_rms_deg)
+                )
+            })
             .collect();
         lines.push(format!(
             "{}: the model chosen on the held-back second half, fitted on the first (heading \

@@ -264,4 +264,3 @@ pub(super) fn calibration_text(report: &CalibrationReport) -> String {
     }
     text
 }
-

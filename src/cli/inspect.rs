@@ -85,10 +85,15 @@ pub(super) fn run_inspect(input: &ImportArgs, json: bool) -> Result<(), String> 
     let mut text = String::new();
     let _ = writeln!(
         text,
-        "{}: {}, {} data lines, {} lines skipped or suspect",
+        "{}: {}, {} {}, {} skipped or suspect",
         inspection.file_name,
         inspection.format,
         inspection.n_data_lines,
+        if inspection.compass_params.is_some() {
+            "messages"
+        } else {
+            "data lines"
+        },
         inspection.diagnostics.total()
     );
     let _ = writeln!(
@@ -119,6 +124,13 @@ pub(super) fn run_inspect(input: &ImportArgs, json: bool) -> Result<(), String> 
     }
     if let Some(frame) = &inspection.mag_frame {
         let _ = writeln!(text, "  {}", frame.describe());
+    }
+    if let Some(params) = inspection.compass_params.as_ref().filter(|p| !p.is_empty()) {
+        let listed: Vec<String> = params
+            .iter()
+            .map(|(name, value)| format!("{name} {value}"))
+            .collect();
+        let _ = writeln!(text, "  compass parameters in force: {}", listed.join(", "));
     }
     for note in &inspection.notes {
         let _ = writeln!(text, "  note: {note}");

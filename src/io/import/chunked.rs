@@ -9,7 +9,8 @@ use crate::io::lines::{Line, LineDecoder};
 use crate::io::sensor_files::{self, SensorFile, SensorFileReader};
 use crate::io::tagged_lines::LineReader as _;
 use crate::io::{
-    dataflash, first_binary_offset, nmea, serial_lines, tagged_lines, ImportError, MAX_LINE_BYTES,
+    dataflash, first_binary_offset, nmea, serial_lines, tagged_lines, ulog, ImportError,
+    MAX_LINE_BYTES,
 };
 
 /// How many leading bytes a chunked import holds back to tell the format.
@@ -41,6 +42,7 @@ enum Reading {
     Lines(LineDecoder, FormatReader),
     /// A binary autopilot log, read message by message.
     Binary(Box<dataflash::BinaryReader>),
+    Ulog(Box<ulog::UlogReader>),
     Blocks {
         reader: BlockReader,
         /// The unfinished line at the end of the last chunk.
@@ -81,6 +83,7 @@ impl Reading {
         match self {
             Reading::Lines(decoder, reader) => decoder.feed(chunk, |line| reader.read_line(&line)),
             Reading::Binary(reader) => reader.feed(chunk),
+            Reading::Ulog(reader) => reader.feed(chunk),
             Reading::Blocks {
                 reader,
                 carry,
@@ -127,7 +130,7 @@ impl Reading {
                 decoder.feed(&carry, |line| reader.read_line(&line));
                 Reading::Lines(decoder, reader)
             }
-            other @ (Reading::Lines(..) | Reading::Binary(_)) => other,
+            other @ (Reading::Lines(..) | Reading::Binary(_) | Reading::Ulog(_)) => other,
         }
     }
 
@@ -136,6 +139,7 @@ impl Reading {
             Reading::Binary(reader) => Ok(FileImport::Final(dataflash::finish_binary(
                 *reader, file_name,
             )?)),
+            Reading::Ulog(reader) => Ok(FileImport::Final(reader.finish(file_name)?)),
             Reading::Lines(mut decoder, mut reader) => {
                 decoder.finish(|line| reader.read_line(&line));
                 reader.finish(file_name)
@@ -255,6 +259,12 @@ impl ChunkedImport {
             let mut reader = Box::<dataflash::BinaryReader>::default();
             reader.feed(&std::mem::take(&mut self.prefix));
             self.reader = Some(Reading::Binary(reader));
+            return Ok(());
+        }
+        if ulog::looks_like(&self.prefix) {
+            let mut reader = Box::<ulog::UlogReader>::default();
+            reader.feed(&std::mem::take(&mut self.prefix));
+            self.reader = Some(Reading::Ulog(reader));
             return Ok(());
         }
         if let Some(byte_offset) = first_binary_offset(&self.prefix) {

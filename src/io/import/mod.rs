@@ -20,7 +20,7 @@ use super::lines::decode_all;
 use super::sensor_files::{self, SensorImport};
 use super::summary::{summarize, StreamSummary};
 use super::{
-    dataflash, ensure_text, nmea, serial_lines, tagged_lines, Diagnostics, ImportError,
+    dataflash, ensure_text, nmea, serial_lines, tagged_lines, ulog, Diagnostics, ImportError,
     ImportReport, SensorFrame,
 };
 
@@ -125,6 +125,9 @@ fn import_one(
     if dataflash::looks_like_binary(bytes) {
         return Ok(FileImport::Final(dataflash::read_binary(file_name, bytes)?));
     }
+    if ulog::looks_like(bytes) {
+        return Ok(FileImport::Final(ulog::read(file_name, bytes)?));
+    }
     ensure_text(file_name, bytes)?;
     let sample_lines = sample_lines(bytes);
     let sample: Vec<&str> = sample_lines.iter().map(String::as_str).collect();
@@ -190,6 +193,10 @@ pub struct Inspection {
     pub diagnostics: Diagnostics,
     /// The magnetometer's raw axes and unit, where the log has a magnetometer.
     pub mag_frame: Option<SensorFrame>,
+    /// An autopilot log's compass parameters in force (`COMPASS_*`, `CAL_MAG*`), in the
+    /// log's order; what the binary log's `n_data_lines` counts are messages.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub compass_params: Option<Vec<(String, f64)>>,
 }
 
 impl Inspection {
@@ -216,6 +223,13 @@ impl Inspection {
             notes: report.notes.clone(),
             diagnostics: report.diagnostics.clone(),
             mag_frame: report.mag_frame,
+            compass_params: report.autopilot.as_ref().map(|log| {
+                log.params
+                    .iter()
+                    .filter(|(name, _)| name.starts_with("COMPASS_") || name.starts_with("CAL_MAG"))
+                    .cloned()
+                    .collect()
+            }),
         }
     }
 }

@@ -114,6 +114,16 @@ impl UlogReader {
         }
         recording.attitude = collected.attitude;
         n_out_of_order += recording.attitude.sort_by_time();
+        // The autopilot's own heading: the reference of a vehicle that flies sideways.
+        recording.autopilot_heading_rad = crate::recording::Stream {
+            t_s: recording.attitude.t_s.clone(),
+            values: recording
+                .attitude
+                .values
+                .iter()
+                .map(|attitude| attitude.yaw_rad.unwrap_or(f64::NAN))
+                .collect(),
+        };
         if !recording.attitude.is_empty() {
             notes.push(format!(
                 "vehicle_attitude: {} attitudes, the autopilot's own estimate (q, body FRD to \
@@ -396,6 +406,7 @@ impl UlogReader {
             params: std::mem::take(&mut self.params),
             params_changed: std::mem::take(&mut self.params_changed),
             compasses: made.into_iter().map(|made| made.log).collect(),
+            current_a: Default::default(),
         };
         Ok(ImportReport {
             file_name: name,
