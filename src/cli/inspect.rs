@@ -128,7 +128,7 @@ pub(super) fn run_inspect(input: &ImportArgs, json: bool) -> Result<(), String> 
     if let Some(params) = inspection.compass_params.as_ref().filter(|p| !p.is_empty()) {
         let listed: Vec<String> = params
             .iter()
-            .map(|(name, value)| format!("{name} {value}"))
+            .map(|(name, value)| format!("{name} {}", *value as f32))
             .collect();
         let _ = writeln!(text, "  compass parameters in force: {}", listed.join(", "));
     }

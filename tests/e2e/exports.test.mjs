@@ -2,7 +2,7 @@
 // back, and agrees with what the page shows.
 import { test } from 'node:test';
 import assert from 'node:assert/strict';
-import { readFileSync } from 'node:fs';
+import { existsSync, readFileSync } from 'node:fs';
 import { join } from 'node:path';
 import { download, openPage, out, text, waitForState } from './common.mjs';
 
@@ -122,6 +122,38 @@ test('every export of the demo analysis downloads and reads back', async () => {
   assert.equal(await page.isDisabled('#export-attitude'), false, 'a walk with a gyroscope has an attitude');
   assert.match(await page.getAttribute('#export-geojson', 'title'), /no latitude and longitude/);
 
+  assert.deepEqual(problems, []);
+  await close();
+});
+
+test('an ArduPilot log gives its compass parameters, and the .param download says what the page shows', async (t) => {
+  const log = join(import.meta.dirname, '../../../shared/data/ardupilot-copter-log171/log171.bin');
+  if (!existsSync(log)) { t.skip(`${log} not found (the real recordings live beside the project; CI has them)`); return; }
+  const { page, problems, close } = await openPage({ acceptDownloads: true });
+  await waitForState(page, 'ready', 'demo-walk.csv');
+  assert.equal(await page.isDisabled('#export-param'), true, 'the demo walk is no autopilot log');
+  await page.setInputFiles('#file-input', log);
+  await waitForState(page, 'ready', 'log171.bin');
+  const streams = await text(page, 'streams');
+  assert.match(streams, /ArduPilot DataFlash log/);
+  // The answer for a drone: the new parameters against those in force.
+  const calibration = await text(page, 'calibration');
+  assert.match(calibration, /ArduPilot compass calibration/);
+  const spreads = [...calibration.matchAll(/\|B\| spread (\d+\.\d+) % \(in force (\d+\.\d+) %\)/g)];
+  assert.equal(spreads.length, 3, calibration);
+  for (const [, fitted, inForce] of spreads) assert.ok(parseFloat(fitted) <= parseFloat(inForce), calibration);
+  assert.equal(await page.isDisabled('#export-param'), false);
+  const { bytes, name } = await download(page, '#export-param');
+  assert.equal(name, 'log171-compass.param');
+  const params = Object.fromEntries(bytes.toString('utf8').split('\n')
+    .filter((line) => line && !line.startsWith('#')).map((line) => line.split(',')).map(([k, v]) => [k, parseFloat(v)]));
+  for (const name of ['COMPASS_OFS_X', 'COMPASS_DIA_Y', 'COMPASS_ODI_Z', 'COMPASS_OFS2_X', 'COMPASS_OFS3_Z', 'COMPASS_MOTCT']) {
+    assert.ok(Number.isFinite(params[name]), `${name} in the .param`);
+  }
+  // The figures the page lists are the file's.
+  const shown = parseFloat(calibration.match(/COMPASS_OFS_X (-?\d+\.\d+)/)[1]);
+  assert.ok(Math.abs(shown - params.COMPASS_OFS_X) < 1e-3, `${shown} shown, ${params.COMPASS_OFS_X} written`);
+  await page.screenshot({ path: join(out, 'ardupilot.png'), fullPage: false });
   assert.deepEqual(problems, []);
   await close();
 });

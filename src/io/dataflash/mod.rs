@@ -216,6 +216,41 @@ fn compass_of(track: &MagTrack, params: &AutopilotLog) -> CompassLog {
     }
 }
 
+/// The notes on the whole log: what was read, the firmware, the parameters.
+fn log_notes(summary: String, counts: &[(String, usize)], autopilot: &AutopilotLog) -> Vec<String> {
+    let mut notes = vec![summary];
+    let read: Vec<String> = counts
+        .iter()
+        .map(|(name, count)| format!("{name} {}", thousands(*count)))
+        .collect();
+    if !read.is_empty() {
+        notes.push(format!("messages used: {}", read.join(", ")));
+    }
+    if let Some(firmware) = &autopilot.firmware {
+        notes.push(format!("firmware: {firmware}"));
+    }
+    if !autopilot.params.is_empty() {
+        notes.push(format!(
+            "{} parameters in force (PARM){}",
+            autopilot.params.len(),
+            if autopilot.params_changed.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    "; changed during the log: {}",
+                    autopilot
+                        .params_changed
+                        .iter()
+                        .map(|(name, value)| format!("{name} → {value}"))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                )
+            }
+        ));
+    }
+    notes
+}
+
 fn finish(
     file_name: &str,
     format: &'static str,
@@ -262,36 +297,7 @@ fn finish(
         .map(|track| compass_of(track, &autopilot))
         .collect();
 
-    let mut notes = vec![summary];
-    let read: Vec<String> = counts
-        .iter()
-        .map(|(name, count)| format!("{name} {}", thousands(*count)))
-        .collect();
-    if !read.is_empty() {
-        notes.push(format!("messages used: {}", read.join(", ")));
-    }
-    if let Some(firmware) = &autopilot.firmware {
-        notes.push(format!("firmware: {firmware}"));
-    }
-    if !autopilot.params.is_empty() {
-        notes.push(format!(
-            "{} parameters in force (PARM){}",
-            autopilot.params.len(),
-            if autopilot.params_changed.is_empty() {
-                String::new()
-            } else {
-                format!(
-                    "; changed during the log: {}",
-                    autopilot
-                        .params_changed
-                        .iter()
-                        .map(|(name, value)| format!("{name} → {value}"))
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                )
-            }
-        ));
-    }
+    let mut notes = log_notes(summary, &counts, &autopilot);
     // The magnetometer to calibrate: COMPASS_PRIMARY's, where its raw field is known.
     let primary = autopilot
         .param("COMPASS_PRIMARY")

@@ -5,12 +5,12 @@
 use nalgebra::{Matrix3, Vector3};
 
 use super::compass::calibration;
-use super::topics::MagSeries;
+use super::topics::{Collected, MagSeries};
 use super::{looks_like, UlogReader, MAGIC, ULOG};
 use crate::io::autopilot::{Autopilot, AutopilotLog, CompassLog};
 use crate::io::frame::{BODY_AXES, PX4_SENSOR_MAG_AXES};
 use crate::io::{thousands, ImportError, ImportReport, MagUnit, SensorFrame};
-use crate::recording::{Recording, Stream};
+use crate::recording::{Attitude, GnssFix, Recording, Stream};
 
 /// µT per gauss.
 const UT_PER_GAUSS: f64 = 100.0;
@@ -54,9 +54,61 @@ fn scaled(
 impl UlogReader {
     /// Ends the input. Fails only when nothing at all could be read.
     pub fn finish(mut self, file_name: &str) -> Result<ImportReport, ImportError> {
-        let name = file_name.to_string();
+        self.end_of_input(file_name)?;
+        let collected = std::mem::take(&mut self.collected);
+        let mut notes = Vec::new();
+        let Collected {
+            gyro_radps,
+            acc_mps2,
+            combined_mag,
+            sensor_mag,
+            vehicle_mag,
+            attitude,
+            gnss,
+            first_utc,
+            n_fixes_without_position,
+            n_other_instances,
+        } = collected;
+        let motion = Motion {
+            gyro_radps,
+            acc_mps2,
+            attitude,
+            gnss,
+            first_utc,
+            n_fixes_without_position,
+            n_other_instances,
+        };
+        let (mut recording, mut n_out_of_order) = motion.into_recording(&mut notes);
+        let made = self.compasses(
+            combined_mag,
+            sensor_mag,
+            vehicle_mag,
+            &mut notes,
+            &mut n_out_of_order,
+        );
+        let prime = self
+            .param("CAL_MAG_PRIME")
+            .filter(|&id| id > 0.0)
+            .map(|id| id as u32);
+        let mag_frame = set_primary(&made, prime, &mut recording, &mut notes);
+        self.finish_with(file_name, recording, made, mag_frame, notes, n_out_of_order)
+    }
+
+    /// The parameter in force named `name`.
+    fn param(&self, name: &str) -> Option<f64> {
+        self.params
+            .iter()
+            .find(|(param, _)| param == name)
+            .map(|&(_, value)| value)
+    }
+
+    /// The end of the bytes: an error when the header or the log is unreadable, a
+    /// diagnostic for an unfinished last message.
+    fn end_of_input(&mut self, file_name: &str) -> Result<(), ImportError> {
         if self.offset == 0 && self.pending.is_empty() {
-            return Err(ImportError::Empty { file_name: name });
+            return Err(ImportError::Empty {
+                file_name: file_name.to_string(),
+            });
         }
         let nothing = |problem: String, n_lines: usize| ImportError::NothingRecognised {
             file_name: file_name.to_string(),
@@ -95,73 +147,20 @@ impl UlogReader {
             );
         }
 
-        let mut notes = Vec::new();
-        let mut recording = Recording::default();
-        let collected = std::mem::take(&mut self.collected);
-        let mut n_out_of_order = 0;
-        recording.gyro_in_body_radps = collected.gyro_radps;
-        recording.acc_in_body_mps2 = collected.acc_mps2;
-        n_out_of_order += recording.gyro_in_body_radps.sort_by_time();
-        n_out_of_order += recording.acc_in_body_mps2.sort_by_time();
-        if !recording.gyro_in_body_radps.is_empty() || !recording.acc_in_body_mps2.is_empty() {
-            notes.push(format!(
-                "sensor_combined: {} gyro samples (gyro_rad, rad/s) at timestamp and {} \
-                 accelerometer samples (accelerometer_m_s2) at timestamp + \
-                 accelerometer_timestamp_relative, body axes (PX4's FRD)",
-                thousands(recording.gyro_in_body_radps.len()),
-                thousands(recording.acc_in_body_mps2.len())
-            ));
-        }
-        recording.attitude = collected.attitude;
-        n_out_of_order += recording.attitude.sort_by_time();
-        // The autopilot's own heading: the reference of a vehicle that flies sideways.
-        recording.autopilot_heading_rad = crate::recording::Stream {
-            t_s: recording.attitude.t_s.clone(),
-            values: recording
-                .attitude
-                .values
-                .iter()
-                .map(|attitude| attitude.yaw_rad.unwrap_or(f64::NAN))
-                .collect(),
-        };
-        if !recording.attitude.is_empty() {
-            notes.push(format!(
-                "vehicle_attitude: {} attitudes, the autopilot's own estimate (q, body FRD to \
-                 NED, as Euler ZYX roll, pitch, yaw from north), not an independent reference",
-                thousands(recording.attitude.len())
-            ));
-        }
-        let source = usize::from(collected.gnss[0].is_empty());
-        let [vehicle_gps, sensor_gps] = collected.gnss;
-        recording.gnss = if source == 0 { vehicle_gps } else { sensor_gps };
-        n_out_of_order += recording.gnss.sort_by_time();
-        recording.start_unix_s = collected.first_utc[source].map(|(boot_s, utc_s)| utc_s - boot_s);
-        if !recording.gnss.is_empty() || collected.n_fixes_without_position > 0 {
-            let topic = ["vehicle_gps_position", "sensor_gps"][source];
-            notes.push(format!(
-                "{topic}: {} fixes; {} with fix_type below 2 (no position) skipped; {}",
-                thousands(recording.gnss.len()),
-                thousands(collected.n_fixes_without_position),
-                match recording.start_unix_s {
-                    Some(_) => "the start time comes from the first fix's time_utc_usec",
-                    None => "no fix has a UTC time, so the log is not dated",
-                }
-            ));
-        }
-        if collected.n_other_instances > 0 {
-            notes.push(format!(
-                "{} messages of second instances of sensor_combined, vehicle_attitude or GNSS \
-                 not used (instance 0 is read)",
-                thousands(collected.n_other_instances)
-            ));
-        }
+        Ok(())
+    }
 
-        let param = |name: &str| {
-            self.params
-                .iter()
-                .find(|(param, _)| param == name)
-                .map(|&(_, value)| value)
-        };
+    /// Every compass topic made into a compass, with its calibration in force applied
+    /// or undone.
+    fn compasses(
+        &self,
+        combined_mag: MagSeries,
+        sensor_mag: std::collections::BTreeMap<u8, MagSeries>,
+        vehicle_mag: std::collections::BTreeMap<u8, MagSeries>,
+        notes: &mut Vec<String>,
+        n_out_of_order: &mut usize,
+    ) -> Vec<Made> {
+        let param = |name: &str| self.param(name);
         let prime = param("CAL_MAG_PRIME")
             .filter(|&id| id > 0.0)
             .map(|id| id as u32);
@@ -172,7 +171,7 @@ impl UlogReader {
             }
             _ => Logged::Raw,
         };
-        if !collected.sensor_mag.is_empty() {
+        if !sensor_mag.is_empty() {
             notes.push(match sensor_mag_logged {
                 Logged::Raw => {
                     "sensor_mag taken as raw (PX4 v1.12 or later, or version unknown)".to_string()
@@ -185,7 +184,7 @@ impl UlogReader {
                 ),
             });
         }
-        for (multi_id, series) in collected.sensor_mag {
+        for (multi_id, series) in sensor_mag {
             sources.push((
                 format!("sensor_mag {multi_id}"),
                 multi_id as usize,
@@ -193,7 +192,7 @@ impl UlogReader {
                 series,
             ));
         }
-        for (multi_id, series) in collected.vehicle_mag {
+        for (multi_id, series) in vehicle_mag {
             sources.push((
                 format!("vehicle_magnetometer {multi_id}"),
                 multi_id as usize,
@@ -201,12 +200,12 @@ impl UlogReader {
                 series,
             ));
         }
-        if !collected.combined_mag.field_ga.is_empty() {
+        if !combined_mag.field_ga.is_empty() {
             sources.push((
                 "sensor_combined".into(),
                 0,
                 Logged::Calibrated,
-                collected.combined_mag,
+                combined_mag,
             ));
         }
         let mut made: Vec<Made> = Vec::new();
@@ -214,88 +213,10 @@ impl UlogReader {
             if series.field_ga.is_empty() {
                 continue;
             }
-            n_out_of_order += series.field_ga.sort_by_time();
-            let mut how_device = String::new();
-            let device_id = series.device_id.or_else(|| {
-                how_device = match prime {
-                    Some(id) => {
-                        format!("no device_id: taken as the primary compass CAL_MAG_PRIME {id}; ")
-                    }
-                    None => "no device_id and no CAL_MAG_PRIME; ".to_string(),
-                };
-                prime
-            });
-            if series.n_repeated > 0 {
-                how_device += &format!(
-                    "{} repeats of the sample before (same sample time) skipped; ",
-                    thousands(series.n_repeated)
-                );
-            }
-            if series.n_other_device > 0 {
-                how_device += &format!(
-                    "{} samples from another device_id than the first skipped; ",
-                    series.n_other_device
-                );
-            }
-            let cal = device_id.and_then(|id| calibration(&param, id));
-            let rotation = cal.as_ref().and_then(|cal| cal.body_from_sensor);
-            let (logged_in_body_ut, raw_in_body_ut, how) = match (logged, &cal, rotation) {
-                (Logged::Raw, Some(cal), Some(r)) => (
-                    scaled(&series.field_ga, |raw| cal.apply(&r, raw)),
-                    Some(scaled(&series.field_ga, |raw| r * raw)),
-                    format!(
-                        "raw = R·(x, y, z) of the driver's gauss; logged = R·S·(raw − offset) \
-                         with CAL_MAG{}_* in force; R: {}",
-                        cal.slot, cal.rotation_source
-                    ),
-                ),
-                (Logged::Calibrated | Logged::CalibratedInSensorAxes, Some(cal), Some(r)) => {
-                    if logged == Logged::CalibratedInSensorAxes {
-                        series.field_ga.values.iter_mut().for_each(|value| *value = r * *value);
-                    }
-                    let undo = cal.undo_into_body(&r);
-                    let how = match undo {
-                        Some(_) => format!(
-                            "{}; raw = R·(S⁻¹·Rᵀ·logged + offset) with CAL_MAG{}_* in force; R: {}",
-                            match logged {
-                                Logged::CalibratedInSensorAxes => {
-                                    "logged S·(raw − offset) in the sensor's axes, turned by R"
-                                }
-                                _ => "logged calibrated, R·S·(raw − offset)",
-                            },
-                            cal.slot,
-                            cal.rotation_source
-                        ),
-                        None => format!("CAL_MAG{}_*SCALE is singular: raw not made", cal.slot),
-                    };
-                    let raw = undo.map(|undo| scaled(&series.field_ga, undo));
-                    (scaled(&series.field_ga, |value| *value), raw, how)
-                }
-                (_, Some(cal), None) => (
-                    scaled(&series.field_ga, |value| *value),
-                    None,
-                    format!("rotation unknown ({}): raw not made; values as logged", cal.rotation_source),
-                ),
-                (_, None, _) => (
-                    scaled(&series.field_ga, |value| *value),
-                    None,
-                    match device_id {
-                        Some(id) => format!("no CAL_MAGn_ID is {id}: calibration unknown, raw not made; values as logged"),
-                        None => "device unknown: raw not made; values as logged".to_string(),
-                    },
-                ),
-            };
-            made.push(Made {
-                log: CompassLog {
-                    instance,
-                    source,
-                    logged_in_body_ut,
-                    raw_in_body_ut,
-                    how_raw: format!("{how_device}{how}"),
-                },
-                device_id,
-                body_from_sensor: rotation,
-            });
+            *n_out_of_order += series.field_ga.sort_by_time();
+            made.push(make_compass(
+                source, instance, logged, series, prime, &param,
+            ));
         }
         for compass in &made {
             notes.push(format!(
@@ -305,48 +226,25 @@ impl UlogReader {
                 compass.log.how_raw
             ));
         }
-        let primary_idx = prime
-            .and_then(|prime| {
-                (0..made.len())
-                    .filter(|&idx| made[idx].device_id == Some(prime))
-                    .max_by_key(|&idx| {
-                        (
-                            made[idx].log.raw_in_body_ut.is_some(),
-                            made[idx].log.logged_in_body_ut.len(),
-                        )
-                    })
-            })
-            .or(if made.is_empty() { None } else { Some(0) });
-        let mut mag_frame = None;
-        if let Some(primary) = primary_idx.and_then(|idx| made.get(idx)) {
-            match (&primary.log.raw_in_body_ut, primary.body_from_sensor) {
-                (Some(raw), Some(rotation)) => {
-                    recording.mag_in_body_ut = raw.clone();
-                    mag_frame = Some(SensorFrame {
-                        body_from_sensor: rotation,
-                        unit: MagUnit::GAUSS,
-                        axes: PX4_SENSOR_MAG_AXES,
-                    });
-                    notes.push(format!(
-                        "magnetometer: {}'s raw field (its calibration undone), body axes",
-                        primary.log.source
-                    ));
-                }
-                _ => {
-                    recording.mag_in_body_ut = primary.log.logged_in_body_ut.clone();
-                    mag_frame = Some(SensorFrame {
-                        body_from_sensor: Matrix3::identity(),
-                        unit: MagUnit::GAUSS,
-                        axes: BODY_AXES,
-                    });
-                    notes.push(format!(
-                        "magnetometer: {}'s field as logged (the autopilot's calibration could \
-                         not be undone), read as body axes",
-                        primary.log.source
-                    ));
-                }
-            }
-        }
+        made
+    }
+
+    /// The last notes, the firmware and the report.
+    fn finish_with(
+        mut self,
+        file_name: &str,
+        recording: Recording,
+        made: Vec<Made>,
+        mag_frame: Option<SensorFrame>,
+        mut notes: Vec<String>,
+        n_out_of_order: usize,
+    ) -> Result<ImportReport, ImportError> {
+        let nothing = |problem: String, n_lines: usize| ImportError::NothingRecognised {
+            file_name: file_name.to_string(),
+            format: ULOG,
+            n_lines,
+            first_problem: format!(" ({problem})"),
+        };
         if n_out_of_order > 0 {
             notes.push(format!(
                 "{} samples out of time order, sorted",
@@ -409,7 +307,7 @@ impl UlogReader {
             current_a: Default::default(),
         };
         Ok(ImportReport {
-            file_name: name,
+            file_name: file_name.to_string(),
             format: ULOG,
             recording,
             diagnostics: self.diagnostics,
@@ -420,4 +318,236 @@ impl UlogReader {
             autopilot: Some(autopilot),
         })
     }
+}
+
+/// The streams of a log besides its compasses, before they are sorted.
+struct Motion {
+    gyro_radps: Stream<Vector3<f64>>,
+    acc_mps2: Stream<Vector3<f64>>,
+    attitude: Stream<Attitude>,
+    gnss: [Stream<GnssFix>; 2],
+    first_utc: [Option<(f64, f64)>; 2],
+    n_fixes_without_position: usize,
+    n_other_instances: usize,
+}
+
+impl Motion {
+    /// The recording's motion streams, sorted, with their notes; and how many samples
+    /// were out of order.
+    fn into_recording(self, notes: &mut Vec<String>) -> (Recording, usize) {
+        let mut recording = Recording::default();
+        let mut n_out_of_order = 0;
+        recording.gyro_in_body_radps = self.gyro_radps;
+        recording.acc_in_body_mps2 = self.acc_mps2;
+        n_out_of_order += recording.gyro_in_body_radps.sort_by_time();
+        n_out_of_order += recording.acc_in_body_mps2.sort_by_time();
+        if !recording.gyro_in_body_radps.is_empty() || !recording.acc_in_body_mps2.is_empty() {
+            notes.push(format!(
+                "sensor_combined: {} gyro samples (gyro_rad, rad/s) at timestamp and {} \
+                 accelerometer samples (accelerometer_m_s2) at timestamp + \
+                 accelerometer_timestamp_relative, body axes (PX4's FRD)",
+                thousands(recording.gyro_in_body_radps.len()),
+                thousands(recording.acc_in_body_mps2.len())
+            ));
+        }
+        recording.attitude = self.attitude;
+        n_out_of_order += recording.attitude.sort_by_time();
+        // The autopilot's own heading: the reference of a vehicle that flies sideways.
+        recording.autopilot_heading_rad = crate::recording::Stream {
+            t_s: recording.attitude.t_s.clone(),
+            values: recording
+                .attitude
+                .values
+                .iter()
+                .map(|attitude| attitude.yaw_rad.unwrap_or(f64::NAN))
+                .collect(),
+        };
+        if !recording.attitude.is_empty() {
+            notes.push(format!(
+                "vehicle_attitude: {} attitudes, the autopilot's own estimate (q, body FRD to \
+                 NED, as Euler ZYX roll, pitch, yaw from north), not an independent reference",
+                thousands(recording.attitude.len())
+            ));
+        }
+        let source = usize::from(self.gnss[0].is_empty());
+        let [vehicle_gps, sensor_gps] = self.gnss;
+        recording.gnss = if source == 0 { vehicle_gps } else { sensor_gps };
+        n_out_of_order += recording.gnss.sort_by_time();
+        recording.start_unix_s = self.first_utc[source].map(|(boot_s, utc_s)| utc_s - boot_s);
+        if !recording.gnss.is_empty() || self.n_fixes_without_position > 0 {
+            let topic = ["vehicle_gps_position", "sensor_gps"][source];
+            notes.push(format!(
+                "{topic}: {} fixes; {} with fix_type below 2 (no position) skipped; {}",
+                thousands(recording.gnss.len()),
+                thousands(self.n_fixes_without_position),
+                match recording.start_unix_s {
+                    Some(_) => "the start time comes from the first fix's time_utc_usec",
+                    None => "no fix has a UTC time, so the log is not dated",
+                }
+            ));
+        }
+        if self.n_other_instances > 0 {
+            notes.push(format!(
+                "{} messages of second instances of sensor_combined, vehicle_attitude or GNSS \
+                 not used (instance 0 is read)",
+                thousands(self.n_other_instances)
+            ));
+        }
+
+        (recording, n_out_of_order)
+    }
+}
+
+/// One compass topic made into a compass: its field as logged and raw, in body axes.
+fn make_compass(
+    source: String,
+    instance: usize,
+    logged: Logged,
+    mut series: MagSeries,
+    prime: Option<u32>,
+    param: &dyn Fn(&str) -> Option<f64>,
+) -> Made {
+    let mut how_device = String::new();
+    let device_id = series.device_id.or_else(|| {
+        how_device = match prime {
+            Some(id) => {
+                format!("no device_id: taken as the primary compass CAL_MAG_PRIME {id}; ")
+            }
+            None => "no device_id and no CAL_MAG_PRIME; ".to_string(),
+        };
+        prime
+    });
+    if series.n_repeated > 0 {
+        how_device += &format!(
+            "{} repeats of the sample before (same sample time) skipped; ",
+            thousands(series.n_repeated)
+        );
+    }
+    if series.n_other_device > 0 {
+        how_device += &format!(
+            "{} samples from another device_id than the first skipped; ",
+            series.n_other_device
+        );
+    }
+    let cal = device_id.and_then(|id| calibration(&param, id));
+    let rotation = cal.as_ref().and_then(|cal| cal.body_from_sensor);
+    let (logged_in_body_ut, raw_in_body_ut, how) = match (logged, &cal, rotation) {
+        (Logged::Raw, Some(cal), Some(r)) => (
+            scaled(&series.field_ga, |raw| cal.apply(&r, raw)),
+            Some(scaled(&series.field_ga, |raw| r * raw)),
+            format!(
+                "raw = R·(x, y, z) of the driver's gauss; logged = R·S·(raw − offset) \
+                 with CAL_MAG{}_* in force; R: {}",
+                cal.slot, cal.rotation_source
+            ),
+        ),
+        (Logged::Calibrated | Logged::CalibratedInSensorAxes, Some(cal), Some(r)) => {
+            if logged == Logged::CalibratedInSensorAxes {
+                series
+                    .field_ga
+                    .values
+                    .iter_mut()
+                    .for_each(|value| *value = r * *value);
+            }
+            let undo = cal.undo_into_body(&r);
+            let how = match undo {
+                Some(_) => format!(
+                    "{}; raw = R·(S⁻¹·Rᵀ·logged + offset) with CAL_MAG{}_* in force; R: {}",
+                    match logged {
+                        Logged::CalibratedInSensorAxes => {
+                            "logged S·(raw − offset) in the sensor's axes, turned by R"
+                        }
+                        _ => "logged calibrated, R·S·(raw − offset)",
+                    },
+                    cal.slot,
+                    cal.rotation_source
+                ),
+                None => format!("CAL_MAG{}_*SCALE is singular: raw not made", cal.slot),
+            };
+            let raw = undo.map(|undo| scaled(&series.field_ga, undo));
+            (scaled(&series.field_ga, |value| *value), raw, how)
+        }
+        (_, Some(cal), None) => (
+            scaled(&series.field_ga, |value| *value),
+            None,
+            format!(
+                "rotation unknown ({}): raw not made; values as logged",
+                cal.rotation_source
+            ),
+        ),
+        (_, None, _) => (
+            scaled(&series.field_ga, |value| *value),
+            None,
+            match device_id {
+                Some(id) => format!(
+                    "no CAL_MAGn_ID is {id}: calibration unknown, raw not made; values as logged"
+                ),
+                None => "device unknown: raw not made; values as logged".to_string(),
+            },
+        ),
+    };
+    Made {
+        log: CompassLog {
+            instance,
+            source,
+            logged_in_body_ut,
+            raw_in_body_ut,
+            how_raw: format!("{how_device}{how}"),
+        },
+        device_id,
+        body_from_sensor: rotation,
+    }
+}
+
+/// The primary compass (`CAL_MAG_PRIME`'s, the one with a raw field and the most samples)
+/// into the recording; its frame.
+fn set_primary(
+    made: &[Made],
+    prime: Option<u32>,
+    recording: &mut Recording,
+    notes: &mut Vec<String>,
+) -> Option<SensorFrame> {
+    let primary_idx = prime
+        .and_then(|prime| {
+            (0..made.len())
+                .filter(|&idx| made[idx].device_id == Some(prime))
+                .max_by_key(|&idx| {
+                    (
+                        made[idx].log.raw_in_body_ut.is_some(),
+                        made[idx].log.logged_in_body_ut.len(),
+                    )
+                })
+        })
+        .or(if made.is_empty() { None } else { Some(0) });
+    let mut mag_frame = None;
+    if let Some(primary) = primary_idx.and_then(|idx| made.get(idx)) {
+        match (&primary.log.raw_in_body_ut, primary.body_from_sensor) {
+            (Some(raw), Some(rotation)) => {
+                recording.mag_in_body_ut = raw.clone();
+                mag_frame = Some(SensorFrame {
+                    body_from_sensor: rotation,
+                    unit: MagUnit::GAUSS,
+                    axes: PX4_SENSOR_MAG_AXES,
+                });
+                notes.push(format!(
+                    "magnetometer: {}'s raw field (its calibration undone), body axes",
+                    primary.log.source
+                ));
+            }
+            _ => {
+                recording.mag_in_body_ut = primary.log.logged_in_body_ut.clone();
+                mag_frame = Some(SensorFrame {
+                    body_from_sensor: Matrix3::identity(),
+                    unit: MagUnit::GAUSS,
+                    axes: BODY_AXES,
+                });
+                notes.push(format!(
+                    "magnetometer: {}'s field as logged (the autopilot's calibration could \
+                     not be undone), read as body axes",
+                    primary.log.source
+                ));
+            }
+        }
+    }
+    mag_frame
 }
