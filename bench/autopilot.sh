@@ -27,7 +27,7 @@ fi
 
 load_native="$(cut -d' ' -f1-3 /proc/loadavg)"
 log "Native: cargo bench --bench autopilot (writes target/bench-data/log171x10.bin)"
-cargo bench --bench autopilot --profile bench-import 2>/dev/null | tee "$results/autopilot.jsonl"
+cargo bench --bench autopilot --profile bench-import | tee "$results/autopilot.jsonl"
 cargo build --profile bench-import --bin compass-pdr --quiet
 
 load_peer="$(cut -d' ' -f1-3 /proc/loadavg)"

@@ -96,13 +96,13 @@ optimise_wasm() {
 # release profile's 3): measured on one build of the same code, 3 gave 650,404 bytes
 # gzipped, "s" 595,319 and "z" 541,192 (wasm-opt -Os after each), and the page must stay
 # under 600 kB. "s" rather than "z": it keeps the loops' speed that "z" gives up.
-export CARGO_PROFILE_RELEASE_OPT_LEVEL_WASM="${CARGO_PROFILE_RELEASE_OPT_LEVEL_WASM:-s}"
+export COMPASS_PDR_WASM_OPT_LEVEL="${COMPASS_PDR_WASM_OPT_LEVEL:-s}"
 
 # Builds the release wasm, generates its JS glue into www/pkg and puts the demo log
 # beside it, so that www/ is the whole static site.
 build_web() {
   log "Building the page (release wasm)"
-  CARGO_PROFILE_RELEASE_OPT_LEVEL="$CARGO_PROFILE_RELEASE_OPT_LEVEL_WASM" \
+  CARGO_PROFILE_RELEASE_OPT_LEVEL="$COMPASS_PDR_WASM_OPT_LEVEL" \
     cargo build --manifest-path "$ROOT/Cargo.toml" --release --lib --target wasm32-unknown-unknown
   rm -rf "$ROOT/www/pkg"
   # Without the function names (177 KB raw, 53 KB gzipped of the module): a panic's
@@ -146,7 +146,7 @@ build_web_threads() {
   # Checked step by step: a caller may run this with errexit off (`./run` goes on
   # without threads), and a failed build must not leave an older module in place.
   rm -rf "$out_dir"
-  if ! RUSTFLAGS="$THREADS_RUSTFLAGS" CARGO_PROFILE_RELEASE_OPT_LEVEL="$CARGO_PROFILE_RELEASE_OPT_LEVEL_WASM" cargo +nightly build --manifest-path "$ROOT/Cargo.toml" \
+  if ! RUSTFLAGS="$THREADS_RUSTFLAGS" CARGO_PROFILE_RELEASE_OPT_LEVEL="$COMPASS_PDR_WASM_OPT_LEVEL" cargo +nightly build --manifest-path "$ROOT/Cargo.toml" \
       --release --lib --target wasm32-unknown-unknown -Z build-std=std,panic_abort \
       --target-dir "$ROOT/target/threads" \
     || ! wasm-bindgen --target web --no-typescript --remove-name-section \
