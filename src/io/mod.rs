@@ -10,6 +10,7 @@ pub mod canonical_csv;
 pub mod dataflash;
 pub mod delimited;
 pub mod frame;
+pub mod gpx;
 pub mod import;
 pub mod lines;
 pub mod nmea;

@@ -9,7 +9,7 @@ use crate::io::lines::{Line, LineDecoder};
 use crate::io::sensor_files::{self, SensorFile, SensorFileReader};
 use crate::io::tagged_lines::LineReader as _;
 use crate::io::{
-    dataflash, first_binary_offset, nmea, serial_lines, tagged_lines, ulog, ImportError,
+    dataflash, first_binary_offset, gpx, nmea, serial_lines, tagged_lines, ulog, ImportError,
     MAX_LINE_BYTES,
 };
 
@@ -43,6 +43,8 @@ enum Reading {
     /// A binary autopilot log, read message by message.
     Binary(Box<dataflash::BinaryReader>),
     Ulog(Box<ulog::UlogReader>),
+    /// A GPX or KML track, read whole at the end (tracks are small).
+    Track(Vec<u8>),
     Blocks {
         reader: BlockReader,
         /// The unfinished line at the end of the last chunk.
@@ -84,6 +86,7 @@ impl Reading {
             Reading::Lines(decoder, reader) => decoder.feed(chunk, |line| reader.read_line(&line)),
             Reading::Binary(reader) => reader.feed(chunk),
             Reading::Ulog(reader) => reader.feed(chunk),
+            Reading::Track(bytes) => bytes.extend_from_slice(chunk),
             Reading::Blocks {
                 reader,
                 carry,
@@ -130,7 +133,10 @@ impl Reading {
                 decoder.feed(&carry, |line| reader.read_line(&line));
                 Reading::Lines(decoder, reader)
             }
-            other @ (Reading::Lines(..) | Reading::Binary(_) | Reading::Ulog(_)) => other,
+            other @ (Reading::Lines(..)
+            | Reading::Binary(_)
+            | Reading::Ulog(_)
+            | Reading::Track(_)) => other,
         }
     }
 
@@ -140,6 +146,7 @@ impl Reading {
                 *reader, file_name,
             )?)),
             Reading::Ulog(reader) => Ok(FileImport::Final(reader.finish(file_name)?)),
+            Reading::Track(bytes) => Ok(FileImport::Final(gpx::read(file_name, &bytes)?)),
             Reading::Lines(mut decoder, mut reader) => {
                 decoder.finish(|line| reader.read_line(&line));
                 reader.finish(file_name)
@@ -280,6 +287,10 @@ impl ChunkedImport {
             return Ok(());
         }
         let format = format_for(&sample, self.mapping.as_ref());
+        if format == Some(Format::Track) {
+            self.reader = Some(Reading::Track(std::mem::take(&mut self.prefix)));
+            return Ok(());
+        }
         if let Some((mut reading, data_start)) = self.blocks_for(format) {
             let prefix = std::mem::take(&mut self.prefix);
             reading.feed(prefix.get(data_start..).unwrap_or_default());
@@ -300,6 +311,8 @@ impl ChunkedImport {
             Some(Format::DataflashText) => {
                 FormatReader::DataflashText(dataflash::TextReader::default())
             }
+            // Taken whole above.
+            Some(Format::Track) => return Ok(()),
             Some(Format::Delimited) | None => FormatReader::Delimited(
                 DelimitedReader::new(self.size_hint_bytes).with_mapping(self.mapping.clone()),
             ),
@@ -374,7 +387,8 @@ impl ChunkedImport {
             Format::AndroidDump
             | Format::GetSensorData
             | Format::SerialLines
-            | Format::DataflashText => return None,
+            | Format::DataflashText
+            | Format::Track => return None,
         };
         let reading = Reading::Blocks {
             reader,

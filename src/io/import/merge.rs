@@ -7,7 +7,7 @@
 use super::FileImport;
 use crate::io::delimited::{self, RawImport, SensorAxes};
 use crate::io::sensor_files::{self, SensorImport};
-use crate::io::{Diagnostics, ImportError, ImportReport, SensorFrame};
+use crate::io::{gpx, Diagnostics, ImportError, ImportReport, SensorFrame};
 use crate::recording::Recording;
 
 /// Merges files read one by one (with [`import_files`](super::import_files)'s rules): a file that failed
@@ -57,6 +57,12 @@ pub fn merge(
         mag_frame: None,
     };
     merged.notes.extend(choice_notes);
+    place_tracks(&mut imports, &mut merged.notes);
+    // An autopilot log's parameters and compasses go with it (the first one's).
+    merged.autopilot = imports.iter_mut().find_map(|(_, import)| match import {
+        FileImport::Final(report) => report.autopilot.take(),
+        _ => None,
+    });
     let (mut formats, mag_frames) = merge_files(&mut merged, imports);
     keep_the_first_mag_frame(&mut merged, &mag_frames);
     for (file_name, error) in failures {
@@ -225,5 +231,62 @@ fn empty_like(report: &ImportReport) -> ImportReport {
         n_data_lines: 0,
         notes: Vec::new(),
         mag_frame: None,
+    }
+}
+
+/// The start (Unix s) of a file's recording, where it is dated.
+fn start_of(import: &FileImport) -> Option<f64> {
+    match import {
+        FileImport::Raw(raw) | FileImport::Sensor(SensorImport { raw, .. }) => {
+            raw.report.recording.start_unix_s
+        }
+        FileImport::Final(report) => report.recording.start_unix_s,
+    }
+}
+
+fn is_track(import: &FileImport) -> bool {
+    matches!(import, FileImport::Final(report) if is_track_report(report))
+}
+
+fn is_track_report(report: &ImportReport) -> bool {
+    report.format == gpx::GPX || report.format == gpx::KML
+}
+
+/// GPX and KML tracks dropped with a sensor log are put on the log's clock by their UTC
+/// times; a log that is not dated keeps the track's first point as its own start, and
+/// the note says so.
+fn place_tracks(imports: &mut [(String, FileImport)], notes: &mut Vec<String>) {
+    let log_start = imports
+        .iter()
+        .filter(|(_, import)| !is_track(import))
+        .find_map(|(_, import)| start_of(import));
+    let has_log = imports.iter().any(|(_, import)| !is_track(import));
+    for (file_name, import) in imports.iter_mut() {
+        let FileImport::Final(report) = import else {
+            continue;
+        };
+        if !is_track_report(report) || !has_log {
+            continue;
+        }
+        let recording = &mut report.recording;
+        match (log_start, recording.start_unix_s) {
+            (Some(log_start), Some(track_start)) => {
+                let shift_s = track_start - log_start;
+                recording
+                    .gnss
+                    .t_s
+                    .iter_mut()
+                    .for_each(|t_s| *t_s += shift_s);
+                recording.start_unix_s = Some(log_start);
+                notes.push(format!(
+                    "{file_name}: placed on the sensor log's clock by its UTC times (its first \
+                     point {shift_s:+.1} s after the log's start)"
+                ));
+            }
+            _ => notes.push(format!(
+                "{file_name}: the sensor log is not dated, so the track's first point was taken \
+                 as the log's start; check that they began together"
+            )),
+        }
     }
 }

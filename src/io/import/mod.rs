@@ -20,7 +20,7 @@ use super::lines::decode_all;
 use super::sensor_files::{self, SensorImport};
 use super::summary::{summarize, StreamSummary};
 use super::{
-    dataflash, ensure_text, nmea, serial_lines, tagged_lines, ulog, Diagnostics, ImportError,
+    dataflash, ensure_text, gpx, nmea, serial_lines, tagged_lines, ulog, Diagnostics, ImportError,
     ImportReport, SensorFrame,
 };
 
@@ -38,6 +38,8 @@ pub enum Format {
     Delimited,
     SerialLines,
     DataflashText,
+    /// A GPX or KML track.
+    Track,
 }
 
 /// The first non-blank lines of a file's first bytes, trimmed, for telling its format.
@@ -72,6 +74,8 @@ fn format_for(sample: &[&str], mapping: Option<&ColumnMapping>) -> Option<Format
 fn detect_lines(sample: &[&str]) -> Option<Format> {
     if dataflash::looks_like_text(sample) {
         Some(Format::DataflashText)
+    } else if gpx::looks_like(sample) {
+        Some(Format::Track)
     } else if nmea::looks_like(sample) {
         Some(Format::Nmea)
     } else if tagged_lines::looks_like_android_dump(sample) {
@@ -147,6 +151,7 @@ fn import_one(
         }
         Some(Format::SerialLines) => FileImport::Final(serial_lines::read(file_name, bytes)?),
         Some(Format::DataflashText) => FileImport::Final(dataflash::read_text(file_name, bytes)?),
+        Some(Format::Track) => FileImport::Final(gpx::read(file_name, bytes)?),
         // Delimited text, or nothing recognisable: the delimited reader's error says
         // which header it found and what names it expects.
         Some(Format::Delimited) | None => {
