@@ -9,7 +9,9 @@
 use std::path::{Path, PathBuf};
 
 use compass_pdr::io::import::{import, merge, ChunkedImport};
-use compass_pdr::io::{dataflash, delimited, nmea, serial_lines, tagged_lines, ulog, ImportError};
+use compass_pdr::io::{
+    dataflash, delimited, gpx, nmea, serial_lines, tagged_lines, ulog, ImportError,
+};
 
 /// The regression and seed files of one fuzz target, sorted; absent folders are noted.
 fn inputs(target: &str) -> Vec<(PathBuf, Vec<u8>)> {
@@ -153,6 +155,13 @@ fn dataflash_inputs_do_not_panic() {
 fn ulog_inputs_do_not_panic() {
     replay("ulog", |data| {
         let _ = ulog::read("fuzz.ulg", data);
+    });
+}
+
+#[test]
+fn gpx_inputs_do_not_panic() {
+    replay("gpx", |data| {
+        let _ = gpx::read("fuzz.gpx", data);
     });
 }
 

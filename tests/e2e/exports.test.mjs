@@ -154,6 +154,15 @@ test('an ArduPilot log gives its compass parameters, and the .param download say
   const shown = parseFloat(calibration.match(/COMPASS_OFS_X (-?\d+\.\d+)/)[1]);
   assert.ok(Math.abs(shown - params.COMPASS_OFS_X) < 1e-3, `${shown} shown, ${params.COMPASS_OFS_X} written`);
   await page.screenshot({ path: join(out, 'ardupilot.png'), fullPage: false });
+  // The text log and PX4's logs are read too, with the autopilot's heading as reference.
+  const data = join(import.meta.dirname, '../../../shared/data');
+  for (const [file, format] of [['ardupilot-text-log/nan.log', /ArduPilot DataFlash text log/],
+    ['px4-ulog/sample.ulg', /PX4 ULog/], ['px4-ulog/sample_log_small.ulg', /PX4 ULog/]]) {
+    await page.setInputFiles('#file-input', join(data, file));
+    await waitForState(page, 'ready', file.split('/')[1]);
+    assert.match(await text(page, 'streams'), format, file);
+    assert.match(await text(page, 'context'), /autopilot's own heading/, file);
+  }
   assert.deepEqual(problems, []);
   await close();
 });

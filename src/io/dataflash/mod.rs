@@ -365,8 +365,7 @@ fn finish(
     recording.start_unix_s = utc_minus_boot_s;
     if let Some(start) = utc_minus_boot_s {
         notes.push(format!(
-            "times are seconds since boot; the GPS week and time of week date the boot at {}
-             UTC",
+            "times are seconds since boot; the GPS week and time of week date the boot at {}",
             crate::civil::utc_text(start)
         ));
     }
