@@ -85,7 +85,7 @@ pub(super) fn run_inspect(input: &ImportArgs, json: bool) -> Result<(), String> 
     let mut text = String::new();
     let _ = writeln!(
         text,
-        "{}: {}, {} {}, {} skipped or suspect",
+        "{}: {}, {} {}, {} {}skipped or suspect",
         inspection.file_name,
         inspection.format,
         inspection.n_data_lines,
@@ -94,7 +94,12 @@ pub(super) fn run_inspect(input: &ImportArgs, json: bool) -> Result<(), String> 
         } else {
             "data lines"
         },
-        inspection.diagnostics.total()
+        inspection.diagnostics.total(),
+        if inspection.compass_params.is_some() {
+            ""
+        } else {
+            "lines "
+        }
     );
     let _ = writeln!(
         text,
