@@ -75,8 +75,8 @@ fn inner<'a>(element: &'a str, tag: &str) -> Option<&'a str> {
 /// The value of `name="…"` in a start tag.
 fn attribute(start_tag: &str, name: &str) -> Option<f64> {
     let at = start_tag.find(&format!("{name}="))? + name.len() + 1;
-    let quote = start_tag[at..].chars().next()?;
-    let rest = &start_tag[at + 1..];
+    let quote = start_tag.get(at..)?.chars().next()?;
+    let rest = start_tag.get(at + quote.len_utf8()..)?;
     rest[..rest.find(quote)?].trim().parse().ok()
 }
 
