@@ -1,0 +1,236 @@
+//! Drone compass calibration on logs this test writes itself, byte by byte, from the
+//! physics rather than from the fit's model: a general (not symmetric) soft iron, hard
+//! iron, motor interference in proportion to the battery current, noise and the
+//! DataFlash log's integer milligauss; a stale calibration in force that the autopilot
+//! applied before logging. Random draws (the independent generator's own `Rng`), 40
+//! flights; every flight's written `.param` is read back and applied as ArduPilot
+//! applies it to the true raw field, and the distribution of the heading errors against
+//! the true Earth field is printed.
+
+mod physics;
+
+use compass_pdr::calibration::autopilot::autopilot_calibration;
+use compass_pdr::io::autopilot::ardupilot::{parse_param_file, ArduPilotCompass};
+use nalgebra::{Matrix3, Rotation3, Vector3};
+use physics::Rng;
+
+fn message(type_id: u8, payload: &[u8]) -> Vec<u8> {
+    let mut bytes = vec![0xA3, 0x95, type_id];
+    bytes.extend_from_slice(payload);
+    bytes
+}
+
+fn padded(text: &str, size: usize) -> Vec<u8> {
+    let mut bytes = text.as_bytes().to_vec();
+    bytes.resize(size, 0);
+    bytes
+}
+
+fn fmt(type_id: u8, length: u8, name: &str, format: &str, columns: &str) -> Vec<u8> {
+    let mut payload = vec![type_id, length];
+    payload.extend(padded(name, 4));
+    payload.extend(padded(format, 16));
+    payload.extend(padded(columns, 64));
+    message(128, &payload)
+}
+
+fn parm(name: &str, value: f32) -> Vec<u8> {
+    let mut payload = padded(name, 16);
+    payload.extend_from_slice(&value.to_le_bytes());
+    message(129, &payload)
+}
+
+/// One flight: its log's bytes and, per sample, the truth to score against.
+struct Flight {
+    log: Vec<u8>,
+    raw_mg: Vec<Vector3<f64>>,
+    current_a: Vec<f64>,
+    body_to_ned: Vec<Rotation3<f64>>,
+    earth_ned_mg: Vector3<f64>,
+}
+
+fn flight(rng: &mut Rng) -> Flight {
+    // The Earth's field at some place: 250-650 mG, inclination -70° to 70°.
+    let inclination = rng.range(-70.0, 70.0).to_radians();
+    let declination = rng.range(-20.0, 20.0).to_radians();
+    let strength = rng.range(250.0, 650.0);
+    let earth_ned_mg = strength
+        * Vector3::new(
+            inclination.cos() * declination.cos(),
+            inclination.cos() * declination.sin(),
+            inclination.sin(),
+        );
+    // The vehicle's iron: m = S·(field in body) + h + k·current + noise.
+    let soft = Matrix3::from_fn(|row, col| {
+        if row == col {
+            1.0 + rng.symmetric(0.08)
+        } else {
+            rng.symmetric(0.04)
+        }
+    });
+    let hard = Vector3::new(
+        rng.symmetric(300.0),
+        rng.symmetric(300.0),
+        rng.symmetric(300.0),
+    );
+    let motor = Vector3::new(rng.symmetric(6.0), rng.symmetric(6.0), rng.symmetric(6.0));
+    let noise = rng.range(1.0, 3.0);
+    // The calibration in force: stale offsets (up to 60 mG off per axis), no soft iron.
+    let stale = -hard
+        + Vector3::new(
+            rng.symmetric(60.0),
+            rng.symmetric(60.0),
+            rng.symmetric(60.0),
+        );
+    let stale = stale.map(|v| v.round());
+
+    let yaw0 = rng.range(0.0, std::f64::consts::TAU);
+    let yaw_span = rng.range(90.0, 360.0).to_radians();
+    let tilt = rng.range(5.0, 25.0).to_radians();
+    let n = 1500;
+    let mut log = fmt(128, 89, "FMT", "BBnNZ", "Type,Length,Name,Format,Columns");
+    log.extend(fmt(129, 23, "PARM", "Nf", "Name,Value"));
+    log.extend(fmt(
+        130,
+        29,
+        "MAG",
+        "Qhhhhhhhhh",
+        "TimeUS,MagX,MagY,MagZ,OfsX,OfsY,OfsZ,MOX,MOY,MOZ",
+    ));
+    log.extend(fmt(131, 23, "ATT", "Qfff", "TimeUS,Roll,Pitch,Yaw"));
+    log.extend(fmt(132, 15, "CURR", "Qf", "TimeUS,Curr"));
+    for (axis, value) in ["X", "Y", "Z"].iter().zip(stale.iter()) {
+        log.extend(parm(&format!("COMPASS_OFS_{axis}"), *value as f32));
+    }
+    log.extend(parm("COMPASS_MOTCT", 0.0));
+    let mut flight = Flight {
+        log: Vec::new(),
+        raw_mg: Vec::new(),
+        current_a: Vec::new(),
+        body_to_ned: Vec::new(),
+        earth_ned_mg,
+    };
+    let phase = rng.range(0.0, 6.0);
+    for i in 0..n {
+        let t = i as f64 * 0.1;
+        let flying = i >= 300;
+        let (roll, pitch, yaw, current) = if flying {
+            (
+                tilt * (0.31 * t + phase).sin(),
+                tilt * (0.23 * t).cos(),
+                yaw0 + 0.5 * yaw_span * (1.0 - (0.02 * (t - 30.0)).cos()),
+                14.0 + 5.0 * (0.05 * t + phase).sin() + rng.symmetric(1.0),
+            )
+        } else {
+            (0.01 * rng.gaussian(), 0.01 * rng.gaussian(), yaw0, 0.5)
+        };
+        let body_to_ned = Rotation3::from_euler_angles(roll, pitch, yaw);
+        let field_body = body_to_ned.inverse() * earth_ned_mg;
+        let n3 = Vector3::new(rng.gaussian(), rng.gaussian(), rng.gaussian()) * noise;
+        let raw = soft * field_body + hard + motor * current + n3;
+        let logged = raw + stale;
+        let t_us = 10_000_000u64 + (t * 1e6) as u64;
+        let mut mag = t_us.to_le_bytes().to_vec();
+        for value in logged.iter().chain(stale.iter()).chain(&[0.0; 3]) {
+            mag.extend_from_slice(&(value.round() as i16).to_le_bytes());
+        }
+        log.extend(message(130, &mag));
+        let mut att = t_us.to_le_bytes().to_vec();
+        for degrees in [roll, pitch, yaw.rem_euclid(std::f64::consts::TAU)].map(f64::to_degrees) {
+            att.extend_from_slice(&(degrees as f32).to_le_bytes());
+        }
+        log.extend(message(131, &att));
+        let mut curr = t_us.to_le_bytes().to_vec();
+        curr.extend_from_slice(&(current as f32).to_le_bytes());
+        log.extend(message(132, &curr));
+        // The raw field as the log gives it back: whole mG logged, offsets undone.
+        flight.raw_mg.push(logged.map(f64::round) - stale);
+        flight.current_a.push(current as f32 as f64);
+        flight.body_to_ned.push(body_to_ned);
+    }
+    flight.log = log;
+    flight
+}
+
+/// Heading error (degrees) of a correction at every sample, against the true field's
+/// azimuth: its RMS about its mean (a constant offset is a declination no compass can
+/// tell) and the |B| spread (%).
+fn score(flight: &Flight, correct: impl Fn(Vector3<f64>, f64) -> Vector3<f64>) -> (f64, f64) {
+    let truth = flight.earth_ned_mg.y.atan2(flight.earth_ned_mg.x);
+    let mut errors = Vec::new();
+    let mut magnitudes = Vec::new();
+    for ((raw, current), body_to_ned) in flight
+        .raw_mg
+        .iter()
+        .zip(&flight.current_a)
+        .zip(&flight.body_to_ned)
+    {
+        let corrected = correct(*raw, *current);
+        let ned = body_to_ned * corrected;
+        let error = ned.y.atan2(ned.x) - truth;
+        errors.push(error.sin().atan2(error.cos()));
+        magnitudes.push(corrected.norm());
+    }
+    let n = errors.len() as f64;
+    let mean = errors.iter().sum::<f64>() / n;
+    let rms = (errors.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / n)
+        .sqrt()
+        .to_degrees();
+    let mean_m = magnitudes.iter().sum::<f64>() / n;
+    let spread =
+        (magnitudes.iter().map(|m| (m - mean_m).powi(2)).sum::<f64>() / n).sqrt() / mean_m * 100.0;
+    (rms, spread)
+}
+
+fn percentile(values: &mut [f64], q: f64) -> f64 {
+    values.sort_by(f64::total_cmp);
+    values[((values.len() - 1) as f64 * q).round() as usize]
+}
+
+#[test]
+fn random_vehicles_are_calibrated_from_their_own_flight_logs() {
+    let mut rng = Rng::stream(19, "autopilot flights");
+    let (mut new_deg, mut old_deg, mut spread_ratio) = (Vec::new(), Vec::new(), Vec::new());
+    for case in 0..40 {
+        let flight = flight(&mut rng);
+        let report = compass_pdr::io::import::import("flight.bin", &flight.log).unwrap();
+        let log = report.autopilot.as_ref().unwrap();
+        let calibration = autopilot_calibration(log, &report.recording.attitude)
+            .unwrap_or_else(|| panic!("case {case}: no calibration"));
+        let written = parse_param_file(&calibration.param_file);
+        let lookup = |name: &str| {
+            written
+                .iter()
+                .find(|(known, _)| known == name)
+                .map(|&(_, value)| value)
+                .or_else(|| log.param(name))
+        };
+        let new = ArduPilotCompass::from_params(&lookup, 0).unwrap();
+        let in_force_lookup = |name: &str| log.param(name);
+        let in_force = ArduPilotCompass::from_params(&in_force_lookup, 0).unwrap();
+        let (new_rms, new_spread) = score(&flight, |raw, current| new.apply(raw, current));
+        let (old_rms, old_spread) = score(&flight, |raw, current| in_force.apply(raw, current));
+        assert!(
+            new_rms <= (0.6 * old_rms).max(1.5),
+            "case {case}: heading {new_rms:.2}° against {old_rms:.2}° in force ({})",
+            calibration.compasses[0].model
+        );
+        assert!(
+            new_spread <= old_spread + 0.05,
+            "case {case}: |B| spread {new_spread:.2} % against {old_spread:.2} %"
+        );
+        new_deg.push(new_rms);
+        old_deg.push(old_rms);
+        spread_ratio.push(new_spread / old_spread);
+    }
+    eprintln!(
+        "40 random flights: heading RMS written p50 {:.2}° p90 {:.2}° max {:.2}°; in force p50 {:.1}° p90 {:.1}°; |B| spread written/in force p50 {:.2} max {:.2}",
+        percentile(&mut new_deg, 0.5),
+        percentile(&mut new_deg, 0.9),
+        percentile(&mut new_deg, 1.0),
+        percentile(&mut old_deg, 0.5),
+        percentile(&mut old_deg, 0.9),
+        percentile(&mut spread_ratio, 0.5),
+        percentile(&mut spread_ratio, 1.0),
+    );
+}
