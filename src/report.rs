@@ -125,9 +125,13 @@ pub fn decimals_for_unit(ut_per_unit: f64) -> usize {
 pub fn autopilot_calibration_lines(autopilot: &AutopilotCalibration) -> Vec<String> {
     let mut lines = vec![format!(
         "{} compass calibration, attitude-aided (the corrected field against one Earth field \
-         seen through the autopilot's attitude); its .param file loads in Mission Planner or \
-         MAVProxy",
-        autopilot.autopilot
+         seen through the autopilot's attitude); {}",
+        autopilot.autopilot,
+        if autopilot.autopilot == "PX4" {
+            "its .params file loads in QGroundControl"
+        } else {
+            "its .param file loads in Mission Planner or MAVProxy"
+        }
     )];
     let degrees =
         |value: Option<f64>| value.map_or_else(|| "-".to_string(), |v| format!("{v:.1}°"));

@@ -161,3 +161,69 @@ fn log171_s_param_file_applied_as_ardupilot_applies_it_narrows_the_field() {
     let primary = &calibration.compasses[0];
     assert!(primary.fitted.heading_rms_deg < primary.in_force.unwrap().heading_rms_deg);
 }
+
+#[test]
+fn a_px4_log_s_params_file_applied_as_px4_applies_it_narrows_the_field() {
+    use compass_pdr::io::autopilot::px4::Px4Compass;
+    let Some(data) = common::shared_data() else {
+        return;
+    };
+    let report = common::import_paths(&[data.join("px4-ulog/sample.ulg")]);
+    let log = report.autopilot.clone().unwrap();
+    let analysis = calibrate(report, &CalibrationOptions::default()).unwrap();
+    let calibration = analysis.report.autopilot.as_ref().unwrap();
+    assert_eq!(calibration.autopilot, "PX4");
+    assert!(calibration.param_file.contains("1\t1\tCAL_MAG0_XOFF\t"));
+    let written = parse_param_file(&calibration.param_file);
+    let lookup = |name: &str| {
+        written
+            .iter()
+            .find(|(known, _)| known == name)
+            .map(|&(_, value)| value)
+            .or_else(|| log.param(name))
+    };
+    let compass = log
+        .compasses
+        .iter()
+        .find(|compass| compass.source == calibration.compasses[0].source)
+        .unwrap();
+    let (slot, rotation) = compass.px4_slot.unwrap();
+    let in_force_lookup = |name: &str| log.param(name);
+    let spread = |px4: &Px4Compass| {
+        // PX4's correction of the raw values in the sensor's axes, in gauss.
+        let raw = compass.raw_in_body_ut.as_ref().unwrap();
+        let magnitudes: Vec<f64> = raw
+            .values
+            .iter()
+            .map(|raw_ut| {
+                let raw_sensor_ga = rotation.transpose() * raw_ut / 100.0;
+                (rotation * (px4.scale * (raw_sensor_ga - px4.offset_ga))).norm()
+            })
+            .collect();
+        let n = magnitudes.len() as f64;
+        let mean = magnitudes.iter().sum::<f64>() / n;
+        (magnitudes.iter().map(|m| (m - mean).powi(2)).sum::<f64>() / n).sqrt() / mean * 100.0
+    };
+    let before = spread(&Px4Compass::from_params(&in_force_lookup, slot, rotation));
+    let after = spread(&Px4Compass::from_params(&lookup, slot, rotation));
+    eprintln!(
+        "{}: |B| spread {before:.2} % in force, {after:.2} % written",
+        compass.source
+    );
+    assert!(after <= before, "{after:.2} % against {before:.2} %");
+    assert!((calibration.compasses[0].fitted.spread_pct - after).abs() < 0.05);
+
+    // 6.5 s barely turning: nothing is written, and the notes say what to record.
+    let report = common::import_paths(&[data.join("px4-ulog/sample_log_small.ulg")]);
+    let analysis = calibrate(report, &CalibrationOptions::default()).unwrap();
+    let calibration = analysis.report.autopilot.as_ref().unwrap();
+    assert!(calibration.compasses.is_empty() && calibration.param_file.is_empty());
+    assert!(
+        calibration
+            .notes
+            .iter()
+            .any(|note| note.contains("full circles")),
+        "{:?}",
+        calibration.notes
+    );
+}

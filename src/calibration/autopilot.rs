@@ -17,6 +17,7 @@ use crate::calib::attitude_aided::{agreement, fit_aided, Agreement, AidedModel, 
 use crate::io::autopilot::ardupilot::{
     compass_param, param_file, parse_param_file, ArduPilotCompass, MOTOR_BY_CURRENT,
 };
+use crate::io::autopilot::px4::{params_file, Px4Compass};
 use crate::io::autopilot::{Autopilot, AutopilotLog, CompassLog};
 use crate::recording::{Attitude, Stream};
 
@@ -24,6 +25,11 @@ use crate::recording::{Attitude, Stream};
 const UT_PER_MG: f64 = 0.1;
 /// The longest time (s) between a compass sample and the attitude it is paired with.
 const MAX_ATTITUDE_GAP_S: f64 = 0.1;
+/// The largest formal 1σ (mG) of a written offset: beyond it the flight did not
+/// determine the offsets (a tenth of the Earth's field at its weakest).
+const MAX_OFFSET_SIGMA_MG: f64 = 25.0;
+/// The fewest compass samples with an attitude a fit is tried on (10 s at 10 Hz).
+const MIN_SAMPLES: usize = 100;
 /// The longest time (s) between a compass sample and the current it is paired with.
 const MAX_CURRENT_GAP_S: f64 = 0.5;
 /// The battery current must span this much (A) for the motor term to be fitted: a
@@ -151,8 +157,16 @@ fn compass_result(
     notes: &mut Vec<String>,
 ) -> Option<CompassResult> {
     let samples = aided_samples(compass.raw_in_body_ut.as_ref()?, attitude, &log.current_a);
+    if samples.len() < MIN_SAMPLES {
+        notes.push(format!(
+            "{}: only {} samples with an attitude, fewer than {MIN_SAMPLES}: not fitted",
+            compass.source,
+            samples.len()
+        ));
+        return None;
+    }
     let lookup = |name: &str| log.param(name).filter(|value| value.is_finite());
-    let in_force = ArduPilotCompass::from_params(&lookup, compass.instance);
+    let in_force = in_body_form(compass, &lookup);
     let held = in_force.map_or_else(nalgebra::Matrix3::identity, |c| c.soft_iron);
     // The current must vary for its term to be seen: hover against ground.
     let current_range = samples.iter().map(|s| s.current_a).fold(0.0, f64::max)
@@ -203,6 +217,27 @@ fn compass_result(
         ));
         return None;
     };
+    // Written only where the data can say more than the parameters in force.
+    let refusal = match (best, check_in_force_deg) {
+        (Some((_, best_deg)), Some(in_force_deg)) if best_deg > in_force_deg => Some(format!(
+            "no model fitted on the first half agrees better with the second than the \
+             parameters in force ({best_deg:.1}° against {in_force_deg:.1}° heading RMS)"
+        )),
+        _ if fit.offsets_sigma.amax() > MAX_OFFSET_SIGMA_MG => Some(format!(
+            "the offsets are not determined by this flight (1σ up to {:.0} mG)",
+            fit.offsets_sigma.amax()
+        )),
+        _ => None,
+    };
+    if let Some(reason) = refusal {
+        notes.push(format!(
+            "{}: not written, the parameters in force are kept: {reason}. Record a flight \
+             (or a walk with the vehicle in hand) that turns through full circles with some \
+             tilt, for a minute or more",
+            compass.source
+        ));
+        return None;
+    }
     let new = ArduPilotCompass {
         instance: compass.instance,
         offsets_mg: fit.offsets,
@@ -210,14 +245,26 @@ fn compass_result(
         scale: 1.0,
         motor_mg_per_a: fit.motor_per_a,
     };
-    let mut params = new.params();
-    // COMPASS_SCALE is folded into M: write 1 where the log had another.
-    if in_force.is_some_and(|c| c.scale != 1.0) {
-        params.push((compass_param("SCALE", compass.instance, ""), 1.0));
-    }
-    // What the written lines give, read back and applied as ArduPilot applies them
+    let (params, text) = match compass.px4_slot {
+        Some((slot, rotation)) => {
+            let params =
+                Px4Compass::from_body_form(slot, rotation, fit.soft_iron, fit.offsets).params();
+            let text = params_file(&[], &params);
+            (params, text)
+        }
+        None => {
+            let mut params = new.params();
+            // COMPASS_SCALE is folded into M: write 1 where the log had another.
+            if in_force.is_some_and(|c| c.scale != 1.0) {
+                params.push((compass_param("SCALE", compass.instance, ""), 1.0));
+            }
+            let text = param_file(&[], &params);
+            (params, text)
+        }
+    };
+    // What the written lines give, read back and applied as the autopilot applies them
     // (COMPASS_MOTCT as the whole file sets it).
-    let mut written = parse_param_file(&param_file(&[], &params));
+    let mut written = parse_param_file(&text);
     written.push(("COMPASS_MOTCT".to_string(), MOTOR_BY_CURRENT));
     let written_lookup = |name: &str| {
         written
@@ -226,7 +273,7 @@ fn compass_result(
             .map(|&(_, value)| value)
             .or_else(|| lookup(name))
     };
-    let read_back = ArduPilotCompass::from_params(&written_lookup, compass.instance)?;
+    let read_back = in_body_form(compass, &written_lookup)?;
     let fitted = agreement(&samples, |raw, current| read_back.apply(raw, current))?;
     Some(CompassResult {
         instance: compass.instance,
@@ -246,37 +293,90 @@ fn compass_result(
     })
 }
 
-/// The calibration of an ArduPilot log's compasses, where it has their raw fields and
-/// an attitude with yaw; `None` otherwise (PX4 parameters are not written yet).
+/// A compass's calibration in `params`, in body axes and ArduPilot's form (PX4's turned
+/// into it, [`Px4Compass::body_form`]); `None` without the offsets (ArduPilot).
+fn in_body_form(
+    compass: &CompassLog,
+    params: &dyn Fn(&str) -> Option<f64>,
+) -> Option<ArduPilotCompass> {
+    match compass.px4_slot {
+        Some((slot, rotation)) => {
+            let (soft_iron, offsets_mg) =
+                Px4Compass::from_params(params, slot, rotation).body_form();
+            Some(ArduPilotCompass {
+                instance: compass.instance,
+                offsets_mg,
+                soft_iron,
+                scale: 1.0,
+                motor_mg_per_a: Vector3::zeros(),
+            })
+        }
+        None => ArduPilotCompass::from_params(params, compass.instance),
+    }
+}
+
+/// The calibration of an autopilot log's compasses, where it has their raw fields and
+/// an attitude with yaw; `None` otherwise. ArduPilot's are written as a `.param` file,
+/// PX4's as a QGroundControl `.params` file (`CAL_MAGn_*`, without power compensation).
 pub fn autopilot_calibration(
     log: &AutopilotLog,
     attitude: &Stream<Attitude>,
 ) -> Option<AutopilotCalibration> {
-    if log.autopilot != Autopilot::ArduPilot || attitude.is_empty() {
+    if attitude.is_empty() {
         return None;
     }
+    let is_px4 = log.autopilot == Autopilot::Px4;
     let mut notes = Vec::new();
-    let compasses: Vec<CompassResult> = log
+    // PX4 logs a compass under several topics (sensor_mag, vehicle_magnetometer): one
+    // calibration slot is fitted once, on the topic with the most raw samples.
+    let n_raw = |compass: &CompassLog| compass.raw_in_body_ut.as_ref().map_or(0, |raw| raw.len());
+    let fitted: Vec<&CompassLog> = log
         .compasses
         .iter()
+        .filter(|compass| match compass.px4_slot {
+            Some((slot, _)) => !log.compasses.iter().any(|other| {
+                other
+                    .px4_slot
+                    .is_some_and(|(other_slot, _)| other_slot == slot)
+                    && (n_raw(other), std::ptr::eq(other, *compass)) > (n_raw(compass), true)
+            }),
+            None => true,
+        })
+        .collect();
+    let compasses: Vec<CompassResult> = fitted
+        .into_iter()
         .filter_map(|compass| compass_result(compass, log, attitude, &mut notes))
         .collect();
     if compasses.is_empty() {
-        return None;
+        // Nothing written; the reasons still reach the user.
+        return (!notes.is_empty()).then(|| AutopilotCalibration {
+            autopilot: log.autopilot.name(),
+            compasses,
+            param_file: String::new(),
+            notes,
+        });
     }
     let mut header = vec![
         format!(
-            "compass calibration by compass-pdr {}, attitude-aided fit on the log's ATT",
-            env!("CARGO_PKG_VERSION")
+            "compass calibration by compass-pdr {}, attitude-aided fit on the log's {}",
+            env!("CARGO_PKG_VERSION"),
+            if is_px4 { "vehicle_attitude" } else { "ATT" }
         ),
-        "corrected = M · (raw + COMPASS_OFS), M from COMPASS_DIA and COMPASS_ODI (mG)".to_string(),
+        if is_px4 {
+            "corrected = R · S · (raw − CAL_MAGn_OFF), S from CAL_MAGn_SCALE and CAL_MAGn_ODIAG (gauss)"
+        } else {
+            "corrected = M · (raw + COMPASS_OFS), M from COMPASS_DIA and COMPASS_ODI (mG)"
+        }
+        .to_string(),
     ];
     let mut params = Vec::new();
-    params.push(("COMPASS_MOTCT".to_string(), MOTOR_BY_CURRENT));
+    if !is_px4 {
+        params.push(("COMPASS_MOTCT".to_string(), MOTOR_BY_CURRENT));
+    }
     for compass in &compasses {
         header.push(format!(
-            "{} ({}): heading {:.1}° RMS against the Earth's field seen through ATT, |B| \
-             spread {:.2} %{}",
+            "{} ({}): heading {:.1}° RMS against the Earth's field seen through the \
+             autopilot's attitude, |B| spread {:.2} %{}",
             compass.source,
             compass.model,
             compass.fitted.heading_rms_deg,
@@ -290,16 +390,28 @@ pub fn autopilot_calibration(
         ));
         params.extend(compass.params.iter().cloned());
     }
-    if log.current_a.is_empty() {
+    if log.current_a.is_empty() && !is_px4 {
         notes.push(
             "no battery current in the log (CURR, BAT): motor interference not fitted, \
              COMPASS_MOT written as 0"
                 .to_string(),
         );
     }
+    if is_px4 {
+        notes.push(
+            "PX4: offsets and soft iron in the sensor's axes (CAL_MAGn_ROT or the board's \
+             rotation as in force); power compensation (CAL_MAGn_XCOMP) not fitted, the \
+             values in force kept"
+                .to_string(),
+        );
+    }
     Some(AutopilotCalibration {
         autopilot: log.autopilot.name(),
-        param_file: param_file(&header, &params),
+        param_file: if is_px4 {
+            params_file(&header, &params)
+        } else {
+            param_file(&header, &params)
+        },
         compasses,
         notes,
     })

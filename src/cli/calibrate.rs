@@ -88,12 +88,20 @@ pub(super) fn run_calibrate(
         }
     }
     if let Some(path) = outputs.param_out {
-        let Some(autopilot) = &report.autopilot else {
+        let Some(autopilot) = report
+            .autopilot
+            .as_ref()
+            .filter(|a| !a.compasses.is_empty())
+        else {
             return Err(format!(
-                "--param-out {}: {} is not an autopilot log with its compasses' raw fields and \
-                 attitude, so there are no autopilot parameters to write",
+                "--param-out {}: no autopilot parameters to write for {}: {}",
                 path.display(),
-                report.file_name
+                report.file_name,
+                report.autopilot.as_ref().map_or_else(
+                    || "it is not an autopilot log with its compasses' raw fields and attitude"
+                        .to_string(),
+                    |autopilot| autopilot.notes.join("; ")
+                )
             ));
         };
         std::fs::write(path, &autopilot.param_file)

@@ -88,7 +88,12 @@ pub fn enable(document: &Document, results: Option<&Rc<Results>>, recording: Opt
             }
             Export::Track(TrackFormat::Csv) => results.pdr.is_ok(),
             Export::AttitudeCsv => recording.is_some() && attitude_missing.is_none(),
-            Export::AutopilotParams => results.calibration.report.autopilot.is_some(),
+            Export::AutopilotParams => results
+                .calibration
+                .report
+                .autopilot
+                .as_ref()
+                .is_some_and(|autopilot| !autopilot.compasses.is_empty()),
             Export::CorrectedCsv | Export::HtmlReport => true,
         });
         button.set_disabled(!available);
@@ -103,7 +108,7 @@ pub fn enable(document: &Document, results: Option<&Rc<Results>>, recording: Opt
                 Ok(_) => None,
             },
             (Some(_), Export::AutopilotParams) => Some(
-                "Only for an autopilot log (ArduPilot .bin or .log) with its compasses and attitude."
+                "Only for an autopilot log (ArduPilot .bin or .log, PX4 .ulg) with its compasses and attitude."
                     .to_string(),
             ),
             (Some(_), Export::AttitudeCsv) => Some(
@@ -182,9 +187,15 @@ fn write(page: &Page, results: &Results, export: Export) -> Result<(), String> {
                 .autopilot
                 .as_ref()
                 .ok_or("not an autopilot log with its compasses and attitude")?;
+            // QGroundControl's files end in .params, ArduPilot's in .param.
+            let extension = if autopilot.autopilot == "PX4" {
+                "params"
+            } else {
+                "param"
+            };
             download_bytes(
                 document,
-                &format!("{stem}-compass.param"),
+                &format!("{stem}-compass.{extension}"),
                 autopilot.param_file.as_bytes(),
                 "text/plain",
             );

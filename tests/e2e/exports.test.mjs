@@ -162,6 +162,15 @@ test('an ArduPilot log gives its compass parameters, and the .param download say
     await waitForState(page, 'ready', file.split('/')[1]);
     assert.match(await text(page, 'streams'), format, file);
     assert.match(await text(page, 'context'), /autopilot's own heading/, file);
+    // sample.ulg's compass is fitted and written for QGroundControl; 6.5 s of
+    // sample_log_small.ulg determine nothing, and nothing is offered.
+    const offered = !(await page.isDisabled('#export-param'));
+    assert.equal(offered, file !== 'px4-ulog/sample_log_small.ulg', file);
+    if (file === 'px4-ulog/sample.ulg') {
+      const { name, bytes } = await download(page, '#export-param');
+      assert.equal(name, 'sample-compass.params');
+      assert.match(bytes.toString('utf8'), /^1\t1\tCAL_MAG0_XOFF\t/m);
+    }
   }
   assert.deepEqual(problems, []);
   await close();

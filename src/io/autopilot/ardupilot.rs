@@ -140,19 +140,29 @@ fn param_value(value: f64) -> String {
     text.strip_suffix('.').unwrap_or(text).to_string()
 }
 
-/// The parameters of a `.param` file (`NAME,VALUE` or `NAME VALUE`; `#` lines and
-/// lines that are not a name and a number skipped).
+/// The parameters of a parameter file: ArduPilot's `NAME,VALUE` or `NAME VALUE`, and
+/// QGroundControl's `vehicle component NAME value type`; `#` lines and lines that are
+/// not a name and a number skipped.
 pub fn parse_param_file(text: &str) -> Vec<(String, f64)> {
     text.lines()
         .map(str::trim)
         .filter(|line| !line.is_empty() && !line.starts_with('#'))
         .filter_map(|line| {
-            let mut parts = line
+            let parts: Vec<&str> = line
                 .split(|c: char| c == ',' || c.is_whitespace())
-                .filter(|part| !part.is_empty());
-            let name = parts.next()?;
-            let value = parts.next()?.parse::<f64>().ok()?;
-            Some((name.to_string(), value))
+                .filter(|part| !part.is_empty())
+                .collect();
+            let is_integer = |part: &&str| part.parse::<u32>().is_ok();
+            let (name, value) = match parts.as_slice() {
+                [vehicle, component, name, value, ..]
+                    if is_integer(vehicle) && is_integer(component) =>
+                {
+                    (name, value)
+                }
+                [name, value, ..] => (name, value),
+                _ => return None,
+            };
+            Some((name.to_string(), value.parse::<f64>().ok()?))
         })
         .collect()
 }

@@ -8,6 +8,7 @@
 //! an [`AutopilotLog`] and put their primary compass's raw field in the recording.
 
 pub mod ardupilot;
+pub mod px4;
 
 use nalgebra::Vector3;
 
@@ -45,6 +46,10 @@ pub struct CompassLog {
     pub raw_in_body_ut: Option<Stream<Vector3<f64>>>,
     /// How the raw field was made from the logged one, or why it could not be.
     pub how_raw: String,
+    /// PX4's calibration slot (`CAL_MAGn_*`) and the rotation from the raw values' axes
+    /// to body axes; `None` for ArduPilot, which logs in body axes and numbers its
+    /// compasses by instance.
+    pub px4_slot: Option<(usize, nalgebra::Matrix3<f64>)>,
 }
 
 /// What an autopilot log holds besides its streams.

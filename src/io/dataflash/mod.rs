@@ -213,6 +213,7 @@ fn compass_of(track: &MagTrack, params: &AutopilotLog) -> CompassLog {
         logged_in_body_ut,
         raw_in_body_ut,
         how_raw,
+        px4_slot: None,
     }
 }
 

@@ -493,6 +493,7 @@ fn make_compass(
             logged_in_body_ut,
             raw_in_body_ut,
             how_raw: format!("{how_device}{how}"),
+            px4_slot: cal.as_ref().and_then(|cal| Some((cal.slot, rotation?))),
         },
         device_id,
         body_from_sensor: rotation,
