@@ -38,7 +38,8 @@ pub fn iso8601_unix_s(text: &str) -> Option<f64> {
     let year: i64 = date_parts.next()?.parse().ok()?;
     let month: u32 = date_parts.next()?.parse().ok()?;
     let day: u32 = date_parts.next()?.parse().ok()?;
-    if !(1..=12).contains(&month) || !(1..=31).contains(&day) {
+    // ISO 8601's four-digit years (a larger one would overflow the day count).
+    if !(0..=9999).contains(&year) || !(1..=12).contains(&month) || !(1..=31).contains(&day) {
         return None;
     }
     let (clock, offset_s) = match time.find(['Z', '+', '-']) {
@@ -268,6 +269,7 @@ mod tests {
         assert_eq!(iso8601_unix_s("2023-03-17T15:50:47"), Some(base));
         assert_eq!(iso8601_unix_s("2023-13-17T15:50:47Z"), None);
         assert_eq!(iso8601_unix_s("yesterday"), None);
+        assert_eq!(iso8601_unix_s("99999999999999999-01-01T00:00:00Z"), None);
     }
 
     #[test]
