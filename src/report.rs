@@ -127,7 +127,9 @@ pub fn autopilot_calibration_lines(autopilot: &AutopilotCalibration) -> Vec<Stri
         "{} compass calibration, attitude-aided (the corrected field against one Earth field \
          seen through the autopilot's attitude); {}",
         autopilot.autopilot,
-        if autopilot.autopilot == "PX4" {
+        if autopilot.compasses.is_empty() {
+            "nothing written, the parameters in force are kept (why below)"
+        } else if autopilot.autopilot == "PX4" {
             "its .params file loads in QGroundControl"
         } else {
             "its .param file loads in Mission Planner or MAVProxy"
