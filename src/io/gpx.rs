@@ -9,6 +9,7 @@
 //! cannot be placed beside a sensor log and are counted, not used. The reader is a tag
 //! scanner, not an XML parser: it reads what these files hold and skips the rest.
 
+use super::delimited::parse_datetime_s;
 use super::{ensure_text, shorten, thousands, Diagnostics, ImportError, ImportReport};
 use crate::recording::{GnssFix, Recording};
 
@@ -27,42 +28,6 @@ pub fn looks_like(sample: &[&str]) -> bool {
 struct Point {
     unix_s: f64,
     fix: GnssFix,
-}
-
-/// Unix seconds of an ISO 8601 UTC time, `2023-03-17T15:50:47.25Z` (an offset such as
-/// `+01:00` is applied; no zone is read as UTC).
-pub fn iso8601_unix_s(text: &str) -> Option<f64> {
-    let text = text.trim();
-    let (date, time) = text.split_once('T')?;
-    let mut date_parts = date.split('-');
-    let year: i64 = date_parts.next()?.parse().ok()?;
-    let month: u32 = date_parts.next()?.parse().ok()?;
-    let day: u32 = date_parts.next()?.parse().ok()?;
-    // ISO 8601's four-digit years (a larger one would overflow the day count).
-    if !(0..=9999).contains(&year) || !(1..=12).contains(&month) || !(1..=31).contains(&day) {
-        return None;
-    }
-    let (clock, offset_s) = match time.find(['Z', '+', '-']) {
-        Some(idx) => {
-            let zone = &time[idx..];
-            let offset_s = if zone == "Z" {
-                0.0
-            } else {
-                let sign = if zone.starts_with('-') { -1.0 } else { 1.0 };
-                let (hours, minutes) = zone[1..].split_once(':').unwrap_or((&zone[1..], "0"));
-                sign * (hours.parse::<f64>().ok()? * 3600.0 + minutes.parse::<f64>().ok()? * 60.0)
-            };
-            (&time[..idx], offset_s)
-        }
-        None => (time, 0.0),
-    };
-    let mut clock_parts = clock.split(':');
-    let hours: f64 = clock_parts.next()?.parse().ok()?;
-    let minutes: f64 = clock_parts.next()?.parse().ok()?;
-    let seconds: f64 = clock_parts.next().unwrap_or("0").parse().ok()?;
-    let days = crate::civil::days_from_civil(year, month, day) as f64;
-    let unix_s = days * 86_400.0 + hours * 3600.0 + minutes * 60.0 + seconds - offset_s;
-    unix_s.is_finite().then_some(unix_s)
 }
 
 /// The text between `<tag>` (or `<tag attributes>`) and `</tag>` in `element`.
@@ -108,7 +73,7 @@ fn gpx_points(text: &str, untimed: &mut usize) -> Vec<Point> {
             else {
                 continue;
             };
-            let Some(unix_s) = inner(element, "time").and_then(iso8601_unix_s) else {
+            let Some(unix_s) = inner(element, "time").and_then(parse_datetime_s) else {
                 *untimed += 1;
                 continue;
             };
@@ -162,7 +127,7 @@ fn kml_points(text: &str, untimed: &mut usize) -> Vec<Point> {
     if !coords.is_empty() {
         let whens = elements("when");
         for (when, coord) in whens.iter().zip(&coords) {
-            match (iso8601_unix_s(when), kml_coordinates(coord)) {
+            match (parse_datetime_s(when), kml_coordinates(coord)) {
                 (Some(unix_s), Some(fix)) => points.push(Point { unix_s, fix }),
                 _ => *untimed += 1,
             }
@@ -171,7 +136,7 @@ fn kml_points(text: &str, untimed: &mut usize) -> Vec<Point> {
         return points;
     }
     for placemark in text.split("<Placemark").skip(1) {
-        let time = inner(placemark, "when").and_then(iso8601_unix_s);
+        let time = inner(placemark, "when").and_then(parse_datetime_s);
         let fix = inner(placemark, "coordinates").and_then(kml_coordinates);
         match (time, fix) {
             (Some(unix_s), Some(fix)) => points.push(Point { unix_s, fix }),
@@ -260,16 +225,16 @@ mod tests {
 
     #[test]
     fn iso_times_with_and_without_zones() {
-        let base = iso8601_unix_s("2023-03-17T15:50:47Z").unwrap();
+        let base = parse_datetime_s("2023-03-17T15:50:47Z").unwrap();
         assert_eq!(base, 1_679_068_247.0);
         assert_eq!(
-            iso8601_unix_s("2023-03-17T16:50:47.5+01:00"),
+            parse_datetime_s("2023-03-17T16:50:47.5+01:00"),
             Some(base + 0.5)
         );
-        assert_eq!(iso8601_unix_s("2023-03-17T15:50:47"), Some(base));
-        assert_eq!(iso8601_unix_s("2023-13-17T15:50:47Z"), None);
-        assert_eq!(iso8601_unix_s("yesterday"), None);
-        assert_eq!(iso8601_unix_s("99999999999999999-01-01T00:00:00Z"), None);
+        assert_eq!(parse_datetime_s("2023-03-17T15:50:47"), Some(base));
+        assert_eq!(parse_datetime_s("2023-13-17T15:50:47Z"), None);
+        assert_eq!(parse_datetime_s("yesterday"), None);
+        assert_eq!(parse_datetime_s("99999999999999999-01-01T00:00:00Z"), None);
     }
 
     #[test]
