@@ -11,6 +11,7 @@ mod physics;
 
 use compass_pdr::calibration::autopilot::autopilot_calibration;
 use compass_pdr::io::autopilot::ardupilot::{parse_param_file, ArduPilotCompass};
+use compass_pdr::io::autopilot::param_in;
 use nalgebra::{Matrix3, Rotation3, Vector3};
 use physics::Rng;
 
@@ -198,13 +199,7 @@ fn random_vehicles_are_calibrated_from_their_own_flight_logs() {
         let calibration = autopilot_calibration(log, &report.recording.attitude)
             .unwrap_or_else(|| panic!("case {case}: no calibration"));
         let written = parse_param_file(&calibration.param_file);
-        let lookup = |name: &str| {
-            written
-                .iter()
-                .find(|(known, _)| known == name)
-                .map(|&(_, value)| value)
-                .or_else(|| log.param(name))
-        };
+        let lookup = |name: &str| param_in(&written, name).or_else(|| log.param(name));
         let new = ArduPilotCompass::from_params(&lookup, 0).unwrap();
         let in_force_lookup = |name: &str| log.param(name);
         let in_force = ArduPilotCompass::from_params(&in_force_lookup, 0).unwrap();

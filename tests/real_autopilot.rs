@@ -6,6 +6,7 @@ mod common;
 
 use compass_pdr::calibration::{calibrate, CalibrationOptions};
 use compass_pdr::io::autopilot::ardupilot::{parse_param_file, ArduPilotCompass};
+use compass_pdr::io::autopilot::param_in;
 use compass_pdr::io::autopilot::AutopilotLog;
 use compass_pdr::io::import::{ChunkedImport, FileImport};
 use compass_pdr::io::ImportReport;
@@ -123,13 +124,7 @@ fn log171_s_param_file_applied_as_ardupilot_applies_it_narrows_the_field() {
     // The file as the user gets it, read back; parameters it does not set stay as in
     // the log.
     let written = parse_param_file(&calibration.param_file);
-    let lookup = |name: &str| {
-        written
-            .iter()
-            .find(|(known, _)| known == name)
-            .map(|&(_, value)| value)
-            .or_else(|| log.param(name))
-    };
+    let lookup = |name: &str| param_in(&written, name).or_else(|| log.param(name));
     for compass in &log.compasses {
         let raw = compass.raw_in_body_ut.as_ref().unwrap();
         let raw_mg: Vec<(f64, Vector3<f64>)> = raw
@@ -175,13 +170,7 @@ fn a_px4_log_s_params_file_applied_as_px4_applies_it_narrows_the_field() {
     assert_eq!(calibration.autopilot, "PX4");
     assert!(calibration.param_file.contains("1\t1\tCAL_MAG0_XOFF\t"));
     let written = parse_param_file(&calibration.param_file);
-    let lookup = |name: &str| {
-        written
-            .iter()
-            .find(|(known, _)| known == name)
-            .map(|&(_, value)| value)
-            .or_else(|| log.param(name))
-    };
+    let lookup = |name: &str| param_in(&written, name).or_else(|| log.param(name));
     let compass = log
         .compasses
         .iter()

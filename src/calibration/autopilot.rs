@@ -18,7 +18,7 @@ use crate::io::autopilot::ardupilot::{
     compass_param, param_file, parse_param_file, ArduPilotCompass, MOTOR_BY_CURRENT,
 };
 use crate::io::autopilot::px4::{params_file, Px4Compass};
-use crate::io::autopilot::{Autopilot, AutopilotLog, CompassLog};
+use crate::io::autopilot::{param_in, Autopilot, AutopilotLog, CompassLog};
 use crate::recording::{Attitude, Stream};
 
 /// ArduPilot's compass unit, mG, in µT.
@@ -266,13 +266,7 @@ fn compass_result(
     // (COMPASS_MOTCT as the whole file sets it).
     let mut written = parse_param_file(&text);
     written.push(("COMPASS_MOTCT".to_string(), MOTOR_BY_CURRENT));
-    let written_lookup = |name: &str| {
-        written
-            .iter()
-            .find(|(known, _)| known == name)
-            .map(|&(_, value)| value)
-            .or_else(|| lookup(name))
-    };
+    let written_lookup = |name: &str| param_in(&written, name).or_else(|| lookup(name));
     let read_back = in_body_form(compass, &written_lookup)?;
     let fitted = agreement(&samples, |raw, current| read_back.apply(raw, current))?;
     Some(CompassResult {

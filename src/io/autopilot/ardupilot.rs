@@ -187,7 +187,7 @@ mod tests {
         let text = param_file(&["a test".to_string()], &params);
         assert!(text.starts_with("# a test\nCOMPASS_OFS2_X,-97.79"));
         let params = parse_param_file(&text);
-        let lookup = |name: &str| params.iter().find(|(n, _)| n == name).map(|&(_, v)| v);
+        let lookup = |name: &str| crate::io::autopilot::param_in(&params, name);
         let back = ArduPilotCompass::from_params(&lookup, 1).unwrap();
         let raw = Vector3::new(300.0, -120.0, -800.0);
         assert!((back.apply(raw, 12.0) - compass.apply(raw, 12.0)).amax() < 1e-3);

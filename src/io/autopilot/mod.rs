@@ -67,12 +67,17 @@ pub struct AutopilotLog {
     pub current_a: Stream<f64>,
 }
 
+/// The value of `name` in a list of parameters (a log's, or a parameter file's).
+pub fn param_in(params: &[(String, f64)], name: &str) -> Option<f64> {
+    params
+        .iter()
+        .find(|(param, _)| param == name)
+        .map(|&(_, value)| value)
+}
+
 impl AutopilotLog {
     /// A parameter's value in force, where the log has it.
     pub fn param(&self, name: &str) -> Option<f64> {
-        self.params
-            .iter()
-            .find(|(param, _)| param == name)
-            .map(|&(_, value)| value)
+        param_in(&self.params, name)
     }
 }

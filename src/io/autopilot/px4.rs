@@ -134,7 +134,7 @@ mod tests {
         assert!((back.offset_ga - compass.offset_ga).amax() < 1e-12);
         let text = params_file(&["test".to_string()], &back.params());
         let read = parse_param_file(&text);
-        let lookup = |name: &str| read.iter().find(|(n, _)| n == name).map(|&(_, v)| v);
+        let lookup = |name: &str| crate::io::autopilot::param_in(&read, name);
         let again = Px4Compass::from_params(&lookup, 1, r);
         assert!((again.offset_ga - compass.offset_ga).amax() < 1e-6);
         assert!((again.scale - compass.scale).amax() < 1e-6);

@@ -96,10 +96,7 @@ impl UlogReader {
 
     /// The parameter in force named `name`.
     fn param(&self, name: &str) -> Option<f64> {
-        self.params
-            .iter()
-            .find(|(param, _)| param == name)
-            .map(|&(_, value)| value)
+        crate::io::autopilot::param_in(&self.params, name)
     }
 
     /// The end of the bytes: an error when the header or the log is unreadable, a
