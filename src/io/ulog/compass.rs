@@ -11,6 +11,7 @@
 //! the level trim `SENS_BOARD_X/Y/Z_OFF` out). `n` is the slot whose `CAL_MAGn_ID` is
 //! the sensor's device id.
 
+use crate::io::autopilot::px4::Px4Compass;
 use nalgebra::{Matrix3, Rotation3, Vector3};
 
 /// PX4's `rot_lookup` (`src/lib/conversion/rotation.h`): roll, pitch, yaw in degrees of
@@ -126,13 +127,13 @@ pub(super) fn calibration(
             format!("internal: SENS_BOARD_ROT {board_code}"),
         )
     };
-    let (xs, ys, zs) = (get("XSCALE", 1.0), get("YSCALE", 1.0), get("ZSCALE", 1.0));
-    let (xod, yod, zod) = (get("XODIAG", 0.0), get("YODIAG", 0.0), get("ZODIAG", 0.0));
+    // The offsets and scales as PX4 stores them: one reading, `Px4Compass`'s.
+    let px4 = Px4Compass::from_params(param, slot, Matrix3::identity());
     Some(Calibration {
         slot,
         body_from_sensor,
-        scale: Matrix3::new(xs, xod, yod, xod, ys, zod, yod, zod, zs),
-        offset_ga: Vector3::new(get("XOFF", 0.0), get("YOFF", 0.0), get("ZOFF", 0.0)),
+        scale: px4.scale,
+        offset_ga: px4.offset_ga,
         rotation_source,
     })
 }
