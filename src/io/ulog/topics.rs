@@ -242,7 +242,8 @@ impl UlogReader {
                 let relative = |idx: usize| {
                     sub.scalar(idx, data)
                         .filter(|&dt| dt != RELATIVE_TIMESTAMP_INVALID)
-                        .map(|dt_us| t_us + dt_us as i64)
+                        // A corrupt timestamp near the end of i64 has no sample time.
+                        .and_then(|dt_us| t_us.checked_add(dt_us as i64))
                 };
                 if let (Some(acc), Some(acc_t_us)) =
                     (vector3(sub.field(ACC_AT), data), relative(ACC_RELATIVE_AT))
