@@ -23,7 +23,8 @@ pub fn merge(
             Err(error) => failures.push((file_name, error)),
         }
     }
-    let (mut imports, choice_notes) = choose_among_sensor_files(imports);
+    let (imports, mut choice_notes) = choose_among_sensor_files(imports);
+    let mut imports = leave_out_second_magnetometers(imports, &mut choice_notes);
     if imports.is_empty() {
         return Err(failures
             .into_iter()
@@ -88,6 +89,50 @@ pub fn merge(
         "several formats"
     };
     Ok(merged)
+}
+
+/// The recording a file gives, before it is merged.
+fn recording_of(import: &FileImport) -> &Recording {
+    match import {
+        FileImport::Raw(raw) | FileImport::Sensor(SensorImport { raw, .. }) => &raw.report.recording,
+        FileImport::Final(report) => &report.recording,
+    }
+}
+
+/// The time span of a file's magnetometer, if it has one.
+fn mag_span_s(import: &FileImport) -> Option<(f64, f64)> {
+    let times = &recording_of(import).mag_in_body_ut.t_s;
+    Some((*times.first()?, *times.last()?))
+}
+
+/// A file whose magnetometer covers the same time as an earlier file's (more than half
+/// of the shorter span) is a second recording of the same motion, such as the raw and
+/// the filtered export of one calibration: merged by time, the two would interleave
+/// into one stream that zigzags between them. The first file is kept, in the order the
+/// files came; the others are left out with a note saying how to analyse them.
+fn leave_out_second_magnetometers(
+    imports: Vec<(String, FileImport)>,
+    notes: &mut Vec<String>,
+) -> Vec<(String, FileImport)> {
+    let mut kept: Vec<(String, FileImport)> = Vec::with_capacity(imports.len());
+    for (file_name, import) in imports {
+        let overlapping = mag_span_s(&import).and_then(|(start_s, end_s)| {
+            kept.iter().find_map(|(kept_name, kept_import)| {
+                let (kept_start_s, kept_end_s) = mag_span_s(kept_import)?;
+                let overlap_s = end_s.min(kept_end_s) - start_s.max(kept_start_s);
+                let shorter_s = (end_s - start_s).min(kept_end_s - kept_start_s);
+                (overlap_s > 0.5 * shorter_s && shorter_s > 0.0).then_some(kept_name.clone())
+            })
+        });
+        match overlapping {
+            Some(kept_name) => notes.push(format!(
+                "{file_name}: not used, {kept_name} already gives a magnetometer over the same time (two recordings \
+                 of one motion cannot be merged); drop {file_name} on its own to analyse it"
+            )),
+            None => kept.push((file_name, import)),
+        }
+    }
+    kept
 }
 
 /// Moves every file into `merged`: delimited files with device axes first (their mount
