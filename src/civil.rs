@@ -8,8 +8,14 @@
 //! is the 400-year cycle of 146 097 days.
 
 /// Days from 1970-01-01 to a date (month 1-12, day 1-31; not checked: callers validate).
+/// Total: computed in `i128`, so that a corrupt year from a log (the fuzzers found
+/// several) gives a far-off day, saturated at the ends of `i64`, never an overflow.
 pub fn days_from_civil(year: i64, month: u32, day: u32) -> i64 {
-    let (month, day) = (i64::from(month), i64::from(day));
+    let days = days_from_civil_wide(i128::from(year), i128::from(month), i128::from(day));
+    i64::try_from(days).unwrap_or(if days < 0 { i64::MIN } else { i64::MAX })
+}
+
+fn days_from_civil_wide(year: i128, month: i128, day: i128) -> i128 {
     let year = if month <= 2 { year - 1 } else { year };
     let era = year.div_euclid(400);
     let year_of_era = year - era * 400; // [0, 399]
@@ -20,7 +26,15 @@ pub fn days_from_civil(year: i64, month: u32, day: u32) -> i64 {
 }
 
 /// The date `days` after 1970-01-01, as (year, month 1-12, day 1-31).
+/// Total like [`days_from_civil`]: any `days` gives a date (years saturated at the ends
+/// of `i64`).
 pub fn civil_from_days(days: i64) -> (i64, u32, u32) {
+    let (year, month, day) = civil_from_days_wide(i128::from(days));
+    let year = i64::try_from(year).unwrap_or(if year < 0 { i64::MIN } else { i64::MAX });
+    (year, month, day)
+}
+
+fn civil_from_days_wide(days: i128) -> (i128, u32, u32) {
     let days = days + 719_468; // days since 0000-03-01
     let era = days.div_euclid(146_097);
     let day_of_era = days - era * 146_097; // [0, 146096]
@@ -34,7 +48,7 @@ pub fn civil_from_days(days: i64) -> (i64, u32, u32) {
     } else {
         month_from_march - 9
     };
-    let year = year_of_era + era * 400 + i64::from(month <= 2);
+    let year = year_of_era + era * 400 + i128::from(month <= 2);
     // In range by construction: month in [1, 12], day in [1, 31].
     (year, month as u32, day as u32)
 }
@@ -74,6 +88,20 @@ mod tests {
         assert_eq!(civil_from_days(11_017), (2000, 3, 1));
         assert_eq!(days_from_civil(2023, 8, 9), 19_578);
         assert_eq!(civil_from_days(-1), (1969, 12, 31));
+    }
+
+    #[test]
+    fn any_year_or_day_count_gives_an_answer_not_an_overflow() {
+        for year in [i64::MIN, -1_000_000_000_000_000, 99_999_999_999_999_999, i64::MAX] {
+            for month in [1, 2, 3, 12] {
+                let days = days_from_civil(year, month, 1);
+                let _ = civil_from_days(days);
+            }
+        }
+        assert_eq!(days_from_civil(i64::MAX, 12, 31), i64::MAX);
+        assert_eq!(days_from_civil(i64::MIN, 1, 1), i64::MIN);
+        let (year, _, _) = civil_from_days(i64::MAX);
+        assert!(year > 25_000_000_000_000_000);
     }
 
     #[test]

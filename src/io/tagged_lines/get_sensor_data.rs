@@ -406,7 +406,8 @@ fn java_date_unix_s(text: &str) -> Option<(f64, bool)> {
     ];
     let month = MONTHS.iter().position(|name| name == month)? as u32 + 1;
     let day: u32 = day.parse().ok().filter(|day| (1..=31).contains(day))?;
-    let year: i64 = year.parse().ok()?;
+    // A four-digit year, as `Date.toString()` writes one (a corrupt header has others).
+    let year: i64 = year.parse().ok().filter(|year| (0..=9999).contains(year))?;
     let mut clock_parts = clock.split(':').map(|part| part.parse::<f64>().ok());
     let (Some(Some(hours)), Some(Some(minutes)), Some(Some(seconds))) =
         (clock_parts.next(), clock_parts.next(), clock_parts.next())
