@@ -92,7 +92,12 @@ mod tests {
 
     #[test]
     fn any_year_or_day_count_gives_an_answer_not_an_overflow() {
-        for year in [i64::MIN, -1_000_000_000_000_000, 99_999_999_999_999_999, i64::MAX] {
+        for year in [
+            i64::MIN,
+            -1_000_000_000_000_000,
+            99_999_999_999_999_999,
+            i64::MAX,
+        ] {
             for month in [1, 2, 3, 12] {
                 let days = days_from_civil(year, month, 1);
                 let _ = civil_from_days(days);

@@ -94,7 +94,9 @@ pub fn merge(
 /// The recording a file gives, before it is merged.
 fn recording_of(import: &FileImport) -> &Recording {
     match import {
-        FileImport::Raw(raw) | FileImport::Sensor(SensorImport { raw, .. }) => &raw.report.recording,
+        FileImport::Raw(raw) | FileImport::Sensor(SensorImport { raw, .. }) => {
+            &raw.report.recording
+        }
         FileImport::Final(report) => &report.recording,
     }
 }

@@ -110,10 +110,16 @@ fn a_second_recording_of_the_same_motion_is_left_out_not_interleaved() {
     // The raw and the filtered export of one calibration: the same times, two values.
     let raw = "t_s,mag_x_ut,mag_y_ut,mag_z_ut\n0,10,0,40\n0.1,11,0,40\n0.2,12,0,40\n";
     let filtered = "t_s,mag_x_ut,mag_y_ut,mag_z_ut\n0,10.5,0,40\n0.1,11.5,0,40\n0.2,12.5,0,40\n";
-    let report = import_files(&[("filtered.csv", filtered.as_bytes()), ("raw.csv", raw.as_bytes())])
-        .expect("imports");
+    let report = import_files(&[
+        ("filtered.csv", filtered.as_bytes()),
+        ("raw.csv", raw.as_bytes()),
+    ])
+    .expect("imports");
     assert_eq!(report.recording.mag_in_body_ut.len(), 3);
-    assert_eq!(report.recording.mag_in_body_ut.values[0].x, 10.5, "the first file's");
+    assert_eq!(
+        report.recording.mag_in_body_ut.values[0].x, 10.5,
+        "the first file's"
+    );
     assert!(
         report.notes.iter().any(|note| note.starts_with(
             "raw.csv: not used, filtered.csv already gives a magnetometer over the same time"
@@ -123,8 +129,8 @@ fn a_second_recording_of_the_same_motion_is_left_out_not_interleaved() {
     );
     // One after the other in time, two files are one longer recording.
     let later = "t_s,mag_x_ut,mag_y_ut,mag_z_ut\n10,10,0,40\n10.1,11,0,40\n";
-    let report = import_files(&[("a.csv", raw.as_bytes()), ("b.csv", later.as_bytes())])
-        .expect("imports");
+    let report =
+        import_files(&[("a.csv", raw.as_bytes()), ("b.csv", later.as_bytes())]).expect("imports");
     assert_eq!(report.recording.mag_in_body_ut.len(), 5);
 }
 
