@@ -132,7 +132,7 @@ ensure_nightly() {
   rustup toolchain install nightly --profile minimal --component rust-src --target wasm32-unknown-unknown
 }
 
-THREADS_RUSTFLAGS="--cfg=web_sys_unstable_apis -C target-feature=+atomics,+bulk-memory,+mutable-globals,+simd128 \
+THREADS_RUSTFLAGS="--cfg=web_sys_unstable_apis -Zlocation-detail=none -C target-feature=+atomics,+bulk-memory,+mutable-globals,+simd128 \
 -C link-arg=--shared-memory -C link-arg=--import-memory -C link-arg=--max-memory=4294967296 \
 -C link-arg=--export=__wasm_init_tls -C link-arg=--export=__tls_size \
 -C link-arg=--export=__tls_align -C link-arg=--export=__tls_base"
