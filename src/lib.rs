@@ -70,6 +70,7 @@ pub mod attitude;
 pub mod calib;
 pub mod calibration;
 pub mod civil;
+pub mod english;
 pub mod geo;
 pub mod heading;
 pub mod io;
@@ -84,6 +85,7 @@ pub mod reference;
 pub mod report;
 pub mod sim;
 pub mod stats;
+pub mod verdict;
 
 #[cfg(target_arch = "wasm32")]
 pub mod web;

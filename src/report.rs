@@ -352,9 +352,11 @@ pub fn deviation_model_lines(report: &HeadingReport) -> Vec<String> {
 pub fn pdr_summary_lines(analysis: &PdrAnalysis) -> Vec<String> {
     let report = &analysis.report;
     let mut lines = vec![format!(
-        "{} steps in {} bouts{}; {:.1} m dead-reckoned over {:.0} s.",
+        "{} {} in {} {}{}; {:.1} m dead-reckoned over {:.0} s.",
         report.n_steps,
+        crate::english::plural(report.n_steps, "step", "steps"),
         report.n_bouts,
+        crate::english::plural(report.n_bouts, "bout", "bouts"),
         report
             .mean_step_frequency_hz
             .map_or(String::new(), |hz| format!(" at {hz:.2} steps/s")),
@@ -563,6 +565,31 @@ fn list(items: &[String]) -> String {
     html
 }
 
+/// The verdict ([`crate::verdict`]) as the report's opening section.
+pub fn verdict_html(verdict: &crate::verdict::Verdict) -> String {
+    let mut html = format!(
+        "<section class=\"verdict\" data-grade=\"{}\">\n<p><strong>{}</strong></p>\n<h2>{}</h2>\n<p>{}</p>\n<dl>\n",
+        verdict.grade.key(),
+        escape_html(verdict.grade.word()),
+        escape_html(&verdict.headline),
+        escape_html(&verdict.method)
+    );
+    for figure in &verdict.figures {
+        let _ = writeln!(
+            html,
+            "<dt>{}</dt><dd>{}</dd>",
+            escape_html(&figure.label),
+            escape_html(&figure.value)
+        );
+    }
+    html.push_str("</dl>\n");
+    if !verdict.to_do.is_empty() {
+        html.push_str(&list(&verdict.to_do));
+    }
+    let _ = writeln!(html, "<p>{}</p>\n</section>", escape_html(&verdict.read));
+    html
+}
+
 /// A self-contained HTML page of the analysis: the context, the comparison table, the
 /// device calibration, the heading models, the dead reckoning, the notes and the
 /// figures. No script, no remote resource. `pdr` is the dead reckoning or the sentence
@@ -595,6 +622,15 @@ pub fn html_report(
         report.n_samples_used,
         report.n_mag_samples
     );
+    if let Some(heading) = heading {
+        // The answer first, as the page's summary gives it.
+        let verdict = crate::verdict::verdict(
+            calibration,
+            &heading.report,
+            pdr.ok().map(|pdr| &pdr.report),
+        );
+        html.push_str(&verdict_html(&verdict));
+    }
     if let Some(choice) = &report.choice {
         // The analysis's one best (the page's status line and the CLI's `best:`).
         let _ = writeln!(
@@ -665,8 +701,10 @@ pub fn html_report(
     html.push_str(&list(&report.notes));
     let _ = writeln!(
         html,
-        "<p>{} lines of the log were skipped or suspect; the page and <code>compass-pdr inspect</code> list them.</p>",
-        report.diagnostics.total()
+        "<p>{} {} of the log {} skipped or suspect; the page and <code>compass-pdr inspect</code> list them.</p>",
+        report.diagnostics.total(),
+        crate::english::plural(report.diagnostics.total(), "line", "lines"),
+        crate::english::plural(report.diagnostics.total(), "was", "were")
     );
     html.push_str("</body>\n</html>\n");
     html

@@ -188,7 +188,8 @@ pub(super) fn split(
         .collect();
     if fit_stride > 1 {
         notes.push(format!(
-            "the methods were fitted to every {fit_stride}th train sample ({} of {n_train})",
+            "the methods were fitted to every {} train sample ({} of {n_train})",
+            crate::english::ordinal(fit_stride),
             n_train.div_ceil(fit_stride)
         ));
     }

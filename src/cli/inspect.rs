@@ -98,7 +98,7 @@ pub(super) fn run_inspect(input: &ImportArgs, json: bool) -> Result<(), String> 
         if inspection.compass_params.is_some() {
             ""
         } else {
-            "lines "
+            compass_pdr::english::plural(inspection.diagnostics.total(), "line ", "lines ")
         }
     );
     let _ = writeln!(
