@@ -432,7 +432,7 @@ impl LiveSession {
         let field_difference_pct = self
             .expected_field_ut
             .map(|expected_ut| 100.0 * (calibration.field_ut - expected_ut) / expected_ut);
-        let verdict = verdict(
+        let verdict = field_verdict(
             n_samples,
             &coverage,
             field_spread_pct,
@@ -457,8 +457,9 @@ const NMEA_LABEL: &str = "NMEA 0183 sentences (headings and fixes, no magnetomet
                           calibrate: the stream is recorded; download it and drop it on the \
                           page to analyse it)";
 
-/// The verdict on a fit: each unmet condition is a reason that says what to do.
-fn verdict(
+/// The verdict on a fit: each unmet condition is a reason that says what to do. A
+/// dropped file without a reference heading is judged by it too ([`crate::verdict`]).
+pub fn field_verdict(
     n_samples: usize,
     coverage: &SphereCoverage,
     field_spread_pct: f64,

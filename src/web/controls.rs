@@ -24,6 +24,7 @@ const DECLINATION_ID: &str = "control-declination";
 const SPLIT_ID: &str = "control-split";
 const OUTAGES_ID: &str = "control-outages";
 const STEP_MODEL_ID: &str = "control-step-model";
+const KNOWN_DISTANCE_ID: &str = "control-known-distance";
 pub const TIMELINE_ID: &str = "timeline";
 const STATUS_ID: &str = "controls-status";
 
@@ -37,6 +38,8 @@ pub struct Controls {
     pub train_until_s: Option<f64>,
     pub outages: Vec<Outage>,
     pub step_model: StepModelKind,
+    /// The walk's length when it is known (a measured route): trains the step model.
+    pub known_distance_m: Option<f64>,
     pub methods: Vec<Method>,
 }
 
@@ -45,6 +48,7 @@ impl Controls {
     pub fn options(&self) -> PdrOptions {
         let mut options = PdrOptions {
             step_model: self.step_model,
+            known_distance_m: self.known_distance_m,
             ..PdrOptions::default()
         };
         options.gnss.outages = self.outages.clone();
@@ -83,6 +87,8 @@ pub fn read(document: &Document) -> Controls {
     let declination_deg = number(DECLINATION_ID, "Declination", &mut problems)
         .filter(|deg| (-180.0..=180.0).contains(deg));
     let train_until_s = number(SPLIT_ID, "Train until", &mut problems).filter(|s| *s > 0.0);
+    let known_distance_m =
+        number(KNOWN_DISTANCE_ID, "Known distance", &mut problems).filter(|m| *m > 0.0);
     let outages = match input(document, OUTAGES_ID).map(|input| input.value()) {
         Some(text) => parse_outages(&text).unwrap_or_else(|message| {
             problems.push(format!("GNSS outages: {message}"));
@@ -113,6 +119,7 @@ pub fn read(document: &Document) -> Controls {
         train_until_s,
         outages,
         step_model,
+        known_distance_m,
         methods: if methods.is_empty() {
             Method::ALL.to_vec()
         } else {
@@ -135,6 +142,7 @@ pub fn wire(page: &Rc<Page>) {
         (SPLIT_ID.to_string(), Stage::Calibration),
         (OUTAGES_ID.to_string(), Stage::DeadReckoning),
         (STEP_MODEL_ID.to_string(), Stage::DeadReckoning),
+        (KNOWN_DISTANCE_ID.to_string(), Stage::DeadReckoning),
     ];
     for method in Method::ALL {
         fields.push((

@@ -52,7 +52,7 @@ pub fn open_dialog(
         return;
     };
     if let Some(reason_element) = document.get_element_by_id("mapping-reason") {
-        reason_element.set_text_content(Some(reason));
+        reason_element.set_text_content(Some(&super::wording::for_page(reason)));
     }
     let Some(rows) = document.get_element_by_id("mapping-rows") else {
         return;

@@ -19,6 +19,7 @@ mod pdr_bench;
 mod storage;
 #[cfg(target_feature = "atomics")]
 mod threads;
+mod wording;
 
 #[cfg(test)]
 mod tests;

@@ -127,7 +127,9 @@ fn add_page_skeleton() {
            <canvas id="plot-field" width="320" height="240"></canvas><ul id="deviation-model"></ul>
            <canvas id="plot-deviation" width="320" height="240"></canvas><canvas id="plot-residuals" width="320" height="240"></canvas><canvas id="plot-online" width="320" height="240"></canvas>
            <ul id="pdr-summary"></ul><canvas id="plot-trajectory" width="320" height="240"></canvas>
-           <canvas id="plot-steps" width="320" height="240"></canvas><canvas id="plot-position-error" width="320" height="240"></canvas>"#,
+           <canvas id="plot-steps" width="320" height="240"></canvas><canvas id="plot-position-error" width="320" height="240"></canvas>
+           <section id="summary"><p id="verdict-grade"></p><h2 id="verdict-headline"></h2><p id="verdict-method"></p>
+           <dl id="verdict-figures"></dl><ul id="verdict-to-do"></ul><p id="verdict-read"></p></section>"#,
     );
     document
         .body()
@@ -178,11 +180,29 @@ fn the_page_shows_an_analysis_then_an_error() {
         "{}",
         text("status")
     );
+    // The answer first: the summary names the method and the heading error before and
+    // after, and it is emptied with the rest on an error.
+    assert!(
+        text("verdict-headline").starts_with("Heading error "),
+        "{}",
+        text("verdict-headline")
+    );
+    assert!(
+        text("verdict-method").starts_with("Method: "),
+        "{}",
+        text("verdict-method")
+    );
+    assert!(
+        text("verdict-figures").contains("Dead reckoning"),
+        "{}",
+        text("verdict-figures")
+    );
 
     page.show_error("bad.csv is empty. Choose a log with a header line and samples.");
     let body = document.body().expect("a body");
     assert_eq!(body.get_attribute("data-state").as_deref(), Some("error"));
     assert_eq!(text("methods-body"), "", "the table is emptied");
+    assert_eq!(text("verdict-figures"), "", "the summary is emptied");
     assert_eq!(
         text("status"),
         "bad.csv is empty. Choose a log with a header line and samples."

@@ -31,7 +31,7 @@ async function assertStatsMatch(page, expected) {
   // One choice of "best" (crate::calibration::selection), the same row and the same sentence.
   const bestRows = await page.$$eval('#methods-body tr.best', (rows) => rows.map((row) => row.id));
   assert.deepEqual(bestRows, expected.best ? [`row-${expected.best.replaceAll('+', '-')}`] : [], 'the best row');
-  assert.ok((await text(page, 'status')).includes(`Best: ${expected.choice.label}: `), await text(page, 'status'));
+  assert.ok((await text(page, 'verdict-method')).includes(`Method: ${expected.choice.label}: `), await text(page, 'verdict-method'));
 }
 
 /** The check RMS of one row in the CLI's report. */
@@ -141,7 +141,7 @@ test('phyphox files dropped together are merged into one recording', async (t) =
   assert.equal(await text(page, 'stat-min_max-check-rms'), '—');
   assert.match(await text(page, 'notes'), /no reference heading/);
   // The loop's 168 steps (169 detected), dead-reckoned without GNSS (indoor fixes refused).
-  assert.match(await text(page, 'pdr-summary'), /169 steps in 1 bouts/);
+  assert.match(await text(page, 'pdr-summary'), /169 steps in 1 bout at/);
   assert.match(await text(page, 'pdr-summary'), /GNSS fixes reported an accuracy within 15 m/);
   await assertPlotsDrawn(page);
   await page.screenshot({ path: join(out, 'phyphox.png'), fullPage: true });

@@ -10,6 +10,7 @@
 
 mod reading;
 mod show;
+mod verdict;
 
 use std::rc::Rc;
 
@@ -224,6 +225,11 @@ impl Page {
                     let summary = format!(
                         "Dead-reckoned {file_name} again with the new settings.{pdr_summary}"
                     );
+                    page.show_verdict(Some(&crate::verdict::verdict(
+                        &results.calibration,
+                        &results.heading.report,
+                        pdr.as_ref().ok().map(|pdr| &pdr.report),
+                    )));
                     page.keep_results(Results { pdr, ..results });
                     page.set_state("ready", &summary);
                 }
@@ -269,7 +275,8 @@ impl Page {
 
     fn set_state(&self, state: &str, message: &str) {
         self.body.set_attribute("data-state", state).ok();
-        self.status.set_text_content(Some(message));
+        self.status
+            .set_text_content(Some(&super::wording::for_page(message)));
         if state == "ready" {
             self.mark_time("data-ready-ms");
         }
@@ -321,7 +328,7 @@ pub fn show_bug(message: &str) {
         body.set_attribute("data-state", "error").ok();
     }
     if let Some(status) = document.get_element_by_id(STATUS_ID) {
-        status.set_text_content(Some(message));
+        status.set_text_content(Some(&super::wording::for_page(message)));
     }
 }
 

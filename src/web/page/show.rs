@@ -39,6 +39,11 @@ impl Page {
                 yield_to_browser().await;
                 let (pdr_summary, pdr) =
                     self.show_dead_reckoning(import.as_deref(), (&analysis, &heading));
+                self.show_verdict(Some(&crate::verdict::verdict(
+                    &analysis,
+                    &heading.report,
+                    pdr.as_ref().ok().map(|pdr| &pdr.report),
+                )));
                 self.keep_results(Results {
                     calibration: analysis,
                     heading,
@@ -162,14 +167,14 @@ impl Page {
             1 => " 1 line had a problem; see below.".to_string(),
             n => format!(" {n} lines had problems; see below."),
         };
-        // The CLI's `best:` line, word for word (crate::calibration::selection makes the choice once).
-        let best = format!(" Best: {}.", headings.report.choice.sentence());
         self.set_state(
             "loading",
             &format!("Calibrated {}; dead-reckoning the walk…", report.file_name),
         );
+        // The answer (and the method, the CLI's `best:` sentence word for word) is in the
+        // summary below; the status says what was done.
         let summary = format!(
-            "Analysed {}: {} magnetometer samples.{best}{problems}",
+            "Analysed {}: {} magnetometer samples.{problems}",
             report.file_name, report.n_samples_used
         );
         (summary, headings)
@@ -213,10 +218,18 @@ impl Page {
                         );
                     }
                 }
-                let sentence = format!(
-                    " {} steps dead-reckoned over {:.0} m.",
-                    analysis.report.n_steps, analysis.report.pdr_distance_m
-                );
+                // A vehicle's log (an autopilot's, a car's) is not a walk: no step count.
+                let is_vehicle = import.is_some_and(|import| import.autopilot.is_some());
+                let sentence = if crate::verdict::is_walk(&analysis.report) && !is_vehicle {
+                    format!(
+                        " {} {} dead-reckoned over {:.0} m.",
+                        analysis.report.n_steps,
+                        crate::english::plural(analysis.report.n_steps, "step", "steps"),
+                        analysis.report.pdr_distance_m
+                    )
+                } else {
+                    String::new()
+                };
                 (sentence, Ok(analysis))
             }
             Err(message) => {
@@ -235,6 +248,7 @@ impl Page {
     pub(crate) fn show_error(&self, message: &str) {
         self.results.borrow_mut().take();
         crate::web::exports::enable(&self.document, None, None);
+        self.show_verdict(None);
         self.body.remove_attribute("data-file").ok();
         self.set_text("result-file", "—");
         for id in [
@@ -309,7 +323,7 @@ impl Page {
                         let _ = cell.set_attribute("colspan", "6");
                         let _ = cell.class_list().add_1("method-error");
                         cell.set_id(&format!("error-{key}"));
-                        cell.set_text_content(Some(&error));
+                        cell.set_text_content(Some(&crate::web::wording::for_page(&error)));
                         let _ = row.append_child(&cell);
                     }
                 }
@@ -398,7 +412,12 @@ impl Page {
     ) {
         self.show_calibration(analysis);
         let (summary, heading) = self.show_heading_models(analysis);
-        let (pdr_summary, _) = self.show_dead_reckoning(import, (analysis, &heading));
+        let (pdr_summary, pdr) = self.show_dead_reckoning(import, (analysis, &heading));
+        self.show_verdict(Some(&crate::verdict::verdict(
+            analysis,
+            &heading.report,
+            pdr.as_ref().ok().map(|pdr| &pdr.report),
+        )));
         self.set_state("ready", &format!("{summary}{pdr_summary}"));
     }
 }

@@ -1,0 +1,53 @@
+//! The answer first ([`crate::verdict`]): the grade, the headline, the method, the key
+//! figures and what to do, in the summary at the top of the page (`#summary`), above
+//! the downloads' details.
+
+use super::Page;
+use crate::verdict::Verdict;
+
+/// The summary's element ids (see `www/index.html`).
+const SUMMARY_ID: &str = "summary";
+const FIGURES_ID: &str = "verdict-figures";
+
+impl Page {
+    /// Fills the summary with `verdict`, or empties it (`None`: an error, or no log yet).
+    pub(super) fn show_verdict(&self, verdict: Option<&Verdict>) {
+        if let Some(summary) = self.document.get_element_by_id(SUMMARY_ID) {
+            let grade = verdict.map_or("", |verdict| verdict.grade.key());
+            summary.set_attribute("data-grade", grade).ok();
+            let kind = verdict.map_or("", |verdict| verdict.kind.key());
+            summary.set_attribute("data-kind", kind).ok();
+        }
+        let Some(verdict) = verdict else {
+            for id in ["verdict-grade", "verdict-method", "verdict-read"] {
+                self.set_text(id, "");
+            }
+            self.set_text("verdict-headline", "No answer: see the message above.");
+            self.fill_list("verdict-to-do", std::iter::empty());
+            self.fill_figures(&[]);
+            return;
+        };
+        self.set_text("verdict-grade", verdict.grade.word());
+        self.set_text("verdict-headline", &verdict.headline);
+        self.set_text("verdict-method", &verdict.method);
+        self.set_text("verdict-read", &verdict.read);
+        self.fill_list("verdict-to-do", verdict.to_do.iter().cloned());
+        self.fill_figures(&verdict.figures);
+    }
+
+    /// The key figures as a description list: label, then value.
+    fn fill_figures(&self, figures: &[crate::verdict::Figure]) {
+        let Some(list) = self.document.get_element_by_id(FIGURES_ID) else {
+            return;
+        };
+        list.set_text_content(None);
+        for figure in figures {
+            for (tag, text) in [("dt", &figure.label), ("dd", &figure.value)] {
+                if let Ok(element) = self.document.create_element(tag) {
+                    element.set_text_content(Some(&crate::web::wording::for_page(text)));
+                    let _ = list.append_child(&element);
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,109 @@
+// Every real recording in ../shared/data dropped on the page as a person drops it (each
+// folder's files together, licences and readmes aside): the answer (grade, headline,
+// method, a key figure, a download) is on the first screen at 1360×900 and at 390×844,
+// the page names no command-line flag, and the screenshots of both are kept in
+// tests/e2e/out/real-*.png. Skipped, with a message, when ../shared/data is absent (a
+// user's clone); CI has it.
+import { test } from 'node:test';
+import assert from 'node:assert/strict';
+import { existsSync, readdirSync, statSync } from 'node:fs';
+import { join } from 'node:path';
+import { openPage, out } from './common.mjs';
+
+const data = process.env.SHARED_DATA || join(import.meta.dirname, '..', '..', '..', 'shared', 'data');
+
+/** A folder's files as a person drops them (its subfolders are recordings of their own). */
+function dropped(dir) {
+  return readdirSync(dir)
+    .filter((name) => !/^licen|\.md$/i.test(name))
+    .map((name) => join(dir, name))
+    .filter((path) => statSync(path).isFile())
+    .sort();
+}
+
+/** One entry per recording of the data README: a short name and the files dropped. */
+function recordings() {
+  const at = (...parts) => join(data, ...parts);
+  const list = [
+    ['msft-f1', dropped(at('msft-indoor-2020', 'site1', 'F1'))],
+    ['msft-f4', dropped(at('msft-indoor-2020', 'site1', 'F4'))],
+    ['vehicle-pixel6a', dropped(at('vehicle-pixel6a'))],
+    ['phyphox-hallway-loop', dropped(at('phyphox-hallway-loop'))],
+    ['sensorlogger-walk-ethz', dropped(at('sensorlogger-walk-ethz'))],
+    // The folder dropped whole: the filtered and the raw export of one calibration.
+    ['qmc5883l-calibration', dropped(at('qmc5883l-calibration'))],
+    ['qmc5883l-noisy', [at('qmc5883l-calibration', 'noisy_raw_data.csv')]],
+    ['ardupilot-log171', dropped(at('ardupilot-copter-log171'))],
+    ['ardupilot-text-log', dropped(at('ardupilot-text-log'))],
+    ['px4-sample', [at('px4-ulog', 'sample.ulg')]],
+    ['px4-sample-small', [at('px4-ulog', 'sample_log_small.ulg')]],
+  ];
+  for (const trial of readdirSync(at('hmc5883l-sphere')).sort()) {
+    if (statSync(at('hmc5883l-sphere', trial)).isDirectory()) list.push([`hmc5883l-${trial}`, dropped(at('hmc5883l-sphere', trial))]);
+  }
+  for (const trial of readdirSync(at('tyrex-attitude')).sort()) {
+    if (statSync(at('tyrex-attitude', trial)).isDirectory()) list.push([`tyrex-${trial}`, dropped(at('tyrex-attitude', trial))]);
+  }
+  return list;
+}
+
+/** The summary's parts that must be seen without scrolling, each with its box. */
+async function summaryBoxes(page) {
+  return page.evaluate(() => {
+    const box = (element) => {
+      if (!element) return null;
+      const rect = element.getBoundingClientRect();
+      return { top: rect.top + window.scrollY, bottom: rect.bottom + window.scrollY, height: rect.height, text: element.textContent.trim().slice(0, 80) };
+    };
+    const firstEnabled = [...document.querySelectorAll('#summary .exports button')].find((button) => !button.disabled);
+    return {
+      grade: box(document.getElementById('verdict-grade')),
+      headline: box(document.getElementById('verdict-headline')),
+      method: box(document.getElementById('verdict-method')),
+      figure: box(document.querySelector('#verdict-figures dd')),
+      download: box(firstEnabled),
+    };
+  });
+}
+
+async function assertOnFirstScreen(page, name, viewport) {
+  await page.evaluate(() => window.scrollTo(0, 0));
+  const boxes = await summaryBoxes(page);
+  for (const [part, box] of Object.entries(boxes)) {
+    assert.ok(box, `${name} at ${viewport.width}×${viewport.height}: no ${part}`);
+    assert.ok(box.height > 0 && box.text.length > 0, `${name}: the ${part} is empty or hidden`);
+    assert.ok(box.bottom <= viewport.height,
+      `${name} at ${viewport.width}×${viewport.height}: the ${part} ends at ${box.bottom.toFixed(0)} px, below the first screen ("${box.text}")`);
+  }
+}
+
+const present = existsSync(data);
+if (!present) console.log(`skipped: ${data} not found (the real recordings live beside the project; CI has them)`);
+
+for (const [name, files] of present ? recordings() : []) {
+  test(`${name}: the answer is on the first screen, on a desktop and on a phone`, { timeout: 120_000 }, async () => {
+    const desktop = { width: 1360, height: 900 };
+    const phone = { width: 390, height: 844 };
+    const { page, problems, close } = await openPage({ viewport: desktop });
+    await page.waitForSelector('body[data-state="ready"]', { timeout: 30_000 });
+    // Marks the page so that the next "ready" or "error" is this log's.
+    await page.evaluate(() => { document.body.dataset.state = 'dropped'; });
+    await page.setInputFiles('#file-input', files);
+    await page.waitForFunction(() => ['ready', 'error'].includes(document.body.dataset.state), null, { timeout: 100_000 });
+    const status = await page.textContent('#status');
+    assert.equal(await page.getAttribute('body', 'data-state'), 'ready', `${name}: ${status}`);
+    assert.ok(['good', 'fair', 'poor'].includes(await page.getAttribute('#summary', 'data-grade')), `${name}: a grade`);
+    await page.screenshot({ path: join(out, `real-${name}-desktop.png`) });
+    await assertOnFirstScreen(page, name, desktop);
+    await page.setViewportSize(phone);
+    await page.evaluate(() => window.scrollTo(0, 0));
+    await page.screenshot({ path: join(out, `real-${name}-phone.png`) });
+    await assertOnFirstScreen(page, name, phone);
+    // The page speaks of its own fields, never of the CLI's flags.
+    const body = await page.evaluate(() => document.body.innerText);
+    const flag = body.match(/(^|\s)--[a-z][a-z-]*/m);
+    assert.equal(flag, null, `${name}: the page names a command-line flag: ${flag?.[0]}`);
+    assert.deepEqual(problems, []);
+    await close();
+  });
+}

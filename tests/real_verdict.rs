@@ -1,0 +1,207 @@
+//! The verdict ([`compass_pdr::verdict`]) on every real recording in `../shared/data`,
+//! each folder's files imported together as a person drops them: the answer has the kind
+//! the log allows (a heading error where there is a reference, the field's spread and
+//! coverage for a board turned in the hand, the compasses of an autopilot log), its
+//! figure, and a grade that agrees with the figure. Skipped with a message when
+//! `../shared/data` is absent.
+#![cfg(not(target_arch = "wasm32"))]
+
+use std::path::{Path, PathBuf};
+
+mod common;
+
+use common::{read_named, shared_data};
+use compass_pdr::io::import::import_files;
+use compass_pdr::pdr::PdrOptions;
+use compass_pdr::pipeline;
+use compass_pdr::verdict::{verdict, Grade, Verdict, VerdictKind};
+
+/// A folder's files as a person drops them: everything but the licence and readme.
+fn dropped(dir: &Path) -> Vec<PathBuf> {
+    let mut paths: Vec<PathBuf> = std::fs::read_dir(dir)
+        .expect("readable directory")
+        .filter_map(|entry| entry.ok().map(|entry| entry.path()))
+        .filter(|path| path.is_file())
+        .filter(|path| {
+            let name = path
+                .file_name()
+                .map_or(String::new(), |name| name.to_string_lossy().to_lowercase());
+            !name.starts_with("licen") && !name.ends_with(".md")
+        })
+        .collect();
+    paths.sort();
+    paths
+}
+
+fn verdict_of(paths: &[PathBuf]) -> Verdict {
+    let contents = read_named(paths);
+    let slices: Vec<(&str, &[u8])> = contents
+        .iter()
+        .map(|(name, bytes)| (name.as_str(), bytes.as_slice()))
+        .collect();
+    let import = import_files(&slices).expect("imports");
+    let mut options = PdrOptions::default();
+    // The network is the slowest model and is not what the verdict is about.
+    options.heading_options.neural = false;
+    let analysis = pipeline::analyse(&import, &options).expect("analyses");
+    let pdr = analysis
+        .pdr
+        .as_ref()
+        .and_then(|pdr| pdr.as_ref().ok())
+        .map(|pdr| &pdr.report);
+    let verdict = verdict(&analysis.calibration, &analysis.headings.report, pdr);
+    eprintln!(
+        "{:?} {:?}: {}\n  {}\n  {:?}\n  {:?}",
+        verdict.kind,
+        verdict.grade,
+        verdict.headline,
+        verdict.method,
+        verdict.figures,
+        verdict.to_do
+    );
+    verdict
+}
+
+fn figure<'a>(verdict: &'a Verdict, label: &str) -> &'a str {
+    verdict
+        .figures
+        .iter()
+        .find(|figure| figure.label == label)
+        .map(|figure| figure.value.as_str())
+        .unwrap_or_else(|| panic!("no figure {label:?} in {:?}", verdict.figures))
+}
+
+/// The first number in `text`.
+fn number(text: &str) -> f64 {
+    let start = text
+        .find(|c: char| c.is_ascii_digit() || c == '-')
+        .expect("a number");
+    let digits: String = text[start..]
+        .chars()
+        .take_while(|c| c.is_ascii_digit() || *c == '.' || *c == '-')
+        .collect();
+    digits.parse().expect("a number")
+}
+
+#[test]
+fn a_board_turned_in_the_hand_gets_its_spread_and_coverage_not_a_heading_error() {
+    let Some(data) = shared_data() else { return };
+    let dir = data.join("qmc5883l-calibration");
+    for file in ["filtered_raw_data.csv", "noisy_raw_data.csv"] {
+        let verdict = verdict_of(&[dir.join(file)]);
+        assert_eq!(verdict.kind, VerdictKind::FieldOnly, "{file}");
+        let spread = figure(&verdict, "|B| varies (std / mean)");
+        let (before, after) = spread.split_once('→').expect("before → after");
+        assert!(number(after) < number(before), "{file}: {spread}");
+        assert!(figure(&verdict, "Directions covered").contains("of 100 regions"));
+        assert!(
+            verdict.headline.contains("directions covered"),
+            "{}",
+            verdict.headline
+        );
+        // Counts of unknown scale: no field in µT is claimed.
+        assert!(verdict
+            .figures
+            .iter()
+            .all(|figure| figure.label != "Fitted field"));
+        assert!(verdict
+            .to_do
+            .iter()
+            .any(|line| line.contains("reference heading")));
+    }
+}
+
+#[test]
+fn the_hmc5883l_sphere_is_judged_by_its_spread_against_the_live_panel_s_bar() {
+    let Some(data) = shared_data() else { return };
+    let verdict = verdict_of(&dropped(&data.join("hmc5883l-sphere/full-sphere")));
+    assert_eq!(verdict.kind, VerdictKind::FieldOnly);
+    let spread = figure(&verdict, "|B| varies (std / mean)");
+    let after = number(spread.split_once('→').expect("before → after").1);
+    // The grade follows the live panel's conditions: a spread of 3 % or more is poor.
+    if after >= compass_pdr::live::GOOD_MAX_SPREAD_PCT {
+        assert_eq!(verdict.grade, Grade::Poor, "{spread}");
+    }
+}
+
+#[test]
+fn logs_with_a_reference_get_the_heading_error_before_and_after() {
+    let Some(data) = shared_data() else { return };
+    let verdict = verdict_of(&dropped(&data.join("sensorlogger-walk-ethz")));
+    assert_eq!(verdict.kind, VerdictKind::Heading);
+    let after = number(figure(&verdict, "Heading error after"));
+    assert!(
+        verdict.headline.contains(&format!("{after:.1}°")),
+        "{}",
+        verdict.headline
+    );
+    let expected = if after <= 2.0 {
+        Grade::Good
+    } else if after <= 5.0 {
+        Grade::Fair
+    } else {
+        Grade::Poor
+    };
+    assert_eq!(verdict.grade, expected, "{after}°");
+    let verdict = verdict_of(&[data.join("vehicle-pixel6a/2023-08-09_12-47-42.csv")]);
+    assert_eq!(verdict.kind, VerdictKind::Heading);
+    // A car's "steps" are hundreds of metres apart: no step statistics for it.
+    assert!(
+        figure(&verdict, "Dead reckoning").starts_with("not a walk"),
+        "{:?}",
+        verdict.figures
+    );
+}
+
+#[test]
+fn an_indoor_walk_without_a_north_reference_gets_the_field_figures_and_its_steps() {
+    let Some(data) = shared_data() else { return };
+    // The hallway loop's GPS is too poor indoors for a course, and a closed gyro loop
+    // does not know north: no heading error can be given, so the field's figures are.
+    let verdict = verdict_of(&dropped(&data.join("phyphox-hallway-loop")));
+    assert_eq!(verdict.kind, VerdictKind::FieldOnly);
+    assert!(figure(&verdict, "Dead reckoning").contains("steps over"));
+}
+
+#[test]
+fn an_autopilot_log_gets_each_compass_in_force_and_as_written() {
+    let Some(data) = shared_data() else { return };
+    let verdict = verdict_of(&[data.join("ardupilot-copter-log171/log171.bin")]);
+    assert_eq!(verdict.kind, VerdictKind::Autopilot);
+    assert_eq!(verdict.figures.len(), 3, "{:?}", verdict.figures);
+    assert!(
+        verdict.headline.starts_with("Compass 1"),
+        "{}",
+        verdict.headline
+    );
+    // The written parameters are no worse than those in force (the fit refuses otherwise).
+    let (before, after) = verdict.headline.split_once('→').expect("before → after");
+    let before = number(&before[before.rfind("heading").expect("heading")..]);
+    assert!(number(after) <= before, "{}", verdict.headline);
+}
+
+#[test]
+fn every_other_recording_gets_an_answer() {
+    let Some(data) = shared_data() else { return };
+    let mut logs: Vec<Vec<PathBuf>> = vec![
+        vec![data.join("ardupilot-text-log/nan.log")],
+        vec![data.join("px4-ulog/sample.ulg")],
+        vec![data.join("px4-ulog/sample_log_small.ulg")],
+        dropped(&data.join("hmc5883l-sphere/rotate-ccw-around-z-pointing-up")),
+        // Never turned: no calibration, and the answer says why.
+        dropped(&data.join("hmc5883l-sphere/unmoved-with-x-pointing-forward")),
+        dropped(&data.join("msft-indoor-2020/site1/F1")),
+    ];
+    logs.extend(
+        common::tyrex_trials(&data)
+            .into_iter()
+            .take(1)
+            .map(|(_, files)| files),
+    );
+    for paths in logs {
+        let verdict = verdict_of(&paths);
+        assert!(!verdict.headline.is_empty());
+        assert!(!verdict.figures.is_empty(), "{paths:?}: {verdict:?}");
+        assert!(!verdict.headline.contains("NaN"), "{}", verdict.headline);
+    }
+}
