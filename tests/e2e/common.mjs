@@ -54,6 +54,10 @@ export function drawnPixels(page, id) {
 
 export const text = (page, id) => page.textContent(`#${id}`);
 
+/** Opens every folded section of the page (the details under the summary), as a person
+ * who wants the plots, the settings or the lists does. */
+export const openAllDetails = (page) => page.evaluate(() => document.querySelectorAll('details').forEach((details) => { details.open = true; }));
+
 /** Clicks `selector` and returns the bytes of the download it starts, with its name. */
 export async function download(page, selector) {
   const [file] = await Promise.all([page.waitForEvent('download'), page.click(selector)]);

@@ -3,7 +3,7 @@
 import { test } from 'node:test';
 import assert from 'node:assert/strict';
 import { join } from 'node:path';
-import { drawnPixels, openPage, out, text, waitForState } from './common.mjs';
+import { drawnPixels, openAllDetails, openPage, out, text, waitForState } from './common.mjs';
 
 const runs = (page) => page.evaluate(() => ({
   calibration: Number(document.body.dataset.calibrationRuns),
@@ -15,6 +15,7 @@ test('the controls re-run only what depends on them; an outage is brushed on the
   await waitForState(page, 'ready', 'demo-walk.csv');
   await page.setInputFiles('#file-input', join(out, 'pdr-walk.csv'));
   await waitForState(page, 'ready', 'pdr-walk.csv');
+  await openAllDetails(page);
   assert.ok(await drawnPixels(page, 'timeline') > 2_000, 'the timeline is drawn');
   const before = await runs(page);
   assert.match(await text(page, 'pdr-summary'), /GNSS fixes: \d+ used, 0 after a reset, 0 in outages/);

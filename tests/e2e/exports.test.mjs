@@ -4,7 +4,7 @@ import { test } from 'node:test';
 import assert from 'node:assert/strict';
 import { existsSync, readFileSync } from 'node:fs';
 import { join } from 'node:path';
-import { download, openPage, out, text, waitForState } from './common.mjs';
+import { download, openAllDetails, openPage, out, text, waitForState } from './common.mjs';
 
 /** The floats of a C initialiser, in order (`1.5f`, `-2e-3f`, `7`). */
 const cFloats = (source) => [...source.matchAll(/-?\d+(?:\.\d+)?(?:e-?\d+)?f?(?=[,\s}])/gi)].map((m) => parseFloat(m[0]));
@@ -91,7 +91,8 @@ test('every export of the demo analysis downloads and reads back', async () => {
   await reportPage.screenshot({ path: join(out, 'report.png'), fullPage: false });
   await reportPage.close();
 
-  // Any plot as PNG, at the canvas's size.
+  // Any plot as PNG, at the canvas's size (its section opened, as a person does).
+  await openAllDetails(page);
   for (const id of ['plot-circle', 'plot-trajectory']) {
     const png = await download(page, `#png-${id}`);
     assert.equal(png.name, `${id}.png`);

@@ -5,7 +5,7 @@ import { test } from 'node:test';
 import assert from 'node:assert/strict';
 import { existsSync, readFileSync } from 'node:fs';
 import { join } from 'node:path';
-import { drawnPixels, openPage, out, text, waitForState } from './common.mjs';
+import { drawnPixels, openAllDetails, openPage, out, text, waitForState } from './common.mjs';
 
 const statusBackground = (page) => page.$eval('#status', (status) => getComputedStyle(status).backgroundColor);
 
@@ -105,6 +105,8 @@ test('the demo is analysed and drawn on load, with the CLI\'s figures', async ()
     assert.ok(models.includes(`MLP on ${neural.base_label}: inputs ${neural.inputs.join(', ')}`), models);
   }
   assert.match(await text(page, 'deviation-model'), new RegExp(`ellipse \\(tilt-aware 2D\\): A ${ellipseModel.a_deg.toFixed(2)}°`));
+  await page.screenshot({ path: join(out, 'demo-first-screen.png') });
+  await openAllDetails(page);
   await page.screenshot({ path: join(out, 'demo.png'), fullPage: true });
   assert.deepEqual(problems, []);
   await close();
