@@ -1,0 +1,25 @@
+#!/usr/bin/env bash
+# The CSV file path a user takes (issue 20): `compass-pdr inspect` on a ~100 MB canonical
+# CSV, a new process reading the file from disk, beside polars and pyarrow reading the
+# same file in the same run (bench/file_path_peer.py). Writes
+# target/bench-results/file-path.json; bench/run puts it into docs/BENCHMARKS.md.
+# Idempotent: the venv, the input and the build are reused.
+#
+#   bench/file_path.sh
+set -euo pipefail
+source "$(dirname "$0")/../scripts/setup.sh"
+cd "$ROOT"
+results="$ROOT/target/bench-results"
+data="$ROOT/target/bench-data"
+mkdir -p "$results" "$data"
+venv="$ROOT/target/bench-venv"
+[ -x "$venv/bin/python" ] || python3 -m venv "$venv"
+"$venv/bin/pip" install --quiet --disable-pip-version-check polars pyarrow
+cargo build --release --quiet --bin compass-pdr
+input="$data/walk-100mb.csv"
+if [ ! -f "$input" ]; then
+  log "Writing $input (compass-pdr simulate, 5 h at 100 Hz: about 100 MB)"
+  target/release/compass-pdr simulate --scenario steady --seed 9 --duration-s 17700 --out "$input"
+fi
+log "compass-pdr inspect, polars.read_csv and pyarrow.csv.read_csv on $(basename "$input") ($(stat -c %s "$input") bytes)"
+"$venv/bin/python" bench/file_path_peer.py target/release/compass-pdr "$input" --runs 7 | tee "$results/file-path.json"
