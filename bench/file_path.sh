@@ -2,7 +2,8 @@
 # The CSV file path a user takes (issue 20): `compass-pdr inspect` on a ~100 MB canonical
 # CSV, a new process reading the file from disk, beside polars and pyarrow reading the
 # same file in the same run (bench/file_path_peer.py). Writes
-# target/bench-results/file-path.json; bench/run puts it into docs/BENCHMARKS.md.
+# target/bench-results/file-path.json and prints its table as markdown (bench/run
+# appends it to docs/BENCHMARKS.md).
 # Idempotent: the venv, the input and the build are reused.
 #
 #   bench/file_path.sh
@@ -22,4 +23,15 @@ if [ ! -f "$input" ]; then
   target/release/compass-pdr simulate --scenario steady --seed 9 --duration-s 17700 --out "$input"
 fi
 log "compass-pdr inspect, polars.read_csv and pyarrow.csv.read_csv on $(basename "$input") ($(stat -c %s "$input") bytes)"
-"$venv/bin/python" bench/file_path_peer.py target/release/compass-pdr "$input" --runs 7 | tee "$results/file-path.json"
+load="$(cut -d' ' -f1-3 /proc/loadavg)"
+"$venv/bin/python" bench/file_path_peer.py target/release/compass-pdr "$input" --runs 7 > "$results/file-path.json"
+"$venv/bin/python" - "$results/file-path.json" "$load" <<'PY'
+import json, sys
+results = json.load(open(sys.argv[1]))
+print(f"File: `target/bench-data/{results['file']}` ({results['size_mb'] * 1e6:,.0f} bytes), {results['cores']} cores, load average before the run {sys.argv[2]}.")
+print()
+print("| tool | median wall | best | CPU of the median run | MB/s (median) |")
+print("|---|---:|---:|---:|---:|")
+for name, tool in results["tools"].items():
+    print(f"| {name} | {tool['median_s']:.3f} s | {tool['best_s']:.3f} s | {tool['cpu_s_of_median_run']:.3f} s | {tool['mb_per_s']:.0f} |")
+PY
