@@ -219,8 +219,13 @@ pub fn tilted_samples(
     }
     let n_not_levelled = mag.len() - samples.t_s.len();
     if n_not_levelled > 0 {
+        let (sample_had, was) = if n_not_levelled == 1 {
+            ("sample had", "was")
+        } else {
+            ("samples had", "were")
+        };
         samples.notes.push(format!(
-            "{n_not_levelled} magnetometer samples had no accelerometer sample within {MAX_INTERPOLATION_GAP_S} s and were left out."
+            "{n_not_levelled} magnetometer {sample_had} no accelerometer sample within {MAX_INTERPOLATION_GAP_S} s and {was} left out."
         ));
     }
     Ok(samples)
