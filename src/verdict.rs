@@ -20,7 +20,7 @@ use nalgebra::Vector3;
 use serde::Serialize;
 
 use crate::calib::sphere_coverage::{sphere_coverage, SphereCoverage};
-use crate::calibration::autopilot::{AutopilotCalibration, Candidate};
+use crate::calibration::autopilot::{AutopilotCalibration, Candidate, CompassResult};
 use crate::calibration::selection::Basis;
 use crate::calibration::CalibrationAnalysis;
 use crate::english::{duration_text, plural};
@@ -147,10 +147,14 @@ pub fn verdict(
     let read = read_line(analysis, heading);
     let method = format!("Method: {}.", heading.choice.sentence());
     let field = FieldFigures::of(analysis);
-    let mut verdict = match (&analysis.report.autopilot, &heading.choice.basis) {
-        (Some(autopilot), _) if !autopilot.compasses.is_empty() => {
-            autopilot_verdict(autopilot, read)
-        }
+    // An autopilot log with at least one compass fitted, and its first.
+    let fitted_autopilot = analysis
+        .report
+        .autopilot
+        .as_ref()
+        .and_then(|autopilot| Some((autopilot, autopilot.compasses.first()?)));
+    let mut verdict = match (fitted_autopilot, &heading.choice.basis) {
+        (Some((autopilot, primary)), _) => autopilot_verdict(autopilot, primary, read),
         (
             _,
             &Basis::ReferenceRms {
@@ -534,8 +538,11 @@ fn heading_std_deg(analysis: &CalibrationAnalysis) -> Option<f64> {
     }
 }
 
-fn autopilot_verdict(autopilot: &AutopilotCalibration, read: String) -> Verdict {
-    let primary = &autopilot.compasses[0];
+fn autopilot_verdict(
+    autopilot: &AutopilotCalibration,
+    primary: &CompassResult,
+    read: String,
+) -> Verdict {
     let in_force = primary.in_force.as_ref();
     let headline = match in_force {
         Some(before) => format!(
@@ -584,7 +591,7 @@ fn autopilot_verdict(autopilot: &AutopilotCalibration, read: String) -> Verdict 
         grade: Grade::of_heading_rms(primary.fitted.heading_rms_deg),
         headline,
         read,
-        method: autopilot_method(autopilot),
+        method: autopilot_method(autopilot, primary),
         figures,
         to_do: autopilot.notes.clone(),
     }
@@ -592,8 +599,7 @@ fn autopilot_verdict(autopilot: &AutopilotCalibration, read: String) -> Verdict 
 
 /// The model chosen for the first compass and on what: its heading error on the held-back
 /// half beside the parameters in force there.
-fn autopilot_method(autopilot: &AutopilotCalibration) -> String {
-    let primary = &autopilot.compasses[0];
+fn autopilot_method(autopilot: &AutopilotCalibration, primary: &CompassResult) -> String {
     let check_deg = primary
         .candidates
         .iter()
