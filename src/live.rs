@@ -405,25 +405,14 @@ impl LiveSession {
             .filter(|magnitude| magnitude.is_finite())
             .collect();
         let n = magnitudes.len().max(1) as f64;
-        let mean_ut = magnitudes.iter().sum::<f64>() / n;
         let residual_rms_ut = (magnitudes
             .iter()
             .map(|magnitude| (magnitude - calibration.field_ut).powi(2))
             .sum::<f64>()
             / n)
             .sqrt();
-        let field_spread_pct = if mean_ut > 0.0 {
-            100.0
-                * (magnitudes
-                    .iter()
-                    .map(|magnitude| (magnitude - mean_ut).powi(2))
-                    .sum::<f64>()
-                    / n)
-                    .sqrt()
-                / mean_ut
-        } else {
-            f64::NAN
-        };
+        let field_spread_pct =
+            crate::stats::spread_pct(magnitudes.iter().copied()).unwrap_or(f64::NAN);
         let coverage = sphere_coverage(
             self.kept_ut
                 .iter()

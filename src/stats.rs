@@ -8,6 +8,23 @@ use crate::angle::wrap_to_pi;
 /// Parts shorter than this are scored on one thread (a thread costs tens of µs).
 const MIN_SAMPLES_PER_THREAD: usize = 20_000;
 
+/// How much field magnitudes vary: their standard deviation over their mean, percent
+/// (MotionCal's "variance"), non-finite values left out; `None` for fewer
+/// than two or a zero mean.
+pub fn spread_pct(magnitudes: impl Iterator<Item = f64>) -> Option<f64> {
+    let values: Vec<f64> = magnitudes.filter(|value| value.is_finite()).collect();
+    if values.len() < 2 {
+        return None;
+    }
+    let mean = values.iter().sum::<f64>() / values.len() as f64;
+    let variance = values
+        .iter()
+        .map(|value| (value - mean).powi(2))
+        .sum::<f64>()
+        / values.len() as f64;
+    (mean > 0.0).then(|| 100.0 * variance.sqrt() / mean)
+}
+
 /// Statistics of a set of heading errors (estimate minus reference), in degrees.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct HeadingErrorStats {
@@ -115,6 +132,15 @@ impl HeadingErrorStats {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn spread_is_std_over_mean() {
+        assert_eq!(spread_pct([50.0, 50.0].into_iter()), Some(0.0));
+        let spread = spread_pct([45.0, 55.0].into_iter()).unwrap();
+        assert!((spread - 10.0).abs() < 1e-12, "{spread}");
+        assert_eq!(spread_pct([50.0].into_iter()), None);
+        assert_eq!(spread_pct([f64::NAN, 1.0].into_iter()), None);
+    }
 
     #[test]
     fn known_errors_give_known_statistics() {

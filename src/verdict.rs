@@ -27,7 +27,7 @@ use crate::english::{duration_text, plural};
 use crate::heading::HeadingReport;
 use crate::io::thousands;
 use crate::pdr::PdrReport;
-use crate::stats::HeadingErrorStats;
+use crate::stats::{spread_pct, HeadingErrorStats};
 
 /// A heading error (RMS, degrees) within this reads as good: a hand-bearing compass's
 /// accuracy, and under 3.5 % cross-track drift for dead reckoning.
@@ -119,22 +119,6 @@ pub struct Verdict {
     pub figures: Vec<Figure>,
     /// What to do to get a better answer; empty when there is nothing to do.
     pub to_do: Vec<String>,
-}
-
-/// Standard deviation of the magnitudes over their mean, percent; `None` for fewer
-/// than two or a zero mean.
-pub fn spread_pct(magnitudes: impl Iterator<Item = f64>) -> Option<f64> {
-    let values: Vec<f64> = magnitudes.filter(|value| value.is_finite()).collect();
-    if values.len() < 2 {
-        return None;
-    }
-    let mean = values.iter().sum::<f64>() / values.len() as f64;
-    let variance = values
-        .iter()
-        .map(|value| (value - mean).powi(2))
-        .sum::<f64>()
-        / values.len() as f64;
-    (mean > 0.0).then(|| 100.0 * variance.sqrt() / mean)
 }
 
 /// The answer to one log: from the calibration, the heading comparison (its choice of
@@ -619,18 +603,4 @@ fn autopilot_method(autopilot: &AutopilotCalibration, primary: &CompassResult) -
         primary.instance + 1,
         autopilot.autopilot
     )
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn spread_is_std_over_mean() {
-        assert_eq!(spread_pct([50.0, 50.0].into_iter()), Some(0.0));
-        let spread = spread_pct([45.0, 55.0].into_iter()).unwrap();
-        assert!((spread - 10.0).abs() < 1e-12, "{spread}");
-        assert_eq!(spread_pct([50.0].into_iter()), None);
-        assert_eq!(spread_pct([f64::NAN, 1.0].into_iter()), None);
-    }
 }

@@ -105,10 +105,7 @@ fn spread_pct(
             compass.apply(raw, current.values[idx]).norm()
         })
         .collect();
-    let n = magnitudes.len() as f64;
-    let mean = magnitudes.iter().sum::<f64>() / n;
-    let variance = magnitudes.iter().map(|m| (m - mean).powi(2)).sum::<f64>() / n;
-    100.0 * variance.sqrt() / mean
+    compass_pdr::stats::spread_pct(magnitudes.into_iter()).expect("samples with a field")
 }
 
 #[test]

@@ -223,14 +223,9 @@ pub fn agreement(
         / n;
     let magnitudes: Vec<f64> = corrected.iter().map(|c| c.norm()).collect();
     let mean_magnitude = magnitudes.iter().sum::<f64>() / n;
-    let variance = magnitudes
-        .iter()
-        .map(|m| (m - mean_magnitude).powi(2))
-        .sum::<f64>()
-        / n;
     Some(Agreement {
         heading_rms_deg: heading_ms.sqrt().to_degrees(),
-        spread_pct: 100.0 * variance.sqrt() / mean_magnitude,
+        spread_pct: crate::stats::spread_pct(magnitudes.iter().copied()).unwrap_or(f64::NAN),
         mean_magnitude,
         n_samples: samples.len(),
     })
