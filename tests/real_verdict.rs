@@ -14,7 +14,9 @@ use common::{read_named, shared_data};
 use compass_pdr::io::import::import_files;
 use compass_pdr::pdr::PdrOptions;
 use compass_pdr::pipeline;
-use compass_pdr::verdict::{verdict, Grade, Verdict, VerdictKind};
+use compass_pdr::verdict::{
+    verdict, Grade, Verdict, VerdictKind, FAIR_HEADING_RMS_DEG, GOOD_HEADING_RMS_DEG,
+};
 
 /// A folder's files as a person drops them: everything but the licence and readme.
 fn dropped(dir: &Path) -> Vec<PathBuf> {
@@ -135,9 +137,9 @@ fn logs_with_a_reference_get_the_heading_error_before_and_after() {
         "{}",
         verdict.headline
     );
-    let expected = if after <= 2.0 {
+    let expected = if after <= GOOD_HEADING_RMS_DEG {
         Grade::Good
-    } else if after <= 5.0 {
+    } else if after <= FAIR_HEADING_RMS_DEG {
         Grade::Fair
     } else {
         Grade::Poor
