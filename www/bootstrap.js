@@ -1,6 +1,7 @@
 // Loads the WebAssembly module and hands the page to it. Everything else is in Rust
 // (src/web/), except the service worker (sw.js), which keeps the page for offline use,
-// and the import workers (threads.js, pool-worker.js).
+// the analysis worker (analysis-worker.js) and the import workers (threads.js,
+// pool-worker.js).
 //
 // Two builds of one crate: pkg/ runs on one thread anywhere; pkg-threads/ shares its
 // memory with Web Workers, so large files are read on every core (src/par.rs). The
@@ -8,7 +9,7 @@
 // COOP/COEP headers: ./run's server does, and sw.js adds them), and only then is
 // pkg-threads used.
 
-import { startWorkers, whenWorkersReady } from './threads.js';
+import { startAnalysisWorker, startWorkers, whenWorkersReady } from './threads.js';
 
 const status = document.getElementById('status');
 const engine = document.getElementById('engine');
@@ -40,7 +41,8 @@ function showEngine(threaded, nThreads, nCores) {
 try {
   const { wasm, threaded } = await load();
   const nWorkers = threaded ? startWorkers(wasm) : 0;
-  wasm.run_page();
+  // The logs are read and analysed on a worker where the memory can be shared with it.
+  wasm.run_page(threaded ? startAnalysisWorker(wasm) : undefined);
   showEngine(threaded, 1, nWorkers + 1);
   if (threaded) {
     whenWorkersReady(wasm, nWorkers, { onChange: (nThreads) => showEngine(true, nThreads, nWorkers + 1) });

@@ -9,7 +9,7 @@
 // so that from the second visit on the page can use WebAssembly threads
 // (bootstrap.js, pkg-threads/) even where the host cannot send them. The page loads
 // nothing from other origins, so requiring CORP of them costs nothing.
-const CACHE = 'compass-pdr-v2';
+const CACHE = 'compass-pdr-v3';
 // The threaded module is not listed: it is kept when first used, and the page falls
 // back to pkg/ while it is missing (or when the build had no nightly Rust).
 const SHELL = [
@@ -19,6 +19,7 @@ const SHELL = [
   'bootstrap.js',
   'threads.js',
   'pool-worker.js',
+  'analysis-worker.js',
   'pkg/compass_pdr.js',
   'pkg/compass_pdr_bg.wasm',
   'pkg/demo-walk.csv',

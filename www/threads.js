@@ -35,3 +35,14 @@ export function whenWorkersReady(wasm, nWorkers, { timeoutMs = 10_000, onChange 
     poll();
   });
 }
+
+/** Starts the analysis worker (analysis-worker.js, src/web/worker.rs) on the module's
+ * memory: the page hands it the logs to read and analyse, and stays free meanwhile. */
+export function startAnalysisWorker(wasm) {
+  const worker = new Worker(new URL('analysis-worker.js', import.meta.url), {
+    type: 'module',
+    name: 'compass-pdr analysis',
+  });
+  worker.postMessage({ module: wasm.pool_module(), memory: wasm.pool_memory() });
+  return worker;
+}

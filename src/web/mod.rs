@@ -13,13 +13,20 @@ mod exports;
 mod import_bench;
 mod live_panel;
 mod mapping;
+// The fits' benchmarks (bench/wasm/{ellipsoid,mlp,pdr}.js) and `analyse_file` load the
+// plain module only: their entry points are left out of the threaded one, which has
+// the smaller size budget left.
+#[cfg(not(target_feature = "atomics"))]
 mod nn_bench;
 mod page;
+#[cfg(not(target_feature = "atomics"))]
 mod pdr_bench;
 mod storage;
 #[cfg(target_feature = "atomics")]
 mod threads;
 mod wording;
+#[cfg(target_feature = "atomics")]
+mod worker;
 
 #[cfg(test)]
 mod tests;
@@ -29,11 +36,15 @@ use std::sync::Once;
 use wasm_bindgen::prelude::*;
 
 /// Wires up the page (`www/index.html`) and analyses the demo log named by the body's
-/// `data-demo-url`.
+/// `data-demo-url`. `analysis_worker`: the worker that analyses logs off the main
+/// thread (`www/analysis-worker.js`, started by `www/bootstrap.js` on the threaded
+/// module's memory); without it (and always in the plain module) they are analysed on
+/// the page's own thread.
 #[wasm_bindgen]
-pub fn run_page() -> Result<(), JsError> {
+pub fn run_page(analysis_worker: Option<web_sys::Worker>) -> Result<(), JsError> {
     install_panic_hook();
-    let page = page::Page::from_document().map_err(|message| JsError::new(&message))?;
+    let page =
+        page::Page::from_document(analysis_worker).map_err(|message| JsError::new(&message))?;
     let live = live_panel::LivePanel::from_document(&page.document)
         .map_err(|message| JsError::new(&message))?;
     exports::wire(&page);
@@ -47,6 +58,7 @@ pub fn run_page() -> Result<(), JsError> {
 /// stages of [`crate::pipeline`], as the page runs them), returned as a plain object
 /// (the fields of `compass-pdr calibrate --json`'s report). Throws an `Error` whose
 /// message says what is wrong with the file and what to do.
+#[cfg(not(target_feature = "atomics"))]
 #[wasm_bindgen]
 pub fn analyse_file(file_name: &str, bytes: &[u8]) -> Result<JsValue, JsError> {
     let import = crate::io::import::import(file_name, bytes)
@@ -99,6 +111,7 @@ pub async fn inspect_blob(file_name: String, blob: web_sys::Blob) -> Result<JsVa
 /// Levenberg-Marquardt refinement to the algebraic fit. Returns the fit as a plain object
 /// (the fields of `EllipsoidFit`). Throws an `Error` whose message says what is wrong.
 /// Used by the ellipsoid benchmark (`bench/wasm/ellipsoid.html`).
+#[cfg(not(target_feature = "atomics"))]
 #[wasm_bindgen]
 pub fn fit_ellipsoid_xyz(xyz: &[f64], refine: bool) -> Result<JsValue, JsError> {
     if !xyz.len().is_multiple_of(3) {

@@ -141,7 +141,7 @@ fn add_page_skeleton() {
 #[wasm_bindgen_test]
 fn the_page_shows_an_analysis_then_an_error() {
     add_page_skeleton();
-    let page = super::page::Page::from_document().expect("the skeleton has every element");
+    let page = super::page::Page::from_document(None).expect("the skeleton has every element");
     let document = web_sys::window()
         .and_then(|window| window.document())
         .expect("a document");
@@ -152,11 +152,24 @@ fn the_page_shows_an_analysis_then_an_error() {
             .unwrap_or_default()
     };
 
-    let mut analysis = analyse_log("walk.csv", &simulated_csv(), &CalibrationOptions::default())
-        .expect("analysable");
-    let import = crate::io::import::import("walk.csv", &simulated_csv()).expect("readable");
-    page.show_analysis(&mut analysis, Some(&import));
-    let min_max = analysis.report.method(Method::MinMax).expect("min/max ran");
+    // The page's own steps, as its analysis worker runs them.
+    let import = std::sync::Arc::new(
+        crate::io::import::import("walk.csv", &simulated_csv()).expect("readable"),
+    );
+    let results = super::page::analysis::Steps::new(super::page::analysis::Request {
+        import: std::sync::Arc::clone(&import),
+        stage: crate::pipeline::Stage::Calibration,
+        previous: None,
+        options: Default::default(),
+    })
+    .finish()
+    .expect("analysable");
+    page.show_analysis(&results, Some(&import));
+    let min_max = results
+        .calibration
+        .report
+        .method(Method::MinMax)
+        .expect("min/max ran");
     let check = min_max.heading_error_check.expect("reference present");
     assert_eq!(
         text("stat-min_max-check-rms"),

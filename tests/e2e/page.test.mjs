@@ -3,9 +3,9 @@
 // www/ and writes the expected figures (from the CLI) into E2E_OUT.
 import { test } from 'node:test';
 import assert from 'node:assert/strict';
-import { existsSync, readFileSync } from 'node:fs';
+import { existsSync, readFileSync, writeFileSync } from 'node:fs';
 import { join } from 'node:path';
-import { drawnPixels, openAllDetails, openPage, out, text, waitForState } from './common.mjs';
+import { drawnPixels, lastDropTiming, openAllDetails, openPage, out, recordMainThread, text, waitForState } from './common.mjs';
 
 const statusBackground = (page) => page.$eval('#status', (status) => getComputedStyle(status).backgroundColor);
 
@@ -152,7 +152,7 @@ test('phyphox files dropped together are merged into one recording', async (t) =
 });
 
 test('a 50 MB log is read in chunks with a progress bar, and the page keeps answering', async () => {
-  const { page, problems, close } = await openPage();
+  const { page, problems, close } = await openPage({ initScript: recordMainThread });
   await waitForState(page, 'ready', 'demo-walk.csv');
   await page.setInputFiles('#file-input', join(out, 'large-walk.csv'));
   const progressSeen = [];
@@ -170,6 +170,12 @@ test('a 50 MB log is read in chunks with a progress bar, and the page keeps answ
     await new Promise((resolve) => setTimeout(resolve, 20));
   }
   await waitForState(page, 'ready', 'large-walk.csv');
+  // The reading and the analysis run on the analysis worker: the page's own thread only
+  // draws, in tasks under 100 ms.
+  const timing = await lastDropTiming(page);
+  writeFileSync(join(out, 'large-timing.json'), JSON.stringify(timing));
+  console.log(`large file: drop to summary ${timing.dropToSummaryMs.toFixed(0)} ms, to every figure ${timing.dropToReadyMs.toFixed(0)} ms, ${timing.longTasks} long tasks, longest ${timing.longestTaskMs.toFixed(0)} ms`);
+  assert.ok(timing.longestTaskMs <= 100, `a main-thread task took ${timing.longestTaskMs.toFixed(0)} ms`);
   assert.ok(progressSeen.some((fraction) => fraction > 0 && fraction < 1), `progress seen: ${progressSeen.slice(0, 20)}`);
   // Reading never blocks; the synchronous steps are the calibration of 450,000 samples,
   // then (after the browser has painted) the heading models.

@@ -1,14 +1,16 @@
 // Every real recording in ../shared/data dropped on the page as a person drops it (each
 // folder's files together, licences and readmes aside): the answer (grade, headline,
 // method, a key figure, a download) is on the first screen at 1360×900 and at 390×844,
-// the page names no command-line flag, and the screenshots of both are kept in
-// tests/e2e/out/real-*.png. Skipped, with a message, when ../shared/data is absent (a
+// the page names no command-line flag, no main-thread task takes over 100 ms from the
+// drop to the summary (the analysis runs on a worker), and the screenshots of both are
+// kept in tests/e2e/out/real-*.png; the time from drop to summary is kept in
+// tests/e2e/out/real-timing-*.json for bench/real_logs.sh. Skipped, with a message, when ../shared/data is absent (a
 // user's clone); CI has it.
 import { test } from 'node:test';
 import assert from 'node:assert/strict';
-import { existsSync, readdirSync, statSync } from 'node:fs';
+import { existsSync, readdirSync, statSync, writeFileSync } from 'node:fs';
 import { join } from 'node:path';
-import { openPage, out } from './common.mjs';
+import { lastDropTiming, openPage, out, recordMainThread } from './common.mjs';
 
 const data = process.env.SHARED_DATA || join(import.meta.dirname, '..', '..', '..', 'shared', 'data');
 
@@ -77,6 +79,9 @@ async function assertOnFirstScreen(page, name, viewport) {
   }
 }
 
+/** The longest the page may be unresponsive while a log is read and analysed. */
+const MAX_TASK_MS = 100;
+
 const present = existsSync(data);
 if (!present) console.log(`skipped: ${data} not found (the real recordings live beside the project; CI has them)`);
 
@@ -84,7 +89,7 @@ for (const [name, files] of present ? recordings() : []) {
   test(`${name}: the answer is on the first screen, on a desktop and on a phone`, { timeout: 120_000 }, async () => {
     const desktop = { width: 1360, height: 900 };
     const phone = { width: 390, height: 844 };
-    const { page, problems, close } = await openPage({ viewport: desktop });
+    const { page, problems, close } = await openPage({ viewport: desktop, initScript: recordMainThread });
     await page.waitForSelector('body[data-state="ready"]', { timeout: 30_000 });
     // Marks the page so that the next "ready" or "error" is this log's.
     await page.evaluate(() => { document.body.dataset.state = 'dropped'; });
@@ -92,6 +97,10 @@ for (const [name, files] of present ? recordings() : []) {
     await page.waitForFunction(() => ['ready', 'error'].includes(document.body.dataset.state), null, { timeout: 100_000 });
     const status = await page.textContent('#status');
     assert.equal(await page.getAttribute('body', 'data-state'), 'ready', `${name}: ${status}`);
+    const timing = await lastDropTiming(page);
+    writeFileSync(join(out, `real-timing-${name}.json`), JSON.stringify({ name, files, ...timing }));
+    console.log(`${name}: drop to summary ${timing.dropToSummaryMs.toFixed(0)} ms, to every figure ${timing.dropToReadyMs.toFixed(0)} ms, longest main-thread task ${timing.longestTaskMs.toFixed(0)} ms`);
+    assert.ok(timing.longestTaskMs <= MAX_TASK_MS, `${name}: a main-thread task took ${timing.longestTaskMs.toFixed(0)} ms`);
     assert.ok(['good', 'fair', 'poor'].includes(await page.getAttribute('#summary', 'data-grade')), `${name}: a grade`);
     await page.screenshot({ path: join(out, `real-${name}-desktop.png`) });
     await assertOnFirstScreen(page, name, desktop);

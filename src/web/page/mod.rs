@@ -8,11 +8,14 @@
 //! `error`), for people using assistive technology (through the status region) and for
 //! the end-to-end tests.
 
+pub(crate) mod analysis;
 mod reading;
 mod show;
 mod verdict;
 
 use std::rc::Rc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 
 use gloo::events::{EventListener, EventListenerOptions};
 use wasm_bindgen::JsCast;
@@ -21,17 +24,18 @@ use web_sys::{Document, DragEvent, Element, HtmlCanvasElement, HtmlElement, Html
 
 use super::controls::{self, Stage};
 use super::dom;
+use crate::analysis::AnalysisError;
 use crate::calibration::CalibrationAnalysis;
 use crate::heading::HeadingAnalysis;
 use crate::io::ImportReport;
 use crate::pdr::PdrAnalysis;
-use crate::pipeline;
 use crate::plot::timeline::Timeline;
 
 /// The ids of the elements the page must have (see `www/index.html`).
 const STATUS_ID: &str = "status";
 const FILE_INPUT_ID: &str = "file-input";
 const DROP_ZONE_ID: &str = "drop-zone";
+const CANCEL_ID: &str = "cancel";
 const CIRCLE_CANVAS_ID: &str = "plot-circle";
 const HEADING_CANVAS_ID: &str = "plot-heading";
 const FIELD_CANVAS_ID: &str = "plot-field";
@@ -64,12 +68,22 @@ pub struct Page {
     /// The latest analysis, for the exports; `None` before the first and after an error.
     results: std::cell::RefCell<Option<Rc<Results>>>,
     /// The latest log as imported, for re-running the analysis when a control changes.
-    import: std::cell::RefCell<Option<Rc<ImportReport>>>,
+    import: std::cell::RefCell<Option<Arc<ImportReport>>>,
+    /// The running job's cancel flag (set when a new job starts or Cancel is pressed).
+    cancel: std::cell::RefCell<Arc<AtomicBool>>,
+    /// Where the analysis runs when the page has the threaded module; `None` (and always
+    /// in the plain module) runs it on this thread.
+    #[cfg(target_feature = "atomics")]
+    worker: Option<crate::web::worker::AnalysisWorker>,
     /// How many times the calibration and the dead reckoning ran (on the body as
     /// `data-calibration-runs` and `data-pdr-runs`, for the tests).
     n_calibration_runs: std::cell::Cell<u32>,
     n_pdr_runs: std::cell::Cell<u32>,
 }
+
+/// What reading and analysing a log gave: the import (when the files could be read)
+/// and the analysis, or why there is none.
+pub(crate) type Outcome = (Option<Arc<ImportReport>>, Result<Results, AnalysisError>);
 
 /// One log's analysis: what the exports write.
 pub struct Results {
@@ -81,7 +95,9 @@ pub struct Results {
 
 impl Page {
     /// Finds the page's elements; the message names the first one missing.
-    pub fn from_document() -> Result<Rc<Page>, String> {
+    /// `analysis_worker` is the worker the threaded module's page started
+    /// (`www/bootstrap.js`); the plain module ignores it.
+    pub fn from_document(analysis_worker: Option<web_sys::Worker>) -> Result<Rc<Page>, String> {
         let document = web_sys::window()
             .and_then(|window| window.document())
             .ok_or("no document")?;
@@ -96,6 +112,8 @@ impl Page {
                 .dyn_into::<HtmlCanvasElement>()
                 .map_err(|_| format!("#{id} is not a canvas"))
         };
+        #[cfg(not(target_feature = "atomics"))]
+        drop(analysis_worker);
         Ok(Rc::new(Page {
             status: element(STATUS_ID)?,
             file_input: element(FILE_INPUT_ID)?
@@ -115,6 +133,9 @@ impl Page {
             document,
             results: std::cell::RefCell::new(None),
             import: std::cell::RefCell::new(None),
+            cancel: std::cell::RefCell::new(Arc::default()),
+            #[cfg(target_feature = "atomics")]
+            worker: analysis_worker.map(crate::web::worker::AnalysisWorker::new),
             n_calibration_runs: std::cell::Cell::new(0),
             n_pdr_runs: std::cell::Cell::new(0),
         }))
@@ -168,27 +189,90 @@ impl Page {
         })
         .forget();
 
+        if let Some(cancel) = self.document.get_element_by_id(CANCEL_ID) {
+            let page = Rc::clone(&self);
+            EventListener::new(&cancel, "click", move |_| page.cancel_job()).forget();
+        }
+
         spawn_local(async move { self.load_demo().await });
     }
 
-    async fn load_demo(&self) {
+    async fn load_demo(self: Rc<Self>) {
         let Some(demo_url) = self.body.get_attribute("data-demo-url") else {
             self.set_state("ready", "Drop a log to analyse it.");
             return;
         };
         let file_name = demo_url.rsplit('/').next().unwrap_or(&demo_url).to_string();
         self.set_state("loading", &format!("Loading the demo log {file_name}…"));
-        match fetch_bytes(&demo_url).await {
-            Ok(bytes) => {
-                self.analyse_and_show(&[(file_name.as_str(), bytes.as_slice())])
-                    .await
-            }
+        match fetch_file(&demo_url, &file_name).await {
+            Ok(file) => self.analyse_file_list(vec![file], None),
             Err(message) => self.show_error(&format!("Could not load the demo log {demo_url}: {message}. Drop a log to analyse it instead.")),
         }
     }
 
+    /// Starts a job: the one running (if any) is cancelled; returns the new one's
+    /// cancel flag.
+    fn begin_job(&self) -> Arc<AtomicBool> {
+        let cancel = Arc::new(AtomicBool::new(false));
+        let previous = std::mem::replace(&mut *self.cancel.borrow_mut(), Arc::clone(&cancel));
+        previous.store(true, Ordering::Release);
+        cancel
+    }
+
+    /// Cancels the running job (the Cancel button): the page keeps what it showed.
+    pub(crate) fn cancel_job(&self) {
+        self.cancel.borrow().store(true, Ordering::Release);
+        self.hide_progress();
+        let message = match self.results.borrow().as_ref() {
+            Some(results) => format!(
+                "Cancelled. The page still shows {}.",
+                results.calibration.report.file_name
+            ),
+            None => "Cancelled. Drop a log to analyse it.".to_string(),
+        };
+        self.set_state(
+            if self.results.borrow().is_some() {
+                "ready"
+            } else {
+                "error"
+            },
+            &message,
+        );
+    }
+
+    /// Counts the runs a job from `stage` makes (for the tests: a change of the step
+    /// model must not calibrate again).
+    fn count_runs(&self, stage: Stage) {
+        if stage == Stage::Calibration {
+            self.count_run(&self.n_calibration_runs, "data-calibration-runs");
+        }
+        self.count_run(&self.n_pdr_runs, "data-pdr-runs");
+    }
+
+    /// The analysis worker, when the page has one that works.
+    #[cfg(target_feature = "atomics")]
+    fn worker(&self) -> Option<&crate::web::worker::AnalysisWorker> {
+        self.worker.as_ref().filter(|worker| worker.works())
+    }
+
+    /// Where the worker's updates go: the progress bar and the status line.
+    #[cfg(target_feature = "atomics")]
+    fn on_update(self: &Rc<Self>) -> impl Fn(crate::web::worker::Update) + 'static {
+        let page = Rc::clone(self);
+        move |update| match update {
+            crate::web::worker::Update::Progress {
+                fraction,
+                file_name,
+            } => page.show_progress(fraction, &file_name),
+            crate::web::worker::Update::Step(status) => {
+                page.hide_progress();
+                page.set_state("loading", &status);
+            }
+        }
+    }
+
     /// The import the latest analysis came from, if there is one.
-    pub fn import(&self) -> Option<Rc<ImportReport>> {
+    pub fn import(&self) -> Option<Arc<ImportReport>> {
         self.import.borrow().clone()
     }
 
@@ -205,42 +289,78 @@ impl Page {
     }
 
     /// Re-runs `stage` (and what follows it) on the kept import with the controls'
-    /// current values.
+    /// current values, on the analysis worker where there is one.
     pub fn rerun(self: &Rc<Self>, stage: Stage) {
         let Some(import) = self.import.borrow().clone() else {
             return;
         };
         let page = Rc::clone(self);
+        let cancel = self.begin_job();
         spawn_local(async move {
             let file_name = import.file_name.clone();
             page.set_state("loading", &format!("Analysing {file_name} again…"));
-            yield_to_browser().await;
-            let previous = page.results.borrow_mut().take();
-            match (stage, previous.map(Rc::try_unwrap)) {
-                (Stage::DeadReckoning, Some(Ok(results))) => {
-                    let (pdr_summary, pdr) = page.show_dead_reckoning(
-                        Some(&import),
-                        (&results.calibration, &results.heading),
-                    );
-                    let summary = format!(
-                        "Dead-reckoned {file_name} again with the new settings.{pdr_summary}"
-                    );
-                    page.show_verdict(Some(&crate::verdict::verdict(
-                        &results.calibration,
-                        &results.heading.report,
-                        pdr.as_ref().ok().map(|pdr| &pdr.report),
-                    )));
-                    page.keep_results(Results { pdr, ..results });
-                    page.set_state("ready", &summary);
-                }
-                _ => {
-                    let options = controls::read(&page.document).options();
-                    page.count_run(&page.n_calibration_runs, "data-calibration-runs");
-                    let result = pipeline::calibration(&import, &options.heading_options);
-                    page.show_result(result, Some(import)).await;
-                }
+            page.count_runs(stage);
+            // The dead reckoning alone re-uses the calibration and the heading models.
+            let previous = match stage {
+                Stage::DeadReckoning => page
+                    .results
+                    .borrow_mut()
+                    .take()
+                    .and_then(|results| Rc::try_unwrap(results).ok()),
+                Stage::Calibration => None,
+            };
+            let request = analysis::Request {
+                import: Arc::clone(&import),
+                stage,
+                previous,
+                options: controls::read(&page.document).options(),
+            };
+            let Some(result) = page.run_request(request, &cancel).await else {
+                return;
+            };
+            if !cancel.load(Ordering::Acquire) {
+                page.show_outcome(result, Some(import)).await;
             }
         });
+    }
+
+    /// Runs `request` on the analysis worker where there is one, else here; `None`
+    /// when it was cancelled or the worker failed (which the page then says).
+    async fn run_request(
+        self: &Rc<Self>,
+        request: analysis::Request,
+        cancel: &Arc<AtomicBool>,
+    ) -> Option<Result<Results, AnalysisError>> {
+        #[cfg(target_feature = "atomics")]
+        let request = match self.worker() {
+            Some(worker) => {
+                use crate::web::worker::{Job, Work};
+                let job = Job {
+                    work: Work::Again(Box::new(request)),
+                    cancel: Arc::clone(cancel),
+                    outcome: None,
+                };
+                match worker.run(job, &[], self.on_update()).await {
+                    Ok(job) => return job.outcome.map(|(_, result)| result),
+                    Err((Some(job), message)) => match job.work {
+                        // The worker never took the job: run it here.
+                        Work::Again(request) => {
+                            web_sys::console::warn_1(&format!("compass-pdr: the analysis worker failed ({message}); analysing on the page's thread").into());
+                            *request
+                        }
+                        Work::Files { .. } => return None,
+                    },
+                    Err((_, message)) => {
+                        show_bug(&format!(
+                            "Internal error (a bug in compass-pdr): the analysis worker stopped: {message}. Reload the page to continue, and please report it."
+                        ));
+                        return None;
+                    }
+                }
+            }
+            None => request,
+        };
+        self.analyse_here(request, cancel).await
     }
 
     /// The timeline of the kept import, with the controls' split and outages.
@@ -332,8 +452,8 @@ pub fn show_bug(message: &str) {
     }
 }
 
-/// The bytes at a URL of the page's own origin.
-async fn fetch_bytes(url: &str) -> Result<Vec<u8>, String> {
+/// The file at a URL of the page's own origin, named `file_name`.
+async fn fetch_file(url: &str, file_name: &str) -> Result<web_sys::File, String> {
     let window = web_sys::window().ok_or("no window")?;
     let response = JsFuture::from(window.fetch_with_str(url))
         .await
@@ -344,10 +464,11 @@ async fn fetch_bytes(url: &str) -> Result<Vec<u8>, String> {
     if !response.ok() {
         return Err(format!("HTTP {}", response.status()));
     }
-    let buffer = JsFuture::from(response.array_buffer().map_err(describe_js_error)?)
+    let blob = JsFuture::from(response.blob().map_err(describe_js_error)?)
         .await
         .map_err(describe_js_error)?;
-    Ok(js_sys::Uint8Array::new(&buffer).to_vec())
+    web_sys::File::new_with_blob_sequence(&js_sys::Array::of1(&blob), file_name)
+        .map_err(describe_js_error)
 }
 
 /// The message of a JavaScript error, without a final full stop (the page's sentences

@@ -1,20 +1,22 @@
 //! Reading what was dropped or chosen: each file in chunks through a [`ChunkedImport`],
 //! the progress bar, the browser's turns between chunks, a remembered column mapping
 //! for a header seen before, and the hand-off to the mapping dialog when a single
-//! file's columns are not understood. Also the calibration stage on what was read.
+//! file's columns are not understood. The reading and the analysis run on the analysis
+//! worker where the page has one (`web::worker`), else here, a chunk or a step per task.
 
 use std::rc::Rc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 
 use wasm_bindgen_futures::spawn_local;
 
-use super::{now_ms, yield_to_browser, Page, CHUNK_BYTES};
+use super::analysis::Request;
+use super::{now_ms, yield_to_browser, Outcome, Page, CHUNK_BYTES};
 use crate::analysis::AnalysisError;
-use crate::calibration::CalibrationAnalysis;
 use crate::io::delimited::{preview, ColumnMapping, Preview};
-use crate::io::import::import_files;
 use crate::io::import::{header_signature, merge, ChunkedImport, FileImport};
-use crate::io::{ImportError, ImportReport};
-use crate::pipeline;
+use crate::io::ImportError;
+use crate::pipeline::Stage;
 use crate::web::chunks::ChunkReader;
 use crate::web::controls;
 use crate::web::mapping;
@@ -29,13 +31,6 @@ const YIELD_EVERY_MS: f64 = 40.0;
 /// How much of a file's start is kept for the mapping dialog's preview.
 const PREVIEW_BYTES: usize = 64 * 1024;
 
-/// What reading one file gave.
-struct ChunkedRead {
-    result: Result<FileImport, ImportError>,
-    first_chunk: Vec<u8>,
-    used_remembered_mapping: bool,
-}
-
 /// The preview of delimited text from its first bytes.
 fn preview_of(first_chunk: &[u8]) -> Option<Preview> {
     let mut lines = Vec::new();
@@ -48,10 +43,24 @@ fn preview_of(first_chunk: &[u8]) -> Option<Preview> {
     preview(&sample)
 }
 
+/// The first bytes of `file` (at most [`PREVIEW_BYTES`]): its header picks a
+/// remembered mapping, and a file whose columns are not understood is previewed from
+/// them.
+async fn head_of(file: &web_sys::File) -> Result<Vec<u8>, String> {
+    let head = file
+        .slice_with_f64_and_f64(0.0, PREVIEW_BYTES as f64)
+        .map_err(super::describe_js_error)?;
+    let mut reader = ChunkReader::new(head, PREVIEW_BYTES as f64);
+    let mut bytes = Vec::new();
+    if let Some(read) = reader.next_into(&mut bytes).await {
+        read?;
+    }
+    Ok(bytes)
+}
+
 impl Page {
     /// Reads every file dropped or chosen, in chunks, and analyses them as one recording
-    /// (phyphox writes one file per sensor). Each chunk is read asynchronously, so the
-    /// page repaints and answers between chunks, and the progress bar moves.
+    /// (phyphox writes one file per sensor), on the analysis worker where there is one.
     pub(super) fn analyse_files(self: &Rc<Self>, files: web_sys::FileList) {
         let files: Vec<web_sys::File> = (0..files.length())
             .filter_map(|idx| files.get(idx))
@@ -63,50 +72,50 @@ impl Page {
 
     /// Reads the files in chunks and analyses them as one recording. `mapping` is the
     /// one the user just made in the mapping dialog; otherwise a remembered one is used
-    /// for a header seen before.
+    /// for a header seen before. A job still running is cancelled.
     pub(crate) fn analyse_file_list(
         self: &Rc<Self>,
         files: Vec<web_sys::File>,
         mapping: Option<ColumnMapping>,
     ) {
         let page = Rc::clone(self);
+        let cancel = self.begin_job();
         spawn_local(async move {
             let names: Vec<String> = files.iter().map(web_sys::File::name).collect();
             page.set_state("loading", &format!("Reading {}…", names.join(", ")));
-            let total_bytes: f64 = files.iter().map(|file| file.size()).sum();
-            let mut bytes_done = 0.0;
-            let mut results = Vec::with_capacity(files.len());
             let mut first_chunks = Vec::with_capacity(files.len());
+            let mut mappings = Vec::with_capacity(files.len());
             let mut remembered_for = Vec::new();
             for (file, file_name) in files.iter().zip(&names) {
-                let read = page
-                    .read_in_chunks(
-                        file,
-                        file_name,
-                        mapping.as_ref(),
-                        &mut bytes_done,
-                        total_bytes,
-                    )
-                    .await;
-                match read {
-                    Ok(read) => {
-                        if read.used_remembered_mapping {
-                            remembered_for.push(file_name.clone());
-                        }
-                        results.push((file_name.clone(), read.result));
-                        first_chunks.push(read.first_chunk);
-                    }
-                    Err(message) => {
-                        page.hide_progress();
-                        page.show_error(&message);
+                let head = match head_of(file).await {
+                    Ok(head) => head,
+                    Err(error) => {
+                        page.show_error(&format!(
+                            "Could not read {file_name}: {error}. Try choosing it again."
+                        ));
                         return;
                     }
+                };
+                let remembered = match (&mapping, header_signature(&head)) {
+                    (None, Some(signature)) => mapping::remembered(&signature),
+                    _ => None,
+                };
+                if remembered.is_some() {
+                    remembered_for.push(file_name.clone());
                 }
+                mappings.push(mapping.clone().or(remembered));
+                first_chunks.push(head);
             }
-            page.hide_progress();
-            page.set_state("loading", &format!("Analysing {}…", names.join(", ")));
-            let merged = merge(results).map_err(AnalysisError::from);
-            let (result, import) = page.calibrate_import(merged);
+            page.count_runs(Stage::Calibration);
+            let Some((import, result)) = page
+                .read_and_analyse(&files, &names, mappings, &cancel)
+                .await
+            else {
+                return;
+            };
+            if cancel.load(Ordering::Acquire) {
+                return;
+            }
             // A single delimited file whose columns were not understood, or numbers
             // without a header line: ask the user.
             let unreadable_header = matches!(
@@ -136,7 +145,7 @@ impl Page {
                     return;
                 }
             }
-            page.show_result(result, import).await;
+            page.show_outcome(result, import).await;
             if !remembered_for.is_empty() {
                 let status = page.status.text_content().unwrap_or_default();
                 page.status.set_text_content(Some(&format!(
@@ -147,50 +156,126 @@ impl Page {
         });
     }
 
-    /// One file through a [`ChunkedImport`]; `Err` only when the browser cannot read it.
-    /// The next chunk is read while this one is parsed ([`ChunkReader`]); the browser
-    /// gets a turn (to paint the progress bar, to answer input) at least every
-    /// [`YIELD_EVERY_MS`].
+    /// Reads the files and analyses them: on the analysis worker where there is one,
+    /// else here. `None` when cancelled.
+    async fn read_and_analyse(
+        self: &Rc<Self>,
+        files: &[web_sys::File],
+        names: &[String],
+        mappings: Vec<Option<ColumnMapping>>,
+        cancel: &Arc<AtomicBool>,
+    ) -> Option<Outcome> {
+        let options = controls::read(&self.document).options();
+        #[cfg(target_feature = "atomics")]
+        if let Some(worker) = self.worker() {
+            use crate::web::worker::{FileRead, Job, Work};
+            let reads = files
+                .iter()
+                .zip(names)
+                .zip(mappings.iter().cloned())
+                .map(|((file, name), mapping)| {
+                    FileRead::new(name.clone(), file.size() as usize, mapping)
+                })
+                .collect();
+            let job = Job {
+                work: Work::Files {
+                    files: reads,
+                    options: Box::new(options.clone()),
+                },
+                cancel: Arc::clone(cancel),
+                outcome: None,
+            };
+            let blobs: Vec<web_sys::Blob> = files.iter().map(|file| file.clone().into()).collect();
+            match worker.run(job, &blobs, self.on_update()).await {
+                Ok(job) => {
+                    self.hide_progress();
+                    return job.outcome;
+                }
+                Err((Some(_), message)) => {
+                    // The worker never took the job: read the files here instead.
+                    web_sys::console::warn_1(
+                        &format!("compass-pdr: the analysis worker failed ({message}); analysing on the page's thread").into(),
+                    );
+                }
+                Err((None, message)) => {
+                    self.hide_progress();
+                    super::show_bug(&format!(
+                        "Internal error (a bug in compass-pdr): the analysis worker stopped: {message}. Reload the page to continue, and please report it."
+                    ));
+                    return None;
+                }
+            }
+        }
+        let total_bytes: f64 = files.iter().map(|file| file.size()).sum();
+        let mut bytes_done = 0.0;
+        let mut results = Vec::with_capacity(files.len());
+        for ((file, file_name), mapping) in files.iter().zip(names).zip(mappings) {
+            match self
+                .read_in_chunks(
+                    file,
+                    file_name,
+                    mapping,
+                    (&mut bytes_done, total_bytes),
+                    cancel,
+                )
+                .await
+            {
+                Ok(Some(result)) => results.push((file_name.clone(), result)),
+                Ok(None) => {
+                    self.hide_progress();
+                    return None;
+                }
+                Err(message) => {
+                    self.hide_progress();
+                    self.show_error(&message);
+                    return None;
+                }
+            }
+        }
+        self.hide_progress();
+        self.set_state("loading", &format!("Analysing {}…", names.join(", ")));
+        let import = match merge(results) {
+            Ok(import) => Arc::new(import),
+            Err(error) => return Some((None, Err(error.into()))),
+        };
+        let request = Request {
+            import: Arc::clone(&import),
+            stage: Stage::Calibration,
+            previous: None,
+            options,
+        };
+        let result = self.analyse_here(request, cancel).await?;
+        Some((Some(import), result))
+    }
+
+    /// One file through a [`ChunkedImport`] on this thread; `Ok(None)` when cancelled,
+    /// `Err` only when the browser cannot read it. The next chunk is read while this
+    /// one is parsed ([`ChunkReader`]); the browser gets a turn (to paint the progress
+    /// bar, to answer input) at least every [`YIELD_EVERY_MS`].
     async fn read_in_chunks(
         &self,
         file: &web_sys::File,
         file_name: &str,
-        mapping: Option<&ColumnMapping>,
-        bytes_done: &mut f64,
-        total_bytes: f64,
-    ) -> Result<ChunkedRead, String> {
+        mapping: Option<ColumnMapping>,
+        (bytes_done, total_bytes): (&mut f64, f64),
+        cancel: &AtomicBool,
+    ) -> Result<Option<Result<FileImport, ImportError>>, String> {
         let mut reader = ChunkReader::new(file.clone().into(), CHUNK_BYTES);
-        let size = reader.size();
-        let mut import: Option<ChunkedImport> = None;
-        let mut first_chunk = Vec::new();
-        let mut used_remembered_mapping = false;
+        let mut import =
+            ChunkedImport::new(file_name, Some(reader.size() as usize)).with_mapping(mapping);
         let mut bytes = Vec::new();
+        let mut n_chunks = 0;
         let mut last_turn_ms = now_ms();
         while let Some(read) = reader.next_into(&mut bytes).await {
             read.map_err(|error| {
                 format!("Could not read {file_name}: {error}. Try choosing it again.")
             })?;
-            let chunked = import.get_or_insert_with(|| {
-                // The header is in the first chunk: it picks a remembered mapping.
-                let signature = header_signature(&bytes);
-                let remembered = match (mapping, &signature) {
-                    (None, Some(signature)) => mapping::remembered(signature),
-                    _ => None,
-                };
-                used_remembered_mapping = remembered.is_some();
-                first_chunk = bytes
-                    .get(..bytes.len().min(PREVIEW_BYTES))
-                    .unwrap_or_default()
-                    .to_vec();
-                ChunkedImport::new(file_name, Some(size as usize))
-                    .with_mapping(mapping.cloned().or(remembered))
-            });
-            if let Err(error) = chunked.feed(&bytes) {
-                return Ok(ChunkedRead {
-                    result: Err(error),
-                    first_chunk,
-                    used_remembered_mapping,
-                });
+            if cancel.load(Ordering::Acquire) {
+                return Ok(None);
+            }
+            n_chunks += 1;
+            if let Err(error) = import.feed(&bytes) {
+                return Ok(Some(Err(error)));
             }
             *bytes_done += bytes.len() as f64;
             self.show_progress(*bytes_done / total_bytes.max(1.0), file_name);
@@ -199,20 +284,16 @@ impl Page {
                 last_turn_ms = now_ms();
             }
         }
-        let result = match import {
-            Some(import) => import.finish(),
-            None => Err(ImportError::Empty {
+        Ok(Some(if n_chunks == 0 {
+            Err(ImportError::Empty {
                 file_name: file_name.to_string(),
-            }),
-        };
-        Ok(ChunkedRead {
-            result,
-            first_chunk,
-            used_remembered_mapping,
-        })
+            })
+        } else {
+            import.finish()
+        }))
     }
 
-    fn show_progress(&self, fraction: f64, file_name: &str) {
+    pub(super) fn show_progress(&self, fraction: f64, file_name: &str) {
         if let Some(progress) = self.document.get_element_by_id(PROGRESS_ID) {
             let _ = progress.set_attribute("value", &format!("{:.4}", fraction.clamp(0.0, 1.0)));
             let _ = progress.remove_attribute("hidden");
@@ -223,38 +304,9 @@ impl Page {
         )));
     }
 
-    fn hide_progress(&self) {
+    pub(super) fn hide_progress(&self) {
         if let Some(progress) = self.document.get_element_by_id(PROGRESS_ID) {
             let _ = progress.set_attribute("hidden", "");
         }
-    }
-
-    pub(super) async fn analyse_and_show(&self, files: &[(&str, &[u8])]) {
-        let imported = import_files(files).map_err(AnalysisError::from);
-        let (result, import) = self.calibrate_import(imported);
-        self.show_result(result, import).await;
-    }
-
-    /// Keeps the import for re-runs and runs the pipeline's calibration stage on it
-    /// with the controls' options; also returns the kept import.
-    fn calibrate_import(
-        &self,
-        imported: Result<ImportReport, AnalysisError>,
-    ) -> (
-        Result<CalibrationAnalysis, AnalysisError>,
-        Option<Rc<ImportReport>>,
-    ) {
-        let import = match imported {
-            Ok(report) => Rc::new(report),
-            Err(error) => {
-                *self.import.borrow_mut() = None;
-                return (Err(error), None);
-            }
-        };
-        *self.import.borrow_mut() = Some(Rc::clone(&import));
-        let options = controls::read(&self.document).options();
-        self.count_run(&self.n_calibration_runs, "data-calibration-runs");
-        let result = pipeline::calibration(&import, &options.heading_options);
-        (result, Some(import))
     }
 }

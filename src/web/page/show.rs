@@ -4,6 +4,7 @@
 //! the timeline, and errors in the place of all of them.
 
 use std::rc::Rc;
+use std::sync::Arc;
 
 use wasm_bindgen::JsCast;
 use web_sys::HtmlCanvasElement;
@@ -13,8 +14,7 @@ use crate::analysis::AnalysisError;
 use crate::calibration::{CalibrationAnalysis, CalibrationReport};
 use crate::heading::{HeadingAnalysis, HeadingReport};
 use crate::io::ImportReport;
-use crate::pdr::{PdrAnalysis, PdrError};
-use crate::pipeline;
+use crate::pdr::PdrAnalysis;
 use crate::report;
 use crate::web::canvas::{self, HeadingPlot, PdrPlot, Plot};
 use crate::web::controls;
@@ -23,35 +23,79 @@ use crate::web::controls;
 const MAX_DIAGNOSTICS_SHOWN: usize = 50;
 
 impl Page {
-    /// Shows the calibration, lets the browser breathe (paint, answer input), then
-    /// learns and shows the heading models: two shorter blocks instead of one long one.
-    /// Then, with the log's own import, dead-reckons the walk.
-    pub(super) async fn show_result(
+    /// Shows a finished analysis of `import` (or why there is none): the answer first
+    /// (the summary), then the lists of the calibration, the heading models and the
+    /// dead reckoning, then their figures one at a time, the browser getting a turn
+    /// between them (to paint, to answer input), so that no part of the drawing is a
+    /// long task.
+    pub(super) async fn show_outcome(
         &self,
-        result: Result<CalibrationAnalysis, AnalysisError>,
-        import: Option<Rc<ImportReport>>,
+        outcome: Result<Results, AnalysisError>,
+        import: Option<Arc<ImportReport>>,
     ) {
-        match result {
-            Ok(mut analysis) => {
-                self.show_calibration(&analysis);
-                yield_to_browser().await;
-                let (summary, heading) = self.show_heading_models(&mut analysis);
-                yield_to_browser().await;
-                let (pdr_summary, pdr) =
-                    self.show_dead_reckoning(import.as_deref(), (&analysis, &heading));
-                self.show_verdict(Some(&crate::verdict::verdict(
-                    &analysis,
-                    &heading.report,
-                    pdr.as_ref().ok().map(|pdr| &pdr.report),
-                )));
-                self.keep_results(Results {
-                    calibration: analysis,
-                    heading,
-                    pdr,
-                });
-                self.set_state("ready", &format!("{summary}{pdr_summary}"));
+        let results = match outcome {
+            Ok(results) => results,
+            Err(error) => return self.show_error(&error.to_string()),
+        };
+        *self.import.borrow_mut() = import.clone();
+        let status = self.show_lists(&results, import.as_deref());
+        for figure in FIGURES {
+            yield_to_browser().await;
+            self.draw_figure(figure, &results);
+        }
+        self.keep_results(results);
+        self.set_state("ready", &status);
+    }
+
+    /// The summary and every list of `results`; returns the status line.
+    fn show_lists(&self, results: &Results, import: Option<&ImportReport>) -> String {
+        self.show_verdict(Some(&crate::verdict::verdict(
+            &results.calibration,
+            &results.heading.report,
+            results.pdr.as_ref().ok().map(|pdr| &pdr.report),
+        )));
+        self.show_calibration(&results.calibration);
+        let summary = self.show_heading_models(&results.calibration, &results.heading);
+        let pdr_summary = self.show_dead_reckoning(import, &results.pdr);
+        format!("{summary}{pdr_summary}")
+    }
+
+    /// Draws one figure of `results` on its canvas (a figure that cannot be drawn says
+    /// why in its place; the dead reckoning's say why there is none).
+    fn draw_figure(&self, figure: Figure, results: &Results) {
+        let drawn = match figure {
+            Figure::Calibration(canvas, plot) => {
+                let drawn = canvas::draw(self.canvas(canvas), plot, &results.calibration);
+                self.mark_time("data-first-plot-ms");
+                drawn
             }
-            Err(error) => self.show_error(&error.to_string()),
+            Figure::Heading(canvas, plot) => {
+                canvas::draw_heading(self.canvas(canvas), plot, &results.heading)
+            }
+            Figure::Pdr(canvas, plot) => match &results.pdr {
+                Ok(pdr) => canvas::draw_pdr(self.canvas(canvas), plot, pdr),
+                // Its message is drawn with the list (`show_dead_reckoning`).
+                Err(_) => Ok(()),
+            },
+        };
+        if let Err(message) = drawn {
+            let canvas = self.canvas(figure.canvas());
+            let _ =
+                canvas::draw_message(canvas, &format!("This plot could not be drawn: {message}"));
+        }
+    }
+
+    fn canvas(&self, canvas: Canvas) -> &HtmlCanvasElement {
+        match canvas {
+            Canvas::Circle => &self.circle_canvas,
+            Canvas::Heading => &self.heading_canvas,
+            Canvas::Field => &self.field_canvas,
+            Canvas::Deviation => &self.deviation_canvas,
+            Canvas::Residuals => &self.residuals_canvas,
+            Canvas::Online => &self.online_canvas,
+            Canvas::Trajectory => &self.trajectory_canvas,
+            Canvas::Steps => &self.steps_canvas,
+            Canvas::PositionError => &self.position_error_canvas,
         }
     }
 
@@ -105,122 +149,50 @@ impl Page {
                 .chain(import.mag_frame.map(|frame| frame.describe())),
             );
         }
-        // The table waits for the heading models; no stale rows meanwhile.
-        self.fill_list("methods-body", std::iter::empty());
-        self.fill_list("deviation-model", std::iter::empty());
         self.show_device_calibration(analysis);
         self.fill_list("notes", or_none(report.notes.iter().cloned()));
         self.show_diagnostics(report);
-        for (canvas, plot) in [
-            (&self.circle_canvas, Plot::CircleFit),
-            (&self.heading_canvas, Plot::HeadingError),
-            (&self.field_canvas, Plot::FieldMagnitude),
-        ] {
-            if let Err(message) = canvas::draw(canvas, plot, analysis) {
-                let _ = canvas::draw_message(
-                    canvas,
-                    &format!("This plot could not be drawn: {message}"),
-                );
-            }
-        }
-        self.mark_time("data-first-plot-ms");
-        self.set_state(
-            "loading",
-            &format!(
-                "Calibrated {}; learning the heading models…",
-                report.file_name
-            ),
-        );
     }
 
     /// The heading models on top of the calibration: every method and every stack on
-    /// the same split, the deviation curve and the residuals. Returns the status line
-    /// and the analysis.
-    fn show_heading_models(&self, analysis: &mut CalibrationAnalysis) -> (String, HeadingAnalysis) {
-        let options = controls::read(&self.document).options();
-        let headings = pipeline::heading_models(analysis, &options.heading_options);
-        // The choice is made: the device calibration and the heading plot follow it.
-        self.show_device_calibration(analysis);
-        if let Err(message) = canvas::draw(&self.heading_canvas, Plot::HeadingError, analysis) {
-            let _ = canvas::draw_message(
-                &self.heading_canvas,
-                &format!("This plot could not be drawn: {message}"),
-            );
-        }
+    /// the same split, the deviation curve and the residuals. Returns the status line.
+    fn show_heading_models(
+        &self,
+        analysis: &CalibrationAnalysis,
+        headings: &HeadingAnalysis,
+    ) -> String {
         let report = &analysis.report;
         self.show_methods(&headings.report);
         self.show_deviation_model(&headings.report);
-        for (canvas, plot) in [
-            (&self.deviation_canvas, HeadingPlot::DeviationCurve),
-            (&self.residuals_canvas, HeadingPlot::ResidualHistogram),
-            (&self.online_canvas, HeadingPlot::OnlineConvergence),
-        ] {
-            if let Err(message) = canvas::draw_heading(canvas, plot, &headings) {
-                let _ = canvas::draw_message(
-                    canvas,
-                    &format!("This plot could not be drawn: {message}"),
-                );
-            }
-        }
         let problems = match report.diagnostics.total() {
             0 => String::new(),
             1 => " 1 line had a problem; see below.".to_string(),
             n => format!(" {n} lines had problems; see below."),
         };
-        self.set_state(
-            "loading",
-            &format!("Calibrated {}; dead-reckoning the walk…", report.file_name),
-        );
         // The answer (and the method, the CLI's `best:` sentence word for word) is in the
         // summary below; the status says what was done.
-        let summary = format!(
+        format!(
             "Analysed {}: {} magnetometer samples.{problems}",
             report.file_name, report.n_samples_used
-        );
-        (summary, headings)
+        )
     }
 
-    /// Dead-reckons the walk (steps, step model, the EKF) and shows its summary and
-    /// plots; a log that cannot be dead-reckoned says why in their place. Returns a
-    /// sentence for the status line, and the analysis or why there is none.
-    pub(super) fn show_dead_reckoning(
+    /// The dead reckoning's summary and plots; a log that cannot be dead-reckoned says
+    /// why in their place. Returns a sentence for the status line.
+    fn show_dead_reckoning(
         &self,
         import: Option<&ImportReport>,
-        stages: (&CalibrationAnalysis, &HeadingAnalysis),
-    ) -> (String, Result<PdrAnalysis, String>) {
-        self.count_run(&self.n_pdr_runs, "data-pdr-runs");
-        let options = controls::read(&self.document).options();
-        let result = import
-            .filter(|import| !import.recording.acc_in_body_mps2.is_empty())
-            .ok_or_else(|| "the log has no accelerometer, so no steps can be detected".to_string())
-            .and_then(|import| {
-                crate::pdr::dead_reckon(import, stages, &options).map_err(|error| match error {
-                    PdrError::Analysis(error) => error.to_string(),
-                    other => other.to_string(),
-                })
-            });
-        let canvases = [
-            (&self.trajectory_canvas, PdrPlot::Trajectory),
-            (&self.steps_canvas, PdrPlot::StepLengths),
-            (&self.position_error_canvas, PdrPlot::PositionError),
-        ];
+        result: &Result<PdrAnalysis, String>,
+    ) -> String {
         match result {
             Ok(analysis) => {
                 self.fill_list(
                     "pdr-summary",
-                    report::pdr_summary_lines(&analysis).into_iter(),
+                    report::pdr_summary_lines(analysis).into_iter(),
                 );
-                for (canvas, plot) in canvases {
-                    if let Err(message) = canvas::draw_pdr(canvas, plot, &analysis) {
-                        let _ = canvas::draw_message(
-                            canvas,
-                            &format!("This plot could not be drawn: {message}"),
-                        );
-                    }
-                }
                 // A vehicle's log (an autopilot's, a car's) is not a walk: no step count.
                 let is_vehicle = import.is_some_and(|import| import.autopilot.is_some());
-                let sentence = if crate::verdict::is_walk(&analysis.report) && !is_vehicle {
+                if crate::verdict::is_walk(&analysis.report) && !is_vehicle {
                     format!(
                         " {} {} dead-reckoned over {:.0} m.",
                         analysis.report.n_steps,
@@ -229,16 +201,15 @@ impl Page {
                     )
                 } else {
                     String::new()
-                };
-                (sentence, Ok(analysis))
+                }
             }
             Err(message) => {
                 let message = format!("No dead reckoning: {message}.");
                 self.fill_list("pdr-summary", std::iter::once(message.clone()));
-                for (canvas, _) in canvases {
-                    let _ = canvas::draw_message(canvas, &message);
+                for canvas in [Canvas::Trajectory, Canvas::Steps, Canvas::PositionError] {
+                    let _ = canvas::draw_message(self.canvas(canvas), &message);
                 }
-                (String::new(), Err(message))
+                String::new()
             }
         }
     }
@@ -402,22 +373,59 @@ fn or_none(items: impl Iterator<Item = String>) -> impl Iterator<Item = String> 
     items.chain(none)
 }
 
+/// The page's canvases.
+#[derive(Debug, Clone, Copy)]
+enum Canvas {
+    Circle,
+    Heading,
+    Field,
+    Deviation,
+    Residuals,
+    Online,
+    Trajectory,
+    Steps,
+    PositionError,
+}
+
+/// One figure: what is drawn on which canvas.
+#[derive(Debug, Clone, Copy)]
+enum Figure {
+    Calibration(Canvas, Plot),
+    Heading(Canvas, HeadingPlot),
+    Pdr(Canvas, PdrPlot),
+}
+
+impl Figure {
+    fn canvas(self) -> Canvas {
+        match self {
+            Figure::Calibration(canvas, _)
+            | Figure::Heading(canvas, _)
+            | Figure::Pdr(canvas, _) => canvas,
+        }
+    }
+}
+
+/// Every figure, in the page's order.
+const FIGURES: [Figure; 9] = [
+    Figure::Calibration(Canvas::Circle, Plot::CircleFit),
+    Figure::Calibration(Canvas::Heading, Plot::HeadingError),
+    Figure::Calibration(Canvas::Field, Plot::FieldMagnitude),
+    Figure::Heading(Canvas::Deviation, HeadingPlot::DeviationCurve),
+    Figure::Heading(Canvas::Residuals, HeadingPlot::ResidualHistogram),
+    Figure::Heading(Canvas::Online, HeadingPlot::OnlineConvergence),
+    Figure::Pdr(Canvas::Trajectory, PdrPlot::Trajectory),
+    Figure::Pdr(Canvas::Steps, PdrPlot::StepLengths),
+    Figure::Pdr(Canvas::PositionError, PdrPlot::PositionError),
+];
+
 #[cfg(test)]
 impl Page {
     /// The whole analysis at once (the browser tests use it).
-    pub(crate) fn show_analysis(
-        &self,
-        analysis: &mut CalibrationAnalysis,
-        import: Option<&ImportReport>,
-    ) {
-        self.show_calibration(analysis);
-        let (summary, heading) = self.show_heading_models(analysis);
-        let (pdr_summary, pdr) = self.show_dead_reckoning(import, (analysis, &heading));
-        self.show_verdict(Some(&crate::verdict::verdict(
-            analysis,
-            &heading.report,
-            pdr.as_ref().ok().map(|pdr| &pdr.report),
-        )));
-        self.set_state("ready", &format!("{summary}{pdr_summary}"));
+    pub(crate) fn show_analysis(&self, results: &Results, import: Option<&ImportReport>) {
+        let status = self.show_lists(results, import);
+        for figure in FIGURES {
+            self.draw_figure(figure, results);
+        }
+        self.set_state("ready", &status);
     }
 }

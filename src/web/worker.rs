@@ -1,0 +1,359 @@
+//! The analysis worker: reading dropped files and running the pipeline off the page's
+//! main thread, so that the page keeps painting and answering input while a large
+//! log is analysed. Only in the threaded module (`target_feature = "atomics"`), where
+//! the worker (`www/analysis-worker.js`) instantiates the module on the page's shared
+//! memory: a [`Job`] is handed over through that memory, not copied, and the results
+//! come back the same way, so the page draws them without a copy or a parse.
+//!
+//! The hand-over: the page puts the job in [`JOBS`] under a fresh id and posts the id
+//! and the files to the worker; the worker takes the job out ([`AnalysisJob::take`]),
+//! reads the files into it chunk by chunk, runs the analysis and puts it back
+//! ([`AnalysisJob::finish`]); its `done` message lets the page take it out again. One
+//! thread holds a job at a time, and only through the mutex. The page's main thread
+//! may not block, so it takes the mutex by spinning; it is held for a push or a
+//! removal only.
+//!
+//! Cancel: the page sets the job's [`Job::cancel`] flag; the worker checks it between
+//! chunks and between the pipeline's steps.
+
+use std::cell::{Cell, RefCell};
+use std::collections::HashMap;
+use std::rc::Rc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, TryLockError};
+
+use gloo::events::EventListener;
+use js_sys::{Array, Function, Object, Promise, Reflect};
+use wasm_bindgen::prelude::*;
+use wasm_bindgen::JsCast;
+use wasm_bindgen_futures::JsFuture;
+
+use super::page::analysis::{Request, Steps};
+use super::page::Outcome;
+use crate::io::delimited::ColumnMapping;
+use crate::io::import::{merge, ChunkedImport};
+use crate::io::ImportError;
+use crate::pdr::PdrOptions;
+
+/// What a job does.
+pub(crate) enum Work {
+    /// Read these files (their bytes come from the worker) and analyse them as one
+    /// recording.
+    Files {
+        files: Vec<FileRead>,
+        options: Box<PdrOptions>,
+    },
+    /// Analyse the kept import again.
+    Again(Box<Request>),
+}
+
+/// One file of a [`Work::Files`] job.
+pub(crate) struct FileRead {
+    name: String,
+    size: usize,
+    mapping: Option<ColumnMapping>,
+    import: Option<ChunkedImport>,
+    /// Set when a chunk could not be read: the rest of the file is not asked for.
+    failed: Option<ImportError>,
+}
+
+impl FileRead {
+    /// A file of `size` bytes, read with `mapping` (the user's, or one remembered for
+    /// its header).
+    pub(crate) fn new(name: String, size: usize, mapping: Option<ColumnMapping>) -> FileRead {
+        FileRead {
+            name,
+            size,
+            mapping,
+            import: None,
+            failed: None,
+        }
+    }
+}
+
+/// A job and, once the worker is done, its outcome.
+pub(crate) struct Job {
+    pub work: Work,
+    /// Set by the page to stop the job at its next chunk or step.
+    pub cancel: Arc<AtomicBool>,
+    /// The import analysed (when the files could be read) and the analysis; `None`
+    /// while the job runs, and after a cancel.
+    pub outcome: Option<Outcome>,
+}
+
+/// The jobs handed over, by id (see the module's documentation).
+static JOBS: Mutex<Vec<(u32, Box<Job>)>> = Mutex::new(Vec::new());
+
+/// `f` on the jobs, the mutex taken by spinning (this may be the main thread).
+fn with_jobs<R>(f: impl FnOnce(&mut Vec<(u32, Box<Job>)>) -> R) -> R {
+    loop {
+        match JOBS.try_lock() {
+            Ok(mut jobs) => return f(&mut jobs),
+            Err(TryLockError::Poisoned(poisoned)) => return f(&mut poisoned.into_inner()),
+            Err(TryLockError::WouldBlock) => std::hint::spin_loop(),
+        }
+    }
+}
+
+fn put(id: u32, job: Box<Job>) {
+    with_jobs(|jobs| jobs.push((id, job)));
+}
+
+fn take(id: u32) -> Option<Box<Job>> {
+    with_jobs(|jobs| {
+        let idx = jobs.iter().position(|(job_id, _)| *job_id == id)?;
+        Some(jobs.swap_remove(idx).1)
+    })
+}
+
+/// A job as the worker's script holds it, between [`AnalysisJob::take`] and
+/// [`AnalysisJob::finish`].
+#[wasm_bindgen]
+pub struct AnalysisJob {
+    id: u32,
+    job: Box<Job>,
+}
+
+#[wasm_bindgen]
+impl AnalysisJob {
+    /// The job the page handed over as `id`, or `undefined` if there is none.
+    pub fn take(id: u32) -> Option<AnalysisJob> {
+        take(id).map(|job| AnalysisJob { id, job })
+    }
+
+    /// Whether the page asked to stop.
+    pub fn cancelled(&self) -> bool {
+        self.job.cancel.load(Ordering::Acquire)
+    }
+
+    /// The next chunk of file `file_idx` (the files in the order they were posted);
+    /// `false` once that file cannot be read further (its error is kept for the
+    /// outcome), so the worker stops reading it.
+    pub fn feed(&mut self, file_idx: usize, bytes: &[u8]) -> bool {
+        let Work::Files { files, .. } = &mut self.job.work else {
+            return false;
+        };
+        let Some(file) = files.get_mut(file_idx) else {
+            return false;
+        };
+        if file.failed.is_some() {
+            return false;
+        }
+        let (name, size, mapping) = (&file.name, file.size, &file.mapping);
+        let import = file.import.get_or_insert_with(|| {
+            ChunkedImport::new(name, Some(size)).with_mapping(mapping.clone())
+        });
+        match import.feed(bytes) {
+            Ok(()) => true,
+            Err(error) => {
+                file.failed = Some(error);
+                false
+            }
+        }
+    }
+
+    /// Finishes reading and runs the analysis; `on_step(text)` is called with the
+    /// status line before each step. Stops early, with no outcome, when cancelled.
+    pub fn run(&mut self, on_step: &Function) {
+        let cancel = Arc::clone(&self.job.cancel);
+        let request = match std::mem::replace(
+            &mut self.job.work,
+            Work::Files {
+                files: Vec::new(),
+                options: Box::default(),
+            },
+        ) {
+            Work::Again(request) => *request,
+            Work::Files { files, options } => {
+                let read = files
+                    .into_iter()
+                    .map(|file| {
+                        let result = match (file.failed, file.import) {
+                            (Some(error), _) => Err(error),
+                            (None, Some(import)) => import.finish(),
+                            (None, None) => Err(ImportError::Empty {
+                                file_name: file.name.clone(),
+                            }),
+                        };
+                        (file.name, result)
+                    })
+                    .collect();
+                match merge(read) {
+                    Ok(import) => Request {
+                        import: Arc::new(import),
+                        stage: crate::pipeline::Stage::Calibration,
+                        previous: None,
+                        options: *options,
+                    },
+                    Err(error) => {
+                        self.job.outcome = Some((None, Err(error.into())));
+                        return;
+                    }
+                }
+            }
+        };
+        let mut steps = Steps::new(request);
+        while let Some(step) = steps.next() {
+            let _ = on_step.call1(
+                &JsValue::NULL,
+                &step.status(&steps.import().file_name).into(),
+            );
+            if cancel.load(Ordering::Acquire) {
+                return;
+            }
+            steps.advance();
+        }
+        let import = Arc::clone(steps.import());
+        self.job.outcome = Some((Some(import), steps.finish()));
+    }
+
+    /// Hands the job back to the page (its `done` message follows).
+    pub fn finish(self) {
+        put(self.id, self.job);
+    }
+}
+
+/// An update from the worker while a job runs.
+pub(crate) enum Update {
+    /// `fraction` of the bytes read, `file_name` the one being read.
+    Progress { fraction: f64, file_name: String },
+    /// The status line of the step that starts.
+    Step(String),
+}
+
+/// A job the page waits for: its promise's resolve and reject, and where its updates go.
+struct Waiting {
+    resolve: Function,
+    reject: Function,
+    on_update: Box<dyn Fn(Update)>,
+}
+
+/// The page's side of the analysis worker.
+pub(crate) struct AnalysisWorker {
+    worker: web_sys::Worker,
+    next_id: Cell<u32>,
+    waiting: Rc<RefCell<HashMap<u32, Waiting>>>,
+    /// Set when the worker failed (its script did not load, or it trapped): the page
+    /// then analyses on its own thread.
+    broken: Rc<Cell<bool>>,
+    _listeners: [EventListener; 2],
+}
+
+impl AnalysisWorker {
+    /// Listens to `worker` (started by `www/bootstrap.js` on the module's memory).
+    pub(crate) fn new(worker: web_sys::Worker) -> AnalysisWorker {
+        let waiting: Rc<RefCell<HashMap<u32, Waiting>>> = Rc::default();
+        let broken = Rc::new(Cell::new(false));
+        let on_message = {
+            let waiting = Rc::clone(&waiting);
+            EventListener::new(&worker, "message", move |event| {
+                let Some(data) = event
+                    .dyn_ref::<web_sys::MessageEvent>()
+                    .map(|event| event.data())
+                else {
+                    return;
+                };
+                let field =
+                    |name: &str| Reflect::get(&data, &name.into()).unwrap_or(JsValue::UNDEFINED);
+                let Some(id) = field("id").as_f64().map(|id| id as u32) else {
+                    return;
+                };
+                let mut waiting = waiting.borrow_mut();
+                if let Some(fraction) = field("progress").as_f64() {
+                    if let Some(job) = waiting.get(&id) {
+                        let file_name = field("file").as_string().unwrap_or_default();
+                        (job.on_update)(Update::Progress {
+                            fraction,
+                            file_name,
+                        });
+                    }
+                } else if let Some(step) = field("step").as_string() {
+                    if let Some(job) = waiting.get(&id) {
+                        (job.on_update)(Update::Step(step));
+                    }
+                } else if let Some(job) = waiting.remove(&id) {
+                    let failed = field("failed");
+                    let _ = if failed.is_undefined() {
+                        job.resolve.call0(&JsValue::NULL)
+                    } else {
+                        job.reject.call1(&JsValue::NULL, &failed)
+                    };
+                }
+            })
+        };
+        let on_error = {
+            let waiting = Rc::clone(&waiting);
+            let broken = Rc::clone(&broken);
+            EventListener::new(&worker, "error", move |event| {
+                broken.set(true);
+                let message = event.dyn_ref::<web_sys::ErrorEvent>().map_or_else(
+                    || "the analysis worker failed".to_string(),
+                    web_sys::ErrorEvent::message,
+                );
+                for (_, job) in waiting.borrow_mut().drain() {
+                    let _ = job.reject.call1(&JsValue::NULL, &message.as_str().into());
+                }
+            })
+        };
+        AnalysisWorker {
+            worker,
+            next_id: Cell::new(1),
+            waiting,
+            broken,
+            _listeners: [on_message, on_error],
+        }
+    }
+
+    /// Whether jobs can go to the worker.
+    pub(crate) fn works(&self) -> bool {
+        !self.broken.get()
+    }
+
+    /// Runs `job` on the worker, `files` being the blobs of a [`Work::Files`] job in
+    /// its order; `on_update` hears its progress. Gives the job back with its
+    /// outcome, or `Err((job, message))` when the worker failed: the job as it was
+    /// handed over if the worker never took it (so the page can run it itself), else
+    /// `None`.
+    pub(crate) async fn run(
+        &self,
+        job: Job,
+        files: &[web_sys::Blob],
+        on_update: impl Fn(Update) + 'static,
+    ) -> Result<Box<Job>, (Option<Box<Job>>, String)> {
+        let id = self.next_id.get();
+        self.next_id.set(id.wrapping_add(1));
+        put(id, Box::new(job));
+        let mut on_update: Option<Box<dyn Fn(Update)>> = Some(Box::new(on_update));
+        let waiting = Rc::clone(&self.waiting);
+        let promise = Promise::new(&mut |resolve, reject| {
+            if let Some(on_update) = on_update.take() {
+                waiting.borrow_mut().insert(
+                    id,
+                    Waiting {
+                        resolve,
+                        reject,
+                        on_update,
+                    },
+                );
+            }
+        });
+        let message = Object::new();
+        let blobs: Array = files.iter().collect();
+        let posted = Reflect::set(&message, &"id".into(), &id.into())
+            .and_then(|_| Reflect::set(&message, &"files".into(), &blobs))
+            .and_then(|_| self.worker.post_message(&message));
+        let answer = match posted {
+            Ok(()) => JsFuture::from(promise).await.map(|_| ()),
+            Err(error) => Err(error),
+        };
+        self.waiting.borrow_mut().remove(&id);
+        match (answer, take(id)) {
+            (Ok(()), Some(job)) => Ok(job),
+            (Ok(()), None) => Err((None, "the analysis worker lost the job".to_string())),
+            (Err(error), job) => {
+                self.broken.set(true);
+                Err((job, super::page::describe_js_error(error)))
+            }
+        }
+    }
+}

@@ -1,0 +1,46 @@
+// The analysis worker (src/web/worker.rs): reads the files the page hands over and runs
+// the analysis off the page's main thread, so that the page keeps painting and
+// answering while a large log is analysed. It instantiates the threaded module the page
+// compiled on the page's shared memory: a job is taken from that memory by its id, and
+// put back there with its results, so nothing is copied on the way back.
+import { initSync, AnalysisJob } from './pkg-threads/compass_pdr.js';
+
+/** Bytes read at a time: the page hears of the progress after each. */
+const CHUNK_BYTES = 4 * 1024 * 1024;
+
+self.onmessage = ({ data }) => {
+  if (data.module) {
+    initSync({ module: data.module, memory: data.memory });
+    return;
+  }
+  const { id, files } = data;
+  const job = AnalysisJob.take(id);
+  if (!job) {
+    postMessage({ id, done: true });
+    return;
+  }
+  try {
+    const reader = new FileReaderSync();
+    const totalBytes = files.reduce((sum, file) => sum + file.size, 0);
+    let bytesDone = 0;
+    reading: for (const [fileIdx, file] of files.entries()) {
+      for (let start = 0; start < file.size; start += CHUNK_BYTES) {
+        if (job.cancelled()) break reading;
+        const bytes = new Uint8Array(reader.readAsArrayBuffer(file.slice(start, start + CHUNK_BYTES)));
+        bytesDone += bytes.length;
+        const readOn = job.feed(fileIdx, bytes);
+        postMessage({ id, progress: bytesDone / Math.max(totalBytes, 1), file: file.name });
+        if (!readOn) {
+          bytesDone += file.size - start - bytes.length;
+          break;
+        }
+      }
+    }
+    if (!job.cancelled()) job.run((step) => postMessage({ id, step }));
+    job.finish();
+    postMessage({ id, done: true });
+  } catch (error) {
+    // A trap (a bug): the job is lost; the page says so.
+    postMessage({ id, failed: `${error}` });
+  }
+};
