@@ -240,9 +240,9 @@ impl Page {
         );
     }
 
-    /// Counts the runs a job from `stage` makes (for the tests: a change of the step
-    /// model must not calibrate again).
-    fn count_runs(&self, stage: Stage) {
+    /// Counts the runs a job from `stage` made, once it is shown (for the tests: a
+    /// change of the step model must not calibrate again).
+    pub(super) fn count_runs(&self, stage: Stage) {
         if stage == Stage::Calibration {
             self.count_run(&self.n_calibration_runs, "data-calibration-runs");
         }
@@ -299,7 +299,6 @@ impl Page {
         spawn_local(async move {
             let file_name = import.file_name.clone();
             page.set_state("loading", &format!("Analysing {file_name} again…"));
-            page.count_runs(stage);
             // The dead reckoning alone re-uses the calibration and the heading models.
             let previous = match stage {
                 Stage::DeadReckoning => page
@@ -319,7 +318,8 @@ impl Page {
                 return;
             };
             if !cancel.load(Ordering::Acquire) {
-                page.show_outcome(result, Some(import)).await;
+                page.show_outcome(result, Some(import), (stage, &cancel))
+                    .await;
             }
         });
     }

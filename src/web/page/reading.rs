@@ -106,7 +106,6 @@ impl Page {
                 mappings.push(mapping.clone().or(remembered));
                 first_chunks.push(head);
             }
-            page.count_runs(Stage::Calibration);
             let Some((import, result)) = page
                 .read_and_analyse(&files, &names, mappings, &cancel)
                 .await
@@ -145,7 +144,8 @@ impl Page {
                     return;
                 }
             }
-            page.show_outcome(result, import).await;
+            page.show_outcome(result, import, (Stage::Calibration, &cancel))
+                .await;
             if !remembered_for.is_empty() {
                 let status = page.status.text_content().unwrap_or_default();
                 page.status.set_text_content(Some(&format!(

@@ -4,6 +4,7 @@
 //! the timeline, and errors in the place of all of them.
 
 use std::rc::Rc;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
 use wasm_bindgen::JsCast;
@@ -15,6 +16,7 @@ use crate::calibration::{CalibrationAnalysis, CalibrationReport};
 use crate::heading::{HeadingAnalysis, HeadingReport};
 use crate::io::ImportReport;
 use crate::pdr::PdrAnalysis;
+use crate::pipeline::Stage;
 use crate::report;
 use crate::web::canvas::{self, HeadingPlot, PdrPlot, Plot};
 use crate::web::controls;
@@ -27,11 +29,13 @@ impl Page {
     /// (the summary), then the lists of the calibration, the heading models and the
     /// dead reckoning, then their figures one at a time, the browser getting a turn
     /// between them (to paint, to answer input), so that no part of the drawing is a
-    /// long task.
+    /// long task. A job started meanwhile (`cancel` set) stops the drawing: its own
+    /// outcome follows. `stage`: where the analysis started, for the run counters.
     pub(super) async fn show_outcome(
         &self,
         outcome: Result<Results, AnalysisError>,
         import: Option<Arc<ImportReport>>,
+        (stage, cancel): (Stage, &AtomicBool),
     ) {
         let results = match outcome {
             Ok(results) => results,
@@ -41,9 +45,13 @@ impl Page {
         let status = self.show_lists(&results, import.as_deref());
         for figure in FIGURES {
             yield_to_browser().await;
+            if cancel.load(Ordering::Acquire) {
+                return;
+            }
             self.draw_figure(figure, &results);
         }
         self.keep_results(results);
+        self.count_runs(stage);
         self.set_state("ready", &status);
     }
 
