@@ -119,6 +119,10 @@ pub struct Verdict {
     pub figures: Vec<Figure>,
     /// What to do to get a better answer; empty when there is nothing to do.
     pub to_do: Vec<String>,
+    /// For a log without a reference (a board turned in the hand): where the corrected
+    /// field's directions fell on MotionCal's 100 regions, the figure that says which
+    /// directions to turn the board through again.
+    pub coverage: Option<SphereCoverage>,
 }
 
 /// The answer to one log: from the calibration, the heading comparison (its choice of
@@ -425,6 +429,7 @@ fn heading_verdict(
         method,
         figures,
         to_do,
+        coverage: None,
     }
 }
 
@@ -451,6 +456,7 @@ fn field_verdict(
                 .iter()
                 .filter_map(|method| method.error.as_ref().map(|error| format!("{}: {error}", method.label)))
                 .collect(),
+            coverage: None,
         };
     };
     let label = field.method_label.unwrap_or("the calibration");
@@ -507,6 +513,7 @@ fn field_verdict(
         method,
         figures,
         to_do,
+        coverage: Some(field.coverage.clone()),
     }
 }
 
@@ -578,6 +585,7 @@ fn autopilot_verdict(
         method: autopilot_method(autopilot, primary),
         figures,
         to_do: autopilot.notes.clone(),
+        coverage: None,
     }
 }
 

@@ -96,6 +96,15 @@ fn a_board_turned_in_the_hand_gets_its_spread_and_coverage_not_a_heading_error()
         let (before, after) = spread.split_once('→').expect("before → after");
         assert!(number(after) < number(before), "{file}: {spread}");
         assert!(figure(&verdict, "Directions covered").contains("of 100 regions"));
+        // The coverage map the summary draws is the one its figure counts.
+        let coverage = verdict.coverage.as_ref().expect("a coverage map");
+        assert!(
+            figure(&verdict, "Directions covered")
+                .starts_with(&format!("{} of 100", coverage.n_covered)),
+            "{file}: {} against {}",
+            coverage.n_covered,
+            figure(&verdict, "Directions covered")
+        );
         assert!(
             verdict.headline.contains("directions covered"),
             "{}",

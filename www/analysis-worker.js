@@ -7,6 +7,10 @@ import { initSync, AnalysisJob } from './pkg-threads/compass_pdr.js';
 
 /** Bytes read at a time: the page hears of the progress after each. */
 const CHUNK_BYTES = 4 * 1024 * 1024;
+/** A file up to this size is read whole, as the CLI reads a file (its streams sized
+ * once, parsed on every core); a larger one in chunks, with the progress bar moving,
+ * and memory holding its samples rather than its text. */
+const WHOLE_FILE_BYTES = 16 * 1024 * 1024;
 
 self.onmessage = ({ data }) => {
   if (data.module) {
@@ -24,6 +28,14 @@ self.onmessage = ({ data }) => {
     const totalBytes = files.reduce((sum, file) => sum + file.size, 0);
     let bytesDone = 0;
     reading: for (const [fileIdx, file] of files.entries()) {
+      if (job.cancelled()) break;
+      if (file.size > 0 && file.size <= WHOLE_FILE_BYTES) {
+        postMessage({ id, progress: bytesDone / Math.max(totalBytes, 1), file: file.name });
+        job.read_whole(fileIdx, new Uint8Array(reader.readAsArrayBuffer(file)));
+        bytesDone += file.size;
+        postMessage({ id, progress: bytesDone / Math.max(totalBytes, 1), file: file.name });
+        continue;
+      }
       for (let start = 0; start < file.size; start += CHUNK_BYTES) {
         if (job.cancelled()) break reading;
         const bytes = new Uint8Array(reader.readAsArrayBuffer(file.slice(start, start + CHUNK_BYTES)));
@@ -36,7 +48,7 @@ self.onmessage = ({ data }) => {
         }
       }
     }
-    if (!job.cancelled()) job.run((step) => postMessage({ id, step }));
+    if (!job.cancelled()) job.run((step) => postMessage({ id, step }), () => postMessage({ id, calibrated: true }));
     job.finish();
     postMessage({ id, done: true });
   } catch (error) {

@@ -30,9 +30,10 @@ use wasm_bindgen_futures::JsFuture;
 
 use super::page::analysis::{Request, Steps};
 use super::page::Outcome;
+use crate::calibration::CalibrationAnalysis;
 use crate::io::delimited::ColumnMapping;
-use crate::io::import::{merge, ChunkedImport};
-use crate::io::ImportError;
+use crate::io::import::{import_file, merge, ChunkedImport, FileImport};
+use crate::io::{ImportError, ImportReport};
 use crate::pdr::PdrOptions;
 
 /// What a job does.
@@ -55,6 +56,8 @@ pub(crate) struct FileRead {
     import: Option<ChunkedImport>,
     /// Set when a chunk could not be read: the rest of the file is not asked for.
     failed: Option<ImportError>,
+    /// The whole file read at once ([`AnalysisJob::read_whole`]).
+    whole: Option<Result<FileImport, ImportError>>,
 }
 
 impl FileRead {
@@ -67,6 +70,7 @@ impl FileRead {
             mapping,
             import: None,
             failed: None,
+            whole: None,
         }
     }
 }
@@ -106,6 +110,29 @@ fn take(id: u32) -> Option<Box<Job>> {
     })
 }
 
+/// A job's calibration, copied for the page while the job goes on, by job id.
+type Calibrated = Vec<(u32, Box<(Arc<ImportReport>, CalibrationAnalysis)>)>;
+static CALIBRATED: Mutex<Calibrated> = Mutex::new(Vec::new());
+
+/// `f` on the calibrations waiting for the page, the mutex taken by spinning.
+fn with_calibrated<R>(f: impl FnOnce(&mut Calibrated) -> R) -> R {
+    loop {
+        match CALIBRATED.try_lock() {
+            Ok(mut calibrated) => return f(&mut calibrated),
+            Err(TryLockError::Poisoned(poisoned)) => return f(&mut poisoned.into_inner()),
+            Err(TryLockError::WouldBlock) => std::hint::spin_loop(),
+        }
+    }
+}
+
+/// Job `id`'s calibration, with the import it came from, once the worker said so.
+fn take_calibrated(id: u32) -> Option<(Arc<ImportReport>, CalibrationAnalysis)> {
+    with_calibrated(|calibrated| {
+        let idx = calibrated.iter().position(|(job_id, _)| *job_id == id)?;
+        Some(*calibrated.swap_remove(idx).1)
+    })
+}
+
 /// A job as the worker's script holds it, between [`AnalysisJob::take`] and
 /// [`AnalysisJob::finish`].
 #[wasm_bindgen]
@@ -124,6 +151,18 @@ impl AnalysisJob {
     /// Whether the page asked to stop.
     pub fn cancelled(&self) -> bool {
         self.job.cancel.load(Ordering::Acquire)
+    }
+
+    /// File `file_idx` (the files in the order they were posted) whole, as the CLI reads
+    /// a file it maps: the streams sized once and a large file parsed on every core
+    /// (the worker reads files up to a size this way, larger ones in chunks).
+    pub fn read_whole(&mut self, file_idx: usize, bytes: &[u8]) {
+        let Work::Files { files, .. } = &mut self.job.work else {
+            return;
+        };
+        if let Some(file) = files.get_mut(file_idx) {
+            file.whole = Some(import_file(&file.name, bytes, file.mapping.as_ref()));
+        }
     }
 
     /// The next chunk of file `file_idx` (the files in the order they were posted);
@@ -153,8 +192,11 @@ impl AnalysisJob {
     }
 
     /// Finishes reading and runs the analysis; `on_step(text)` is called with the
-    /// status line before each step. Stops early, with no outcome, when cancelled.
-    pub fn run(&mut self, on_step: &Function) {
+    /// status line before each step, and `on_calibrated()` once the calibration is
+    /// done and a copy of it waits for the page ([`take_calibrated`]), so that its
+    /// figures are drawn while the heading models and the dead reckoning run. Stops
+    /// early, with no outcome, when cancelled.
+    pub fn run(&mut self, on_step: &Function, on_calibrated: &Function) {
         let cancel = Arc::clone(&self.job.cancel);
         let request = match std::mem::replace(
             &mut self.job.work,
@@ -168,10 +210,11 @@ impl AnalysisJob {
                 let read = files
                     .into_iter()
                     .map(|file| {
-                        let result = match (file.failed, file.import) {
-                            (Some(error), _) => Err(error),
-                            (None, Some(import)) => import.finish(),
-                            (None, None) => Err(ImportError::Empty {
+                        let result = match (file.whole, file.failed, file.import) {
+                            (Some(whole), _, _) => whole,
+                            (None, Some(error), _) => Err(error),
+                            (None, None, Some(import)) => import.finish(),
+                            (None, None, None) => Err(ImportError::Empty {
                                 file_name: file.name.clone(),
                             }),
                         };
@@ -202,6 +245,11 @@ impl AnalysisJob {
                 return;
             }
             steps.advance();
+            if let Some(calibration) = steps.calibrated() {
+                let early = (Arc::clone(steps.import()), calibration.clone());
+                with_calibrated(|calibrated| calibrated.push((self.id, Box::new(early))));
+                let _ = on_calibrated.call0(&JsValue::NULL);
+            }
         }
         let import = Arc::clone(steps.import());
         self.job.outcome = Some((Some(import), steps.finish()));
@@ -219,6 +267,8 @@ pub(crate) enum Update {
     Progress { fraction: f64, file_name: String },
     /// The status line of the step that starts.
     Step(String),
+    /// The calibration, done while the job goes on, with the import it came from.
+    Calibrated(Box<(Arc<ImportReport>, CalibrationAnalysis)>),
 }
 
 /// A job the page waits for: its promise's resolve and reject, and where its updates go.
@@ -270,6 +320,11 @@ impl AnalysisWorker {
                 } else if let Some(step) = field("step").as_string() {
                     if let Some(job) = waiting.get(&id) {
                         (job.on_update)(Update::Step(step));
+                    }
+                } else if field("calibrated").is_truthy() {
+                    let early = take_calibrated(id);
+                    if let (Some(job), Some(early)) = (waiting.get(&id), early) {
+                        (job.on_update)(Update::Calibrated(Box::new(early)));
                     }
                 } else if let Some(job) = waiting.remove(&id) {
                     let failed = field("failed");

@@ -10,7 +10,7 @@ import { test } from 'node:test';
 import assert from 'node:assert/strict';
 import { existsSync, readdirSync, statSync, writeFileSync } from 'node:fs';
 import { join } from 'node:path';
-import { lastDropTiming, openPage, out, recordMainThread } from './common.mjs';
+import { drawnPixels, lastDropTiming, openPage, out, recordMainThread } from './common.mjs';
 
 const data = process.env.SHARED_DATA || join(import.meta.dirname, '..', '..', '..', 'shared', 'data');
 
@@ -102,6 +102,19 @@ for (const [name, files] of present ? recordings() : []) {
     console.log(`${name}: drop to summary ${timing.dropToSummaryMs.toFixed(0)} ms, to every figure ${timing.dropToReadyMs.toFixed(0)} ms, longest main-thread task ${timing.longestTaskMs.toFixed(0)} ms`);
     assert.ok(timing.longestTaskMs <= MAX_TASK_MS, `${name}: a main-thread task took ${timing.longestTaskMs.toFixed(0)} ms`);
     assert.ok(['good', 'fair', 'poor'].includes(await page.getAttribute('#summary', 'data-grade')), `${name}: a grade`);
+    // A board turned in the hand (no reference) and calibrated: the summary shows where
+    // its field's directions fell; the other logs (and a board with no calibration) do
+    // not get that map.
+    const coverage = await page.evaluate(() => {
+      const figure = document.getElementById('verdict-coverage-figure');
+      return {
+        kind: document.getElementById('summary').dataset.kind,
+        calibrated: !document.getElementById('verdict-headline').textContent.startsWith('No 3D calibration'),
+        shown: !figure.hidden && figure.getBoundingClientRect().height > 0,
+      };
+    });
+    assert.equal(coverage.shown, coverage.kind === 'field_only' && coverage.calibrated, `${name}: the coverage map for a ${coverage.kind} answer`);
+    if (coverage.shown) assert.ok(await drawnPixels(page, 'verdict-coverage') > 5000, `${name}: the coverage map is drawn`);
     await page.screenshot({ path: join(out, `real-${name}-desktop.png`) });
     await assertOnFirstScreen(page, name, desktop);
     await page.setViewportSize(phone);

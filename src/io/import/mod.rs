@@ -121,7 +121,10 @@ pub enum FileImport {
     Sensor(SensorImport),
 }
 
-fn import_one(
+/// One whole file in memory (a file mapped by the CLI), read as [`import_files_mapped`]
+/// reads each, for [`merge`]: the importers' whole-file paths, which size the streams
+/// once and read a large delimited file on every core ([`crate::par`]).
+pub fn import_file(
     file_name: &str,
     bytes: &[u8],
     mapping: Option<&ColumnMapping>,
@@ -180,7 +183,10 @@ pub fn import_files_mapped(
         files
             .iter()
             .map(|&(file_name, bytes)| {
-                (file_name.to_string(), import_one(file_name, bytes, mapping))
+                (
+                    file_name.to_string(),
+                    import_file(file_name, bytes, mapping),
+                )
             })
             .collect(),
     )

@@ -90,6 +90,14 @@ impl Steps {
         &self.import
     }
 
+    /// The calibration, between the calibration step and the heading models.
+    pub(crate) fn calibrated(&self) -> Option<&CalibrationAnalysis> {
+        match &self.state {
+            State::Calibrated(calibration) => Some(calibration),
+            _ => None,
+        }
+    }
+
     /// The step [`Steps::advance`] runs next; `None` when done.
     pub(crate) fn next(&self) -> Option<Step> {
         match self.state {
@@ -169,6 +177,11 @@ impl Page {
                 return None;
             }
             steps.advance();
+            // The calibration's figures while the heading models wait, as the worker's
+            // page shows them.
+            if let Some(calibration) = steps.calibrated() {
+                self.show_calibrated(steps.import(), calibration, cancel).await;
+            }
         }
         Some(steps.finish())
     }

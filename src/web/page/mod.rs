@@ -79,6 +79,8 @@ pub struct Page {
     /// `data-calibration-runs` and `data-pdr-runs`, for the tests).
     n_calibration_runs: std::cell::Cell<u32>,
     n_pdr_runs: std::cell::Cell<u32>,
+    /// Finished analyses shown so far: a job's early figures stop drawing when it moves.
+    n_shown: std::cell::Cell<u64>,
 }
 
 /// What reading and analysing a log gave: the import (when the files could be read)
@@ -138,6 +140,7 @@ impl Page {
             worker: analysis_worker.map(crate::web::worker::AnalysisWorker::new),
             n_calibration_runs: std::cell::Cell::new(0),
             n_pdr_runs: std::cell::Cell::new(0),
+            n_shown: std::cell::Cell::new(0),
         }))
     }
 
@@ -255,11 +258,23 @@ impl Page {
         self.worker.as_ref().filter(|worker| worker.works())
     }
 
-    /// Where the worker's updates go: the progress bar and the status line.
+    /// Where the worker's updates on the job with `cancel` go: the progress bar, the
+    /// status line and the calibration's figures.
     #[cfg(target_feature = "atomics")]
-    fn on_update(self: &Rc<Self>) -> impl Fn(crate::web::worker::Update) + 'static {
+    fn on_update(
+        self: &Rc<Self>,
+        cancel: &Arc<AtomicBool>,
+    ) -> impl Fn(crate::web::worker::Update) + 'static {
         let page = Rc::clone(self);
+        let cancel = Arc::clone(cancel);
         move |update| match update {
+            crate::web::worker::Update::Calibrated(early) => {
+                let (page, cancel) = (Rc::clone(&page), Arc::clone(&cancel));
+                spawn_local(async move {
+                    let (import, calibration) = &*early;
+                    page.show_calibrated(import, calibration, &cancel).await;
+                });
+            }
             crate::web::worker::Update::Progress {
                 fraction,
                 file_name,
@@ -340,7 +355,7 @@ impl Page {
                     cancel: Arc::clone(cancel),
                     outcome: None,
                 };
-                match worker.run(job, &[], self.on_update()).await {
+                match worker.run(job, &[], self.on_update(cancel)).await {
                     Ok(job) => return job.outcome.map(|(_, result)| result),
                     Err((Some(job), message)) => match job.work {
                         // The worker never took the job: run it here.

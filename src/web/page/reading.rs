@@ -186,7 +186,7 @@ impl Page {
                 outcome: None,
             };
             let blobs: Vec<web_sys::Blob> = files.iter().map(|file| file.clone().into()).collect();
-            match worker.run(job, &blobs, self.on_update()).await {
+            match worker.run(job, &blobs, self.on_update(cancel)).await {
                 Ok(job) => {
                     self.hide_progress();
                     return job.outcome;

@@ -42,6 +42,7 @@ impl Page {
             Err(error) => return self.show_error(&error.to_string()),
         };
         *self.import.borrow_mut() = import.clone();
+        self.n_shown.set(self.n_shown.get() + 1);
         let status = self.show_lists(&results, import.as_deref());
         for figure in FIGURES {
             yield_to_browser().await;
@@ -55,6 +56,47 @@ impl Page {
         self.set_state("ready", &status);
     }
 
+    /// A job's calibration while its heading models and dead reckoning still run (the
+    /// analysis worker sends it): its lists and figures, a figure per task. Stops when
+    /// the job is cancelled or a finished analysis is being shown.
+    pub(super) async fn show_calibrated(
+        &self,
+        import: &ImportReport,
+        calibration: &CalibrationAnalysis,
+        cancel: &AtomicBool,
+    ) {
+        let n_shown = self.n_shown.get();
+        let current = || !cancel.load(Ordering::Acquire) && self.n_shown.get() == n_shown;
+        if !current() {
+            return;
+        }
+        self.show_calibration(calibration, Some(import));
+        for figure in FIGURES {
+            let Figure::Calibration(canvas, plot) = figure else {
+                continue;
+            };
+            yield_to_browser().await;
+            if !current() {
+                return;
+            }
+            self.draw_calibration_figure(canvas, plot, calibration);
+        }
+    }
+
+    fn draw_calibration_figure(
+        &self,
+        canvas: Canvas,
+        plot: Plot,
+        calibration: &CalibrationAnalysis,
+    ) {
+        let canvas = self.canvas(canvas);
+        if let Err(message) = canvas::draw(canvas, plot, calibration) {
+            let _ =
+                canvas::draw_message(canvas, &format!("This plot could not be drawn: {message}"));
+        }
+        self.mark_time("data-first-plot-ms");
+    }
+
     /// The summary and every list of `results`; returns the status line.
     fn show_lists(&self, results: &Results, import: Option<&ImportReport>) -> String {
         self.show_verdict(Some(&crate::verdict::verdict(
@@ -62,7 +104,8 @@ impl Page {
             &results.heading.report,
             results.pdr.as_ref().ok().map(|pdr| &pdr.report),
         )));
-        self.show_calibration(&results.calibration);
+        self.mark_time("data-summary-ms");
+        self.show_calibration(&results.calibration, import);
         let summary = self.show_heading_models(&results.calibration, &results.heading);
         let pdr_summary = self.show_dead_reckoning(import, &results.pdr);
         format!("{summary}{pdr_summary}")
@@ -73,9 +116,7 @@ impl Page {
     fn draw_figure(&self, figure: Figure, results: &Results) {
         let drawn = match figure {
             Figure::Calibration(canvas, plot) => {
-                let drawn = canvas::draw(self.canvas(canvas), plot, &results.calibration);
-                self.mark_time("data-first-plot-ms");
-                drawn
+                return self.draw_calibration_figure(canvas, plot, &results.calibration)
             }
             Figure::Heading(canvas, plot) => {
                 canvas::draw_heading(self.canvas(canvas), plot, &results.heading)
@@ -141,12 +182,12 @@ impl Page {
     }
 
     /// The calibration's context, device calibration, notes, diagnostics and plots.
-    fn show_calibration(&self, analysis: &CalibrationAnalysis) {
+    fn show_calibration(&self, analysis: &CalibrationAnalysis, import: Option<&ImportReport>) {
         let report = &analysis.report;
         self.body.set_attribute("data-file", &report.file_name).ok();
         self.set_text("result-file", &report.file_name);
         self.show_context(report);
-        if let Some(import) = self.import.borrow().as_ref() {
+        if let Some(import) = import {
             self.fill_list(
                 "streams",
                 report::stream_lines(
