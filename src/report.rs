@@ -363,6 +363,9 @@ pub fn pdr_summary_lines(analysis: &PdrAnalysis) -> Vec<String> {
         report.pdr_distance_m,
         report.duration_s
     )];
+    if let Some(not_a_walk) = crate::verdict::not_a_walk(report) {
+        lines.insert(0, not_a_walk);
+    }
     lines.push(format!("Step model: {}.", report.step_model.describe()));
     lines.push(format!("Heading: {}.", report.heading_label));
     if let Some(errors) = &report.position_error {

@@ -123,6 +123,10 @@ pub struct Verdict {
     /// field's directions fell on MotionCal's 100 regions, the figure that says which
     /// directions to turn the board through again.
     pub coverage: Option<SphereCoverage>,
+    /// For a walk (not a vehicle's log, not an autopilot's): its steps as a status line
+    /// says them ("35 steps dead-reckoned over 19 m."), so that the page's status and
+    /// this summary count steps for the same logs.
+    pub steps: Option<String>,
 }
 
 /// The answer to one log: from the calibration, the heading comparison (its choice of
@@ -165,6 +169,15 @@ pub fn verdict(
     // A vehicle does not walk: its log gets no step count.
     if let Some(pdr) = pdr.filter(|_| verdict.kind != VerdictKind::Autopilot) {
         verdict.figures.push(dead_reckoning_figure(pdr));
+        let autopilot_log = analysis.report.autopilot.is_some();
+        verdict.steps = (is_walk(pdr) && !autopilot_log).then(|| {
+            format!(
+                "{} {} dead-reckoned over {:.0} m.",
+                pdr.n_steps,
+                plural(pdr.n_steps, "step", "steps"),
+                pdr.pdr_distance_m
+            )
+        });
     }
     if let Some(warning) = field.worse_warning() {
         verdict.to_do.insert(0, warning);
@@ -208,6 +221,19 @@ fn dead_reckoning_figure(pdr: &PdrReport) -> Figure {
 /// [`MAX_WALKING_STEP_M`] apart along the track.
 pub fn is_walk(pdr: &PdrReport) -> bool {
     pdr.pdr_distance_m / pdr.n_steps.max(1) as f64 <= MAX_WALKING_STEP_M
+}
+
+/// For a log that is not a walk ([`is_walk`]), the sentence that says its step figures
+/// mean nothing, for the lists of the dead reckoning (the page, the report, the CLI).
+pub fn not_a_walk(pdr: &PdrReport) -> Option<String> {
+    (!is_walk(pdr)).then(|| {
+        format!(
+            "Not a walk: the {} \"steps\" are {:.0} m apart on average (a vehicle's log), so they \
+             are step-like motions, not steps, and the step figures mean nothing.",
+            pdr.n_steps,
+            pdr.pdr_distance_m / pdr.n_steps.max(1) as f64
+        )
+    })
 }
 
 /// A stride longer than this per detected step is not walking (a fast runner's step is
@@ -430,6 +456,7 @@ fn heading_verdict(
         figures,
         to_do,
         coverage: None,
+        steps: None,
     }
 }
 
@@ -457,6 +484,7 @@ fn field_verdict(
                 .filter_map(|method| method.error.as_ref().map(|error| format!("{}: {error}", method.label)))
                 .collect(),
             coverage: None,
+            steps: None,
         };
     };
     let label = field.method_label.unwrap_or("the calibration");
@@ -514,6 +542,7 @@ fn field_verdict(
         figures,
         to_do,
         coverage: Some(field.coverage.clone()),
+        steps: None,
     }
 }
 
@@ -586,6 +615,7 @@ fn autopilot_verdict(
         figures,
         to_do: autopilot.notes.clone(),
         coverage: None,
+        steps: None,
     }
 }
 

@@ -162,6 +162,8 @@ fn logs_with_a_reference_get_the_heading_error_before_and_after() {
         "{:?}",
         verdict.figures
     );
+    // ... and the page's status line, which takes its steps from the verdict, none.
+    assert_eq!(verdict.steps, None);
 }
 
 #[test]
@@ -172,6 +174,12 @@ fn an_indoor_walk_without_a_north_reference_gets_the_field_figures_and_its_steps
     let verdict = verdict_of(&dropped(&data.join("phyphox-hallway-loop")));
     assert_eq!(verdict.kind, VerdictKind::FieldOnly);
     assert!(figure(&verdict, "Dead reckoning").contains("steps over"));
+    let steps = verdict
+        .steps
+        .as_deref()
+        .expect("a walk's steps for the status line");
+    assert!(steps.ends_with(" m."), "{steps}");
+    assert!(steps.contains(" steps dead-reckoned over "), "{steps}");
 }
 
 #[test]
@@ -179,6 +187,7 @@ fn an_autopilot_log_gets_each_compass_in_force_and_as_written() {
     let Some(data) = shared_data() else { return };
     let verdict = verdict_of(&[data.join("ardupilot-copter-log171/log171.bin")]);
     assert_eq!(verdict.kind, VerdictKind::Autopilot);
+    assert_eq!(verdict.steps, None, "a drone does not walk");
     assert_eq!(verdict.figures.len(), 3, "{:?}", verdict.figures);
     assert!(
         verdict.headline.starts_with("Compass 1"),

@@ -85,6 +85,9 @@ pub(super) fn pdr_text(report: &PdrReport) -> String {
             .map_or(String::new(), |hz| format!(" ({hz:.2} steps/s)")),
         report.pdr_distance_m
     );
+    if let Some(not_a_walk) = compass_pdr::verdict::not_a_walk(report) {
+        let _ = writeln!(text, "  note: {not_a_walk}");
+    }
     let _ = writeln!(text, "  step model: {}", report.step_model.describe());
     let _ = writeln!(
         text,

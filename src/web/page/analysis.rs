@@ -180,7 +180,8 @@ impl Page {
             // The calibration's figures while the heading models wait, as the worker's
             // page shows them.
             if let Some(calibration) = steps.calibrated() {
-                self.show_calibrated(steps.import(), calibration, cancel).await;
+                self.show_calibrated(steps.import(), calibration, cancel)
+                    .await;
             }
         }
         Some(steps.finish())

@@ -99,16 +99,21 @@ impl Page {
 
     /// The summary and every list of `results`; returns the status line.
     fn show_lists(&self, results: &Results, import: Option<&ImportReport>) -> String {
-        self.show_verdict(Some(&crate::verdict::verdict(
+        let verdict = crate::verdict::verdict(
             &results.calibration,
             &results.heading.report,
             results.pdr.as_ref().ok().map(|pdr| &pdr.report),
-        )));
+        );
+        self.show_verdict(Some(&verdict));
         self.mark_time("data-summary-ms");
         self.show_calibration(&results.calibration, import);
         let summary = self.show_heading_models(&results.calibration, &results.heading);
-        let pdr_summary = self.show_dead_reckoning(import, &results.pdr);
-        format!("{summary}{pdr_summary}")
+        self.show_dead_reckoning(&results.pdr);
+        // The walk's steps as the summary counts them (none for a vehicle).
+        match verdict.steps {
+            Some(steps) => format!("{summary} {steps}"),
+            None => summary,
+        }
     }
 
     /// Draws one figure of `results` on its canvas (a figure that cannot be drawn says
@@ -226,39 +231,20 @@ impl Page {
         )
     }
 
-    /// The dead reckoning's summary and plots; a log that cannot be dead-reckoned says
-    /// why in their place. Returns a sentence for the status line.
-    fn show_dead_reckoning(
-        &self,
-        import: Option<&ImportReport>,
-        result: &Result<PdrAnalysis, String>,
-    ) -> String {
+    /// The dead reckoning's list; a log that cannot be dead-reckoned says why in its
+    /// place and on its canvases (its figures are drawn with the others).
+    fn show_dead_reckoning(&self, result: &Result<PdrAnalysis, String>) {
         match result {
-            Ok(analysis) => {
-                self.fill_list(
-                    "pdr-summary",
-                    report::pdr_summary_lines(analysis).into_iter(),
-                );
-                // A vehicle's log (an autopilot's, a car's) is not a walk: no step count.
-                let is_vehicle = import.is_some_and(|import| import.autopilot.is_some());
-                if crate::verdict::is_walk(&analysis.report) && !is_vehicle {
-                    format!(
-                        " {} {} dead-reckoned over {:.0} m.",
-                        analysis.report.n_steps,
-                        crate::english::plural(analysis.report.n_steps, "step", "steps"),
-                        analysis.report.pdr_distance_m
-                    )
-                } else {
-                    String::new()
-                }
-            }
+            Ok(analysis) => self.fill_list(
+                "pdr-summary",
+                report::pdr_summary_lines(analysis).into_iter(),
+            ),
             Err(message) => {
                 let message = format!("No dead reckoning: {message}.");
                 self.fill_list("pdr-summary", std::iter::once(message.clone()));
                 for canvas in [Canvas::Trajectory, Canvas::Steps, Canvas::PositionError] {
                     let _ = canvas::draw_message(self.canvas(canvas), &message);
                 }
-                String::new()
             }
         }
     }
