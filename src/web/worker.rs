@@ -85,53 +85,45 @@ pub(crate) struct Job {
     pub outcome: Option<Outcome>,
 }
 
-/// The jobs handed over, by id (see the module's documentation).
-static JOBS: Mutex<Vec<(u32, Box<Job>)>> = Mutex::new(Vec::new());
+/// Values handed between the page's thread and the worker through the shared memory,
+/// each under its job's id: one thread holds a value at a time, taken out and put back.
+/// The mutex is taken by spinning, since the page's main thread may not block; it is
+/// held for a push or a removal only.
+struct HandOver<T>(Mutex<Vec<(u32, Box<T>)>>);
 
-/// `f` on the jobs, the mutex taken by spinning (this may be the main thread).
-fn with_jobs<R>(f: impl FnOnce(&mut Vec<(u32, Box<Job>)>) -> R) -> R {
-    loop {
-        match JOBS.try_lock() {
-            Ok(mut jobs) => return f(&mut jobs),
-            Err(TryLockError::Poisoned(poisoned)) => return f(&mut poisoned.into_inner()),
-            Err(TryLockError::WouldBlock) => std::hint::spin_loop(),
+impl<T> HandOver<T> {
+    const fn new() -> HandOver<T> {
+        HandOver(Mutex::new(Vec::new()))
+    }
+
+    fn with<R>(&self, f: impl FnOnce(&mut Vec<(u32, Box<T>)>) -> R) -> R {
+        loop {
+            match self.0.try_lock() {
+                Ok(mut values) => return f(&mut values),
+                Err(TryLockError::Poisoned(poisoned)) => return f(&mut poisoned.into_inner()),
+                Err(TryLockError::WouldBlock) => std::hint::spin_loop(),
+            }
         }
+    }
+
+    fn put(&self, id: u32, value: Box<T>) {
+        self.with(|values| values.push((id, value)));
+    }
+
+    fn take(&self, id: u32) -> Option<Box<T>> {
+        self.with(|values| {
+            let idx = values.iter().position(|(value_id, _)| *value_id == id)?;
+            Some(values.swap_remove(idx).1)
+        })
     }
 }
 
-fn put(id: u32, job: Box<Job>) {
-    with_jobs(|jobs| jobs.push((id, job)));
-}
+/// The jobs handed over (see the module's documentation).
+static JOBS: HandOver<Job> = HandOver::new();
 
-fn take(id: u32) -> Option<Box<Job>> {
-    with_jobs(|jobs| {
-        let idx = jobs.iter().position(|(job_id, _)| *job_id == id)?;
-        Some(jobs.swap_remove(idx).1)
-    })
-}
-
-/// A job's calibration, copied for the page while the job goes on, by job id.
-type Calibrated = Vec<(u32, Box<(Arc<ImportReport>, CalibrationAnalysis)>)>;
-static CALIBRATED: Mutex<Calibrated> = Mutex::new(Vec::new());
-
-/// `f` on the calibrations waiting for the page, the mutex taken by spinning.
-fn with_calibrated<R>(f: impl FnOnce(&mut Calibrated) -> R) -> R {
-    loop {
-        match CALIBRATED.try_lock() {
-            Ok(mut calibrated) => return f(&mut calibrated),
-            Err(TryLockError::Poisoned(poisoned)) => return f(&mut poisoned.into_inner()),
-            Err(TryLockError::WouldBlock) => std::hint::spin_loop(),
-        }
-    }
-}
-
-/// Job `id`'s calibration, with the import it came from, once the worker said so.
-fn take_calibrated(id: u32) -> Option<(Arc<ImportReport>, CalibrationAnalysis)> {
-    with_calibrated(|calibrated| {
-        let idx = calibrated.iter().position(|(job_id, _)| *job_id == id)?;
-        Some(*calibrated.swap_remove(idx).1)
-    })
-}
+/// A job's calibration, copied for the page while the job goes on, with the import it
+/// came from.
+static CALIBRATED: HandOver<(Arc<ImportReport>, CalibrationAnalysis)> = HandOver::new();
 
 /// A job as the worker's script holds it, between [`AnalysisJob::take`] and
 /// [`AnalysisJob::finish`].
@@ -145,7 +137,7 @@ pub struct AnalysisJob {
 impl AnalysisJob {
     /// The job the page handed over as `id`, or `undefined` if there is none.
     pub fn take(id: u32) -> Option<AnalysisJob> {
-        take(id).map(|job| AnalysisJob { id, job })
+        JOBS.take(id).map(|job| AnalysisJob { id, job })
     }
 
     /// Whether the page asked to stop.
@@ -193,7 +185,7 @@ impl AnalysisJob {
 
     /// Finishes reading and runs the analysis; `on_step(text)` is called with the
     /// status line before each step, and `on_calibrated()` once the calibration is
-    /// done and a copy of it waits for the page ([`take_calibrated`]), so that its
+    /// done and a copy of it waits for the page ([`CALIBRATED`]), so that its
     /// figures are drawn while the heading models and the dead reckoning run. Stops
     /// early, with no outcome, when cancelled.
     pub fn run(&mut self, on_step: &Function, on_calibrated: &Function) {
@@ -247,7 +239,7 @@ impl AnalysisJob {
             steps.advance();
             if let Some(calibration) = steps.calibrated() {
                 let early = (Arc::clone(steps.import()), calibration.clone());
-                with_calibrated(|calibrated| calibrated.push((self.id, Box::new(early))));
+                CALIBRATED.put(self.id, Box::new(early));
                 let _ = on_calibrated.call0(&JsValue::NULL);
             }
         }
@@ -257,7 +249,7 @@ impl AnalysisJob {
 
     /// Hands the job back to the page (its `done` message follows).
     pub fn finish(self) {
-        put(self.id, self.job);
+        JOBS.put(self.id, self.job);
     }
 }
 
@@ -322,9 +314,9 @@ impl AnalysisWorker {
                         (job.on_update)(Update::Step(step));
                     }
                 } else if field("calibrated").is_truthy() {
-                    let early = take_calibrated(id);
+                    let early = CALIBRATED.take(id);
                     if let (Some(job), Some(early)) = (waiting.get(&id), early) {
-                        (job.on_update)(Update::Calibrated(Box::new(early)));
+                        (job.on_update)(Update::Calibrated(early));
                     }
                 } else if let Some(job) = waiting.remove(&id) {
                     let failed = field("failed");
@@ -366,18 +358,18 @@ impl AnalysisWorker {
 
     /// Runs `job` on the worker, `files` being the blobs of a [`Work::Files`] job in
     /// its order; `on_update` hears its progress. Gives the job back with its
-    /// outcome, or `Err((job, message))` when the worker failed: the job as it was
-    /// handed over if the worker never took it (so the page can run it itself), else
-    /// `None`.
+    /// outcome, or `Err(job)` when the worker failed (which the console or the page is
+    /// told here): the job as it was handed over if the worker never took it, for the
+    /// page to run itself, else `None` (a bug: the page says so).
     pub(crate) async fn run(
         &self,
         job: Job,
         files: &[web_sys::Blob],
         on_update: impl Fn(Update) + 'static,
-    ) -> Result<Box<Job>, (Option<Box<Job>>, String)> {
+    ) -> Result<Box<Job>, Option<Box<Job>>> {
         let id = self.next_id.get();
         self.next_id.set(id.wrapping_add(1));
-        put(id, Box::new(job));
+        JOBS.put(id, Box::new(job));
         let mut on_update: Option<Box<dyn Fn(Update)>> = Some(Box::new(on_update));
         let waiting = Rc::clone(&self.waiting);
         let promise = Promise::new(&mut |resolve, reject| {
@@ -402,13 +394,22 @@ impl AnalysisWorker {
             Err(error) => Err(error),
         };
         self.waiting.borrow_mut().remove(&id);
-        match (answer, take(id)) {
-            (Ok(()), Some(job)) => Ok(job),
-            (Ok(()), None) => Err((None, "the analysis worker lost the job".to_string())),
+        let (job, message) = match (answer, JOBS.take(id)) {
+            (Ok(()), Some(job)) => return Ok(job),
+            (Ok(()), None) => (None, "the analysis worker lost the job".to_string()),
             (Err(error), job) => {
                 self.broken.set(true);
-                Err((job, super::page::describe_js_error(error)))
+                (job, super::page::describe_js_error(error))
             }
+        };
+        match &job {
+            Some(_) => web_sys::console::warn_1(
+                &format!("compass-pdr: the analysis worker failed ({message}); analysing on the page's thread").into(),
+            ),
+            None => super::page::show_bug(&format!(
+                "Internal error (a bug in compass-pdr): the analysis worker stopped: {message}. Reload the page to continue, and please report it."
+            )),
         }
+        Err(job)
     }
 }

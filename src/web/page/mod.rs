@@ -357,20 +357,12 @@ impl Page {
                 };
                 match worker.run(job, &[], self.on_update(cancel)).await {
                     Ok(job) => return job.outcome.map(|(_, result)| result),
-                    Err((Some(job), message)) => match job.work {
-                        // The worker never took the job: run it here.
-                        Work::Again(request) => {
-                            web_sys::console::warn_1(&format!("compass-pdr: the analysis worker failed ({message}); analysing on the page's thread").into());
-                            *request
-                        }
+                    // The worker never took the job: run it here.
+                    Err(Some(job)) => match job.work {
+                        Work::Again(request) => *request,
                         Work::Files { .. } => return None,
                     },
-                    Err((_, message)) => {
-                        show_bug(&format!(
-                            "Internal error (a bug in compass-pdr): the analysis worker stopped: {message}. Reload the page to continue, and please report it."
-                        ));
-                        return None;
-                    }
+                    Err(None) => return None,
                 }
             }
             None => request,

@@ -191,17 +191,10 @@ impl Page {
                     self.hide_progress();
                     return job.outcome;
                 }
-                Err((Some(_), message)) => {
-                    // The worker never took the job: read the files here instead.
-                    web_sys::console::warn_1(
-                        &format!("compass-pdr: the analysis worker failed ({message}); analysing on the page's thread").into(),
-                    );
-                }
-                Err((None, message)) => {
+                // The worker never took the job: read the files here instead.
+                Err(Some(_)) => {}
+                Err(None) => {
                     self.hide_progress();
-                    super::show_bug(&format!(
-                        "Internal error (a bug in compass-pdr): the analysis worker stopped: {message}. Reload the page to continue, and please report it."
-                    ));
                     return None;
                 }
             }
