@@ -4,7 +4,7 @@
 //!
 //! One file per command (`simulate.rs`, `inspect.rs`, `calibrate.rs`, `heading.rs`,
 //! `pdr.rs` with `report`), the arguments they share in `args.rs`, the remembered column
-//! mappings in `mapping_store.rs`; this file holds the command line and its dispatch.
+//! mappings in `mapping_store.rs`, the allocator's huge-page hint in `huge_pages.rs`; this file holds the command line and its dispatch.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -12,6 +12,10 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 use compass_pdr::calibration::Method;
 use compass_pdr::heading::HeadingOptions;
+
+/// Large blocks (a file's streams) are mapped in huge pages where the system allows it.
+#[global_allocator]
+static ALLOCATOR: huge_pages::HugePageHint = huge_pages::HugePageHint;
 
 /// Magnetometer compass calibration, heading models and pedestrian dead reckoning.
 #[derive(Debug, Parser)]
@@ -142,6 +146,7 @@ enum Command {
 mod args;
 mod calibrate;
 mod heading;
+mod huge_pages;
 mod inspect;
 mod mapping_store;
 mod pdr;
