@@ -10,6 +10,7 @@ pub mod field_magnitude;
 pub mod heading_error;
 pub mod live_panel;
 pub mod pdr;
+pub mod sphere_view;
 pub mod timeline;
 
 use plotters::coord::types::RangedCoordf64;

@@ -99,6 +99,18 @@ pub fn draw_live_clouds(
     })
 }
 
+/// The live panel's 3D view of the field directions on the fitted sphere.
+pub fn draw_sphere(
+    canvas: &HtmlCanvasElement,
+    samples_ut: &[nalgebra::Vector3<f64>],
+    quality: Option<&crate::live::LiveQuality>,
+    view: crate::plot::sphere_view::SphereView,
+) -> Result<(), String> {
+    draw_with(canvas, |area| {
+        crate::plot::sphere_view::draw_sphere_view(area, samples_ut, quality, view)
+    })
+}
+
 /// The live panel's coverage map.
 pub fn draw_coverage(
     canvas: &HtmlCanvasElement,

@@ -52,6 +52,31 @@ export function drawnPixels(page, id) {
   }, id);
 }
 
+/** Pixels of a canvas in the strong red the plots use for what is missing (the live 3D
+ * view's regions with no sample), not the orange of raw samples. */
+export function redPixels(page, id) {
+  return page.evaluate((canvasId) => {
+    const canvas = document.getElementById(canvasId);
+    const data = canvas.getContext('2d').getImageData(0, 0, canvas.width, canvas.height).data;
+    let n = 0;
+    for (let i = 0; i < data.length; i += 4) {
+      if (data[i] > 150 && data[i] - data[i + 1] > 80 && data[i + 1] - data[i + 2] < 40) n += 1;
+    }
+    return n;
+  }, id);
+}
+
+/** A digest of a canvas's pixels, to tell whether it was redrawn differently. */
+export function canvasDigest(page, id) {
+  return page.evaluate((canvasId) => {
+    const canvas = document.getElementById(canvasId);
+    const data = canvas.getContext('2d').getImageData(0, 0, canvas.width, canvas.height).data;
+    let hash = 0;
+    for (let i = 0; i < data.length; i += 1) hash = (hash * 31 + data[i]) | 0;
+    return hash;
+  }, id);
+}
+
 export const text = (page, id) => page.textContent(`#${id}`);
 
 /** Opens every folded section of the page (the details under the summary), as a person

@@ -5,7 +5,7 @@
 import { test } from 'node:test';
 import assert from 'node:assert/strict';
 import { join } from 'node:path';
-import { download, drawnPixels, openPage, out, text } from './common.mjs';
+import { canvasDigest, download, drawnPixels, openPage, out, redPixels, text } from './common.mjs';
 
 /** The simulated board (µT, sensor axes): what the calibration must find. */
 const BOARD = {
@@ -204,7 +204,7 @@ test('a live session at 1,000 lines/s for 30 s converges, loses no line, and the
   assert.equal(calibration.unit, 'µT');
   calibration.hard_iron.forEach((ut, i) => assert.ok(Math.abs(ut - BOARD.hardIronUt[i]) < 0.3, `hard iron ${i}: ${ut}`));
   assert.match(await text(page, 'live-fit'), /from the WMM's 4\d\.\d µT/);
-  for (const id of ['live-clouds', 'live-coverage', 'live-dial']) {
+  for (const id of ['live-clouds', 'live-coverage', 'live-dial', 'live-sphere']) {
     assert.ok(await drawnPixels(page, id) > 5_000, `#${id} is drawn`);
   }
 
@@ -277,6 +277,19 @@ test('a browser without Web Serial says so, the rest of the page works, and a si
   await page.waitForSelector('#live[data-live-state="connected"]');
   assert.equal(await page.isDisabled('#live-simulate'), true);
   assert.equal(await page.isDisabled('#live-send'), true, 'no board to send to');
+  // Early in the dance the 3D view shows the regions not yet covered in red, beside
+  // the verdict.
+  await page.waitForFunction(() => document.getElementById('live-fit').textContent.startsWith('hard iron'),
+    null, { timeout: 20_000 });
+  const early = { lines: Number(await text(page, 'live-lines')), red: await redPixels(page, 'live-sphere') };
+  assert.ok(early.lines < 2_000, `the fit came only after ${early.lines} lines`);
+  assert.ok(early.red > 300, `after ${early.lines} lines, ${early.red} red pixels for the regions not covered`);
+  const verdictBox = await page.locator('#live-verdict').boundingBox();
+  const sphereBox = await page.locator('#live-sphere').boundingBox();
+  assert.ok(sphereBox.x >= verdictBox.x + verdictBox.width - 1 && sphereBox.y < verdictBox.y + 100,
+    `the 3D view (${JSON.stringify(sphereBox)}) is beside the verdict (${JSON.stringify(verdictBox)})`);
+  assert.ok(sphereBox.width >= 450, `the 3D view is ${sphereBox.width} px wide`);
+  await page.locator('#live').screenshot({ path: join(out, 'live-sphere-early.png') });
   await page.waitForSelector('#live[data-live-state="disconnected"]', { timeout: 30_000 });
   const status = await text(page, 'live-status');
   const truth = status.match(/true hard iron was \((-?[\d.]+), (-?[\d.]+), (-?[\d.]+)\) µT/);
@@ -286,9 +299,20 @@ test('a browser without Web Serial says so, the rest of the page works, and a si
   await page.waitForSelector('#live[data-good-enough="yes"]', { timeout: 5_000 });
   const calibration = JSON.parse((await download(page, '#live-download-calibration')).bytes.toString('utf8'));
   calibration.hard_iron.forEach((ut, i) => assert.ok(Math.abs(ut - Number(truth[i + 1])) < 1.0, `hard iron ${i}: ${ut} vs ${truth[i + 1]}`));
-  for (const id of ['live-clouds', 'live-coverage', 'live-dial']) {
+  for (const id of ['live-clouds', 'live-coverage', 'live-dial', 'live-sphere']) {
     assert.ok(await drawnPixels(page, id) > 5_000, `#${id} is drawn`);
   }
+  // After the whole dance no region is left red; a drag turns the view.
+  const late = await redPixels(page, 'live-sphere');
+  console.log(`live 3D view: ${early.red} red pixels after ${early.lines} lines, ${late} after 3000`);
+  assert.ok(late < early.red / 10, `${late} red pixels left after the whole dance`);
+  const before = await canvasDigest(page, 'live-sphere');
+  const box = await page.locator('#live-sphere').boundingBox();
+  await page.mouse.move(box.x + box.width / 2, box.y + box.height / 2);
+  await page.mouse.down();
+  await page.mouse.move(box.x + box.width / 2 + 120, box.y + box.height / 2 + 40, { steps: 4 });
+  await page.mouse.up();
+  assert.notEqual(await canvasDigest(page, 'live-sphere'), before, 'the drag turned the 3D view');
   // The dance's board prints its gyroscope: the dial has the attitude filter's blue needle.
   const blueNeedle = await page.$eval('#live-dial', (canvas) => {
     const data = canvas.getContext('2d').getImageData(0, 0, canvas.width, canvas.height).data;

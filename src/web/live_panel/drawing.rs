@@ -1,10 +1,13 @@
 //! What the panel shows while samples arrive: the timer that refits and redraws apart
 //! from the read loop, the figures (counts, the fit, the verdict and its reasons, the
-//! skipped lines, the board's confirmation) and the three plots.
+//! skipped lines, the board's confirmation), the three plots and the 3D view (turned by
+//! a drag or the arrow keys).
 
 use std::rc::Rc;
 
-use web_sys::HtmlCanvasElement;
+use gloo::events::EventListener;
+use wasm_bindgen::JsCast;
+use web_sys::{HtmlCanvasElement, KeyboardEvent, MouseEvent};
 
 use super::{every, now_ms, LivePanel};
 use crate::io::Diagnostics;
@@ -15,6 +18,12 @@ use crate::web::canvas;
 const REFIT_EVERY_MS: f64 = 500.0;
 /// Redraws the plots and figures this often (ms).
 const DRAW_EVERY_MS: f64 = 250.0;
+
+/// How far the 3D view turns by itself at each redraw while samples arrive (rad): a
+/// turn in about 40 s.
+const SPHERE_TURN_PER_DRAW_RAD: f64 = 0.04;
+/// How far an arrow key turns the 3D view, as a drag of this many pixels.
+const SPHERE_KEY_STEP_PX: f64 = 24.0;
 
 /// Skipped lines listed at most (all are counted).
 const MAX_SKIPPED_SHOWN: usize = 20;
@@ -49,7 +58,73 @@ impl LivePanel {
             self.refit_pending.set(false);
             self.refit();
         }
+        if !self.user_turned.get() {
+            let view = self.sphere_view.get();
+            self.sphere_view.set(crate::plot::sphere_view::SphereView {
+                yaw_rad: (view.yaw_rad + SPHERE_TURN_PER_DRAW_RAD) % std::f64::consts::TAU,
+                ..view
+            });
+        }
         self.draw();
+    }
+
+    /// The 3D view turns with a drag (mouse, pen or finger) and with the arrow keys
+    /// once focused; then it no longer turns by itself.
+    pub(super) fn wire_sphere(self: &Rc<Self>) {
+        let listen = |event: &'static str, action: fn(&LivePanel, &web_sys::Event)| {
+            let panel = Rc::clone(self);
+            EventListener::new(&self.sphere, event, move |event| action(&panel, event)).forget();
+        };
+        listen("pointerdown", |panel, event| {
+            if let Some(event) = event.dyn_ref::<MouseEvent>() {
+                panel.user_turned.set(true);
+                let at = (event.client_x(), event.client_y());
+                panel.drag_from.set(Some(at));
+            }
+        });
+        listen("pointermove", |panel, event| {
+            if let (Some(from), Some(event)) =
+                (panel.drag_from.get(), event.dyn_ref::<MouseEvent>())
+            {
+                let at = (event.client_x(), event.client_y());
+                panel.drag_from.set(Some(at));
+                panel.turn_sphere(at.0 - from.0, at.1 - from.1);
+            }
+        });
+        for end in ["pointerup", "pointercancel", "pointerleave"] {
+            listen(end, |panel, _| panel.drag_from.set(None));
+        }
+        listen("keydown", |panel, event| {
+            let Some(event) = event.dyn_ref::<KeyboardEvent>() else {
+                return;
+            };
+            let (dx, dy) = match event.key().as_str() {
+                "ArrowLeft" => (-SPHERE_KEY_STEP_PX, 0.0),
+                "ArrowRight" => (SPHERE_KEY_STEP_PX, 0.0),
+                "ArrowUp" => (0.0, -SPHERE_KEY_STEP_PX),
+                "ArrowDown" => (0.0, SPHERE_KEY_STEP_PX),
+                _ => return,
+            };
+            event.prevent_default();
+            panel.user_turned.set(true);
+            panel.turn_sphere(dx, dy);
+        });
+    }
+
+    /// Turns the 3D view by a drag of `(dx, dy)` CSS pixels and redraws it alone.
+    fn turn_sphere(&self, dx_px: f64, dy_px: f64) {
+        let size_px = f64::from(self.sphere.client_width());
+        self.sphere_view
+            .set(self.sphere_view.get().dragged(dx_px, dy_px, size_px));
+        let session = self.session.borrow();
+        self.draw_sphere(session.kept_samples_ut(), session.quality());
+    }
+
+    fn draw_sphere(&self, samples_ut: &[nalgebra::Vector3<f64>], quality: Option<&LiveQuality>) {
+        drop_errors(
+            &self.sphere,
+            canvas::draw_sphere(&self.sphere, samples_ut, quality, self.sphere_view.get()),
+        );
     }
 
     /// Refits now when samples came in since the last refit (the ticker refits at most
@@ -101,6 +176,7 @@ impl LivePanel {
             &self.dial,
             canvas::draw_dial(&self.dial, heading, session.filter_heading_rad()),
         );
+        self.draw_sphere(samples, quality);
         drop(session);
         self.update_buttons();
     }

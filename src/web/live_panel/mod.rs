@@ -15,7 +15,8 @@
 //! new session, the expected field and the buttons' states. The rooms beside it:
 //! `port.rs` (connecting, the read loop, sending a calibration back), `simulation.rs`
 //! (the simulated board), `drawing.rs` (the timer that refits and redraws; the figures,
-//! the verdict, the skipped lines, the board's confirmation and the plots), `saved.rs`
+//! the verdict, the skipped lines, the board's confirmation and the plots; the 3D view,
+//! turned by a drag or the arrow keys), `saved.rs`
 //! (the settings and recent calibrations kept between visits, and a calibration file's
 //! import) and `downloads.rs` (the recording and the calibration).
 
@@ -41,6 +42,7 @@ use super::dom;
 use super::storage::RecentCalibration;
 use crate::calib::wmm::{date_of_unix_s, expected_field};
 use crate::live::LiveSession;
+use crate::plot::sphere_view::SphereView;
 use simulation::Simulation;
 
 /// An interval timer's handle and the callback it calls (dropped when it is cleared).
@@ -63,6 +65,13 @@ pub struct LivePanel {
     clouds: HtmlCanvasElement,
     coverage: HtmlCanvasElement,
     dial: HtmlCanvasElement,
+    sphere: HtmlCanvasElement,
+    /// How the 3D view is turned; it turns by itself while samples arrive until the
+    /// user turns it (`user_turned`).
+    sphere_view: Cell<SphereView>,
+    user_turned: Cell<bool>,
+    /// Where the pointer was at the last move of a drag on the 3D view.
+    drag_from: Cell<Option<(f64, f64)>>,
     session: RefCell<LiveSession>,
     port: RefCell<Option<SerialPort>>,
     reader: RefCell<Option<ReadableStreamDefaultReader>>,
@@ -119,6 +128,10 @@ impl LivePanel {
             clouds: cast(typed("live-clouds")?, "live-clouds")?,
             coverage: cast(typed("live-coverage")?, "live-coverage")?,
             dial: cast(typed("live-dial")?, "live-dial")?,
+            sphere: cast(typed("live-sphere")?, "live-sphere")?,
+            sphere_view: Cell::new(SphereView::default()),
+            user_turned: Cell::new(false),
+            drag_from: Cell::new(None),
             session: RefCell::new(LiveSession::new()),
             port: RefCell::new(None),
             reader: RefCell::new(None),
@@ -154,6 +167,7 @@ impl LivePanel {
         });
         on(&self.download_snippet, |panel| panel.download_c_snippet());
         on(&self.reset, |panel| panel.new_session());
+        self.wire_sphere();
         for input in [&self.lat, &self.lon] {
             let panel = Rc::clone(&self);
             EventListener::new(input, "change", move |_| {
