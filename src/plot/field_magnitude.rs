@@ -11,6 +11,7 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 
 use super::circle_fit::{CORRECTED_COLOR, RAW_COLOR};
+use super::zoom::{indices_within, PlotFrame, Zoom};
 use super::{thinned_indices, PlotError, MAX_POINTS_PER_SERIES};
 
 const EXPECTED_COLOR: RGBColor = RGBColor(40, 150, 70);
@@ -25,17 +26,34 @@ pub fn draw_field_magnitude<DB: DrawingBackend>(
     raw_ut: &[f64],
     corrected_ut: &[f64],
     expected_ut: Option<f64>,
-) -> Result<(), PlotError> {
+    zoom: Zoom,
+) -> Result<PlotFrame, PlotError> {
     let error = PlotError::from_backend::<DrawingAreaErrorKind<DB::ErrorType>>("field-magnitude");
     let expected_ut = expected_ut.filter(|value| value.is_finite());
 
     // Each series as (t, |B|), thinned for drawing, without non-finite samples.
+    // The window's samples (all of them unzoomed), thinned within it.
+    let finite_t = || t_s.iter().copied().filter(|t| t.is_finite());
+    let whole = match (finite_t().reduce(f64::min), finite_t().reduce(f64::max)) {
+        (Some(first_s), Some(last_s)) => first_s..last_s.max(first_s + 1e-3),
+        _ => 0.0..1.0,
+    };
+    let window = zoom.x_of(whole);
+    let shown = if zoom.is_whole() {
+        0..t_s.len()
+    } else {
+        indices_within(t_s, &window)
+    };
     let series = |magnitudes_ut: &[f64]| -> Vec<(f64, f64)> {
-        let n_samples = t_s.len().min(magnitudes_ut.len());
+        let n_samples = shown
+            .len()
+            .min(magnitudes_ut.len().saturating_sub(shown.start));
         thinned_indices(n_samples, MAX_POINTS_PER_SERIES)
             .filter_map(|idx| {
+                let idx = shown.start + idx;
                 let point = (*t_s.get(idx)?, *magnitudes_ut.get(idx)?);
-                (point.0.is_finite() && point.1.is_finite()).then_some(point)
+                let inside = zoom.is_whole() || window.contains(&point.0);
+                (inside && point.0.is_finite() && point.1.is_finite()).then_some(point)
             })
             .collect()
     };
@@ -61,7 +79,11 @@ pub fn draw_field_magnitude<DB: DrawingBackend>(
     if !(low_ut.is_finite() && high_ut.is_finite()) {
         (low_ut, high_ut) = (0.0, 100.0);
     }
-    let time_range = t_first_s..t_last_s.max(t_first_s + 1e-3);
+    let time_range = if zoom.is_whole() {
+        t_first_s..t_last_s.max(t_first_s + 1e-3)
+    } else {
+        window
+    };
     // A margin of a tenth of the span, and at least 1 µT, so a flat line is visible.
     let margin_ut = ((high_ut - low_ut) * 0.1).max(1.0);
     let magnitude_range = (low_ut - margin_ut).max(0.0)..high_ut + margin_ut;
@@ -74,11 +96,17 @@ pub fn draw_field_magnitude<DB: DrawingBackend>(
         area,
         caption,
         time_range.clone(),
-        magnitude_range,
+        magnitude_range.clone(),
         "time (s)",
         "|B| (µT)",
     )
     .map_err(&error)?;
+    let frame = super::frame_of(
+        &chart,
+        (time_range.clone(), magnitude_range),
+        ("time (s)", "|B| (µT)"),
+        false,
+    );
 
     chart
         .draw_series(LineSeries::new(raw, RAW_COLOR.stroke_width(1)))
@@ -107,7 +135,7 @@ pub fn draw_field_magnitude<DB: DrawingBackend>(
             });
     }
     super::draw_legend(&mut chart, SeriesLabelPosition::UpperRight).map_err(&error)?;
-    Ok(())
+    Ok(frame)
 }
 
 #[cfg(test)]
@@ -137,7 +165,8 @@ mod tests {
         {
             let root = SVGBackend::with_string(&mut svg, (800, 400)).into_drawing_area();
             root.fill(&WHITE).expect("fillable");
-            draw_field_magnitude(&root, t_s, raw_ut, corrected_ut, expected_ut).expect("drawable");
+            draw_field_magnitude(&root, t_s, raw_ut, corrected_ut, expected_ut, Zoom::WHOLE)
+                .expect("drawable");
             root.present().expect("presentable");
         }
         svg

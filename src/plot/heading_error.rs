@@ -1,10 +1,13 @@
 //! Heading error over time, before calibration and after the best method, against the
-//! reference heading. Without a reference, the two headings themselves are drawn.
+//! reference heading. Without a reference, the two headings themselves are drawn. Zoomed
+//! along time, the window's samples are drawn (thinned only within it) and the error
+//! axis fits them.
 
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
 use super::circle_fit::{CORRECTED_COLOR, RAW_COLOR};
+use super::zoom::{indices_within, PlotFrame, Zoom};
 use super::{thinned_indices, PlotError, MAX_POINTS_PER_SERIES};
 use crate::angle::heading_difference_rad;
 use crate::calibration::CalibrationAnalysis;
@@ -12,7 +15,8 @@ use crate::calibration::CalibrationAnalysis;
 pub fn draw_heading_error<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
     analysis: &CalibrationAnalysis,
-) -> Result<(), PlotError> {
+    zoom: Zoom,
+) -> Result<PlotFrame, PlotError> {
     let error = PlotError::from_backend::<DrawingAreaErrorKind<DB::ErrorType>>("heading");
     let best = analysis
         .report
@@ -32,12 +36,15 @@ pub fn draw_heading_error<DB: DrawingBackend>(
         t_s.first().copied().unwrap_or(0.0),
         t_s.last().copied().unwrap_or(1.0),
     );
-    let time_range = t_first_s..t_last_s.max(t_first_s + 1e-3);
+    let time_range = zoom.x_of(t_first_s..t_last_s.max(t_first_s + 1e-3));
+    let shown = indices_within(t_s, &time_range);
     let has_reference = analysis.ref_heading_deg.iter().any(Option::is_some);
 
     // Each series as (t, value in degrees), thinned for drawing.
     let series = |headings_deg: &[f64]| -> Vec<(f64, f64)> {
-        thinned_indices(t_s.len(), MAX_POINTS_PER_SERIES)
+        thinned_indices(shown.len(), MAX_POINTS_PER_SERIES)
+            .map(|idx| shown.start + idx)
+            .filter(|&idx| time_range.contains(&t_s[idx]))
             .filter_map(|idx| {
                 let heading_deg = *headings_deg.get(idx)?;
                 if has_reference {
@@ -79,11 +86,19 @@ pub fn draw_heading_error<DB: DrawingBackend>(
         )
     };
 
-    let mut chart = super::styled_chart(area, caption, time_range, y_range, "time (s)", y_desc)
-        .map_err(&error)?;
+    let mut chart = super::styled_chart(
+        area,
+        caption,
+        time_range.clone(),
+        y_range.clone(),
+        "time (s)",
+        y_desc,
+    )
+    .map_err(&error)?;
+    let frame = super::frame_of(&chart, (time_range, y_range), ("time (s)", y_desc), false);
 
     super::draw_dots(&mut chart, &before, RAW_COLOR, "before calibration").map_err(&error)?;
     super::draw_dots(&mut chart, &after, CORRECTED_COLOR, best_label.as_str()).map_err(&error)?;
     super::draw_legend(&mut chart, SeriesLabelPosition::LowerRight).map_err(&error)?;
-    Ok(())
+    Ok(frame)
 }

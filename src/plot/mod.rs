@@ -12,6 +12,7 @@ pub mod live_panel;
 pub mod pdr;
 pub mod sphere_view;
 pub mod timeline;
+pub mod zoom;
 
 use plotters::coord::types::RangedCoordf64;
 use plotters::coord::Shift;
@@ -19,6 +20,7 @@ use plotters::prelude::*;
 use thiserror::Error;
 
 use crate::calibration::CalibrationAnalysis;
+use zoom::{PlotFrame, Zoom};
 
 pub use circle_fit::draw_circle_fit;
 pub use deviation::draw_deviation_figure;
@@ -62,8 +64,8 @@ pub fn draw_calibration_figure<DB: DrawingBackend>(
         });
     };
     draw_circle_fit(circle, analysis)?;
-    draw_heading_error(heading, analysis)?;
-    draw_field_magnitude_of(field, analysis)?;
+    draw_heading_error(heading, analysis, Zoom::WHOLE)?;
+    draw_field_magnitude_of(field, analysis, Zoom::WHOLE)?;
     area.present().map_err(PlotError::from_backend("figure"))
 }
 
@@ -71,7 +73,8 @@ pub fn draw_calibration_figure<DB: DrawingBackend>(
 pub fn draw_field_magnitude_of<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
     analysis: &CalibrationAnalysis,
-) -> Result<(), PlotError> {
+    zoom: Zoom,
+) -> Result<PlotFrame, PlotError> {
     let expected_ut = analysis
         .report
         .expected_field
@@ -83,6 +86,7 @@ pub fn draw_field_magnitude_of<DB: DrawingBackend>(
         &analysis.field_raw_ut,
         &analysis.field_corrected_ut,
         expected_ut,
+        zoom,
     )
 }
 
@@ -126,6 +130,26 @@ pub(crate) fn styled_chart<'a, DB: DrawingBackend>(
         .light_line_style(WHITE.mix(0.0))
         .draw()?;
     Ok(chart)
+}
+
+/// Where `chart`'s plotting area lies and what it shows, for zooming and reading
+/// values on the page.
+pub(crate) fn frame_of<DB: DrawingBackend>(
+    chart: &XyChart<'_, DB>,
+    (x, y): (std::ops::Range<f64>, std::ops::Range<f64>),
+    (x_desc, y_desc): (&'static str, &'static str),
+    both_axes: bool,
+) -> PlotFrame {
+    let (x_px, y_px) = chart.plotting_area().get_pixel_range();
+    PlotFrame {
+        x_px,
+        y_px,
+        x,
+        y,
+        x_desc,
+        y_desc,
+        both_axes,
+    }
 }
 
 /// Points as small dots, with a legend entry.
@@ -176,6 +200,44 @@ mod tests {
             svg.matches("<circle").count() > 1000,
             "the points are drawn"
         );
+    }
+
+    /// Zoomed, the time plots show the window asked for, read the value under the
+    /// pointer in it, and draw only the samples inside it.
+    #[test]
+    fn the_time_plots_draw_the_window_of_a_zoom() {
+        let text = canonical_csv::write(&simulate(&WalkConfig::from_seed(5, 60.0)));
+        let report = import("sim.csv", text.as_bytes()).expect("readable");
+        let analysis = calibrate(report, &CalibrationOptions::default()).expect("analysable");
+        let frames = |zoom: Zoom| {
+            let mut svg = String::new();
+            let frames = {
+                let root = SVGBackend::with_string(&mut svg, (560, 440)).into_drawing_area();
+                let heading = draw_heading_error(&root, &analysis, zoom).expect("drawable");
+                let field = draw_field_magnitude_of(&root, &analysis, zoom).expect("drawable");
+                (heading, field)
+            };
+            (frames, svg.matches("<circle").count())
+        };
+        let ((whole, whole_field), _) = frames(Zoom::WHOLE);
+        let zoom = Zoom::WHOLE.zoomed((0.5, 0.5), 10.0, false);
+        let ((zoomed, zoomed_field), n_dots) = frames(zoom);
+        for (whole, zoomed) in [(&whole, &zoomed), (&whole_field, &zoomed_field)] {
+            let span = |frame: &PlotFrame| frame.x.end - frame.x.start;
+            assert!(
+                (span(zoomed) - span(whole) / 10.0).abs() < 1e-9,
+                "{zoomed:?}"
+            );
+            assert!(zoomed.x.start > whole.x.start && zoomed.x.end < whole.x.end);
+            let middle = (
+                f64::from(zoomed.x_px.start + zoomed.x_px.end) / 2.0,
+                f64::from(zoomed.y_px.start + zoomed.y_px.end) / 2.0,
+            );
+            let (time_s, _) = zoomed.value_at(middle).expect("inside");
+            assert!((time_s - (zoomed.x.start + zoomed.x.end) / 2.0).abs() < span(zoomed) / 50.0);
+        }
+        // A tenth of the walk's samples, all drawn (60 s at 50 Hz: 300 per series).
+        assert!((300..=700).contains(&n_dots), "{n_dots} dots");
     }
 
     #[test]

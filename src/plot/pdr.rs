@@ -6,6 +6,7 @@
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
+use super::zoom::{runs_within, PlotFrame, Zoom};
 use super::{thinned_indices, PlotError, MAX_POINTS_PER_SERIES};
 use crate::pdr::fusion::FixUse;
 use crate::pdr::metrics::position_at;
@@ -34,7 +35,7 @@ pub fn draw_pdr_figure<DB: DrawingBackend>(
             reason: "the drawing area did not split in two".to_string(),
         });
     };
-    draw_trajectory(&left, analysis)?;
+    draw_trajectory(&left, analysis, Zoom::WHOLE)?;
     draw_step_lengths(lengths, analysis)?;
     draw_position_error(errors, analysis)?;
     area.present().map_err(PlotError::from_backend("figure"))
@@ -69,7 +70,8 @@ fn scale_bar_m(span_m: f64) -> f64 {
 pub fn draw_trajectory<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
     analysis: &PdrAnalysis,
-) -> Result<(), PlotError> {
+    zoom: Zoom,
+) -> Result<PlotFrame, PlotError> {
     let error = PlotError::from_backend::<DrawingAreaErrorKind<DB::ErrorType>>("trajectory");
     let track: Vec<(f64, f64)> = analysis
         .track
@@ -95,16 +97,12 @@ pub fn draw_trajectory<DB: DrawingBackend>(
         }
     }
     let all = || track.iter().chain(&reference).chain(&used).chain(&ignored);
-    let (x_lo, x_hi) = padded(all().map(|p| p.0), 10.0);
-    let (y_lo, y_hi) = padded(all().map(|p| p.1), 10.0);
-    // Equal axes: widen the range that is short for the plot area's aspect.
-    let (width_px, height_px) = area.dim_in_pixel();
-    let plot_w = f64::from(width_px.saturating_sub(80).max(1));
-    let plot_h = f64::from(height_px.saturating_sub(90).max(1));
-    let metres_per_px = ((x_hi - x_lo) / plot_w).max((y_hi - y_lo) / plot_h);
-    let (x_mid, y_mid) = (0.5 * (x_lo + x_hi), 0.5 * (y_lo + y_hi));
-    let x_range = (x_mid - 0.5 * metres_per_px * plot_w)..(x_mid + 0.5 * metres_per_px * plot_w);
-    let y_range = (y_mid - 0.5 * metres_per_px * plot_h)..(y_mid + 0.5 * metres_per_px * plot_h);
+    let (x_range, y_range) = map_ranges(area.dim_in_pixel(), all(), zoom);
+    // What lies inside the window: plotters would draw the rest on its edges.
+    let inside = |point: &(f64, f64)| x_range.contains(&point.0) && y_range.contains(&point.1);
+    let runs = |line: &[(f64, f64)]| runs_within(line, &x_range, &y_range);
+    used.retain(inside);
+    ignored.retain(inside);
     let caption = match &analysis.report.position_error {
         Some(errors) => format!(
             "Trajectory: {} steps, RMS error {:.1} m ({:.1} %)",
@@ -124,24 +122,31 @@ pub fn draw_trajectory<DB: DrawingBackend>(
         "north (m)",
     )
     .map_err(&error)?;
-    if !reference.is_empty() {
-        chart
-            .draw_series(LineSeries::new(
-                reference.clone(),
-                REFERENCE_COLOR.stroke_width(1),
-            ))
-            .map_err(&error)?
-            .label("reference")
-            .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], REFERENCE_COLOR));
-        if reference.len() < 200 {
-            chart
-                .draw_series(
-                    reference
-                        .iter()
-                        .map(|&p| Cross::new(p, 4, REFERENCE_COLOR.stroke_width(2))),
-                )
-                .map_err(&error)?;
+    let frame = super::frame_of(
+        &chart,
+        (x_range.clone(), y_range.clone()),
+        ("east (m)", "north (m)"),
+        true,
+    );
+    for (run_idx, run) in runs(&reference).into_iter().enumerate() {
+        let series = chart
+            .draw_series(LineSeries::new(run, REFERENCE_COLOR.stroke_width(1)))
+            .map_err(&error)?;
+        if run_idx == 0 {
+            series
+                .label("reference")
+                .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], REFERENCE_COLOR));
         }
+    }
+    if reference.len() < 200 {
+        chart
+            .draw_series(
+                reference
+                    .iter()
+                    .filter(|point| inside(point))
+                    .map(|&p| Cross::new(p, 4, REFERENCE_COLOR.stroke_width(2))),
+            )
+            .map_err(&error)?;
     }
     if !used.is_empty() {
         super::draw_dots(&mut chart, &used, GNSS_COLOR, "GNSS used").map_err(&error)?;
@@ -155,11 +160,16 @@ pub fn draw_trajectory<DB: DrawingBackend>(
         )
         .map_err(&error)?;
     }
-    chart
-        .draw_series(LineSeries::new(track.clone(), TRACK_COLOR.stroke_width(2)))
-        .map_err(&error)?
-        .label("PDR")
-        .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], TRACK_COLOR.stroke_width(2)));
+    for (run_idx, run) in runs(&track).into_iter().enumerate() {
+        let series = chart
+            .draw_series(LineSeries::new(run, TRACK_COLOR.stroke_width(2)))
+            .map_err(&error)?;
+        if run_idx == 0 {
+            series.label("PDR").legend(|(x, y)| {
+                PathElement::new([(x, y), (x + 16, y)], TRACK_COLOR.stroke_width(2))
+            });
+        }
+    }
     let mut labelled = false;
     for (start_s, end_s) in without_gnss(analysis) {
         let segment: Vec<(f64, f64)> = analysis
@@ -168,46 +178,79 @@ pub fn draw_trajectory<DB: DrawingBackend>(
             .filter(|point| (start_s..=end_s).contains(&point.t_s))
             .map(|point| (point.east_m, point.north_m))
             .collect();
-        if segment.len() < 2 {
-            continue;
-        }
-        let series = chart
-            .draw_series(LineSeries::new(segment, OUTAGE_COLOR.stroke_width(3)))
-            .map_err(&error)?;
-        if !labelled {
-            series.label("PDR without GNSS").legend(|(x, y)| {
-                PathElement::new([(x, y), (x + 16, y)], OUTAGE_COLOR.stroke_width(3))
-            });
-            labelled = true;
+        for run in runs(&segment) {
+            if run.len() < 2 {
+                continue;
+            }
+            let series = chart
+                .draw_series(LineSeries::new(run, OUTAGE_COLOR.stroke_width(3)))
+                .map_err(&error)?;
+            if !labelled {
+                series.label("PDR without GNSS").legend(|(x, y)| {
+                    PathElement::new([(x, y), (x + 16, y)], OUTAGE_COLOR.stroke_width(3))
+                });
+                labelled = true;
+            }
         }
     }
     if let (Some(first), Some(last)) = (track.first(), track.last()) {
         chart
-            .draw_series([
-                Circle::new(*first, 5, TRACK_COLOR.filled()),
-                Circle::new(*last, 5, TRACK_COLOR.stroke_width(2)),
-            ])
+            .draw_series(
+                [
+                    (*first, TRACK_COLOR.filled()),
+                    (*last, TRACK_COLOR.stroke_width(2)),
+                ]
+                .into_iter()
+                .filter(|(point, _)| inside(point))
+                .map(|(point, style)| Circle::new(point, 5, style)),
+            )
             .map_err(&error)?;
     }
-    // The scale bar, bottom left.
+    draw_scale_bar(&mut chart, &x_range, &y_range).map_err(&error)?;
+    super::draw_legend(&mut chart, SeriesLabelPosition::UpperRight).map_err(&error)?;
+    Ok(frame)
+}
+
+/// The trajectory's ranges: every point with a margin, on equal axes (the range short
+/// for the plot area's aspect widened), then zoomed alike on both axes, so that the
+/// scale stays equal.
+fn map_ranges<'a>(
+    (width_px, height_px): (u32, u32),
+    points: impl Iterator<Item = &'a (f64, f64)> + Clone,
+    zoom: Zoom,
+) -> (std::ops::Range<f64>, std::ops::Range<f64>) {
+    let (x_lo, x_hi) = padded(points.clone().map(|p| p.0), 10.0);
+    let (y_lo, y_hi) = padded(points.map(|p| p.1), 10.0);
+    let plot_w = f64::from(width_px.saturating_sub(80).max(1));
+    let plot_h = f64::from(height_px.saturating_sub(90).max(1));
+    let metres_per_px = ((x_hi - x_lo) / plot_w).max((y_hi - y_lo) / plot_h);
+    let (x_mid, y_mid) = (0.5 * (x_lo + x_hi), 0.5 * (y_lo + y_hi));
+    (
+        zoom.x_of((x_mid - 0.5 * metres_per_px * plot_w)..(x_mid + 0.5 * metres_per_px * plot_w)),
+        zoom.y_of((y_mid - 0.5 * metres_per_px * plot_h)..(y_mid + 0.5 * metres_per_px * plot_h)),
+    )
+}
+
+/// A scale bar of a round length, bottom left.
+fn draw_scale_bar<DB: DrawingBackend>(
+    chart: &mut super::XyChart<'_, DB>,
+    x_range: &std::ops::Range<f64>,
+    y_range: &std::ops::Range<f64>,
+) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
     let span_m = x_range.end - x_range.start;
     let bar_m = scale_bar_m(span_m);
     let x0 = x_range.start + 0.05 * span_m;
     let y0 = y_range.start + 0.05 * (y_range.end - y_range.start);
-    chart
-        .draw_series([PathElement::new(
-            [(x0, y0), (x0 + bar_m, y0)],
-            BLACK.stroke_width(3),
-        )])
-        .map_err(&error)?;
-    chart
-        .draw_series([Text::new(
-            format!("{bar_m} m"),
-            (x0, y0 + 0.02 * (y_range.end - y_range.start)),
-            ("sans-serif", 13),
-        )])
-        .map_err(&error)?;
-    super::draw_legend(&mut chart, SeriesLabelPosition::UpperRight).map_err(&error)
+    chart.draw_series([PathElement::new(
+        [(x0, y0), (x0 + bar_m, y0)],
+        BLACK.stroke_width(3),
+    )])?;
+    chart.draw_series([Text::new(
+        format!("{bar_m} m"),
+        (x0, y0 + 0.02 * (y_range.end - y_range.start)),
+        ("sans-serif", 13),
+    )])?;
+    Ok(())
 }
 
 pub fn draw_step_lengths<DB: DrawingBackend>(

@@ -15,6 +15,7 @@ use crate::plot::deviation::{
     draw_deviation_curve, draw_online_convergence, draw_residual_histogram,
 };
 use crate::plot::pdr::{draw_position_error, draw_step_lengths, draw_trajectory};
+use crate::plot::zoom::{PlotFrame, Zoom};
 use crate::plot::{draw_circle_fit, draw_field_magnitude_of, draw_heading_error, PlotError};
 
 /// Which plot goes on a canvas.
@@ -25,27 +26,30 @@ pub enum Plot {
     FieldMagnitude,
 }
 
+/// Draws `plot` (zoomed by `zoom` where it zooms); the frame of a zoomable plot.
 pub fn draw(
     canvas: &HtmlCanvasElement,
     plot: Plot,
     analysis: &CalibrationAnalysis,
-) -> Result<(), String> {
+    zoom: Zoom,
+) -> Result<Option<PlotFrame>, String> {
     draw_with(canvas, |area| match plot {
-        Plot::CircleFit => draw_circle_fit(area, analysis),
-        Plot::HeadingError => draw_heading_error(area, analysis),
-        Plot::FieldMagnitude => draw_field_magnitude_of(area, analysis),
+        Plot::CircleFit => draw_circle_fit(area, analysis).map(|()| None),
+        Plot::HeadingError => draw_heading_error(area, analysis, zoom).map(Some),
+        Plot::FieldMagnitude => draw_field_magnitude_of(area, analysis, zoom).map(Some),
     })
 }
 
 /// Clears the canvas to white, draws one plot on it, and presents it.
-fn draw_with(
+fn draw_with<T>(
     canvas: &HtmlCanvasElement,
-    plot: impl FnOnce(&DrawingArea<HiDpi, plotters::coord::Shift>) -> Result<(), PlotError>,
-) -> Result<(), String> {
+    plot: impl FnOnce(&DrawingArea<HiDpi, plotters::coord::Shift>) -> Result<T, PlotError>,
+) -> Result<T, String> {
     let area = HiDpi::of(canvas)?.into_drawing_area();
     area.fill(&WHITE).map_err(|error| format!("{error:?}"))?;
-    plot(&area).map_err(|error| error.to_string())?;
-    area.present().map_err(|error| format!("{error:?}"))
+    let drawn = plot(&area).map_err(|error| error.to_string())?;
+    area.present().map_err(|error| format!("{error:?}"))?;
+    Ok(drawn)
 }
 
 /// Which heading-model plot goes on a canvas.
@@ -76,15 +80,17 @@ pub enum PdrPlot {
     PositionError,
 }
 
+/// Draws `plot` (the trajectory zoomed by `zoom`); the trajectory's frame.
 pub fn draw_pdr(
     canvas: &HtmlCanvasElement,
     plot: PdrPlot,
     analysis: &PdrAnalysis,
-) -> Result<(), String> {
+    zoom: Zoom,
+) -> Result<Option<PlotFrame>, String> {
     draw_with(canvas, |area| match plot {
-        PdrPlot::Trajectory => draw_trajectory(area, analysis),
-        PdrPlot::StepLengths => draw_step_lengths(area, analysis),
-        PdrPlot::PositionError => draw_position_error(area, analysis),
+        PdrPlot::Trajectory => draw_trajectory(area, analysis, zoom).map(Some),
+        PdrPlot::StepLengths => draw_step_lengths(area, analysis).map(|()| None),
+        PdrPlot::PositionError => draw_position_error(area, analysis).map(|()| None),
     })
 }
 

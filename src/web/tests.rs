@@ -93,7 +93,7 @@ fn both_plots_draw_on_a_canvas() {
         .expect("analysable");
     for plot in [Plot::CircleFit, Plot::HeadingError, Plot::FieldMagnitude] {
         let canvas = new_canvas(480, 360);
-        canvas::draw(&canvas, plot, &analysis).expect("drawn");
+        canvas::draw(&canvas, plot, &analysis, crate::plot::zoom::Zoom::WHOLE).expect("drawn");
         let n_drawn = n_drawn_pixels(&canvas);
         assert!(n_drawn > 5_000, "{plot:?}: only {n_drawn} pixels drawn");
     }

@@ -1,9 +1,10 @@
 // End-to-end tests of the analysis controls: a change re-runs only what depends on it,
-// and outages can be brushed on the timeline with the mouse or typed.
+// outages can be brushed on the timeline with the mouse or typed, and the time plots and
+// the trajectory zoom, pan and read the value under the pointer.
 import { test } from 'node:test';
 import assert from 'node:assert/strict';
 import { join } from 'node:path';
-import { drawnPixels, openAllDetails, openPage, out, text, waitForState } from './common.mjs';
+import { canvasDigest, drawnPixels, openAllDetails, openPage, out, text, waitForState } from './common.mjs';
 
 const runs = (page) => page.evaluate(() => ({
   calibration: Number(document.body.dataset.calibrationRuns),
@@ -72,6 +73,53 @@ test('the controls re-run only what depends on them; an outage is brushed on the
   await waitForState(page, 'ready', 'pdr-walk.csv');
   assert.equal(await page.$('#row-ellipsoid'), null);
   assert.ok(await page.$('#row-ellipse'));
+  assert.deepEqual(problems, []);
+  await close();
+});
+
+test('the time plots and the trajectory zoom, pan and read the value under the pointer', async () => {
+  const { page, problems, close } = await openPage();
+  await waitForState(page, 'ready', 'demo-walk.csv');
+  await openAllDetails(page);
+  for (const id of ['plot-heading', 'plot-field', 'plot-trajectory']) {
+    const canvas = page.locator(`#${id}`);
+    await canvas.scrollIntoViewIfNeeded();
+    const box = await canvas.boundingBox();
+    const at = (fx, fy) => [box.x + fx * box.width, box.y + fy * box.height];
+    const whole = await canvasDigest(page, id);
+    assert.match(await text(page, `${id}-readout`), /Ctrl \+ wheel/, 'says how to zoom');
+    // The value under the pointer, in the axes' units.
+    await page.mouse.move(...at(0.5, 0.5));
+    const readout = await text(page, `${id}-readout`);
+    const units = id === 'plot-trajectory' ? /^east \(m\) -?[\d.]+, north \(m\) -?[\d.]+$/ : /^time \(s\) [\d.]+, /;
+    assert.match(readout, units, `${id}: ${readout}`);
+    // A plain wheel scrolls the page; Ctrl + wheel zooms about the pointer.
+    await page.keyboard.down('Control');
+    await page.mouse.wheel(0, -300);
+    await page.keyboard.up('Control');
+    await page.waitForFunction(([canvasId, digest]) => {
+      const canvas = document.getElementById(canvasId);
+      const data = canvas.getContext('2d').getImageData(0, 0, canvas.width, canvas.height).data;
+      let hash = 0;
+      for (let i = 0; i < data.length; i += 1) hash = (hash * 31 + data[i]) | 0;
+      return hash !== digest;
+    }, [id, whole]);
+    await page.mouse.move(...at(0.5, 0.5));
+    const zoomedReadout = await text(page, `${id}-readout`);
+    // Zoomed in, the readout resolves finer: more decimals on the x value.
+    const decimals = (text) => (text.split(',')[0].split('.')[1] ?? '').length;
+    assert.ok(decimals(zoomedReadout) >= decimals(readout), `${readout} → ${zoomedReadout}`);
+    // A drag pans; a double click shows the whole plot again.
+    const zoomed = await canvasDigest(page, id);
+    await page.mouse.move(...at(0.6, 0.5));
+    await page.mouse.down();
+    await page.mouse.move(...at(0.3, 0.5), { steps: 5 });
+    await page.mouse.up();
+    assert.notEqual(await canvasDigest(page, id), zoomed, `${id}: the drag panned`);
+    await page.locator(`#${id}`).screenshot({ path: join(out, `zoomed-${id}.png`) });
+    await page.mouse.dblclick(...at(0.5, 0.5));
+    assert.equal(await canvasDigest(page, id), whole, `${id}: a double click shows the whole plot`);
+  }
   assert.deepEqual(problems, []);
   await close();
 });

@@ -1,7 +1,7 @@
 //! The page: its element handles, the wiring of the file input and the drop zone, the
 //! demo log, the re-runs when a control changes, and the kept import and [`Results`].
 //! Reading dropped files is in `reading.rs`; putting the analysis into the DOM is in
-//! `show.rs`.
+//! `show.rs`; zooming its plots in `zoom.rs`.
 //!
 //! Log-derived text (file names, messages) is set with `textContent`, never as HTML.
 //! The body's `data-state` attribute says where the page is (`loading`, `ready`,
@@ -12,6 +12,7 @@ pub(crate) mod analysis;
 mod reading;
 mod show;
 mod verdict;
+mod zoom;
 
 use std::rc::Rc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -81,6 +82,8 @@ pub struct Page {
     n_pdr_runs: std::cell::Cell<u32>,
     /// Finished analyses shown so far: a job's early figures stop drawing when it moves.
     n_shown: std::cell::Cell<u64>,
+    /// The zoomable plots' zooms and frames.
+    zooms: zoom::Zooms,
 }
 
 /// What reading and analysing a log gave: the import (when the files could be read)
@@ -141,6 +144,7 @@ impl Page {
             n_calibration_runs: std::cell::Cell::new(0),
             n_pdr_runs: std::cell::Cell::new(0),
             n_shown: std::cell::Cell::new(0),
+            zooms: zoom::Zooms::default(),
         }))
     }
 
@@ -192,6 +196,7 @@ impl Page {
         })
         .forget();
 
+        self.wire_zoom();
         if let Some(cancel) = self.document.get_element_by_id(CANCEL_ID) {
             let page = Rc::clone(&self);
             EventListener::new(&cancel, "click", move |_| page.cancel_job()).forget();

@@ -43,6 +43,7 @@ impl Page {
         };
         *self.import.borrow_mut() = import.clone();
         self.n_shown.set(self.n_shown.get() + 1);
+        self.zooms.reset();
         let status = self.show_lists(&results, import.as_deref());
         for figure in FIGURES {
             yield_to_browser().await;
@@ -89,10 +90,15 @@ impl Page {
         plot: Plot,
         calibration: &CalibrationAnalysis,
     ) {
-        let canvas = self.canvas(canvas);
-        if let Err(message) = canvas::draw(canvas, plot, calibration) {
-            let _ =
-                canvas::draw_message(canvas, &format!("This plot could not be drawn: {message}"));
+        let zoom = self.zooms.zoom_of(canvas);
+        match canvas::draw(self.canvas(canvas), plot, calibration, zoom) {
+            Ok(frame) => self.zooms.keep_frame(canvas, frame),
+            Err(message) => {
+                let _ = canvas::draw_message(
+                    self.canvas(canvas),
+                    &format!("This plot could not be drawn: {message}"),
+                );
+            }
         }
         self.mark_time("data-first-plot-ms");
     }
@@ -118,7 +124,7 @@ impl Page {
 
     /// Draws one figure of `results` on its canvas (a figure that cannot be drawn says
     /// why in its place; the dead reckoning's say why there is none).
-    fn draw_figure(&self, figure: Figure, results: &Results) {
+    pub(super) fn draw_figure(&self, figure: Figure, results: &Results) {
         let drawn = match figure {
             Figure::Calibration(canvas, plot) => {
                 return self.draw_calibration_figure(canvas, plot, &results.calibration)
@@ -127,7 +133,11 @@ impl Page {
                 canvas::draw_heading(self.canvas(canvas), plot, &results.heading)
             }
             Figure::Pdr(canvas, plot) => match &results.pdr {
-                Ok(pdr) => canvas::draw_pdr(self.canvas(canvas), plot, pdr),
+                Ok(pdr) => {
+                    let zoom = self.zooms.zoom_of(canvas);
+                    canvas::draw_pdr(self.canvas(canvas), plot, pdr, zoom)
+                        .map(|frame| self.zooms.keep_frame(canvas, frame))
+                }
                 // Its message is drawn with the list (`show_dead_reckoning`).
                 Err(_) => Ok(()),
             },
@@ -139,7 +149,7 @@ impl Page {
         }
     }
 
-    fn canvas(&self, canvas: Canvas) -> &HtmlCanvasElement {
+    pub(super) fn canvas(&self, canvas: Canvas) -> &HtmlCanvasElement {
         match canvas {
             Canvas::Circle => &self.circle_canvas,
             Canvas::Heading => &self.heading_canvas,
@@ -409,8 +419,8 @@ fn or_none(items: impl Iterator<Item = String>) -> impl Iterator<Item = String> 
 }
 
 /// The page's canvases.
-#[derive(Debug, Clone, Copy)]
-enum Canvas {
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Canvas {
     Circle,
     Heading,
     Field,
@@ -424,14 +434,14 @@ enum Canvas {
 
 /// One figure: what is drawn on which canvas.
 #[derive(Debug, Clone, Copy)]
-enum Figure {
+pub(super) enum Figure {
     Calibration(Canvas, Plot),
     Heading(Canvas, HeadingPlot),
     Pdr(Canvas, PdrPlot),
 }
 
 impl Figure {
-    fn canvas(self) -> Canvas {
+    pub(super) fn canvas(self) -> Canvas {
         match self {
             Figure::Calibration(canvas, _)
             | Figure::Heading(canvas, _)
@@ -441,7 +451,7 @@ impl Figure {
 }
 
 /// Every figure, in the page's order.
-const FIGURES: [Figure; 9] = [
+pub(super) const FIGURES: [Figure; 9] = [
     Figure::Calibration(Canvas::Circle, Plot::CircleFit),
     Figure::Calibration(Canvas::Heading, Plot::HeadingError),
     Figure::Calibration(Canvas::Field, Plot::FieldMagnitude),
