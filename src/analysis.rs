@@ -72,9 +72,6 @@ pub enum AnalysisError {
 
     #[error("{file_name}: the accelerometer does not overlap the magnetometer in time, so the field cannot be levelled. Check the t_s column.")]
     NoLevelledSamples { file_name: String },
-
-    #[error("{file_name}: no calibration could be fitted. {reasons}")]
-    NoMethodFitted { file_name: String, reasons: String },
 }
 
 /// The streams a recording holds, with their sample counts, for a message ("1,200 GNSS

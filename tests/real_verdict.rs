@@ -225,3 +225,39 @@ fn every_other_recording_gets_an_answer() {
         assert!(!verdict.headline.contains("NaN"), "{}", verdict.headline);
     }
 }
+
+/// A board that never turned, and a drone that yawed a few degrees: no method can be
+/// fitted (min/max included: the extremes of a still board are its noise), and the
+/// analysis still answers, uncalibrated, saying why and what to record.
+#[test]
+fn nothing_to_fit_is_answered_uncalibrated_with_what_to_record() {
+    let Some(data) = shared_data() else { return };
+    for paths in [
+        dropped(&data.join("hmc5883l-sphere/unmoved-with-x-pointing-forward")),
+        vec![data.join("px4-ulog/sample_log_small.ulg")],
+    ] {
+        let contents = read_named(&paths);
+        let slices: Vec<(&str, &[u8])> = contents
+            .iter()
+            .map(|(name, bytes)| (name.as_str(), bytes.as_slice()))
+            .collect();
+        let import = import_files(&slices).expect("imports");
+        let mut options = PdrOptions::default();
+        options.heading_options.neural = false;
+        let analysis = pipeline::analyse(&import, &options).expect("answers, uncalibrated");
+        let report = &analysis.calibration.report;
+        let why = report.why_no_method_fitted().expect("nothing fitted");
+        assert!(why.contains("hardly turned"), "{paths:?}: {why}");
+        assert_eq!(report.best, None, "{paths:?}");
+        assert!(
+            report
+                .notes
+                .iter()
+                .any(|note| note.starts_with("No calibration could be fitted")),
+            "{:?}",
+            report.notes
+        );
+        let verdict = verdict_of(&paths);
+        assert!(!verdict.to_do.is_empty(), "{paths:?}: says what to do");
+    }
+}

@@ -37,6 +37,19 @@ pub const MIN_SAMPLES: usize = 20;
 /// field is 10-40 µT, so a full turn spans 20-80 µT.
 const MIN_RANGE_UT: f64 = 1.0;
 
+/// Nor is a range (1st to 99th percentile, so that a spike does not count) under this
+/// many times the sensor's noise: a board left on the bench, or one rocked by a few
+/// degrees, whose extremes are its noise (a real HMC5883L left unmoved spans 1-2 µT).
+/// A full turn spans 20-80 µT, against phone and board noise of 0.05-1 µT.
+const MIN_RANGE_PER_NOISE: f64 = 8.0;
+
+/// A range above this (µT) is a turn whatever the noise estimate says: the estimate
+/// takes the samples' second differences for noise, which a fast turn sampled
+/// sparsely (tens of degrees per sample), or samples out of time order, inflate; and
+/// a turn of half a circle spans at least the horizontal field, over 10 µT wherever
+/// people live. (A magnetometer this noisy when still would need σ over 2 µT.)
+const MAX_NOISE_LIMITED_RANGE_UT: f64 = 10.0;
+
 /// Width of the heading bins that coverage is counted in.
 const COVERAGE_BIN_DEG: f64 = 10.0;
 
@@ -97,6 +110,20 @@ impl MinMaxCalibration {
                 return Err(CalibError::NoTurn {
                     axis,
                     range_ut: axis_range_ut,
+                });
+            }
+        }
+        for (axis, component) in [("x", 0), ("y", 1)] {
+            let values: Vec<f64> = level_ut.iter().map(|sample| sample[component]).collect();
+            let (robust_range_ut, noise_ut) = (robust_range(&values), noise_of(&values));
+            if robust_range_ut < MIN_RANGE_PER_NOISE * noise_ut
+                && robust_range_ut < MAX_NOISE_LIMITED_RANGE_UT
+            {
+                return Err(CalibError::NoTurnAboveNoise {
+                    axis,
+                    range_ut: robust_range_ut,
+                    noise_ut,
+                    min_noise_multiple: MIN_RANGE_PER_NOISE,
                 });
             }
         }
@@ -172,6 +199,28 @@ impl Coverage {
             largest_gap_start_deg: largest_run_start as f64 * COVERAGE_BIN_DEG,
         }
     }
+}
+
+/// The 1st to the 99th percentile of `values`.
+fn robust_range(values: &[f64]) -> f64 {
+    let mut sorted = values.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    let at = |fraction: f64| {
+        let idx = ((sorted.len() - 1) as f64 * fraction).round() as usize;
+        sorted.get(idx).copied().unwrap_or(0.0)
+    };
+    at(0.99) - at(0.01)
+}
+
+/// The white noise of a series in time order, from its second differences: a slow turn
+/// hardly bends them, and for noise of standard deviation σ, `x[i+1] − 2x[i] + x[i−1]`
+/// has standard deviation √6·σ and mean absolute value √6·σ·√(2/π).
+fn noise_of(values: &[f64]) -> f64 {
+    let second_differences = values
+        .windows(3)
+        .map(|window| (window[2] - 2.0 * window[1] + window[0]).abs());
+    let n = values.len().saturating_sub(2).max(1) as f64;
+    second_differences.sum::<f64>() / n / (6.0f64.sqrt() * (2.0 / std::f64::consts::PI).sqrt())
 }
 
 #[cfg(test)]
@@ -270,5 +319,78 @@ mod tests {
             MinMaxCalibration::fit(&[]),
             Err(CalibError::TooFewSamples { .. })
         ));
+    }
+
+    /// A xorshift generator: the test's own draws, not the simulator's.
+    struct Draws(u64);
+
+    impl Draws {
+        fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
+            self.0 ^= self.0 << 13;
+            self.0 ^= self.0 >> 7;
+            self.0 ^= self.0 << 17;
+            lo + (hi - lo) * (self.0 >> 11) as f64 / (1u64 << 53) as f64
+        }
+
+        /// Box-Muller from two uniforms.
+        fn gaussian(&mut self) -> f64 {
+            let (u1, u2) = (self.uniform(1e-12, 1.0), self.uniform(0.0, 1.0));
+            (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+        }
+    }
+
+    /// Random boards: a full turn at any field, hard iron, scale and noise whose turn
+    /// spans at least ten times the noise is fitted, in time order or shuffled; the
+    /// same board left still, or rocked by under a degree, is refused, up to a noise
+    /// of 2 µT (beyond any magnetometer's when still).
+    #[test]
+    fn a_turn_is_told_from_noise_on_random_boards() {
+        let mut draws = Draws(0x2545_f491_4f6c_dd1d);
+        for _ in 0..300 {
+            let field_ut = draws.uniform(8.0, 40.0);
+            let noise_ut = draws.uniform(0.02, (2.0 * field_ut / 10.0).min(6.0));
+            let hard_iron = Vector2::new(draws.uniform(-60.0, 60.0), draws.uniform(-60.0, 60.0));
+            let scale = Vector2::new(draws.uniform(0.8, 1.25), draws.uniform(0.8, 1.25));
+            let n_samples = draws.uniform(100.0, 4000.0) as usize;
+            let start_rad = draws.uniform(0.0, std::f64::consts::TAU);
+            let board = |turn_rad: f64, draws: &mut Draws| -> Vec<Vector2<f64>> {
+                (0..n_samples)
+                    .map(|idx| {
+                        let heading = start_rad + turn_rad * idx as f64 / n_samples as f64;
+                        let level =
+                            Vector2::new(field_ut * heading.cos(), -field_ut * heading.sin());
+                        let noise = Vector2::new(draws.gaussian(), draws.gaussian()) * noise_ut;
+                        level.component_mul(&scale) + hard_iron + noise
+                    })
+                    .collect()
+            };
+            let mut turn = board(std::f64::consts::TAU, &mut draws);
+            for shuffled in [false, true] {
+                if shuffled {
+                    for idx in (1..turn.len()).rev() {
+                        turn.swap(idx, draws.uniform(0.0, idx as f64 + 1.0) as usize);
+                    }
+                }
+                let fitted = MinMaxCalibration::fit(&turn);
+                assert!(
+                    fitted.is_ok(),
+                    "a full turn of {field_ut:.1} µT with noise {noise_ut:.2} µT (shuffled: \
+                     {shuffled}) was refused: {fitted:?}"
+                );
+            }
+            if noise_ut > 2.0 {
+                continue;
+            }
+            let rock_rad = draws.uniform(0.0, 1.0f64.to_radians());
+            for still in [board(0.0, &mut draws), board(rock_rad, &mut draws)] {
+                assert!(
+                    matches!(
+                        MinMaxCalibration::fit(&still),
+                        Err(CalibError::NoTurn { .. } | CalibError::NoTurnAboveNoise { .. })
+                    ),
+                    "a still board with noise {noise_ut:.2} µT was fitted"
+                );
+            }
+        }
     }
 }

@@ -41,4 +41,17 @@ pub enum CalibError {
          no turn to calibrate from. Turn the device through a full circle while holding it level."
     )]
     NoTurn { axis: &'static str, range_ut: f64 },
+
+    #[error(
+        "the horizontal field along {axis} spans only {range_ut:.2} µT, under {min_noise_multiple:.0} \
+         times the sensor's own noise ({noise_ut:.2} µT): the device hardly turned, so the \
+         extremes are noise, not the field. Turn the device through a full circle while \
+         holding it level."
+    )]
+    NoTurnAboveNoise {
+        axis: &'static str,
+        range_ut: f64,
+        noise_ut: f64,
+        min_noise_multiple: f64,
+    },
 }

@@ -300,6 +300,20 @@ impl CalibrationReport {
     pub fn method(&self, method: Method) -> Option<&MethodReport> {
         self.methods.iter().find(|report| report.method == method)
     }
+
+    /// Why no method could be fitted (each method's reason, which says what to record),
+    /// when none was; `None` when one was.
+    pub fn why_no_method_fitted(&self) -> Option<String> {
+        if self.methods.iter().any(|report| report.error.is_none()) {
+            return None;
+        }
+        let reasons: Vec<String> = self
+            .methods
+            .iter()
+            .filter_map(|report| Some(format!("{}: {}", report.label, report.error.as_deref()?)))
+            .collect();
+        Some(reasons.join(" "))
+    }
 }
 
 impl CalibrationAnalysis {
@@ -602,16 +616,6 @@ fn calibrate_levelled(
         field_corrected_ut,
         ..
     } = outputs;
-    if method_reports.iter().all(|report| report.error.is_some()) {
-        let reasons: Vec<String> = method_reports
-            .iter()
-            .filter_map(|report| Some(format!("{}: {}", report.label, report.error.as_deref()?)))
-            .collect();
-        return Err(AnalysisError::NoMethodFitted {
-            file_name,
-            reasons: reasons.join(" "),
-        });
-    }
     let (raw_train, raw_check) = prepared.both_stats(&prepared.raw_heading_rad);
     let scored = scored_methods(raw_train, raw_check, &method_reports);
     let by_reference = choose_by_reference(&scored);
@@ -689,6 +693,17 @@ fn calibrate_levelled(
         .into_iter()
         .find(|method| method.key() == choice.key);
     report.choice = Some(choice);
+    if report.why_no_method_fitted().is_some() {
+        // Nothing to calibrate with: the analysis goes on uncalibrated (the headings, the
+        // in-force calibration's judgement, the dead reckoning) and says so; each
+        // method's report says why it failed and what to record. `compass-pdr
+        // calibrate` refuses (it has nothing to give).
+        report.notes.push(
+            "No calibration could be fitted, so the headings are the uncalibrated ones: each \
+             method says why and what to record."
+                .to_string(),
+        );
+    }
     analysis.attitude_heading = attitude_heading
         .unwrap_or_else(|| attitude::attitude_heading(&recording, &analysis.report, &analysis.t_s));
     Ok(analysis)

@@ -41,6 +41,13 @@ pub(super) fn run_calibrate(
         pipeline::headings(&report, &heading_options).map_err(|error| error.to_string())?;
     let report = &analysis.report;
     print_import_diagnostics(&report.file_name, &report.diagnostics);
+    // The other commands go on uncalibrated; this one has nothing to give.
+    if let Some(reasons) = report.why_no_method_fitted() {
+        return Err(format!(
+            "{}: no calibration could be fitted. {reasons}",
+            report.file_name
+        ));
+    }
     if let Some(plot) = outputs.plot {
         let root = SVGBackend::new(plot, (1800, 540)).into_drawing_area();
         draw_calibration_figure(&root, &analysis)
