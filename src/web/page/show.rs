@@ -71,6 +71,8 @@ impl Page {
         if !current() {
             return;
         }
+        // A new log's figures start unzoomed.
+        self.zooms.reset();
         self.show_calibration(calibration, Some(import));
         for figure in FIGURES {
             let Figure::Calibration(canvas, plot) = figure else {
