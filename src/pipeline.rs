@@ -88,15 +88,112 @@ pub fn headings(
 }
 
 /// Every stage: [`headings`], then the dead reckoning when the log has an
-/// accelerometer (else why not, in `pdr`).
+/// accelerometer (else why not, in `pdr`). [`Steps`] run to the end.
 pub fn analyse(import: &ImportReport, options: &PdrOptions) -> Result<Analysis, AnalysisError> {
-    let (calibration, headings) = headings(import, &options.heading_options)?;
-    let pdr = Some(dead_reckon(import, (&calibration, &headings), options));
-    Ok(Analysis {
-        calibration,
-        headings,
-        pdr,
-    })
+    Steps::new(options.clone()).finish(import)
+}
+
+/// The steps of [`analyse`], in order.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Step {
+    Calibrating,
+    LearningHeadings,
+    DeadReckoning,
+}
+
+/// [`analyse`] one step at a time, for a caller that has other work between them (the
+/// page's worker says which step runs and shows the calibration's figures before the
+/// heading models are done; without a worker, the page yields to the browser between
+/// steps): [`Steps::next`] names the step to come, [`Steps::advance`] runs it, until
+/// [`Steps::finish`]. The one order of the stages, whichever caller runs them.
+pub struct Steps {
+    options: PdrOptions,
+    state: StepState,
+}
+
+// One per analysis, moved once a step: its size is not worth a box per variant.
+#[allow(clippy::large_enum_variant)]
+enum StepState {
+    Start,
+    Calibrated(CalibrationAnalysis),
+    HeadingsLearnt(CalibrationAnalysis, HeadingAnalysis),
+    Done(Result<Analysis, AnalysisError>),
+}
+
+impl Steps {
+    /// Every stage, from the calibration.
+    pub fn new(options: PdrOptions) -> Steps {
+        Steps {
+            options,
+            state: StepState::Start,
+        }
+    }
+
+    /// The dead reckoning alone ([`Stage::DeadReckoning`]), on the calibration and the
+    /// heading models of an earlier run.
+    pub fn after_headings(
+        options: PdrOptions,
+        calibration: CalibrationAnalysis,
+        headings: HeadingAnalysis,
+    ) -> Steps {
+        Steps {
+            options,
+            state: StepState::HeadingsLearnt(calibration, headings),
+        }
+    }
+
+    /// The step [`Steps::advance`] runs next; `None` when done.
+    pub fn next(&self) -> Option<Step> {
+        match self.state {
+            StepState::Start => Some(Step::Calibrating),
+            StepState::Calibrated(_) => Some(Step::LearningHeadings),
+            StepState::HeadingsLearnt(..) => Some(Step::DeadReckoning),
+            StepState::Done(_) => None,
+        }
+    }
+
+    /// The calibration, between the calibration step and the heading models.
+    pub fn calibrated(&self) -> Option<&CalibrationAnalysis> {
+        match &self.state {
+            StepState::Calibrated(calibration) => Some(calibration),
+            _ => None,
+        }
+    }
+
+    /// Runs the next step on `import` (the same import at every step).
+    pub fn advance(&mut self, import: &ImportReport) {
+        let options = &self.options;
+        let state = std::mem::replace(&mut self.state, StepState::Start);
+        self.state = match state {
+            StepState::Start => match calibration(import, &options.heading_options) {
+                Ok(calibration) => StepState::Calibrated(calibration),
+                Err(error) => StepState::Done(Err(error)),
+            },
+            StepState::Calibrated(mut calibration) => {
+                let headings = heading_models(&mut calibration, &options.heading_options);
+                StepState::HeadingsLearnt(calibration, headings)
+            }
+            StepState::HeadingsLearnt(calibration, headings) => {
+                let pdr = Some(dead_reckon(import, (&calibration, &headings), options));
+                StepState::Done(Ok(Analysis {
+                    calibration,
+                    headings,
+                    pdr,
+                }))
+            }
+            done @ StepState::Done(_) => done,
+        };
+    }
+
+    /// The analysis, running the steps left.
+    pub fn finish(mut self, import: &ImportReport) -> Result<Analysis, AnalysisError> {
+        loop {
+            if let StepState::Done(result) = self.state {
+                return result;
+            }
+            self.advance(import);
+        }
+    }
 }
 
 /// The dead reckoning of a recording, with the stages before it (for callers that
@@ -162,4 +259,57 @@ pub fn calibrate_files(
     options: &CalibrationOptions,
 ) -> Result<CalibrationAnalysis, AnalysisError> {
     calibrate(import_files(files)?, options)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::io::canonical_csv;
+    use crate::io::import::import;
+    use crate::sim::walk::{simulate, WalkConfig};
+
+    /// Run one step at a time, the analysis is [`analyse`]'s, in the one order; the
+    /// calibration is there between its step and the heading models'.
+    #[test]
+    fn the_steps_one_at_a_time_give_the_whole_analysis() {
+        let text = canonical_csv::write(&simulate(&WalkConfig::from_seed(3, 60.0)));
+        let import = import("walk.csv", text.as_bytes()).expect("readable");
+        let mut options = PdrOptions::default();
+        options.heading_options.neural = false;
+        let mut steps = Steps::new(options.clone());
+        let mut order = Vec::new();
+        while let Some(step) = steps.next() {
+            order.push(step);
+            steps.advance(&import);
+            assert_eq!(steps.calibrated().is_some(), step == Step::Calibrating);
+        }
+        assert_eq!(
+            order,
+            [
+                Step::Calibrating,
+                Step::LearningHeadings,
+                Step::DeadReckoning
+            ]
+        );
+        let analysis = steps.finish(&import).expect("analysable");
+        // Compared as printed: the analyses hold NaN where a figure is undefined.
+        let printed = |analysis: &Analysis| format!("{analysis:?}");
+        let whole = analyse(&import, &options).expect("analysable");
+        assert!(
+            printed(&analysis) == printed(&whole),
+            "the steps differ from analyse"
+        );
+        // The dead reckoning alone, on the same calibration and models, is the same.
+        let again = Steps::after_headings(
+            options,
+            analysis.calibration.clone(),
+            analysis.headings.clone(),
+        );
+        assert_eq!(again.next(), Some(Step::DeadReckoning));
+        let again = again.finish(&import).expect("analysable");
+        assert!(
+            printed(&again) == printed(&analysis),
+            "the dead reckoning alone differs"
+        );
+    }
 }

@@ -28,7 +28,7 @@ use wasm_bindgen::prelude::*;
 use wasm_bindgen::JsCast;
 use wasm_bindgen_futures::JsFuture;
 
-use super::page::analysis::{Request, Steps};
+use super::page::analysis::{status, Request, Steps};
 use super::page::Outcome;
 use crate::calibration::CalibrationAnalysis;
 use crate::io::delimited::ColumnMapping;
@@ -231,7 +231,7 @@ impl AnalysisJob {
         while let Some(step) = steps.next() {
             let _ = on_step.call1(
                 &JsValue::NULL,
-                &step.status(&steps.import().file_name).into(),
+                &status(step, &steps.import().file_name).into(),
             );
             if cancel.load(Ordering::Acquire) {
                 return;
