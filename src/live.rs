@@ -546,6 +546,29 @@ fn echo_difference(sent: &FieldCalibration, cal1: &EchoSeen, cal2: &EchoSeen) ->
     None
 }
 
+/// A fitted session of a board turned through `share` of the sphere from its top (a
+/// Fibonacci spiral of `n_samples` MotionCal `Raw:` lines, hard iron (100, −50, 300)
+/// counts), for the plots' tests.
+#[cfg(test)]
+pub(crate) fn turned_session(n_samples: usize, share: f64) -> (LiveSession, LiveQuality) {
+    let mut session = LiveSession::new();
+    let mut text = String::new();
+    for idx in 0..n_samples {
+        let z = 1.0 - 2.0 * share * (idx as f64 + 0.5) / n_samples as f64;
+        let azimuth = idx as f64 * 2.399_963;
+        let r = (1.0 - z * z).sqrt();
+        text.push_str(&format!(
+            "Raw:0,0,8192,0,0,0,{:.0},{:.0},{:.0}\n",
+            480.0 * r * azimuth.cos() + 100.0,
+            480.0 * r * azimuth.sin() - 50.0,
+            480.0 * z + 300.0
+        ));
+    }
+    session.feed(text.as_bytes(), 0.0);
+    let quality = session.refit().expect("a sphere fits").clone();
+    (session, quality)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

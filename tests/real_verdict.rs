@@ -10,8 +10,7 @@ use std::path::{Path, PathBuf};
 
 mod common;
 
-use common::{read_named, shared_data};
-use compass_pdr::io::import::import_files;
+use common::shared_data;
 use compass_pdr::pdr::PdrOptions;
 use compass_pdr::pipeline;
 use compass_pdr::verdict::{
@@ -35,17 +34,17 @@ fn dropped(dir: &Path) -> Vec<PathBuf> {
     paths
 }
 
-fn verdict_of(paths: &[PathBuf]) -> Verdict {
-    let contents = read_named(paths);
-    let slices: Vec<(&str, &[u8])> = contents
-        .iter()
-        .map(|(name, bytes)| (name.as_str(), bytes.as_slice()))
-        .collect();
-    let import = import_files(&slices).expect("imports");
+/// The files dropped together, analysed as the page analyses them.
+fn analysis_of(paths: &[PathBuf]) -> pipeline::Analysis {
+    let import = common::import_paths(paths);
     let mut options = PdrOptions::default();
     // The network is the slowest model and is not what the verdict is about.
     options.heading_options.neural = false;
-    let analysis = pipeline::analyse(&import, &options).expect("analyses");
+    pipeline::analyse(&import, &options).expect("analyses")
+}
+
+fn verdict_of(paths: &[PathBuf]) -> Verdict {
+    let analysis = analysis_of(paths);
     let pdr = analysis
         .pdr
         .as_ref()
@@ -236,15 +235,7 @@ fn nothing_to_fit_is_answered_uncalibrated_with_what_to_record() {
         dropped(&data.join("hmc5883l-sphere/unmoved-with-x-pointing-forward")),
         vec![data.join("px4-ulog/sample_log_small.ulg")],
     ] {
-        let contents = read_named(&paths);
-        let slices: Vec<(&str, &[u8])> = contents
-            .iter()
-            .map(|(name, bytes)| (name.as_str(), bytes.as_slice()))
-            .collect();
-        let import = import_files(&slices).expect("imports");
-        let mut options = PdrOptions::default();
-        options.heading_options.neural = false;
-        let analysis = pipeline::analyse(&import, &options).expect("answers, uncalibrated");
+        let analysis = analysis_of(&paths);
         let report = &analysis.calibration.report;
         let why = report.why_no_method_fitted().expect("nothing fitted");
         assert!(why.contains("hardly turned"), "{paths:?}: {why}");

@@ -179,8 +179,14 @@ fn region_centre(region_idx: usize) -> Vector3<f64> {
     } else {
         (floor_sin + ceiling_sin) / 2.0
     };
-    let cos_elevation = (1.0 - sin_elevation * sin_elevation).max(0.0).sqrt();
     let azimuth_rad = (sector_idx as f64 + 0.5) / n_in_zone as f64 * TAU - PI;
+    direction_at(azimuth_rad, sin_elevation)
+}
+
+/// The unit direction (body axes) at `azimuth_rad` from +x toward +y and the sine of
+/// the elevation (toward −z): the coordinates the regions are bounded in.
+pub fn direction_at(azimuth_rad: f64, sin_elevation: f64) -> Vector3<f64> {
+    let cos_elevation = (1.0 - sin_elevation * sin_elevation).max(0.0).sqrt();
     Vector3::new(
         cos_elevation * azimuth_rad.cos(),
         cos_elevation * azimuth_rad.sin(),

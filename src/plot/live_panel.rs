@@ -272,25 +272,10 @@ pub fn draw_heading_dial<DB: DrawingBackend>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::live::LiveSession;
 
     #[test]
     fn the_live_plots_draw_a_session_to_svg() {
-        let mut session = LiveSession::new();
-        let mut text = String::new();
-        for idx in 0..600 {
-            let z = 1.0 - 2.0 * (idx as f64 + 0.5) / 600.0;
-            let azimuth = idx as f64 * 2.399_963;
-            let r = (1.0 - z * z).sqrt();
-            text.push_str(&format!(
-                "Raw:0,0,8192,0,0,0,{:.0},{:.0},{:.0}\n",
-                480.0 * r * azimuth.cos() + 100.0,
-                480.0 * r * azimuth.sin() - 50.0,
-                480.0 * z + 300.0
-            ));
-        }
-        session.feed(text.as_bytes(), 0.0);
-        let quality = session.refit().expect("a sphere fits").clone();
+        let (session, quality) = crate::live::turned_session(600, 1.0);
         let mut svg = String::new();
         {
             let area = SVGBackend::with_string(&mut svg, (1200, 400)).into_drawing_area();

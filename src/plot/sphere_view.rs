@@ -16,7 +16,7 @@ use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 use super::live_panel::{FIT_COLOR, RAW_COLOR};
 use super::{thinned_indices, PlotError};
-use crate::calib::sphere_coverage::{region_bounds, N_REGIONS};
+use crate::calib::sphere_coverage::{direction_at, region_bounds, N_REGIONS};
 use crate::io::serial_lines::sensor_to_body;
 use crate::live::LiveQuality;
 
@@ -72,16 +72,9 @@ impl SphereView {
     }
 }
 
-/// The body direction at azimuth `azimuth_deg` (from +x toward +y) and the sine of
-/// the elevation (toward −z), as the coverage regions are bounded.
+/// The body direction at azimuth `azimuth_deg` and the sine of the elevation.
 fn direction(azimuth_deg: f64, sin_elevation: f64) -> Vector3<f64> {
-    let cos_elevation = (1.0 - sin_elevation * sin_elevation).max(0.0).sqrt();
-    let (sin_az, cos_az) = azimuth_deg.to_radians().sin_cos();
-    Vector3::new(
-        cos_elevation * cos_az,
-        cos_elevation * sin_az,
-        -sin_elevation,
-    )
+    direction_at(azimuth_deg.to_radians(), sin_elevation)
 }
 
 /// The samples as unit-sphere points in body axes: corrected by the fit and divided by
@@ -374,25 +367,8 @@ mod tests {
         assert_eq!(view.dragged(0.0, -1e6, 400.0).pitch_rad, -1.5);
     }
 
-    /// A session whose board was turned through `share` of the sphere (from the top),
-    /// fitted.
     fn fitted_session(share: f64) -> (crate::live::LiveSession, LiveQuality) {
-        let mut session = crate::live::LiveSession::new();
-        let mut text = String::new();
-        for idx in 0..800 {
-            let z = 1.0 - 2.0 * share * (idx as f64 + 0.5) / 800.0;
-            let azimuth = idx as f64 * 2.399_963;
-            let r = (1.0 - z * z).sqrt();
-            text.push_str(&format!(
-                "Raw:0,0,8192,0,0,0,{:.0},{:.0},{:.0}\n",
-                480.0 * r * azimuth.cos() + 100.0,
-                480.0 * r * azimuth.sin() - 50.0,
-                480.0 * z + 300.0
-            ));
-        }
-        session.feed(text.as_bytes(), 0.0);
-        let quality = session.refit().expect("a sphere fits").clone();
-        (session, quality)
+        crate::live::turned_session(800, share)
     }
 
     fn svg_of(samples_ut: &[Vector3<f64>], quality: Option<&LiveQuality>) -> String {

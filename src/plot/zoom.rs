@@ -55,34 +55,36 @@ impl Zoom {
         } else {
             1.0
         };
-        let about = |window: (f64, f64), fraction: f64| {
+        self.each_axis(at, both_axes, |window, fraction| {
             let centre = window.0 + fraction.clamp(0.0, 1.0) * (window.1 - window.0);
             let width = ((window.1 - window.0) / factor).clamp(MIN_WIDTH, 1.0);
             let start = centre - (centre - window.0) / (window.1 - window.0) * width;
             clamped(start, width)
-        };
-        Zoom {
-            x: about(self.x, at.0),
-            y: if both_axes {
-                about(self.y, at.1)
-            } else {
-                self.y
-            },
-        }
+        })
     }
 
     /// Moved by `by`, fractions of the plotting area as now shown (a drag to the right
     /// moves the window left: the plot follows the pointer). Never beyond the whole
     /// plot.
     pub fn panned(self, by: (f64, f64), both_axes: bool) -> Zoom {
-        let shift = |window: (f64, f64), fraction: f64| {
+        self.each_axis(by, both_axes, |window, fraction| {
             let width = window.1 - window.0;
             clamped(window.0 - fraction * width, width)
-        };
+        })
+    }
+
+    /// `change` applied to the x window with `amounts.0`, and to the y window with
+    /// `amounts.1` when the plot zooms along both axes.
+    fn each_axis(
+        self,
+        amounts: (f64, f64),
+        both_axes: bool,
+        change: impl Fn((f64, f64), f64) -> (f64, f64),
+    ) -> Zoom {
         Zoom {
-            x: shift(self.x, by.0),
+            x: change(self.x, amounts.0),
             y: if both_axes {
-                shift(self.y, by.1)
+                change(self.y, amounts.1)
             } else {
                 self.y
             },

@@ -39,42 +39,43 @@ export async function waitForState(page, state, fileName) {
   await page.waitForSelector(selector, { timeout: 15_000 });
 }
 
+/** One pass over a canvas's pixels: how many are drawn (not white), how many are in the
+ * strong red the plots use for what is missing (the live 3D view's regions with no
+ * sample; not the orange of raw samples), and a digest of them all (to tell whether it
+ * was redrawn differently). */
+function canvasPixels(page, id) {
+  return page.evaluate((canvasId) => {
+    const canvas = document.getElementById(canvasId);
+    const data = canvas.getContext('2d').getImageData(0, 0, canvas.width, canvas.height).data;
+    let drawn = 0;
+    let red = 0;
+    let digest = 0;
+    for (let i = 0; i < data.length; i += 4) {
+      const [r, g, b] = [data[i], data[i + 1], data[i + 2]];
+      if (r < 250 || g < 250 || b < 250) drawn += 1;
+      if (r > 150 && r - g > 80 && g - b < 40) red += 1;
+      for (let k = 0; k < 4; k += 1) digest = (digest * 31 + data[i + k]) | 0;
+    }
+    return { drawn, red, digest };
+  }, id);
+}
+
 /** Pixels of a canvas that are not white. */
-export function drawnPixels(page, id) {
-  return page.evaluate((canvasId) => {
-    const canvas = document.getElementById(canvasId);
-    const data = canvas.getContext('2d').getImageData(0, 0, canvas.width, canvas.height).data;
-    let n = 0;
-    for (let i = 0; i < data.length; i += 4) {
-      if (data[i] < 250 || data[i + 1] < 250 || data[i + 2] < 250) n += 1;
-    }
-    return n;
-  }, id);
-}
+export const drawnPixels = async (page, id) => (await canvasPixels(page, id)).drawn;
 
-/** Pixels of a canvas in the strong red the plots use for what is missing (the live 3D
- * view's regions with no sample), not the orange of raw samples. */
-export function redPixels(page, id) {
-  return page.evaluate((canvasId) => {
-    const canvas = document.getElementById(canvasId);
-    const data = canvas.getContext('2d').getImageData(0, 0, canvas.width, canvas.height).data;
-    let n = 0;
-    for (let i = 0; i < data.length; i += 4) {
-      if (data[i] > 150 && data[i] - data[i + 1] > 80 && data[i + 1] - data[i + 2] < 40) n += 1;
-    }
-    return n;
-  }, id);
-}
+/** Pixels of a canvas in the plots' strong red (see `canvasPixels`). */
+export const redPixels = async (page, id) => (await canvasPixels(page, id)).red;
 
-/** A digest of a canvas's pixels, to tell whether it was redrawn differently. */
-export function canvasDigest(page, id) {
-  return page.evaluate((canvasId) => {
-    const canvas = document.getElementById(canvasId);
-    const data = canvas.getContext('2d').getImageData(0, 0, canvas.width, canvas.height).data;
-    let hash = 0;
-    for (let i = 0; i < data.length; i += 1) hash = (hash * 31 + data[i]) | 0;
-    return hash;
-  }, id);
+/** A digest of a canvas's pixels. */
+export const canvasDigest = async (page, id) => (await canvasPixels(page, id)).digest;
+
+/** Waits until the canvas is drawn differently from `digest` (at most `timeoutMs`). */
+export async function waitForRedraw(page, id, digest, timeoutMs = 5_000) {
+  const until = Date.now() + timeoutMs;
+  while ((await canvasDigest(page, id)) === digest) {
+    if (Date.now() > until) throw new Error(`#${id} was not redrawn within ${timeoutMs} ms`);
+    await new Promise((resolve) => setTimeout(resolve, 50));
+  }
 }
 
 export const text = (page, id) => page.textContent(`#${id}`);

@@ -4,7 +4,7 @@
 import { test } from 'node:test';
 import assert from 'node:assert/strict';
 import { join } from 'node:path';
-import { canvasDigest, drawnPixels, openAllDetails, openPage, out, text, waitForState } from './common.mjs';
+import { canvasDigest, drawnPixels, openAllDetails, openPage, out, text, waitForRedraw, waitForState } from './common.mjs';
 
 const runs = (page) => page.evaluate(() => ({
   calibration: Number(document.body.dataset.calibrationRuns),
@@ -97,13 +97,7 @@ test('the time plots and the trajectory zoom, pan and read the value under the p
     await page.keyboard.down('Control');
     await page.mouse.wheel(0, -300);
     await page.keyboard.up('Control');
-    await page.waitForFunction(([canvasId, digest]) => {
-      const canvas = document.getElementById(canvasId);
-      const data = canvas.getContext('2d').getImageData(0, 0, canvas.width, canvas.height).data;
-      let hash = 0;
-      for (let i = 0; i < data.length; i += 1) hash = (hash * 31 + data[i]) | 0;
-      return hash !== digest;
-    }, [id, whole]);
+    await waitForRedraw(page, id, whole);
     await page.mouse.move(...at(0.5, 0.5));
     const zoomedReadout = await text(page, `${id}-readout`);
     // Zoomed in, the readout resolves finer: more decimals on the x value.
