@@ -31,19 +31,16 @@ pub fn draw_field_magnitude<DB: DrawingBackend>(
     let error = PlotError::from_backend::<DrawingAreaErrorKind<DB::ErrorType>>("field-magnitude");
     let expected_ut = expected_ut.filter(|value| value.is_finite());
 
-    // Each series as (t, |B|), thinned for drawing, without non-finite samples.
-    // The window's samples (all of them unzoomed), thinned within it.
+    // Each series as (t, |B|): the window's samples (all of them unzoomed), thinned
+    // within it, without non-finite samples. The window is the zoom's part of the
+    // whole log, so that the whole plot and a zoomed one share one time axis.
     let finite_t = || t_s.iter().copied().filter(|t| t.is_finite());
     let whole = match (finite_t().reduce(f64::min), finite_t().reduce(f64::max)) {
         (Some(first_s), Some(last_s)) => first_s..last_s.max(first_s + 1e-3),
         _ => 0.0..1.0,
     };
-    let window = zoom.x_of(whole);
-    let shown = if zoom.is_whole() {
-        0..t_s.len()
-    } else {
-        indices_within(t_s, &window)
-    };
+    let time_range = zoom.x_of(whole);
+    let shown = indices_within(t_s, &time_range);
     let series = |magnitudes_ut: &[f64]| -> Vec<(f64, f64)> {
         let n_samples = shown
             .len()
@@ -52,20 +49,16 @@ pub fn draw_field_magnitude<DB: DrawingBackend>(
             .filter_map(|idx| {
                 let idx = shown.start + idx;
                 let point = (*t_s.get(idx)?, *magnitudes_ut.get(idx)?);
-                let inside = zoom.is_whole() || window.contains(&point.0);
-                (inside && point.0.is_finite() && point.1.is_finite()).then_some(point)
+                let inside = (time_range.start..=time_range.end).contains(&point.0);
+                (inside && point.1.is_finite()).then_some(point)
             })
             .collect()
     };
     let raw = series(raw_ut);
     let corrected = series(corrected_ut);
 
-    let all_points = || raw.iter().chain(&corrected);
-    let (mut t_first_s, mut t_last_s) = (f64::INFINITY, f64::NEG_INFINITY);
     let (mut low_ut, mut high_ut) = (f64::INFINITY, f64::NEG_INFINITY);
-    for &(time_s, magnitude_ut) in all_points() {
-        t_first_s = t_first_s.min(time_s);
-        t_last_s = t_last_s.max(time_s);
+    for &(_, magnitude_ut) in raw.iter().chain(&corrected) {
         low_ut = low_ut.min(magnitude_ut);
         high_ut = high_ut.max(magnitude_ut);
     }
@@ -73,17 +66,9 @@ pub fn draw_field_magnitude<DB: DrawingBackend>(
         low_ut = low_ut.min(value);
         high_ut = high_ut.max(value);
     }
-    if !(t_first_s.is_finite() && t_last_s.is_finite()) {
-        (t_first_s, t_last_s) = (0.0, 1.0);
-    }
     if !(low_ut.is_finite() && high_ut.is_finite()) {
         (low_ut, high_ut) = (0.0, 100.0);
     }
-    let time_range = if zoom.is_whole() {
-        t_first_s..t_last_s.max(t_first_s + 1e-3)
-    } else {
-        window
-    };
     // A margin of a tenth of the span, and at least 1 µT, so a flat line is visible.
     let margin_ut = ((high_ut - low_ut) * 0.1).max(1.0);
     let magnitude_range = (low_ut - margin_ut).max(0.0)..high_ut + margin_ut;

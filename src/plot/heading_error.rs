@@ -44,7 +44,10 @@ pub fn draw_heading_error<DB: DrawingBackend>(
     let series = |headings_deg: &[f64]| -> Vec<(f64, f64)> {
         thinned_indices(shown.len(), MAX_POINTS_PER_SERIES)
             .map(|idx| shown.start + idx)
-            .filter(|&idx| t_s.get(idx).is_some_and(|t| time_range.contains(t)))
+            .filter(|&idx| {
+                t_s.get(idx)
+                    .is_some_and(|t| (time_range.start..=time_range.end).contains(t))
+            })
             .filter_map(|idx| {
                 let heading_deg = *headings_deg.get(idx)?;
                 if has_reference {
