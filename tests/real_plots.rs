@@ -76,3 +76,51 @@ fn zoomed_plots_of_real_logs_show_the_window_asked_for() {
         assert!((metres_per_px(&whole).0 / x_scale - 4.0).abs() < 1e-6);
     }
 }
+
+/// The live panel's 3D view on real boards, their recorded field replayed as a board
+/// prints it (Adafruit `Uni:` lines, µT): the HMC5883L turned over the whole sphere
+/// leaves hardly a region shaded; the same board turned about its z axis only leaves
+/// most of the sphere shaded.
+#[test]
+fn the_3d_view_of_real_boards_shades_what_they_never_pointed_at() {
+    use compass_pdr::live::LiveSession;
+    use compass_pdr::plot::sphere_view::{draw_sphere_view, SphereView};
+    let Some(data) = shared_data() else { return };
+    let mut shaded = Vec::new();
+    for folder in ["full-sphere", "rotate-ccw-around-z-pointing-up"] {
+        let dir = data.join("hmc5883l-sphere").join(folder);
+        let import = common::import_paths(&[dir.join("hmc5883l_compass.csv")]);
+        let mut text = String::new();
+        for field in &import.recording.mag_in_body_ut.values {
+            text.push_str(&format!(
+                "Uni:0,0,9.81,0,0,0,{:.3},{:.3},{:.3}\n",
+                field.x, field.y, field.z
+            ));
+        }
+        let mut session = LiveSession::new();
+        session.feed(text.as_bytes(), 0.0);
+        let quality = session.refit().expect("a fit").clone();
+        let mut svg = String::new();
+        {
+            let area = SVGBackend::with_string(&mut svg, (600, 600)).into_drawing_area();
+            draw_sphere_view(
+                &area,
+                session.kept_samples_ut(),
+                Some(&quality),
+                SphereView::default(),
+            )
+            .expect("drawn");
+        }
+        let n_shaded = svg.matches("fill=\"#C83C28\"").count();
+        eprintln!(
+            "{folder}: {} of 100 regions covered, {n_shaded} shaded on the near side",
+            quality.coverage.n_covered
+        );
+        shaded.push((quality.coverage.n_covered, n_shaded));
+    }
+    let [(full_covered, full_shaded), (turn_covered, turn_shaded)] = shaded[..] else {
+        panic!("two boards");
+    };
+    assert!(full_covered >= 90 && full_shaded <= 5, "{shaded:?}");
+    assert!(turn_covered <= 40 && turn_shaded >= 20, "{shaded:?}");
+}
