@@ -12,12 +12,29 @@ const CHUNK_BYTES = 4 * 1024 * 1024;
  * and memory holding its samples rather than its text. */
 const WHOLE_FILE_BYTES = 16 * 1024 * 1024;
 
+/** Jobs run one after the other, each to its end (the page cancels one through its flag). */
+let running = Promise.resolve();
+
 self.onmessage = ({ data }) => {
   if (data.module) {
     initSync({ module: data.module, memory: data.memory });
     return;
   }
-  const { id, files } = data;
+  running = running.then(() => runJob(data));
+};
+
+/** The bytes of a file read whole, asked for ahead: the browser reads the next file
+ * while this thread parses the one before. */
+function readWhole(file) {
+  if (!(file.size > 0 && file.size <= WHOLE_FILE_BYTES)) return null;
+  const bytes = file.arrayBuffer();
+  // A read asked for ahead and then not waited for (the job was cancelled) must not
+  // report its failure as unhandled; waited for, it still throws.
+  bytes.catch(() => {});
+  return bytes;
+}
+
+async function runJob({ id, files }) {
   const job = AnalysisJob.take(id);
   if (!job) {
     postMessage({ id, done: true });
@@ -27,11 +44,14 @@ self.onmessage = ({ data }) => {
     const reader = new FileReaderSync();
     const totalBytes = files.reduce((sum, file) => sum + file.size, 0);
     let bytesDone = 0;
+    let next = files.length > 0 ? readWhole(files[0]) : null;
     reading: for (const [fileIdx, file] of files.entries()) {
+      const whole = next;
+      next = fileIdx + 1 < files.length ? readWhole(files[fileIdx + 1]) : null;
       if (job.cancelled()) break;
-      if (file.size > 0 && file.size <= WHOLE_FILE_BYTES) {
+      if (whole) {
         postMessage({ id, progress: bytesDone / Math.max(totalBytes, 1), file: file.name });
-        job.read_whole(fileIdx, new Uint8Array(reader.readAsArrayBuffer(file)));
+        job.read_whole(fileIdx, new Uint8Array(await whole));
         bytesDone += file.size;
         postMessage({ id, progress: bytesDone / Math.max(totalBytes, 1), file: file.name });
         continue;
@@ -52,7 +72,7 @@ self.onmessage = ({ data }) => {
     job.finish();
     postMessage({ id, done: true });
   } catch (error) {
-    // A trap (a bug): the job is lost; the page says so.
+    // A trap (a bug), or a file that could not be read: the job is lost; the page says so.
     postMessage({ id, failed: `${error}` });
   }
-};
+}

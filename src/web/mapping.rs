@@ -30,6 +30,11 @@ fn save(remembered: &Remembered) {
     storage::save(storage::MAPPINGS_KEY, remembered);
 }
 
+/// Whether the user saved any mapping (if not, no file's header needs reading first).
+pub fn any_remembered() -> bool {
+    !load().is_empty()
+}
+
 /// The mapping remembered for a header, if any.
 pub fn remembered(signature: &str) -> Option<ColumnMapping> {
     load().remove(signature)

@@ -83,28 +83,29 @@ impl Page {
         spawn_local(async move {
             let names: Vec<String> = files.iter().map(web_sys::File::name).collect();
             page.set_state("loading", &format!("Reading {}…", names.join(", ")));
-            let mut first_chunks = Vec::with_capacity(files.len());
-            let mut mappings = Vec::with_capacity(files.len());
+            let mut mappings = vec![mapping.clone(); files.len()];
             let mut remembered_for = Vec::new();
-            for (file, file_name) in files.iter().zip(&names) {
-                let head = match head_of(file).await {
-                    Ok(head) => head,
-                    Err(error) => {
-                        page.show_error(&format!(
-                            "Could not read {file_name}: {error}. Try choosing it again."
-                        ));
-                        return;
+            // A file's header is read first only to look up a mapping the user saved
+            // (a few milliseconds per file, one after the other): not when there is
+            // none, nor when the user has just chosen one.
+            if mapping.is_none() && mapping::any_remembered() {
+                for ((file, file_name), file_mapping) in files.iter().zip(&names).zip(&mut mappings)
+                {
+                    let head = match head_of(file).await {
+                        Ok(head) => head,
+                        Err(error) => {
+                            page.show_error(&format!(
+                                "Could not read {file_name}: {error}. Try choosing it again."
+                            ));
+                            return;
+                        }
+                    };
+                    *file_mapping = header_signature(&head)
+                        .and_then(|signature| mapping::remembered(&signature));
+                    if file_mapping.is_some() {
+                        remembered_for.push(file_name.clone());
                     }
-                };
-                let remembered = match (&mapping, header_signature(&head)) {
-                    (None, Some(signature)) => mapping::remembered(&signature),
-                    _ => None,
-                };
-                if remembered.is_some() {
-                    remembered_for.push(file_name.clone());
                 }
-                mappings.push(mapping.clone().or(remembered));
-                first_chunks.push(head);
             }
             let Some((import, result)) = page
                 .read_and_analyse(&files, &names, mappings, &cancel)
@@ -124,10 +125,14 @@ impl Page {
                         ImportError::UnknownHeader { .. } | ImportError::NoHeaderLine { .. }
                     ))
             );
-            if let (true, [file], [first_chunk]) =
-                (unreadable_header, files.as_slice(), first_chunks.as_slice())
-            {
-                if let Some(preview) = preview_of(first_chunk) {
+            if let (true, [file]) = (unreadable_header, files.as_slice()) {
+                // The file was read, so its start can be read again; if not, the
+                // error stays shown.
+                let first_chunk = head_of(file).await.unwrap_or_default();
+                if cancel.load(Ordering::Acquire) {
+                    return;
+                }
+                if let Some(preview) = preview_of(&first_chunk) {
                     let reason = result
                         .as_ref()
                         .err()
@@ -139,7 +144,7 @@ impl Page {
                         file.clone(),
                         &preview,
                         &reason,
-                        header_signature(first_chunk),
+                        header_signature(&first_chunk),
                     );
                     return;
                 }
