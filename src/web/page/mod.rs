@@ -82,6 +82,9 @@ pub struct Page {
     n_pdr_runs: std::cell::Cell<u32>,
     /// Finished analyses shown so far: a job's early figures stop drawing when it moves.
     n_shown: std::cell::Cell<u64>,
+    /// The calibration figures drawn early for a job (the address of its cancel flag,
+    /// which names it while it runs), which its finished analysis need not draw again.
+    early_figures: std::cell::RefCell<(usize, Vec<show::Canvas>)>,
     /// The zoomable plots' zooms and frames.
     zooms: zoom::Zooms,
 }
@@ -144,6 +147,7 @@ impl Page {
             n_calibration_runs: std::cell::Cell::new(0),
             n_pdr_runs: std::cell::Cell::new(0),
             n_shown: std::cell::Cell::new(0),
+            early_figures: std::cell::RefCell::default(),
             zooms: zoom::Zooms::default(),
         }))
     }
@@ -222,6 +226,8 @@ impl Page {
     /// cancel flag.
     fn begin_job(&self) -> Arc<AtomicBool> {
         let cancel = Arc::new(AtomicBool::new(false));
+        // No job's early figures count for the next (its flag's address may be reused).
+        self.early_figures.take();
         let previous = std::mem::replace(&mut *self.cancel.borrow_mut(), Arc::clone(&cancel));
         previous.store(true, Ordering::Release);
         cancel
