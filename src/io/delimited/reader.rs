@@ -400,94 +400,7 @@ impl<S: SampleSinks> DelimitedReader<S> {
 
     fn read_data_line(&mut self, line_number: usize, text: &str) {
         let Some(header) = &self.header else { return };
-        let delimiter = header.delimiter as u8;
-        let mut problems = std::mem::take(&mut self.problems);
-        self.row.fill(f64::NAN);
-        if header.delimiter == WHITESPACE {
-            let mut n_fields = 0usize;
-            for (field_idx, field) in text.split_ascii_whitespace().enumerate() {
-                n_fields += 1;
-                if self.plan.used.get(field_idx).copied().unwrap_or(false) {
-                    let is_time = self.plan.time == Some(field_idx);
-                    read_field_slowly(
-                        header,
-                        is_time,
-                        field_idx,
-                        field,
-                        &mut self.row,
-                        &mut problems,
-                    );
-                }
-            }
-            if n_fields > header.columns.len() {
-                problems.push(format!(
-                    "{n_fields} fields where the first line (line {}) has {}; the extra fields \
-                     were ignored",
-                    header.line,
-                    header.columns.len()
-                ));
-            }
-            self.problems = problems;
-            self.record_row(line_number);
-            return;
-        }
-        let bytes = text.as_bytes();
-        let mut field_start = 0usize;
-        let mut n_fields = 0usize;
-        loop {
-            let field_idx = n_fields;
-            n_fields += 1;
-            let rest = bytes.get(field_start..).unwrap_or_default();
-            let used = self.plan.used.get(field_idx).copied().unwrap_or(false);
-            // The usual case in one pass: a plain number, then the delimiter or the end.
-            let fast = if used {
-                parse_prefix(rest).filter(|&(_, consumed)| {
-                    rest.get(consumed).is_none_or(|&byte| byte == delimiter)
-                })
-            } else {
-                None
-            };
-            let field_len = match fast {
-                Some((value, consumed)) => {
-                    if let Some(slot) = self.row.get_mut(field_idx) {
-                        *slot = value;
-                    }
-                    consumed
-                }
-                None => {
-                    let field_len = rest
-                        .iter()
-                        .position(|&byte| byte == delimiter)
-                        .unwrap_or(rest.len());
-                    if used && field_len > 0 {
-                        let field = text.get(field_start..field_start + field_len).unwrap_or("");
-                        let is_time = self.plan.time == Some(field_idx);
-                        read_field_slowly(
-                            header,
-                            is_time,
-                            field_idx,
-                            field,
-                            &mut self.row,
-                            &mut problems,
-                        );
-                    }
-                    field_len
-                }
-            };
-            let field_end = field_start + field_len;
-            if field_end >= bytes.len() {
-                break;
-            }
-            field_start = field_end + 1;
-        }
-        if n_fields > header.columns.len() {
-            problems.push(format!(
-                "{n_fields} fields where the header (line {}) has {}; the extra fields were ignored",
-                header.line,
-                header.columns.len()
-            ));
-        }
-        self.problems = problems;
+        read_fields(header, &self.plan, &mut self.row, &mut self.problems, text);
         self.record_row(line_number);
     }
 
@@ -580,6 +493,88 @@ impl<S: SampleSinks> DelimitedReader<S> {
                 .push(Some(line_number), problems.join("; "));
             problems.clear();
         }
+    }
+}
+
+/// The fields of a data line read the slow way (any line [`DelimitedReader::read_line_fast`]
+/// does not take) into `row` (NaN where a field is empty or unreadable), with what is
+/// wrong with them added to `problems`. Not generic over the reader's sinks, so that
+/// the readers of whole files and of a part's share (`parallel`) share one copy.
+fn read_fields(
+    header: &Header,
+    plan: &Plan,
+    row: &mut [f64],
+    problems: &mut Vec<String>,
+    text: &str,
+) {
+    let delimiter = header.delimiter as u8;
+    row.fill(f64::NAN);
+    if header.delimiter == WHITESPACE {
+        let mut n_fields = 0usize;
+        for (field_idx, field) in text.split_ascii_whitespace().enumerate() {
+            n_fields += 1;
+            if plan.used.get(field_idx).copied().unwrap_or(false) {
+                let is_time = plan.time == Some(field_idx);
+                read_field_slowly(header, is_time, field_idx, field, row, problems);
+            }
+        }
+        if n_fields > header.columns.len() {
+            problems.push(format!(
+                "{n_fields} fields where the first line (line {}) has {}; the extra fields \
+                 were ignored",
+                header.line,
+                header.columns.len()
+            ));
+        }
+        return;
+    }
+    let bytes = text.as_bytes();
+    let mut field_start = 0usize;
+    let mut n_fields = 0usize;
+    loop {
+        let field_idx = n_fields;
+        n_fields += 1;
+        let rest = bytes.get(field_start..).unwrap_or_default();
+        let used = plan.used.get(field_idx).copied().unwrap_or(false);
+        // The usual case in one pass: a plain number, then the delimiter or the end.
+        let fast = if used {
+            parse_prefix(rest)
+                .filter(|&(_, consumed)| rest.get(consumed).is_none_or(|&byte| byte == delimiter))
+        } else {
+            None
+        };
+        let field_len = match fast {
+            Some((value, consumed)) => {
+                if let Some(slot) = row.get_mut(field_idx) {
+                    *slot = value;
+                }
+                consumed
+            }
+            None => {
+                let field_len = rest
+                    .iter()
+                    .position(|&byte| byte == delimiter)
+                    .unwrap_or(rest.len());
+                if used && field_len > 0 {
+                    let field = text.get(field_start..field_start + field_len).unwrap_or("");
+                    let is_time = plan.time == Some(field_idx);
+                    read_field_slowly(header, is_time, field_idx, field, row, problems);
+                }
+                field_len
+            }
+        };
+        let field_end = field_start + field_len;
+        if field_end >= bytes.len() {
+            break;
+        }
+        field_start = field_end + 1;
+    }
+    if n_fields > header.columns.len() {
+        problems.push(format!(
+            "{n_fields} fields where the header (line {}) has {}; the extra fields were ignored",
+            header.line,
+            header.columns.len()
+        ));
     }
 }
 
