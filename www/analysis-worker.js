@@ -34,6 +34,11 @@ function readWhole(file) {
   return bytes;
 }
 
+/** The browser's reason a read failed, as a clause (the page's message goes on after it). */
+function reasonOf(error) {
+  return `${error?.message ?? error}`.replace(/[.\s]+$/, '');
+}
+
 async function runJob({ id, files }) {
   const job = AnalysisJob.take(id);
   if (!job) {
@@ -51,14 +56,28 @@ async function runJob({ id, files }) {
       if (job.cancelled()) break;
       if (whole) {
         postMessage({ id, progress: bytesDone / Math.max(totalBytes, 1), file: file.name });
-        job.read_whole(fileIdx, new Uint8Array(await whole));
+        let bytes;
+        try {
+          bytes = new Uint8Array(await whole);
+        } catch (error) {
+          bytes = null;
+          job.unreadable(fileIdx, reasonOf(error));
+        }
+        if (bytes) job.read_whole(fileIdx, bytes);
         bytesDone += file.size;
         postMessage({ id, progress: bytesDone / Math.max(totalBytes, 1), file: file.name });
         continue;
       }
       for (let start = 0; start < file.size; start += CHUNK_BYTES) {
         if (job.cancelled()) break reading;
-        const bytes = new Uint8Array(reader.readAsArrayBuffer(file.slice(start, start + CHUNK_BYTES)));
+        let bytes;
+        try {
+          bytes = new Uint8Array(reader.readAsArrayBuffer(file.slice(start, start + CHUNK_BYTES)));
+        } catch (error) {
+          job.unreadable(fileIdx, reasonOf(error));
+          bytesDone += file.size - start;
+          break;
+        }
         bytesDone += bytes.length;
         const readOn = job.feed(fileIdx, bytes);
         postMessage({ id, progress: bytesDone / Math.max(totalBytes, 1), file: file.name });
@@ -72,7 +91,8 @@ async function runJob({ id, files }) {
     job.finish();
     postMessage({ id, done: true });
   } catch (error) {
-    // A trap (a bug), or a file that could not be read: the job is lost; the page says so.
+    // A trap (a bug): the job is lost; the page says so. (A file that cannot be read is
+    // the job's error for that file, `job.unreadable`.)
     postMessage({ id, failed: `${error}` });
   }
 }

@@ -135,6 +135,11 @@ pub enum ImportError {
     #[error("{file_name} is empty. Choose a log with a header line and samples.")]
     Empty { file_name: String },
 
+    /// The browser could not hand over the file's bytes (moved or deleted since it was
+    /// chosen, a drive gone, no permission).
+    #[error("Could not read {file_name}: {reason}. Choose it again (a copy on this computer if it is on a removable or network drive).")]
+    Unreadable { file_name: String, reason: String },
+
     #[error(
         "{file_name} is not a text log (binary data near byte {byte_offset}). \
          Export the log as CSV text with a header line such as \

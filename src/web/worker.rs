@@ -157,6 +157,21 @@ impl AnalysisJob {
         }
     }
 
+    /// File `file_idx` could not be read (the browser's `reason`): it is left out, and
+    /// named with the reason if nothing else could be read.
+    pub fn unreadable(&mut self, file_idx: usize, reason: String) {
+        let Work::Files { files, .. } = &mut self.job.work else {
+            return;
+        };
+        if let Some(file) = files.get_mut(file_idx) {
+            file.whole = None;
+            file.failed = Some(ImportError::Unreadable {
+                file_name: file.name.clone(),
+                reason,
+            });
+        }
+    }
+
     /// The next chunk of file `file_idx` (the files in the order they were posted);
     /// `false` once that file cannot be read further (its error is kept for the
     /// outcome), so the worker stops reading it.

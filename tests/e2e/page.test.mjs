@@ -3,7 +3,7 @@
 // www/ and writes the expected figures (from the CLI) into E2E_OUT.
 import { test } from 'node:test';
 import assert from 'node:assert/strict';
-import { existsSync, readFileSync, writeFileSync } from 'node:fs';
+import { copyFileSync, existsSync, readFileSync, writeFileSync } from 'node:fs';
 import { join } from 'node:path';
 import { drawnPixels, lastDropTiming, openAllDetails, openPage, out, recordMainThread, text, waitForState } from './common.mjs';
 
@@ -260,6 +260,24 @@ for (const bad of badFiles) {
     await close();
   });
 }
+
+test('a file that changes on disk while it is read is named with what to do, and the page goes on', async () => {
+  const { page, problems, close } = await openPage();
+  await waitForState(page, 'ready', 'demo-walk.csv');
+  // 50 MB, read in chunks: the file is overwritten while (or before) they are read, which
+  // the browser refuses to read further.
+  const path = join(out, 'vanishing.csv');
+  copyFileSync(join(out, 'large-walk.csv'), path);
+  await page.setInputFiles('#file-input', path);
+  writeFileSync(path, 'changed\n');
+  await waitForState(page, 'error');
+  assert.match(await text(page, 'status'), /^Could not read vanishing\.csv: .+\. Choose it again/);
+  // Not reported as a bug, and the analysis worker still works: a good file is read.
+  await dropFile(page, 'drop-walk.csv', readFileSync(join(out, 'drop-walk.csv'), 'utf8'));
+  await waitForState(page, 'ready', 'drop-walk.csv');
+  assert.deepEqual(problems, []);
+  await close();
+});
 
 test('on a phone-width, high-density screen the plots are sharp and the page fits', async () => {
   const { page, problems, close } = await openPage({ viewport: { width: 390, height: 844 }, deviceScaleFactor: 2 });
