@@ -20,7 +20,9 @@ self.onmessage = ({ data }) => {
     initSync({ module: data.module, memory: data.memory });
     return;
   }
-  running = running.then(() => runJob(data));
+  // A job that throws outside its own handling (a trap) is reported, and the next
+  // jobs still run.
+  running = running.then(() => runJob(data)).catch((error) => postMessage({ id: data.id, failed: `${error}` }));
 };
 
 /** The bytes of a file read whole, asked for ahead: the browser reads the next file

@@ -82,9 +82,9 @@ pub struct Page {
     n_pdr_runs: std::cell::Cell<u32>,
     /// Finished analyses shown so far: a job's early figures stop drawing when it moves.
     n_shown: std::cell::Cell<u64>,
-    /// The calibration figures drawn early for a job (the address of its cancel flag,
-    /// which names it while it runs), which its finished analysis need not draw again.
-    early_figures: std::cell::RefCell<(usize, Vec<show::Canvas>)>,
+    /// The calibration figures the running job drew early, which its finished analysis
+    /// need not draw again (emptied when a job begins; a cancelled job draws no more).
+    early_figures: std::cell::RefCell<Vec<show::Canvas>>,
     /// The zoomable plots' zooms and frames.
     zooms: zoom::Zooms,
 }
@@ -226,7 +226,7 @@ impl Page {
     /// cancel flag.
     fn begin_job(&self) -> Arc<AtomicBool> {
         let cancel = Arc::new(AtomicBool::new(false));
-        // No job's early figures count for the next (its flag's address may be reused).
+        // A job's early figures do not count for the next.
         self.early_figures.take();
         let previous = std::mem::replace(&mut *self.cancel.borrow_mut(), Arc::clone(&cancel));
         previous.store(true, Ordering::Release);

@@ -45,13 +45,10 @@ impl Page {
         self.n_shown.set(self.n_shown.get() + 1);
         // The calibration figures this job drew early are the same; the zooms were
         // reset when they were drawn (and may since have been changed by the user).
-        let (early_job, drawn_early) = self.early_figures.take();
-        let drawn_early = if early_job == job_key(cancel) {
-            drawn_early
-        } else {
+        let drawn_early = self.early_figures.take();
+        if drawn_early.is_empty() {
             self.zooms.reset();
-            Vec::new()
-        };
+        }
         let status = self.show_lists(&results, import.as_deref());
         for figure in FIGURES {
             if drawn_early.contains(&figure.canvas()) {
@@ -84,7 +81,6 @@ impl Page {
         }
         // A new log's figures start unzoomed.
         self.zooms.reset();
-        *self.early_figures.borrow_mut() = (job_key(cancel), Vec::new());
         self.show_calibration(calibration, Some(import));
         for figure in FIGURES {
             let Figure::Calibration(canvas, plot) = figure else {
@@ -95,7 +91,7 @@ impl Page {
                 return;
             }
             self.draw_calibration_figure(canvas, plot, calibration);
-            self.early_figures.borrow_mut().1.push(canvas);
+            self.early_figures.borrow_mut().push(canvas);
         }
     }
 
@@ -431,11 +427,6 @@ fn or_none(items: impl Iterator<Item = String>) -> impl Iterator<Item = String> 
     let mut items = items.peekable();
     let none = items.peek().is_none().then(|| "None.".to_string());
     items.chain(none)
-}
-
-/// A running job's name for [`Page::early_figures`]: the address of its cancel flag.
-fn job_key(cancel: &AtomicBool) -> usize {
-    std::ptr::from_ref(cancel) as usize
 }
 
 /// The page's canvases.
