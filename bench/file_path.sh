@@ -30,8 +30,19 @@ import json, sys
 results = json.load(open(sys.argv[1]))
 print(f"File: `target/bench-data/{results['file']}` ({results['size_mb'] * 1e6:,.0f} bytes), {results['cores']} cores, load average before the run {sys.argv[2]}.")
 print()
-print("| tool | median wall | best | CPU of the median run | MB/s (median) |")
-print("|---|---:|---:|---:|---:|")
+print("| tool | how | median wall | best | CPU of the median run | MB/s (median) |")
+print("|---|---|---:|---:|---:|---:|")
+ways = {"new_process": "new process each run", "in_process": "one process, after a warm-up"}
 for name, tool in results["tools"].items():
-    print(f"| {name} | {tool['median_s']:.3f} s | {tool['best_s']:.3f} s | {tool['cpu_s_of_median_run']:.3f} s | {tool['mb_per_s']:.0f} |")
+    for way, label in ways.items():
+        if way in tool:
+            t = tool[way]
+            print(f"| {name} | {label} | {t['median_s']:.3f} s | {t['best_s']:.3f} s | {t['cpu_s_of_median_run']:.3f} s | {t['mb_per_s']:.0f} |")
+print()
+ours = next(tool for name, tool in results["tools"].items() if name.startswith("compass-pdr"))["new_process"]["median_s"]
+for name, tool in results["tools"].items():
+    if name.startswith("compass-pdr"):
+        continue
+    ratios = ", ".join(f"{tool[way]['median_s'] / ours:.2f}× its {ways[way]} median" for way in ways if way in tool)
+    print(f"- compass-pdr against {name}: {ratios}.")
 PY

@@ -25,9 +25,9 @@ pub struct StreamSummary {
     pub mean_magnitude: Option<f64>,
 }
 
-/// Summaries of the streams of a recording that hold any samples. A long recording's
-/// streams are summarised side by side ([`crate::par`]): each is a pass over memory
-/// the import has just written (a 100 MB CSV's 135 MB of samples: 14 ms on one core).
+/// Summaries of the streams of a recording that hold any samples. A long recording is
+/// summarised on two threads ([`crate::par`]): each stream is a pass over memory the
+/// import has just written (a 100 MB CSV's 135 MB of samples: 14 ms on one core).
 pub fn summarize(recording: &Recording) -> Vec<StreamSummary> {
     let vectors: [(&'static str, &'static str, &Stream<Vector3<f64>>); 4] = [
         ("accelerometer", "m/s²", &recording.acc_in_body_mps2),
@@ -74,13 +74,31 @@ pub fn summarize(recording: &Recording) -> Vec<StreamSummary> {
         .filter(|job| !job.t_s.is_empty())
         .collect();
     let n_samples: usize = jobs.iter().map(|job| job.t_s.len()).sum();
-    let n_parts = crate::par::n_threads().min(jobs.len());
-    if n_samples >= MIN_PARALLEL_SAMPLES && n_parts > 1 {
-        let per_part = jobs.len().div_ceil(n_parts);
-        if let Some(parts) = crate::par::on_each_small_part(jobs.chunks(per_part), |part| {
-            part.iter().map(Job::summary).collect::<Vec<_>>()
-        }) {
-            return parts.into_iter().flatten().collect();
+    if n_samples >= MIN_PARALLEL_SAMPLES && crate::par::n_threads() > 1 {
+        // Two halves of about the same work: every stream's timing (a pass over its
+        // times), and the vector streams' magnitudes (a square root per sample). Whole
+        // streams per thread left one thread with the three vector streams of a
+        // canonical CSV, the other waiting.
+        if let Some(halves) =
+            crate::par::on_each_small_part([false, true].into_iter(), |magnitudes| {
+                if magnitudes {
+                    (Vec::new(), jobs.iter().map(Job::mean_magnitude).collect())
+                } else {
+                    (jobs.iter().map(Job::timing).collect(), Vec::new())
+                }
+            })
+        {
+            let mut halves = halves.into_iter();
+            if let (Some((timings, _)), Some((_, magnitudes))) = (halves.next(), halves.next()) {
+                return timings
+                    .into_iter()
+                    .zip(magnitudes)
+                    .map(|(timing, mean_magnitude)| StreamSummary {
+                        mean_magnitude,
+                        ..timing
+                    })
+                    .collect();
+            }
         }
     }
     jobs.iter().map(Job::summary).collect()
@@ -99,16 +117,20 @@ struct Job<'a> {
 
 impl Job<'_> {
     fn summary(&self) -> StreamSummary {
-        let timing = timing(self.name, self.unit, self.t_s);
-        match self.values {
-            Some(values) => StreamSummary {
-                mean_magnitude: Some(
-                    values.iter().map(|value| value.norm()).sum::<f64>() / values.len() as f64,
-                ),
-                ..timing
-            },
-            None => timing,
+        StreamSummary {
+            mean_magnitude: self.mean_magnitude(),
+            ..self.timing()
         }
+    }
+
+    fn timing(&self) -> StreamSummary {
+        timing(self.name, self.unit, self.t_s)
+    }
+
+    fn mean_magnitude(&self) -> Option<f64> {
+        self.values.map(|values| {
+            values.iter().map(|value| value.norm()).sum::<f64>() / values.len() as f64
+        })
     }
 }
 
