@@ -76,6 +76,7 @@ pub mod heading;
 pub mod io;
 pub mod live;
 pub mod nn;
+pub mod order;
 pub mod par;
 pub mod pdr;
 pub mod pipeline;

@@ -79,8 +79,7 @@ impl<T> Stream<T> {
     {
         let n_out_of_order = self.t_s.windows(2).filter(|pair| pair[1] < pair[0]).count();
         if n_out_of_order > 0 {
-            let mut order: Vec<usize> = (0..self.t_s.len()).collect();
-            order.sort_by(|&a, &b| self.t_s[a].total_cmp(&self.t_s[b]));
+            let order = crate::order::ascending(&self.t_s);
             self.t_s = order.iter().map(|&idx| self.t_s[idx]).collect();
             self.values = order.iter().map(|&idx| self.values[idx].clone()).collect();
         }

@@ -34,7 +34,16 @@ const NOT_IN_THE_CORE: [&str; 17] = [
 ];
 
 /// The modules `io` is built on (and `io` itself).
-const BELOW_IO: [&str; 7] = ["io", "recording", "angle", "civil", "par", "geo", "stats"];
+const BELOW_IO: [&str; 8] = [
+    "io",
+    "recording",
+    "angle",
+    "civil",
+    "par",
+    "geo",
+    "stats",
+    "order",
+];
 
 fn rust_files(dir: &Path, files: &mut Vec<PathBuf>) {
     let entries = std::fs::read_dir(dir).expect("the source folder is readable");

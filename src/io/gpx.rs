@@ -25,6 +25,7 @@ pub fn looks_like(sample: &[&str]) -> bool {
 }
 
 /// A point as read, before the times are made relative.
+#[derive(Clone)]
 struct Point {
     unix_s: f64,
     fix: GnssFix,
@@ -159,7 +160,7 @@ pub fn read(file_name: &str, bytes: &[u8]) -> Result<ImportReport, ImportError> 
     } else {
         gpx_points(&text, &mut untimed)
     };
-    points.sort_by(|a, b| a.unix_s.total_cmp(&b.unix_s));
+    crate::order::sort_by_key(&mut points, |point| point.unix_s);
     let Some(first) = points.first().map(|point| point.unix_s) else {
         return Err(ImportError::NothingRecognised {
             file_name: file_name.to_string(),

@@ -86,7 +86,7 @@ pub(super) fn reference_positions(
             .zip(&metric.values)
             .map(|(&t_s, value)| (t_s, [value.x + shift[0], value.y + shift[1]])),
     );
-    out.sort_by(|a, b| a.0.total_cmp(&b.0));
+    crate::order::sort_by_key(&mut out, |point| point.0);
     out
 }
 

@@ -342,7 +342,7 @@ impl GaitPlan {
                 is_start: false,
             });
         }
-        boundaries.sort_by(|a, b| a.t_s.total_cmp(&b.t_s));
+        crate::order::sort_by_key(&mut boundaries, |boundary| boundary.t_s);
         boundaries
     }
 

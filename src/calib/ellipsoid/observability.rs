@@ -87,7 +87,7 @@ impl EllipsoidAccumulator {
                 eigen.eigenvectors.column(axis_idx).into_owned(),
             )
         });
-        axes.sort_by(|a, b| b.0.total_cmp(&a.0));
+        crate::order::sort_by_key(&mut axes, |axis| -axis.0);
         let principal_spread_ut = [axes[0].0, axes[1].0, axes[2].0];
         if principal_spread_ut[1] < MIN_WIDTH_FRACTION * principal_spread_ut[0] {
             return Err(EllipsoidError::Line {

@@ -28,7 +28,7 @@ pub(super) fn ranked(set: &SampleSet, starts: Vec<State>) -> Vec<State> {
             (if score.is_nan() { f64::INFINITY } else { score }, start)
         })
         .collect();
-    scored.sort_by(|a, b| a.0.total_cmp(&b.0));
+    crate::order::sort_by_key(&mut scored, |scored| scored.0);
     scored.into_iter().map(|(_, start)| start).collect()
 }
 
@@ -89,8 +89,7 @@ pub(super) fn principal_plane(mag_ut: &[Vector3<f64>]) -> Option<PrincipalPlane>
         .sum::<Matrix3<f64>>()
         / n;
     let eigen = SymmetricEigen::new(covariance);
-    let mut order = [0usize, 1, 2];
-    order.sort_by(|&a, &b| eigen.eigenvalues[b].total_cmp(&eigen.eigenvalues[a]));
+    let order = crate::order::descending(eigen.eigenvalues.as_slice());
     let axis = |idx: usize| eigen.eigenvectors.column(order[idx]).into_owned();
     let (first, second) = (axis(0), axis(1));
     let spread = |idx: usize| eigen.eigenvalues[order[idx]].max(0.0).sqrt();

@@ -516,8 +516,7 @@ fn null_vector(design: DMatrix<f64>) -> Result<DVector<f64>, RefLsError> {
         });
     }
     let eigen = SymmetricEigen::new(normal);
-    let mut order: Vec<usize> = (0..eigen.eigenvalues.len()).collect();
-    order.sort_by(|&a, &b| eigen.eigenvalues[a].total_cmp(&eigen.eigenvalues[b]));
+    let order = crate::order::ascending(eigen.eigenvalues.as_slice());
     let (smallest_idx, second_idx, largest_idx) = match order.as_slice() {
         [smallest, second, .., largest] => (*smallest, *second, *largest),
         _ => {
