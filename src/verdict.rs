@@ -20,7 +20,7 @@ use nalgebra::Vector3;
 use serde::Serialize;
 
 use crate::calib::sphere_coverage::{sphere_coverage, SphereCoverage};
-use crate::calibration::autopilot::{AutopilotCalibration, Candidate, CompassResult};
+use crate::calibration::autopilot::{AutopilotCalibration, Candidate, CompassResult, KeptCompass};
 use crate::calibration::selection::Basis;
 use crate::calibration::CalibrationAnalysis;
 use crate::english::{duration_text, plural};
@@ -145,9 +145,18 @@ pub fn verdict(
         .autopilot
         .as_ref()
         .and_then(|autopilot| Some((autopilot, autopilot.compasses.first()?)));
-    let mut verdict = match (fitted_autopilot, &heading.choice.basis) {
-        (Some((autopilot, primary)), _) => autopilot_verdict(autopilot, primary, read),
+    // Or one whose compasses could not be fitted, with their parameters in force judged
+    // on it: the raw field's error would say nothing of the vehicle's heading.
+    let kept_autopilot = analysis
+        .report
+        .autopilot
+        .as_ref()
+        .and_then(|autopilot| Some((autopilot, autopilot.kept.first()?)));
+    let mut verdict = match (fitted_autopilot, kept_autopilot, &heading.choice.basis) {
+        (Some((autopilot, primary)), _, _) => autopilot_verdict(autopilot, primary, read),
+        (None, Some((autopilot, primary)), _) => kept_verdict(autopilot, primary, read),
         (
+            _,
             _,
             &Basis::ReferenceRms {
                 rms_deg,
@@ -605,6 +614,7 @@ fn autopilot_verdict(
                 value,
             }
         })
+        .chain(autopilot.kept.iter().map(kept_figure))
         .collect();
     Verdict {
         kind: VerdictKind::Autopilot,
@@ -616,6 +626,45 @@ fn autopilot_verdict(
         to_do: autopilot.notes.clone(),
         coverage: None,
         steps: None,
+    }
+}
+
+/// An autopilot log none of whose compasses could be fitted: the parameters in force
+/// judged on it (the first compass's in the headline), and why nothing was written.
+fn kept_verdict(autopilot: &AutopilotCalibration, primary: &KeptCompass, read: String) -> Verdict {
+    let headline = format!(
+        "Compass {} ({}): heading {:.1}° RMS from the autopilot's with the parameters in force, |B| varies {:.1} %; nothing new to write from this log.",
+        primary.instance + 1,
+        primary.source,
+        primary.in_force.heading_rms_deg,
+        primary.in_force.spread_pct
+    );
+    let figures = autopilot.kept.iter().map(kept_figure).collect();
+    Verdict {
+        kind: VerdictKind::Autopilot,
+        grade: Grade::of_heading_rms(primary.in_force.heading_rms_deg),
+        headline,
+        read,
+        method: format!(
+            "Method: the {} parameters in force, kept: no new calibration could be fitted from this log (why below). \
+             The autopilot's heading fuses this compass, so it leans towards them.",
+            autopilot.autopilot
+        ),
+        figures,
+        to_do: autopilot.notes.clone(),
+        coverage: None,
+        steps: None,
+    }
+}
+
+/// A compass not fitted, by its parameters in force.
+fn kept_figure(compass: &KeptCompass) -> Figure {
+    Figure {
+        label: format!("Compass {} ({})", compass.instance + 1, compass.source),
+        value: format!(
+            "{:.1}° from the autopilot's heading; |B| varies {:.2} % (parameters in force, kept)",
+            compass.in_force.heading_rms_deg, compass.in_force.spread_pct
+        ),
     }
 }
 

@@ -225,6 +225,29 @@ fn every_other_recording_gets_an_answer() {
     }
 }
 
+/// A drone log whose compass could not be fitted is judged by its parameters in force,
+/// not by the raw field (its calibration undone, 43° from the autopilot's heading).
+#[test]
+fn an_autopilot_log_with_nothing_to_fit_is_judged_by_its_parameters_in_force() {
+    let Some(data) = shared_data() else { return };
+    let verdict = verdict_of(&[data.join("px4-ulog/sample_log_small.ulg")]);
+    assert_eq!(verdict.kind, VerdictKind::Autopilot, "{verdict:?}");
+    assert!(
+        verdict.headline.contains("with the parameters in force"),
+        "{}",
+        verdict.headline
+    );
+    assert_ne!(verdict.grade, Grade::Poor, "{}", verdict.headline);
+    assert!(
+        verdict
+            .to_do
+            .iter()
+            .any(|line| line.contains("full circles")),
+        "{:?}",
+        verdict.to_do
+    );
+}
+
 /// A board that never turned, and a drone that yawed a few degrees: no method can be
 /// fitted (min/max included: the extremes of a still board are its noise), and the
 /// analysis still answers, uncalibrated, saying why and what to record.

@@ -86,11 +86,24 @@ pub struct CompassResult {
     pub motor_sigma: Option<[f64; 3]>,
 }
 
+/// A compass whose calibration in force is kept: the log could not improve on it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct KeptCompass {
+    pub instance: usize,
+    pub source: String,
+    pub n_samples: usize,
+    /// The calibration in force on the whole log.
+    pub in_force: Agreed,
+}
+
 /// The calibration of every compass of an autopilot log.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct AutopilotCalibration {
     pub autopilot: &'static str,
     pub compasses: Vec<CompassResult>,
+    /// The compasses not fitted whose parameters in force could be judged on the log
+    /// (why each was not fitted is in `notes`).
+    pub kept: Vec<KeptCompass>,
     /// The `.param` file to load in Mission Planner or MAVProxy.
     pub param_file: String,
     pub notes: Vec<String>,
@@ -150,20 +163,41 @@ fn model_label(model: &AidedModel) -> String {
     label
 }
 
+/// The calibration in force judged on the whole log, for a compass not fitted.
+fn kept(
+    compass: &CompassLog,
+    samples: &[AidedSample],
+    in_force: Option<ArduPilotCompass>,
+) -> Option<KeptCompass> {
+    let in_force = in_force?;
+    let agreed = agreement(samples, |raw, current| in_force.apply(raw, current))?;
+    Some(KeptCompass {
+        instance: compass.instance,
+        source: compass.source.clone(),
+        n_samples: samples.len(),
+        in_force: agreed.into(),
+    })
+}
+
+/// One compass fitted, or `Err` with the calibration in force judged on the log (where
+/// it can be) when nothing new is written; why goes to `notes`.
 fn compass_result(
     compass: &CompassLog,
     log: &AutopilotLog,
     attitude: &Stream<Attitude>,
     notes: &mut Vec<String>,
-) -> Option<CompassResult> {
-    let samples = aided_samples(compass.raw_in_body_ut.as_ref()?, attitude, &log.current_a);
+) -> Result<CompassResult, Option<KeptCompass>> {
+    let Some(raw_in_body_ut) = compass.raw_in_body_ut.as_ref() else {
+        return Err(None);
+    };
+    let samples = aided_samples(raw_in_body_ut, attitude, &log.current_a);
     if samples.len() < MIN_SAMPLES {
         notes.push(format!(
             "{}: only {} samples with an attitude, fewer than {MIN_SAMPLES}: not fitted",
             compass.source,
             samples.len()
         ));
-        return None;
+        return Err(None);
     }
     let lookup = |name: &str| log.param(name).filter(|value| value.is_finite());
     let in_force = in_body_form(compass, &lookup);
@@ -215,7 +249,7 @@ fn compass_result(
             compass.source,
             samples.len()
         ));
-        return None;
+        return Err(kept(compass, &samples, in_force));
     };
     // Written only where the data can say more than the parameters in force.
     let refusal = match (best, check_in_force_deg) {
@@ -236,7 +270,7 @@ fn compass_result(
              tilt, for a minute or more",
             compass.source
         ));
-        return None;
+        return Err(kept(compass, &samples, in_force));
     }
     let new = ArduPilotCompass {
         instance: compass.instance,
@@ -267,9 +301,9 @@ fn compass_result(
     let mut written = parse_param_file(&text);
     written.push(("COMPASS_MOTCT".to_string(), MOTOR_BY_CURRENT));
     let written_lookup = |name: &str| param_in(&written, name).or_else(|| lookup(name));
-    let read_back = in_body_form(compass, &written_lookup)?;
-    let fitted = agreement(&samples, |raw, current| read_back.apply(raw, current))?;
-    Some(CompassResult {
+    let read_back = in_body_form(compass, &written_lookup).ok_or(None)?;
+    let fitted = agreement(&samples, |raw, current| read_back.apply(raw, current)).ok_or(None)?;
+    Ok(CompassResult {
         instance: compass.instance,
         source: compass.source.clone(),
         n_samples: samples.len(),
@@ -337,15 +371,21 @@ pub fn autopilot_calibration(
             None => true,
         })
         .collect();
-    let compasses: Vec<CompassResult> = fitted
-        .into_iter()
-        .filter_map(|compass| compass_result(compass, log, attitude, &mut notes))
-        .collect();
+    let mut compasses: Vec<CompassResult> = Vec::new();
+    let mut kept: Vec<KeptCompass> = Vec::new();
+    for compass in fitted {
+        match compass_result(compass, log, attitude, &mut notes) {
+            Ok(result) => compasses.push(result),
+            Err(judged) => kept.extend(judged),
+        }
+    }
     if compasses.is_empty() {
-        // Nothing written; the reasons still reach the user.
+        // Nothing written; the reasons, and the parameters in force, still reach the
+        // user.
         return (!notes.is_empty()).then(|| AutopilotCalibration {
             autopilot: log.autopilot.name(),
             compasses,
+            kept,
             param_file: String::new(),
             notes,
         });
@@ -407,6 +447,7 @@ pub fn autopilot_calibration(
             param_file(&header, &params)
         },
         compasses,
+        kept,
         notes,
     })
 }
