@@ -49,9 +49,27 @@ pub fn heading_difference_rad(a_rad: f64, b_rad: f64) -> f64 {
     wrap_to_pi(a_rad - b_rad)
 }
 
+/// The arc from `from_deg` clockwise to `to_deg`, in degrees, in `(0, 360]`: a gap
+/// in headings that starts and ends at the same heading is the whole circle.
+pub fn clockwise_arc_deg(from_deg: f64, to_deg: f64) -> f64 {
+    let arc_deg = (to_deg - from_deg).rem_euclid(360.0);
+    if arc_deg == 0.0 {
+        360.0
+    } else {
+        arc_deg
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn clockwise_arcs_wrap_through_north() {
+        assert_eq!(clockwise_arc_deg(20.0, 0.0), 340.0);
+        assert_eq!(clockwise_arc_deg(350.0, 10.0), 20.0);
+        assert_eq!(clockwise_arc_deg(90.0, 90.0), 360.0);
+    }
 
     #[test]
     fn the_fast_paths_give_rem_euclid_bit_for_bit() {

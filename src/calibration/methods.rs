@@ -236,10 +236,11 @@ pub(super) fn fit_ref_ls(
                 .map(|fit| {
                     outputs.notes.push(format!(
                         "reference LS: the reference headings cover too little of the circle for Eq. 8 alone \
-                         (none between {:.0}° and {:.0}°), so it was fitted on top of the {} calibration, held \
-                         near it where those headings cannot see",
+                         (none from {:.0}° clockwise to {:.0}°, {:.0}° of it), so it was fitted on top of the {} \
+                         calibration, held near it where those headings cannot see",
                         coverage.largest_gap_start_deg,
                         (coverage.largest_gap_start_deg + coverage.largest_gap_deg).rem_euclid(360.0),
+                        coverage.largest_gap_deg,
                         base_method.label()
                     ));
                     let headings: Vec<f64> =

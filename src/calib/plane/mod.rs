@@ -169,7 +169,7 @@ pub enum PlaneError {
     #[error("the inclination {inclination_deg}° is not usable: give the dip of the local field between −{max_deg}° and {max_deg}°, or none to estimate it.", max_deg = MAX_INCLINATION_DEG)]
     InvalidInclination { inclination_deg: f64 },
 
-    #[error("no data between {gap_from_deg:.0}° and {gap_to_deg:.0}° magnetic heading: turn that way too (a full circle) and record again.")]
+    #[error("no data from {gap_from_deg:.0}° clockwise to {gap_to_deg:.0}° magnetic heading ({width_deg:.0}° of the circle never faced): turn that way too (a full circle) and record again.", width_deg = crate::angle::clockwise_arc_deg(*.gap_from_deg, *.gap_to_deg))]
     NoTurn { gap_from_deg: f64, gap_to_deg: f64 },
 
     #[error("the levelled field does not trace an ellipse ({reason}). Turn through a full circle, away from iron and electronics that move with you, and check that the magnetometer values change as you turn.")]

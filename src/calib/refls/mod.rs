@@ -118,7 +118,7 @@ pub enum RefLsError {
     #[error("the declination {declination_rad} rad is not a finite number: give the local declination, or none to estimate a heading offset.")]
     InvalidDeclination { declination_rad: f64 },
 
-    #[error("no reference heading between {gap_from_deg:.0}° and {gap_to_deg:.0}°: turn that way too (a full circle) and record again.")]
+    #[error("no reference heading from {gap_from_deg:.0}° clockwise to {gap_to_deg:.0}° ({width_deg:.0}° of the circle never faced): turn that way too (a full circle) and record again.", width_deg = crate::angle::clockwise_arc_deg(*.gap_from_deg, *.gap_to_deg))]
     NoTurn { gap_from_deg: f64, gap_to_deg: f64 },
 
     #[error("the field samples and reference headings do not determine a calibration ({reason}). Check that the field changes as the reference heading changes, and that both come from the same times.")]
