@@ -786,6 +786,28 @@ fn the_qmc5883l_file_calibrates_at_50_hz_in_counts_without_warnings() {
     }
 }
 
+/// A drone log with nothing to fit: `calibrate` refuses (nothing new to give) and says
+/// what the parameters in force give on the log, to keep them.
+#[test]
+fn a_drone_log_with_nothing_to_fit_is_told_to_keep_its_parameters_in_force() {
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data");
+    if !data.is_dir() {
+        eprintln!("skipped: {} not found (CI has it)", data.display());
+        return;
+    }
+    let path = data.join("px4-ulog/sample_log_small.ulg");
+    let output = compass_pdr(&["calibrate", path.to_str().unwrap_or_default()]);
+    assert_eq!(output.status.code(), Some(1), "{}", stderr(&output));
+    let message = stderr(&output);
+    for expected in [
+        "no calibration could be fitted",
+        "The PX4 parameters in force give: compass 1 (vehicle_magnetometer 0)",
+        "keep them",
+    ] {
+        assert!(message.contains(expected), "{expected}\n{message}");
+    }
+}
+
 /// `compass-pdr ARGS --json`, parsed; the command must succeed.
 fn json_of(args: &[&str]) -> serde_json::Value {
     let all: Vec<&str> = args.iter().copied().chain(["--json"]).collect();

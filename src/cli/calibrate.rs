@@ -44,8 +44,9 @@ pub(super) fn run_calibrate(
     // The other commands go on uncalibrated; this one has nothing to give.
     if let Some(reasons) = report.why_no_method_fitted() {
         return Err(format!(
-            "{}: no calibration could be fitted. {reasons}",
-            report.file_name
+            "{}: no calibration could be fitted. {reasons}{}",
+            report.file_name,
+            kept_parameters(report)
         ));
     }
     if let Some(plot) = outputs.plot {
@@ -278,4 +279,31 @@ pub(super) fn calibration_text(report: &CalibrationReport) -> String {
         let _ = writeln!(text, "  note: {note}");
     }
     text
+}
+
+/// An autopilot log's compasses whose parameters in force could be judged on it, as a
+/// sentence for the refusal: what the vehicle flies with is the answer then.
+fn kept_parameters(report: &CalibrationReport) -> String {
+    let Some(autopilot) = report.autopilot.as_ref().filter(|a| !a.kept.is_empty()) else {
+        return String::new();
+    };
+    let judged: Vec<String> = autopilot
+        .kept
+        .iter()
+        .map(|compass| {
+            format!(
+                "compass {} ({}) {:.1}° RMS from the autopilot's heading, |B| spread {:.2} %",
+                compass.instance + 1,
+                compass.source,
+                compass.in_force.heading_rms_deg,
+                compass.in_force.spread_pct
+            )
+        })
+        .collect();
+    format!(
+        " The {} parameters in force give: {}; keep them ({}).",
+        autopilot.autopilot,
+        judged.join("; "),
+        autopilot.notes.join("; ")
+    )
 }
