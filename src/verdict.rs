@@ -660,11 +660,8 @@ fn kept_verdict(autopilot: &AutopilotCalibration, primary: &KeptCompass, read: S
 /// A compass not fitted, by its parameters in force.
 fn kept_figure(compass: &KeptCompass) -> Figure {
     Figure {
-        label: format!("Compass {} ({})", compass.instance + 1, compass.source),
-        value: format!(
-            "{:.1}° from the autopilot's heading; |B| varies {:.2} % (parameters in force, kept)",
-            compass.in_force.heading_rms_deg, compass.in_force.spread_pct
-        ),
+        label: compass.label(),
+        value: compass.judged(),
     }
 }
 

@@ -1,6 +1,8 @@
 //! The CLI as a user runs it: files in, text and files out, exit codes.
 #![cfg(not(target_arch = "wasm32"))]
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -766,11 +768,9 @@ fn numbers_without_a_header_line_are_read_through_a_mapping_of_their_columns() {
 
 #[test]
 fn the_qmc5883l_file_calibrates_at_50_hz_in_counts_without_warnings() {
-    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data");
-    if !data.is_dir() {
-        eprintln!("skipped: {} not found (CI has it)", data.display());
+    let Some(data) = common::shared_data() else {
         return;
-    }
+    };
     let path = data.join("qmc5883l-calibration/filtered_raw_data.csv");
     let output = compass_pdr(&["calibrate", path.to_str().unwrap_or_default()]);
     assert!(output.status.success(), "{}", stderr(&output));
@@ -790,18 +790,16 @@ fn the_qmc5883l_file_calibrates_at_50_hz_in_counts_without_warnings() {
 /// what the parameters in force give on the log, to keep them.
 #[test]
 fn a_drone_log_with_nothing_to_fit_is_told_to_keep_its_parameters_in_force() {
-    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data");
-    if !data.is_dir() {
-        eprintln!("skipped: {} not found (CI has it)", data.display());
+    let Some(data) = common::shared_data() else {
         return;
-    }
+    };
     let path = data.join("px4-ulog/sample_log_small.ulg");
     let output = compass_pdr(&["calibrate", path.to_str().unwrap_or_default()]);
     assert_eq!(output.status.code(), Some(1), "{}", stderr(&output));
     let message = stderr(&output);
     for expected in [
         "no calibration could be fitted",
-        "The PX4 parameters in force give: compass 1 (vehicle_magnetometer 0)",
+        "The PX4 parameters in force give: Compass 1 (vehicle_magnetometer 0): 3.4° from the autopilot's heading",
         "keep them",
     ] {
         assert!(message.contains(expected), "{expected}\n{message}");

@@ -96,6 +96,21 @@ pub struct KeptCompass {
     pub in_force: Agreed,
 }
 
+impl KeptCompass {
+    /// "Compass 1 (MAG)": the compass as the page and the CLI name it.
+    pub fn label(&self) -> String {
+        format!("Compass {} ({})", self.instance + 1, self.source)
+    }
+
+    /// What its parameters in force give on the log.
+    pub fn judged(&self) -> String {
+        format!(
+            "{:.1}° from the autopilot's heading; |B| varies {:.2} % (parameters in force, kept)",
+            self.in_force.heading_rms_deg, self.in_force.spread_pct
+        )
+    }
+}
+
 /// The calibration of every compass of an autopilot log.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct AutopilotCalibration {

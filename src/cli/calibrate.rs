@@ -290,15 +290,7 @@ fn kept_parameters(report: &CalibrationReport) -> String {
     let judged: Vec<String> = autopilot
         .kept
         .iter()
-        .map(|compass| {
-            format!(
-                "compass {} ({}) {:.1}° RMS from the autopilot's heading, |B| spread {:.2} %",
-                compass.instance + 1,
-                compass.source,
-                compass.in_force.heading_rms_deg,
-                compass.in_force.spread_pct
-            )
-        })
+        .map(|compass| format!("{}: {}", compass.label(), compass.judged()))
         .collect();
     format!(
         " The {} parameters in force give: {}; keep them ({}).",
