@@ -28,6 +28,17 @@ import sys
 import time
 
 
+def summarised(walls, cpus):
+    """The median and best wall time of the runs, and the CPU time of the median run."""
+    median_idx = sorted(range(len(walls)), key=lambda idx: walls[idx])[len(walls) // 2]
+    return {
+        "median_s": statistics.median(walls),
+        "best_s": min(walls),
+        "cpu_s_of_median_run": cpus[median_idx],
+        "runs": len(walls),
+    }
+
+
 def timed(run, n_runs):
     walls, cpus = [], []
     for _ in range(n_runs):
@@ -44,13 +55,7 @@ def timed(run, n_runs):
             + (after_children.ru_utime - before_children.ru_utime)
             + (after_children.ru_stime - before_children.ru_stime)
         )
-    median_idx = sorted(range(n_runs), key=lambda idx: walls[idx])[n_runs // 2]
-    return {
-        "median_s": statistics.median(walls),
-        "best_s": min(walls),
-        "cpu_s_of_median_run": cpus[median_idx],
-        "runs": n_runs,
-    }
+    return summarised(walls, cpus)
 
 
 NEW_PROCESS_READ = """
@@ -76,13 +81,7 @@ def timed_new_process(module, call, path, n_runs):
         ).stdout.split()
         walls.append(float(out[0]))
         cpus.append(float(out[1]))
-    median_idx = sorted(range(n_runs), key=lambda idx: walls[idx])[n_runs // 2]
-    return {
-        "median_s": statistics.median(walls),
-        "best_s": min(walls),
-        "cpu_s_of_median_run": cpus[median_idx],
-        "runs": n_runs,
-    }
+    return summarised(walls, cpus)
 
 
 def main():
