@@ -23,14 +23,17 @@
 //!   level differs from it by the geoid height (under 110 m), which changes nothing
 //!   that matters here.
 //!
-//! Dates outside the covered years: a recording made shortly before 2020 (the Hangzhou
-//! walks of November 2019) or after 2029 should still get an expected field, because a
-//! year of secular change is about as large as the model's own error (a test below
-//! checks that at the test places). Such a date is evaluated at the nearest covered
-//! day, up to [`MAX_DAYS_OUTSIDE_MODEL`] away, and the answer carries a
-//! [`WmmWarning::DateOutsideModel`] saying so. Further away the answer would be
-//! wrong by more than the model's error, so the date is refused and the message says
-//! to give the declination by hand.
+//! Dates outside the covered years: a recording made before 2020 (the Hangzhou walks of
+//! November 2019, an ArduPilot flight of 2015) or after 2029 still gets an expected
+//! field, since a declination of 0° would be wrong by the whole declination (12° at
+//! Canberra). Each component of the field is extrapolated along the model's own
+//! secular variation (the straight line through the first, or the last, covered year),
+//! up to [`MAX_YEARS_OUTSIDE_MODEL`] away, and the answer carries a
+//! [`WmmWarning::Extrapolated`] with a declination uncertainty that grows by
+//! [`EXTRAPOLATED_DECLINATION_SIGMA_DEG_PER_YEAR`] a year. Both figures were set
+//! against IGRF-14, an independent model whose coefficients are definitive for those
+//! years (`tests/data/igrf14_field.py`, checked in `tests/independent.rs`). Further
+//! away the date is refused, and the message says to give the declination by hand.
 
 use std::fmt;
 use std::str::FromStr;
@@ -42,7 +45,7 @@ use world_magnetic_model::uom::si::angle::degree;
 use world_magnetic_model::uom::si::f32::{Angle, Length};
 use world_magnetic_model::uom::si::length::meter;
 use world_magnetic_model::uom::si::magnetic_flux_density::microtesla;
-use world_magnetic_model::{GeomagneticField, WarningZone};
+use world_magnetic_model::GeomagneticField;
 
 /// The first day the bundled models cover (WMM2020's epoch).
 pub const FIRST_MODEL_DATE: CalendarDate = CalendarDate {
@@ -58,9 +61,15 @@ pub const LAST_MODEL_DATE: CalendarDate = CalendarDate {
     day: 31,
 };
 
-/// How far outside the covered years a date may lie and still be evaluated at the
-/// nearest covered day (with a warning) instead of refused.
-pub const MAX_DAYS_OUTSIDE_MODEL: i64 = 366;
+/// How far outside the covered years (in years) a date may lie and still be
+/// extrapolated rather than refused: IGRF-14 at random places over 1990-2019
+/// (`tests/data/igrf14_field.csv`) bounds the error there (`tests/independent.rs`).
+pub const MAX_YEARS_OUTSIDE_MODEL: f64 = 30.0;
+
+/// How much the declination's 1σ grows per year of extrapolation, beyond the model's
+/// own σ at the place: from IGRF-14 at random places and dates (see
+/// [`MAX_YEARS_OUTSIDE_MODEL`]).
+pub const EXTRAPOLATED_DECLINATION_SIGMA_DEG_PER_YEAR: f64 = 0.05;
 
 // The model's validity in altitude (WMM2025 TR §1.2; the crate's own bounds).
 const MIN_ALT_M: f64 = -1_000.0;
@@ -153,10 +162,10 @@ pub struct ExpectedField {
     /// The model's 1σ uncertainty of the declination here; it grows near the magnetic
     /// poles, where the horizontal field is weak.
     pub declination_uncertainty_deg: f64,
-    /// Which model was evaluated, e.g. `"WMM2020"`.
+    /// Which model was evaluated, e.g. `"WMM2020"`, or `"WMM2020 extrapolated 4.1 years
+    /// back"` ([`WmmWarning::Extrapolated`]).
     pub model: String,
-    /// The day the model was evaluated for: the requested date, or the nearest day the
-    /// model covers (see [`WmmWarning::DateOutsideModel`]).
+    /// The day the field is for.
     pub model_date: CalendarDate,
     /// What the user should know about this answer; empty when nothing.
     pub warnings: Vec<WmmWarning>,
@@ -166,11 +175,13 @@ pub struct ExpectedField {
 #[derive(Debug, Clone, PartialEq, Serialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum WmmWarning {
-    /// The date lies outside the covered years (by at most [`MAX_DAYS_OUTSIDE_MODEL`]
-    /// days); the model was evaluated at `model_date` instead.
-    DateOutsideModel {
+    /// The date lies `years` outside the covered years (negative before them, at most
+    /// [`MAX_YEARS_OUTSIDE_MODEL`]): the field was extrapolated with the model's secular
+    /// variation, and the declination is known to `declination_uncertainty_deg` (1σ).
+    Extrapolated {
         requested_date: CalendarDate,
-        model_date: CalendarDate,
+        years: f64,
+        declination_uncertainty_deg: f64,
     },
     /// Horizontal field between 2 and 6 µT: use a compass with caution (WMM2025 TR §1.8).
     CautionZone { horizontal_ut: f64 },
@@ -181,15 +192,19 @@ pub enum WmmWarning {
 impl fmt::Display for WmmWarning {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            WmmWarning::DateOutsideModel {
+            WmmWarning::Extrapolated {
                 requested_date,
-                model_date,
+                years,
+                declination_uncertainty_deg,
             } => write!(
                 f,
-                "{requested_date} is outside the years the World Magnetic Model covers \
-                 ({FIRST_MODEL_DATE} to {LAST_MODEL_DATE}); the field was computed for \
-                 {model_date} instead, which is within the model's own error for a year \
-                 away. Give --declination DEG if you know a better value."
+                "{requested_date} is {:.1} years {} the years the World Magnetic Model in this \
+                 build covers ({FIRST_MODEL_DATE} to {LAST_MODEL_DATE}); the field was \
+                 extrapolated with the model's own secular variation, so the declination is \
+                 known to about ±{declination_uncertainty_deg:.1}° (1σ) here. Give \
+                 --declination DEG if you know a better value.",
+                years.abs(),
+                if *years < 0.0 { "before" } else { "after" }
             ),
             WmmWarning::CautionZone { horizontal_ut } => write!(
                 f,
@@ -233,9 +248,11 @@ pub enum WmmError {
     UnreadableDate { text: String },
 
     #[error(
-        "{date} is more than a year outside the years the World Magnetic Model in this build \
-         covers ({first} to {last}: WMM2020 and WMM2025). Give --declination DEG (NOAA's \
-         online calculator gives it for past dates), or update compass-pdr for later dates."
+        "{date} is more than {max} years outside the years the World Magnetic Model in this \
+         build covers ({first} to {last}: WMM2020 and WMM2025), too far to extrapolate. \
+         Give --declination DEG (NOAA's online calculator gives it for past dates), or \
+         update compass-pdr for later dates.",
+        max = MAX_YEARS_OUTSIDE_MODEL
     )]
     DateOutsideModel {
         date: CalendarDate,
@@ -247,8 +264,9 @@ pub enum WmmError {
 /// The field the World Magnetic Model expects at `lat_deg`, `lon_deg` (WGS 84, east and
 /// north positive), `alt_m` above the WGS 84 ellipsoid, on `date`.
 ///
-/// Dates up to [`MAX_DAYS_OUTSIDE_MODEL`] days outside the covered years are evaluated
-/// at the nearest covered day, with a warning; see the module header.
+/// Dates outside the covered years, up to [`MAX_YEARS_OUTSIDE_MODEL`] away, are
+/// extrapolated with the model's own secular variation, with a warning and a wider
+/// declination uncertainty; see the module header.
 pub fn expected_field(
     lat_deg: f64,
     lon_deg: f64,
@@ -266,45 +284,111 @@ pub fn expected_field(
         return Err(WmmError::AltitudeOutOfRange { alt_m });
     }
     let date = CalendarDate::new(date.year, date.month, date.day)?;
-
-    let mut warnings = Vec::new();
-    let model_date = nearest_model_date(date)?;
-    if model_date != date {
-        warnings.push(WmmWarning::DateOutsideModel {
-            requested_date: date,
-            model_date,
-        });
+    let at = |day: CalendarDate| evaluate(lat_deg, lon_deg, alt_m, day, date);
+    let (field, model, warnings) = match outside_model(date)? {
+        None => (at(date)?, model_at(date), Vec::new()),
+        Some((from, to, years)) => {
+            // Each component changes linearly over a model's five years (its secular
+            // variation); the same line is followed beyond them.
+            let (first, second) = (at(from)?, at(to)?);
+            let days = (date.days_since_unix_epoch() - from.days_since_unix_epoch()) as f64;
+            let per_day = 1.0 / (to.days_since_unix_epoch() - from.days_since_unix_epoch()) as f64;
+            let xyz_ut: [f64; 3] = std::array::from_fn(|axis| {
+                first.xyz_ut[axis] + (second.xyz_ut[axis] - first.xyz_ut[axis]) * days * per_day
+            });
+            let [x, y, z] = xyz_ut;
+            let horizontal_ut = x.hypot(y);
+            let sigma_deg = first.declination_uncertainty_deg
+                + EXTRAPOLATED_DECLINATION_SIGMA_DEG_PER_YEAR * years.abs();
+            let field = Evaluated {
+                xyz_ut,
+                declination_deg: y.atan2(x).to_degrees(),
+                inclination_deg: z.atan2(horizontal_ut).to_degrees(),
+                total_ut: horizontal_ut.hypot(z),
+                horizontal_ut,
+                declination_uncertainty_deg: sigma_deg,
+            };
+            let model = format!(
+                "{} extrapolated {:.1} years {}",
+                model_at(from),
+                years.abs(),
+                if years < 0.0 { "back" } else { "on" }
+            );
+            let warning = WmmWarning::Extrapolated {
+                requested_date: date,
+                years,
+                declination_uncertainty_deg: sigma_deg,
+            };
+            (field, model, vec![warning])
+        }
+    };
+    let horizontal_ut = field.horizontal_ut;
+    let mut warnings = warnings;
+    if horizontal_ut < BLACKOUT_ZONE_H_UT {
+        warnings.push(WmmWarning::BlackoutZone { horizontal_ut });
+    } else if horizontal_ut < CAUTION_ZONE_H_UT {
+        warnings.push(WmmWarning::CautionZone { horizontal_ut });
     }
+    Ok(ExpectedField {
+        declination_deg: field.declination_deg,
+        inclination_deg: field.inclination_deg,
+        total_ut: field.total_ut,
+        horizontal_ut,
+        vertical_ut: field.xyz_ut[2],
+        declination_uncertainty_deg: field.declination_uncertainty_deg,
+        model,
+        model_date: date,
+        warnings,
+    })
+}
 
+/// Horizontal fields under these (µT) are the WMM reports' blackout and caution zones
+/// (WMM2025 TR §1.8), as the crate's `declination_warning` has them.
+const BLACKOUT_ZONE_H_UT: f64 = 2.0;
+const CAUTION_ZONE_H_UT: f64 = 6.0;
+
+/// The model covering a date (each covers the five years from its epoch: 2020-2024,
+/// 2025-2029).
+fn model_at(date: CalendarDate) -> String {
+    format!("WMM{}", date.year.div_euclid(5) * 5)
+}
+
+/// What the crate gives at one place and covered day.
+struct Evaluated {
+    /// North, east and down (µT).
+    xyz_ut: [f64; 3],
+    declination_deg: f64,
+    inclination_deg: f64,
+    total_ut: f64,
+    horizontal_ut: f64,
+    declination_uncertainty_deg: f64,
+}
+
+fn evaluate(
+    lat_deg: f64,
+    lon_deg: f64,
+    alt_m: f64,
+    day: CalendarDate,
+    requested: CalendarDate,
+) -> Result<Evaluated, WmmError> {
     // The crate computes in f32 (about 7 digits), far finer than the model's accuracy.
     let field = GeomagneticField::new(
         Length::new::<meter>(alt_m as f32),
         Angle::new::<degree>(lat_deg as f32),
         Angle::new::<degree>(lon_deg as f32),
-        model_date.to_time_date()?,
+        day.to_time_date()?,
     )
-    .map_err(|error| from_model_error(error, lat_deg, lon_deg, alt_m, date))?;
-
-    let horizontal_ut = f64::from(field.h().get::<microtesla>());
-    match field.declination_warning() {
-        Some(WarningZone::CautionZone) => warnings.push(WmmWarning::CautionZone { horizontal_ut }),
-        Some(WarningZone::BlackoutZone) => {
-            warnings.push(WmmWarning::BlackoutZone { horizontal_ut })
-        }
-        None => {}
-    }
-
-    Ok(ExpectedField {
+    .map_err(|error| from_model_error(error, lat_deg, lon_deg, alt_m, requested))?;
+    let ut = |value: world_magnetic_model::uom::si::f32::MagneticFluxDensity| {
+        f64::from(value.get::<microtesla>())
+    };
+    Ok(Evaluated {
+        xyz_ut: [ut(field.x()), ut(field.y()), ut(field.z())],
         declination_deg: f64::from(field.declination().get::<degree>()),
         inclination_deg: f64::from(field.inclination().get::<degree>()),
-        total_ut: f64::from(field.f().get::<microtesla>()),
-        horizontal_ut,
-        vertical_ut: f64::from(field.z().get::<microtesla>()),
+        total_ut: ut(field.f()),
+        horizontal_ut: ut(field.h()),
         declination_uncertainty_deg: f64::from(field.declination_uncertainty().get::<degree>()),
-        // Each model covers the five years from its epoch (2020-2024, 2025-2029).
-        model: format!("WMM{}", model_date.year.div_euclid(5) * 5),
-        model_date,
-        warnings,
     })
 }
 
@@ -319,31 +403,50 @@ pub fn date_of_unix_s(unix_s: f64) -> Option<CalendarDate> {
     })
 }
 
-/// The requested date when the model covers it, else the nearest covered day when it
-/// is at most [`MAX_DAYS_OUTSIDE_MODEL`] away.
-fn nearest_model_date(date: CalendarDate) -> Result<CalendarDate, WmmError> {
-    let outside = WmmError::DateOutsideModel {
-        date,
-        first: FIRST_MODEL_DATE,
-        last: LAST_MODEL_DATE,
-    };
+/// `None` when the model covers `date`; else the first and last day of the covered year
+/// nearest to it (the line extrapolated), and how many years (negative before) `date`
+/// lies outside the covered years: an error beyond [`MAX_YEARS_OUTSIDE_MODEL`].
+fn outside_model(
+    date: CalendarDate,
+) -> Result<Option<(CalendarDate, CalendarDate, f64)>, WmmError> {
     let days = date.days_since_unix_epoch();
     let first_days = FIRST_MODEL_DATE.days_since_unix_epoch();
     let last_days = LAST_MODEL_DATE.days_since_unix_epoch();
-    if days < first_days {
-        if first_days - days > MAX_DAYS_OUTSIDE_MODEL {
-            return Err(outside);
-        }
-        Ok(FIRST_MODEL_DATE)
+    let (from, to, years) = if days < first_days {
+        let year_later = CalendarDate {
+            year: FIRST_MODEL_DATE.year + 1,
+            ..FIRST_MODEL_DATE
+        };
+        (
+            FIRST_MODEL_DATE,
+            year_later,
+            (days - first_days) as f64 / DAYS_PER_YEAR,
+        )
     } else if days > last_days {
-        if days - last_days > MAX_DAYS_OUTSIDE_MODEL {
-            return Err(outside);
-        }
-        Ok(LAST_MODEL_DATE)
+        let year_before = CalendarDate {
+            year: LAST_MODEL_DATE.year - 1,
+            ..LAST_MODEL_DATE
+        };
+        (
+            year_before,
+            LAST_MODEL_DATE,
+            (days - last_days) as f64 / DAYS_PER_YEAR,
+        )
     } else {
-        Ok(date)
+        return Ok(None);
+    };
+    if years.abs() > MAX_YEARS_OUTSIDE_MODEL {
+        return Err(WmmError::DateOutsideModel {
+            date,
+            first: FIRST_MODEL_DATE,
+            last: LAST_MODEL_DATE,
+        });
     }
+    Ok(Some((from, to, years)))
 }
+
+/// The mean Gregorian year.
+const DAYS_PER_YEAR: f64 = 365.2425;
 
 /// The crate's own refusals, in this module's words. The checks above make them
 /// unreachable unless the crate's limits change.
@@ -484,25 +587,53 @@ mod tests {
     }
 
     #[test]
-    fn hangzhou_in_november_2019_uses_the_first_covered_day_with_a_warning() {
+    fn hangzhou_in_november_2019_is_extrapolated_with_a_warning() {
         // ../shared/data README: about 48 µT, inclination about 46°, declination about −5°.
         // WMM2020 at 2020-01-01 gives 48.76 µT, 46.02° and −5.70°.
         let field = expected_field(30.3, 120.1, 0.0, date(2019, 11, 15)).expect("near enough");
         check_close("F", field.total_ut, 48.0, 1.0);
         check_close("I", field.inclination_deg, 46.0, 0.5);
         check_close("D", field.declination_deg, -5.0, 1.0);
-        assert_eq!(field.model_date, FIRST_MODEL_DATE);
-        assert_eq!(field.model, "WMM2020");
+        assert_eq!(field.model_date, date(2019, 11, 15));
+        assert_eq!(field.model, "WMM2020 extrapolated 0.1 years back");
+        let [WmmWarning::Extrapolated {
+            requested_date,
+            years,
+            declination_uncertainty_deg,
+        }] = field.warnings[..]
+        else {
+            panic!("{:?}", field.warnings);
+        };
+        assert_eq!(requested_date, date(2019, 11, 15));
+        check_close("years", years, -47.0 / DAYS_PER_YEAR, 1e-9);
         assert_eq!(
-            field.warnings,
-            vec![WmmWarning::DateOutsideModel {
-                requested_date: date(2019, 11, 15),
-                model_date: FIRST_MODEL_DATE,
-            }]
+            declination_uncertainty_deg,
+            field.declination_uncertainty_deg
         );
         let sentence = field.warnings[0].to_string();
-        assert!(sentence.contains("2019-11-15") && sentence.contains("2020-01-01"));
-        assert!(sentence.contains("--declination DEG"));
+        assert!(
+            sentence.contains("2019-11-15 is 0.1 years before"),
+            "{sentence}"
+        );
+        assert!(sentence.contains("--declination DEG"), "{sentence}");
+    }
+
+    #[test]
+    fn canberra_in_2015_gets_its_declination_not_zero() {
+        // ArduPilot's log171 (../shared/data): Canberra, 2015-11-21. IGRF-14 gives
+        // D 12.40°, and the extrapolation's stated 1σ covers the difference.
+        let field =
+            expected_field(-35.3624, 149.1659, 0.0, date(2015, 11, 21)).expect("extrapolated");
+        check_close(
+            "D",
+            field.declination_deg,
+            12.40,
+            field.declination_uncertainty_deg,
+        );
+        assert!(field.declination_uncertainty_deg < 0.6, "{field:?}");
+        assert!(field
+            .model
+            .starts_with("WMM2020 extrapolated 4.1 years back"));
     }
 
     #[test]
@@ -516,29 +647,10 @@ mod tests {
     }
 
     #[test]
-    fn a_year_of_secular_change_is_within_the_models_error() {
-        // The reason a date up to a year outside the model is evaluated at the nearest
-        // covered day: at the places in the data README, one year changes D by less than
-        // the model's σ_c = 0.26° and F by less than its σ_F ≈ 0.14 µT.
-        for (lat_deg, lon_deg) in [(30.3, 120.1), (40.0, -75.2), (51.5, 0.0), (-33.9, 151.2)] {
-            for (from, to) in [
-                (date(2020, 1, 1), date(2021, 1, 1)),
-                (date(2028, 12, 31), date(2029, 12, 31)),
-            ] {
-                let before = expected_field(lat_deg, lon_deg, 0.0, from).expect("covered");
-                let after = expected_field(lat_deg, lon_deg, 0.0, to).expect("covered");
-                let place = format!("{lat_deg} {lon_deg} {from}..{to}");
-                check_close(&place, after.declination_deg, before.declination_deg, 0.26);
-                check_close(&place, after.total_ut, before.total_ut, 0.14);
-            }
-        }
-    }
-
-    #[test]
-    fn dates_more_than_a_year_outside_are_refused_with_what_to_do() {
-        assert!(expected_field(30.3, 120.1, 0.0, date(2019, 1, 1)).is_ok());
-        assert!(expected_field(30.3, 120.1, 0.0, date(2030, 12, 31)).is_ok());
-        for far in [date(2018, 12, 30), date(2031, 1, 2), date(1995, 6, 1)] {
+    fn dates_more_than_thirty_years_outside_are_refused_with_what_to_do() {
+        assert!(expected_field(30.3, 120.1, 0.0, date(1990, 1, 2)).is_ok());
+        assert!(expected_field(30.3, 120.1, 0.0, date(2059, 12, 30)).is_ok());
+        for far in [date(1989, 12, 30), date(2060, 1, 2), date(1900, 6, 1)] {
             let error = expected_field(30.3, 120.1, 0.0, far).expect_err("too far");
             assert_eq!(
                 error,
@@ -549,19 +661,28 @@ mod tests {
                 }
             );
             let message = error.to_string();
+            assert!(message.contains("more than 30 years outside"), "{message}");
             assert!(message.contains("--declination DEG"), "{message}");
             assert!(message.contains("2020-01-01 to 2029-12-31"), "{message}");
         }
     }
 
     #[test]
-    fn after_2029_the_last_covered_day_is_used() {
+    fn after_2029_the_last_covered_year_is_extrapolated() {
         let field = expected_field(40.0, -75.2, 0.0, date(2030, 3, 1)).expect("near enough");
-        assert_eq!(field.model_date, LAST_MODEL_DATE);
-        assert_eq!(field.model, "WMM2025");
+        assert_eq!(field.model_date, date(2030, 3, 1));
+        assert_eq!(field.model, "WMM2025 extrapolated 0.2 years on");
+        // Along the last covered year's line: its two ends and this day in a row.
+        let ends = [date(2028, 12, 31), date(2029, 12, 31)].map(|day| {
+            expected_field(40.0, -75.2, 0.0, day)
+                .expect("covered")
+                .declination_deg
+        });
+        let per_day = (ends[1] - ends[0]) / 365.0;
+        check_close("D", field.declination_deg, ends[1] + 60.0 * per_day, 0.01);
         assert!(matches!(
             field.warnings.as_slice(),
-            [WmmWarning::DateOutsideModel { .. }]
+            [WmmWarning::Extrapolated { years, .. }] if *years > 0.0
         ));
     }
 
@@ -716,6 +837,6 @@ mod tests {
         ] {
             assert!(json.get(key).is_some(), "{key} in {json}");
         }
-        assert_eq!(json["warnings"][0]["kind"], "date_outside_model");
+        assert_eq!(json["warnings"][0]["kind"], "extrapolated");
     }
 }

@@ -55,9 +55,10 @@ mod tests {
         let messages = [
             WmmError::LatitudeOutOfRange { lat_deg: 95.0 }.to_string(),
             WmmError::LongitudeOutOfRange { lon_deg: 200.0 }.to_string(),
-            WmmWarning::DateOutsideModel {
+            WmmWarning::Extrapolated {
                 requested_date: FIRST_MODEL_DATE,
-                model_date: LAST_MODEL_DATE,
+                years: -4.1,
+                declination_uncertainty_deg: 0.5,
             }
             .to_string(),
             WmmError::DateOutsideModel {
