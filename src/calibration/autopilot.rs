@@ -358,6 +358,45 @@ fn in_body_form(
     }
 }
 
+/// The calibration in force of the compass whose raw field is a recording's
+/// magnetometer, applied as the autopilot applies it (the motor compensation at the
+/// battery current of each sample): the field the vehicle's own heading is made from.
+pub struct InForce<'a> {
+    autopilot: Autopilot,
+    correction: ArduPilotCompass,
+    current_a: &'a Stream<f64>,
+}
+
+impl<'a> InForce<'a> {
+    /// The main compass's calibration in force, where `mag_in_body_ut` is that
+    /// compass's raw field (not, say, several logs' fields merged) and the log has its
+    /// parameters.
+    pub fn of(log: &'a AutopilotLog, mag_in_body_ut: &Stream<Vector3<f64>>) -> Option<InForce<'a>> {
+        let compass = log.compasses.get(log.main_compass?)?;
+        if compass.raw_in_body_ut.as_ref() != Some(mag_in_body_ut) {
+            return None;
+        }
+        let lookup = |name: &str| log.param(name).filter(|value| value.is_finite());
+        Some(InForce {
+            autopilot: log.autopilot,
+            correction: in_body_form(compass, &lookup)?,
+            current_a: &log.current_a,
+        })
+    }
+
+    /// "ArduPilot" or "PX4".
+    pub fn autopilot(&self) -> &'static str {
+        self.autopilot.name()
+    }
+
+    /// The corrected field (body axes, µT) of a raw sample at `t_s`.
+    pub fn corrected_ut(&self, t_s: f64, raw_ut: Vector3<f64>) -> Vector3<f64> {
+        let current_a = nearest(&self.current_a.t_s, t_s, MAX_CURRENT_GAP_S)
+            .map_or(0.0, |idx| self.current_a.values[idx]);
+        self.correction.apply(raw_ut / UT_PER_MG, current_a) * UT_PER_MG
+    }
+}
+
 /// The calibration of an autopilot log's compasses, where it has their raw fields and
 /// an attitude with yaw; `None` otherwise. ArduPilot's are written as a `.param` file,
 /// PX4's as a QGroundControl `.params` file (`CAL_MAGn_*`, without power compensation).

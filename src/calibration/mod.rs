@@ -278,6 +278,10 @@ pub struct CalibrationAnalysis {
     pub raw_heading_deg: Vec<f64>,
     /// Each fitted method's heading per sample.
     pub headings_deg: Vec<(Method, Vec<f64>)>,
+    /// An autopilot log's heading per sample with its calibration in force, as the
+    /// autopilot applies it ([`autopilot::InForce`]): the heading the vehicle flies
+    /// with, beside the new calibrations. With the autopilot's name.
+    pub in_force_heading_deg: Option<(&'static str, Vec<f64>)>,
     /// |B| raw and after the best 3D correction available (the ellipsoid's, else the
     /// ellipse method's).
     pub field_raw_ut: Vec<f64>,
@@ -616,6 +620,15 @@ fn calibrate_levelled(
         field_corrected_ut,
         ..
     } = outputs;
+    let in_force_heading_deg = autopilot
+        .as_ref()
+        .and_then(|log| autopilot::InForce::of(log, &recording.mag_in_body_ut))
+        .map(|in_force| {
+            (
+                in_force.autopilot(),
+                in_force_headings_deg(&in_force, &prepared),
+            )
+        });
     let (raw_train, raw_check) = prepared.both_stats(&prepared.raw_heading_rad);
     let scored = scored_methods(raw_train, raw_check, &method_reports);
     let by_reference = choose_by_reference(&scored);
@@ -677,6 +690,7 @@ fn calibrate_levelled(
             .map(|heading| heading.to_degrees())
             .collect(),
         headings_deg,
+        in_force_heading_deg,
         field_corrected_ut: field_corrected_ut.unwrap_or_default(),
         temp_c,
         gyro_heading_deg,
@@ -707,6 +721,18 @@ fn calibrate_levelled(
     analysis.attitude_heading = attitude_heading
         .unwrap_or_else(|| attitude::attitude_heading(&recording, &analysis.report, &analysis.t_s));
     Ok(analysis)
+}
+
+/// The heading at every sample with an autopilot's calibration in force, levelled and
+/// turned by the declination as every method's heading is.
+fn in_force_headings_deg(in_force: &autopilot::InForce, prepared: &Prepared) -> Vec<f64> {
+    let samples = &prepared.samples;
+    let declination_rad = prepared.declination.declination_deg.to_radians();
+    crate::par::map(&samples.mag_ut, |idx, &raw_ut| {
+        let tilt = samples.tilt.get(idx).copied().unwrap_or(Tilt::LEVEL);
+        let corrected_ut = in_force.corrected_ut(samples.t_s[idx], raw_ut);
+        heading_rad(tilt.level(corrected_ut), declination_rad).to_degrees()
+    })
 }
 
 /// Uncalibrated and every method, as the selection scores them.

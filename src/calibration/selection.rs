@@ -46,7 +46,8 @@ pub const PARSIMONY_SHARE: f64 = 0.05;
 pub fn complexity(key: &str) -> u32 {
     let mut parts = key.split('+');
     let base = match parts.next().unwrap_or(RAW_KEY) {
-        "raw" => 0,
+        // An autopilot's calibration in force learnt nothing from this log.
+        "raw" | "in_force" => 0,
         "min_max" | "fourier" => 1,
         // The attitude filter learns nothing from the reference; its field is a 3D fit.
         "ellipse" | "ellipsoid" | "mlp" | "ahrs" => 2,

@@ -191,8 +191,12 @@ pub fn compare(calibration: &CalibrationAnalysis, options: &HeadingOptions) -> H
 /// The row key of the attitude filter's heading.
 pub const ATTITUDE_KEY: &str = "ahrs";
 
-/// The uncalibrated heading, then each fitted field-domain method's, then the attitude
-/// filter's (scored here: the calibration does not score it).
+/// The row key of an autopilot's heading with its calibration in force.
+pub const IN_FORCE_KEY: &str = "in_force";
+
+/// The uncalibrated heading, an autopilot's with its calibration in force, each fitted
+/// field-domain method's, then the attitude filter's (the last two scored here: the
+/// calibration does not score them).
 fn bases_of<'a>(calibration: &'a CalibrationAnalysis, split: &Split) -> Vec<Base<'a>> {
     let radians = |headings_deg: &[f64]| headings_deg.iter().map(|deg| deg.to_radians()).collect();
     let report = &calibration.report;
@@ -206,6 +210,17 @@ fn bases_of<'a>(calibration: &'a CalibrationAnalysis, split: &Split) -> Vec<Base
             report.raw_heading_error_check,
         ),
     }];
+    if let Some((autopilot, headings_deg)) = &calibration.in_force_heading_deg {
+        let heading_rad: Vec<f64> = radians(headings_deg);
+        let scores = split.both_stats(&heading_rad);
+        bases.push(Base {
+            key: IN_FORCE_KEY.to_string(),
+            label: format!("{autopilot}'s parameters in force"),
+            heading_rad,
+            heading_deg: headings_deg,
+            scores,
+        });
+    }
     for (method, headings_deg) in &calibration.headings_deg {
         let scores = report.method(*method).map_or((None, None), |method| {
             (method.heading_error_train, method.heading_error_check)

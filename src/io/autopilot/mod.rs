@@ -63,6 +63,9 @@ pub struct AutopilotLog {
     /// Parameters whose value changed during the log, with their last value.
     pub params_changed: Vec<(String, f64)>,
     pub compasses: Vec<CompassLog>,
+    /// The compass (an index into `compasses`) whose raw field is the recording's
+    /// magnetometer; `None` when the recording holds no compass's raw field.
+    pub main_compass: Option<usize>,
     /// The battery current (A), for the motor-interference fit; empty where not logged.
     pub current_a: Stream<f64>,
 }

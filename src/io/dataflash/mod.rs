@@ -291,6 +291,7 @@ fn finish(
         params,
         params_changed,
         compasses: Vec::new(),
+        main_compass: None,
         current_a,
     };
     autopilot.compasses = mags
@@ -304,11 +305,15 @@ fn finish(
         .param("COMPASS_PRIMARY")
         .filter(|value| *value >= 0.0)
         .map_or(0, |value| value as usize);
+    autopilot.main_compass = (0..autopilot.compasses.len())
+        .filter(|&idx| autopilot.compasses[idx].raw_in_body_ut.is_some())
+        .min_by_key(|&idx| {
+            let instance = autopilot.compasses[idx].instance;
+            (instance != primary, instance)
+        });
     let chosen = autopilot
-        .compasses
-        .iter()
-        .filter(|compass| compass.raw_in_body_ut.is_some())
-        .min_by_key(|compass| (compass.instance != primary, compass.instance));
+        .main_compass
+        .and_then(|idx| autopilot.compasses.get(idx));
     let mut mag_frame = None;
     if let Some(compass) = chosen {
         recording.mag_in_body_ut = compass.raw_in_body_ut.clone().unwrap_or_default();

@@ -90,8 +90,15 @@ impl UlogReader {
             .param("CAL_MAG_PRIME")
             .filter(|&id| id > 0.0)
             .map(|id| id as u32);
-        let mag_frame = set_primary(&made, prime, &mut recording, &mut notes);
-        self.finish_with(file_name, recording, made, mag_frame, notes, n_out_of_order)
+        let (mag_frame, main_compass) = set_primary(&made, prime, &mut recording, &mut notes);
+        self.finish_with(
+            file_name,
+            recording,
+            (made, main_compass),
+            mag_frame,
+            notes,
+            n_out_of_order,
+        )
     }
 
     /// The parameter in force named `name`.
@@ -231,7 +238,7 @@ impl UlogReader {
         mut self,
         file_name: &str,
         recording: Recording,
-        made: Vec<Made>,
+        (made, main_compass): (Vec<Made>, Option<usize>),
         mag_frame: Option<SensorFrame>,
         mut notes: Vec<String>,
         n_out_of_order: usize,
@@ -301,6 +308,7 @@ impl UlogReader {
             params: std::mem::take(&mut self.params),
             params_changed: std::mem::take(&mut self.params_changed),
             compasses: made.into_iter().map(|made| made.log).collect(),
+            main_compass,
             current_a: Default::default(),
         };
         Ok(ImportReport {
@@ -498,13 +506,13 @@ fn make_compass(
 }
 
 /// The primary compass (`CAL_MAG_PRIME`'s, the one with a raw field and the most samples)
-/// into the recording; its frame.
+/// into the recording; its frame, and its index when its raw field is the one put in.
 fn set_primary(
     made: &[Made],
     prime: Option<u32>,
     recording: &mut Recording,
     notes: &mut Vec<String>,
-) -> Option<SensorFrame> {
+) -> (Option<SensorFrame>, Option<usize>) {
     let primary_idx = prime
         .and_then(|prime| {
             (0..made.len())
@@ -518,10 +526,12 @@ fn set_primary(
         })
         .or(if made.is_empty() { None } else { Some(0) });
     let mut mag_frame = None;
+    let mut main_compass = None;
     if let Some(primary) = primary_idx.and_then(|idx| made.get(idx)) {
         match (&primary.log.raw_in_body_ut, primary.body_from_sensor) {
             (Some(raw), Some(rotation)) => {
                 recording.mag_in_body_ut = raw.clone();
+                main_compass = primary_idx;
                 mag_frame = Some(SensorFrame {
                     body_from_sensor: rotation,
                     unit: MagUnit::GAUSS,
@@ -547,5 +557,5 @@ fn set_primary(
             }
         }
     }
-    mag_frame
+    (mag_frame, main_compass)
 }
