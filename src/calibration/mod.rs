@@ -620,15 +620,7 @@ fn calibrate_levelled(
         field_corrected_ut,
         ..
     } = outputs;
-    let in_force_heading_deg = autopilot
-        .as_ref()
-        .and_then(|log| autopilot::InForce::of(log, &recording.mag_in_body_ut))
-        .map(|in_force| {
-            (
-                in_force.autopilot(),
-                in_force_headings_deg(&in_force, &prepared),
-            )
-        });
+    let in_force_heading_deg = in_force_headings_deg(autopilot.as_ref(), &recording, &prepared);
     let (raw_train, raw_check) = prepared.both_stats(&prepared.raw_heading_rad);
     let scored = scored_methods(raw_train, raw_check, &method_reports);
     let by_reference = choose_by_reference(&scored);
@@ -724,15 +716,22 @@ fn calibrate_levelled(
 }
 
 /// The heading at every sample with an autopilot's calibration in force, levelled and
-/// turned by the declination as every method's heading is.
-fn in_force_headings_deg(in_force: &autopilot::InForce, prepared: &Prepared) -> Vec<f64> {
+/// turned by the declination as every method's heading is, with the autopilot's name;
+/// `None` unless the recording's magnetometer is the autopilot's main compass.
+fn in_force_headings_deg(
+    log: Option<&crate::io::autopilot::AutopilotLog>,
+    recording: &Recording,
+    prepared: &Prepared,
+) -> Option<(&'static str, Vec<f64>)> {
+    let in_force = autopilot::InForce::of(log?, &recording.mag_in_body_ut)?;
     let samples = &prepared.samples;
     let declination_rad = prepared.declination.declination_deg.to_radians();
-    crate::par::map(&samples.mag_ut, |idx, &raw_ut| {
+    let headings_deg = crate::par::map(&samples.mag_ut, |idx, &raw_ut| {
         let tilt = samples.tilt.get(idx).copied().unwrap_or(Tilt::LEVEL);
         let corrected_ut = in_force.corrected_ut(samples.t_s[idx], raw_ut);
         heading_rad(tilt.level(corrected_ut), declination_rad).to_degrees()
-    })
+    });
+    Some((in_force.autopilot(), headings_deg))
 }
 
 /// Uncalibrated and every method, as the selection scores them.
