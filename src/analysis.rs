@@ -202,6 +202,13 @@ pub fn tilted_samples(
                     "tilt from the accelerometer alone (averaged over {window_s} s), not with the gyroscope: {reason}"
                 ));
             }
+            GravitySource::Autopilot { .. } => {
+                samples.notes.push(
+                    "tilt from the autopilot's own attitude (its roll and pitch): a multirotor's accelerometer \
+                     reads its thrust, not gravity, in flight"
+                        .to_string(),
+                );
+            }
             GravitySource::GyroAided {
                 gyro_time_scale, ..
             } if *gyro_time_scale != 1.0 => {
@@ -221,8 +228,12 @@ pub fn tilted_samples(
         } else {
             ("samples had", "were")
         };
+        let levelled_by = match gravity.source {
+            GravitySource::Autopilot { .. } => "attitude",
+            _ => "accelerometer",
+        };
         samples.notes.push(format!(
-            "{n_not_levelled} magnetometer {sample_had} no accelerometer sample within {MAX_INTERPOLATION_GAP_S} s and {was} left out."
+            "{n_not_levelled} magnetometer {sample_had} no {levelled_by} sample within {MAX_INTERPOLATION_GAP_S} s and {was} left out."
         ));
     }
     Ok(samples)

@@ -265,6 +265,31 @@ fn an_autopilot_log_s_heading_comparison_has_the_parameters_in_force() {
             .label;
         assert!(label.ends_with("'s parameters in force"), "{label}");
     }
+    // A multirotor's accelerometer reads its thrust: log171's fields are levelled with
+    // the autopilot's roll and pitch, and then the 3D fit agrees with its heading as
+    // well as the parameters in force do (52.7° check RMS when levelled with the
+    // accelerometer, with no declination; 23.4° with the extrapolated one).
+    let report = common::import_paths(&[data.join("ardupilot-copter-log171/log171.bin")]);
+    let (calibration, headings) =
+        compass_pdr::pipeline::headings(&report, &HeadingOptions::default()).unwrap();
+    let row = headings
+        .report
+        .rows
+        .iter()
+        .find(|row| row.key == "ellipsoid")
+        .unwrap();
+    let ellipsoid_deg = row.check.unwrap().rms_deg;
+    eprintln!("log171: ellipsoid (3D) check RMS {ellipsoid_deg:.2}°");
+    assert!(ellipsoid_deg < 15.0, "{ellipsoid_deg:.2}°");
+    assert!(
+        calibration
+            .report
+            .notes
+            .iter()
+            .any(|note| note.contains("the autopilot's own attitude")),
+        "{:?}",
+        calibration.report.notes
+    );
     // IGRF-14 gives 12.40° at log171's first fix on its day.
     let report = common::import_paths(&[data.join("ardupilot-copter-log171/log171.bin")]);
     let analysis = calibrate(report, &CalibrationOptions::default()).unwrap();

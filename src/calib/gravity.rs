@@ -40,7 +40,7 @@ use nalgebra::{Rotation3, Vector3};
 use serde::Serialize;
 
 use super::tilt::smooth_specific_force;
-use crate::recording::{GnssFix, Recording, Stream};
+use crate::recording::{Attitude, GnssFix, Recording, Stream};
 
 /// Standard gravity (m/s²), the magnitude given to the estimated specific force
 /// (CGPM 1901; only the direction matters to the tilt): `io`'s one constant.
@@ -74,10 +74,15 @@ pub enum GravitySource {
     },
     /// The accelerometer averaged over `window_s`; `reason` says why not the gyroscope.
     Accelerometer { window_s: f64, reason: String },
+    /// An autopilot's own roll and pitch (its estimator's), at its attitude samples: a
+    /// multirotor's accelerometer reads its thrust along its own axis, not gravity,
+    /// whatever its tilt, so in flight it cannot level anything. `tau_s` is the time
+    /// constant asked for, kept to tell whether an estimate can be reused.
+    Autopilot { tau_s: f64 },
 }
 
 /// The specific force that gravity alone would give (the negative of down, times
-/// [`STANDARD_GRAVITY_MPS2`]) at each accelerometer sample, and how it was found.
+/// [`crate::io::STANDARD_GRAVITY_MPS2`]) at each accelerometer sample, and how it was found.
 #[derive(Debug, Clone, PartialEq)]
 pub struct GravityEstimate {
     pub specific_force_mps2: Stream<Vector3<f64>>,
@@ -99,12 +104,41 @@ pub fn gravity_of(recording: &Recording, tau_s: f64) -> GravityEstimate {
     )
 }
 
+/// Down from an autopilot's own attitude estimate ([`GravitySource::Autopilot`]): the
+/// specific force gravity alone gives at each attitude sample, `g · (sin θ, −sin φ cos θ,
+/// −cos φ cos θ)` in body axes (x forward, y right, z down) for roll φ and pitch θ;
+/// `None` with fewer than two attitudes.
+pub fn gravity_from_attitude(attitude: &Stream<Attitude>, tau_s: f64) -> Option<GravityEstimate> {
+    if attitude.len() < 2 {
+        return None;
+    }
+    let values = attitude
+        .values
+        .iter()
+        .map(|attitude| {
+            let (sin_roll, cos_roll) = attitude.roll_rad.sin_cos();
+            let (sin_pitch, cos_pitch) = attitude.pitch_rad.sin_cos();
+            crate::io::STANDARD_GRAVITY_MPS2
+                * Vector3::new(sin_pitch, -sin_roll * cos_pitch, -cos_roll * cos_pitch)
+        })
+        .collect();
+    Some(GravityEstimate {
+        specific_force_mps2: Stream {
+            t_s: attitude.t_s.clone(),
+            values,
+        },
+        source: GravitySource::Autopilot { tau_s },
+        gnss_used: Stream::default(),
+    })
+}
+
 impl GravityEstimate {
     /// The time constant it was estimated with (s).
     pub fn tau_s(&self) -> f64 {
         match self.source {
             GravitySource::GyroAided { tau_s, .. } => tau_s,
             GravitySource::Accelerometer { window_s, .. } => window_s,
+            GravitySource::Autopilot { tau_s } => tau_s,
         }
     }
 
@@ -517,6 +551,51 @@ fn pass(
 mod tests {
     use super::*;
     use crate::calib::tilt::Tilt;
+
+    #[test]
+    fn an_autopilot_s_roll_and_pitch_level_as_the_accelerometer_would_at_rest() {
+        use crate::recording::Attitude;
+        let angles = [
+            (0.0, 0.0),
+            (0.3, -0.2),
+            (-1.2, 0.7),
+            (2.9, 0.1),
+            (0.5, -1.5),
+        ];
+        let attitude = Stream {
+            t_s: (0..angles.len()).map(|idx| idx as f64 * 0.1).collect(),
+            values: angles
+                .iter()
+                .map(|&(roll_rad, pitch_rad)| Attitude {
+                    roll_rad,
+                    pitch_rad,
+                    yaw_rad: Some(1.0),
+                })
+                .collect(),
+        };
+        let estimate = gravity_from_attitude(&attitude, 2.0).expect("five attitudes");
+        assert_eq!(estimate.source, GravitySource::Autopilot { tau_s: 2.0 });
+        assert_eq!(estimate.tau_s(), 2.0);
+        for (&(roll_rad, pitch_rad), &force) in
+            angles.iter().zip(&estimate.specific_force_mps2.values)
+        {
+            let tilt = Tilt::from_specific_force(force).expect("a specific force");
+            assert!(
+                (tilt.roll_rad() - roll_rad).abs() < 1e-12,
+                "{roll_rad} {pitch_rad}"
+            );
+            assert!(
+                (tilt.pitch_rad() - pitch_rad).abs() < 1e-12,
+                "{roll_rad} {pitch_rad}"
+            );
+            assert!((force.norm() - crate::io::STANDARD_GRAVITY_MPS2).abs() < 1e-12);
+        }
+        let one = Stream {
+            t_s: vec![0.0],
+            values: vec![attitude.values[0]],
+        };
+        assert!(gravity_from_attitude(&one, 2.0).is_none());
+    }
 
     /// A body swaying in roll and pitch at `sway_hz` by `sway_deg` while turning in
     /// yaw, with a walking bounce and fore-aft acceleration in the accelerometer: the

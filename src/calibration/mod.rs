@@ -23,7 +23,7 @@ use nalgebra::{Vector2, Vector3};
 use serde::Serialize;
 
 use crate::analysis::{AnalysisError, Levelling, TiltedSamples};
-use crate::calib::gravity::{gravity_of, GravityEstimate};
+use crate::calib::gravity::{gravity_from_attitude, gravity_of, GravityEstimate};
 use crate::calib::heading::heading_rad;
 use crate::calib::inertial::InertialFit;
 use crate::calib::minmax::MinMaxCalibration;
@@ -375,15 +375,23 @@ struct Levelled {
 }
 
 impl Levelled {
-    /// Down, the tilted samples and the conditions of `recording`.
+    /// Down, the tilted samples and the conditions of `recording`. Down is an
+    /// autopilot's own attitude estimate's where the log is an autopilot's (its
+    /// accelerometer reads the thrust in flight), else from the accelerometer.
     fn of(
         file_name: &str,
         recording: &Recording,
         import: (Option<&crate::io::HeaderInfo>, &Diagnostics, usize),
-        options: &CalibrationOptions,
+        (options, autopilot): (&CalibrationOptions, bool),
     ) -> Result<Levelled, AnalysisError> {
         let (header, diagnostics, n_data_lines) = import;
-        let gravity = Arc::new(gravity_of(recording, options.gravity_window_s));
+        let tau_s = options.gravity_window_s;
+        let gravity = Arc::new(
+            autopilot
+                .then(|| gravity_from_attitude(&recording.attitude, tau_s))
+                .flatten()
+                .unwrap_or_else(|| gravity_of(recording, tau_s)),
+        );
         let samples = crate::analysis::tilted_samples(
             file_name,
             recording,
@@ -600,7 +608,7 @@ fn calibrate_levelled(
             &file_name,
             &recording,
             (header.as_ref(), &diagnostics, n_data_lines),
-            options,
+            (options, autopilot.is_some()),
         )?,
     };
     let prepared = prepare(&recording, (samples, &gravity), options, &mut notes)?;
