@@ -28,7 +28,7 @@ test('after load nothing goes over the network, and the page works offline after
   await context.setOffline(true);
   await page.reload();
   await waitForState(page, 'ready', 'demo-walk.csv');
-  assert.match(await text(page, 'status'), /Analysed demo-walk\.csv: 12000 magnetometer samples\./);
+  assert.match(await text(page, 'status'), /Analysed demo-walk\.csv: 12,000 magnetometer samples\./);
   await context.setOffline(false);
   assert.deepEqual(problems, []);
   await close();

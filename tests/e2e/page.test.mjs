@@ -70,7 +70,7 @@ test('the demo is analysed and drawn on load, with the CLI\'s figures', async ()
   assert.ok(checkRms(expected, 'ellipse') < 5, 'small error after the ellipse fit');
   assert.ok(checkRms(expected, 'min_max') < 5, 'small error after min/max');
   await assertPlotsDrawn(page);
-  assert.match(await text(page, 'status'), /Analysed demo-walk\.csv: 12000 magnetometer samples\./);
+  assert.match(await text(page, 'status'), /Analysed demo-walk\.csv: 12,000 magnetometer samples\./);
   // Dated and placed by its GNSS: the World Magnetic Model gives declination and field.
   assert.match(await text(page, 'context'), /Declination: 14\.92° \(WMM2025 on 2026-05-14/);
   assert.match(await text(page, 'context'), /52\.6 µT expected, inclination 68\.8°/);
@@ -134,7 +134,7 @@ test('phyphox files dropped together are merged into one recording', async (t) =
   const names = ['Accelerometer.csv', 'Gyroscope.csv', 'Magnetometer.csv', 'Location.csv'];
   await dropFiles(page, names.map((name) => ({ name, content: readFileSync(join(dir, name), 'utf8') })));
   await waitForState(page, 'ready', names.join(' + '));
-  assert.match(await text(page, 'status'), /10575 magnetometer samples/);
+  assert.match(await text(page, 'status'), /10,575 magnetometer samples/);
   // What was read, stream by stream, as `compass-pdr inspect` summarises it.
   const streams = await text(page, 'streams');
   assert.match(streams, /Format: delimited text/);
@@ -181,7 +181,7 @@ test('a 50 MB log is read in chunks with a progress bar, and the page keeps answ
   // then (after the browser has painted) the heading models.
   assert.ok(slowestAnswerMs < 2000, `the page took ${slowestAnswerMs} ms to answer`);
   console.log(`large file: ${progressSeen.length} progress readings, slowest answer ${slowestAnswerMs} ms`);
-  assert.match(await text(page, 'status'), /Analysed large-walk\.csv: 450000 magnetometer samples\./);
+  assert.match(await text(page, 'status'), /Analysed large-walk\.csv: 450,000 magnetometer samples\./);
   assert.equal(await page.getAttribute('#progress', 'hidden'), '', 'the bar is hidden again');
   await assertPlotsDrawn(page);
   await page.screenshot({ path: join(out, 'large.png'), fullPage: true });

@@ -79,7 +79,7 @@ test('cross-origin isolated, the page reads large files on every core, as on one
       assert.equal(onThreads.state, 'error');
       assert.match(onThreads.status, /^track\.nmea holds no magnetometer samples, only 60,000 GNSS fixes\. To calibrate, drop it together with the log that has the magnetometer/);
     } else {
-      assert.match(onThreads.status, /Analysed large-walk\.csv: 450000 magnetometer samples\./);
+      assert.match(onThreads.status, /Analysed large-walk\.csv: 450,000 magnetometer samples\./);
     }
   }
   await threaded.page.screenshot({ path: join(out, 'threads.png'), fullPage: true });

@@ -246,10 +246,19 @@ impl Page {
         };
         // The answer (and the method, the CLI's `best:` sentence word for word) is in the
         // summary below; the status says what was done.
-        format!(
-            "Analysed {}: {} magnetometer samples.{problems}",
-            report.file_name, report.n_samples_used
-        )
+        // As the report says it: the samples used of those read (a sample without an
+        // accelerometer sample near it cannot be levelled).
+        let thousands = crate::io::thousands;
+        let used = if report.n_samples_used == report.n_mag_samples {
+            format!("{} magnetometer samples", thousands(report.n_samples_used))
+        } else {
+            format!(
+                "{} of {} magnetometer samples used",
+                thousands(report.n_samples_used),
+                thousands(report.n_mag_samples)
+            )
+        };
+        format!("Analysed {}: {used}.{problems}", report.file_name)
     }
 
     /// The dead reckoning's list; a log that cannot be dead-reckoned says why in its
