@@ -23,6 +23,15 @@ pub fn plural<'a>(count: usize, singular: &'a str, plural: &'a str) -> &'a str {
     }
 }
 
+/// How often something happened: "once", "twice", "3 times".
+pub fn times(count: usize) -> String {
+    match count {
+        1 => "once".to_string(),
+        2 => "twice".to_string(),
+        _ => format!("{count} times"),
+    }
+}
+
 /// A duration as a person says it: seconds, minutes or hours.
 pub fn duration_text(duration_s: f64) -> String {
     if duration_s < 120.0 {

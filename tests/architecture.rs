@@ -34,8 +34,9 @@ const NOT_IN_THE_CORE: [&str; 17] = [
 ];
 
 /// The modules `io` is built on (and `io` itself).
-const BELOW_IO: [&str; 8] = [
+const BELOW_IO: [&str; 9] = [
     "io",
+    "english",
     "recording",
     "angle",
     "civil",

@@ -373,7 +373,20 @@ impl<'a> InForce<'a> {
     /// parameters.
     pub fn of(log: &'a AutopilotLog, mag_in_body_ut: &Stream<Vector3<f64>>) -> Option<InForce<'a>> {
         let compass = log.compasses.get(log.main_compass?)?;
-        if compass.raw_in_body_ut.as_ref() != Some(mag_in_body_ut) {
+        // The same samples bit for bit (a NaN equals itself here).
+        let raw = compass.raw_in_body_ut.as_ref()?;
+        let same_bits = |a: &[f64], b: &[f64]| {
+            a.len() == b.len() && a.iter().zip(b).all(|(a, b)| a.to_bits() == b.to_bits())
+        };
+        let flat = |values: &[Vector3<f64>]| -> Vec<f64> {
+            values
+                .iter()
+                .flat_map(|value| value.iter().copied())
+                .collect()
+        };
+        if !(same_bits(&raw.t_s, &mag_in_body_ut.t_s)
+            && same_bits(&flat(&raw.values), &flat(&mag_in_body_ut.values)))
+        {
             return None;
         }
         let lookup = |name: &str| log.param(name).filter(|value| value.is_finite());

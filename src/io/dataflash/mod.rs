@@ -126,6 +126,43 @@ fn offsets_of(track: &MagTrack, in_force: Option<&ArduPilotCompass>) -> Option<V
     param.map(|param| vec![param; track.t_s.len()])
 }
 
+/// Every compass of the log, each stream in time order (as the recording's will be:
+/// the main compass's raw field becomes its magnetometer, the same samples in the same
+/// order), and the main one: COMPASS_PRIMARY's, where its raw field is known. How many
+/// of the main compass's raw samples were out of time order.
+fn set_compasses(autopilot: &mut AutopilotLog, mags: &[MagTrack]) -> usize {
+    autopilot.compasses = mags
+        .iter()
+        .map(|track| compass_of(track, autopilot))
+        .collect();
+    let raw_out_of_order: Vec<usize> = autopilot
+        .compasses
+        .iter_mut()
+        .map(|compass| {
+            compass.logged_in_body_ut.sort_by_time();
+            compass
+                .raw_in_body_ut
+                .as_mut()
+                .map_or(0, |raw| raw.sort_by_time())
+        })
+        .collect();
+    let primary = autopilot
+        .param("COMPASS_PRIMARY")
+        .filter(|value| *value >= 0.0)
+        .map_or(0, |value| value as usize);
+    autopilot.main_compass = (0..autopilot.compasses.len())
+        .filter(|&idx| autopilot.compasses[idx].raw_in_body_ut.is_some())
+        .min_by_key(|&idx| {
+            let instance = autopilot.compasses[idx].instance;
+            (instance != primary, instance)
+        });
+    autopilot
+        .main_compass
+        .and_then(|idx| raw_out_of_order.get(idx))
+        .copied()
+        .unwrap_or(0)
+}
+
 /// One compass as logged and raw.
 fn compass_of(track: &MagTrack, params: &AutopilotLog) -> CompassLog {
     let logged_in_body_ut = Stream {
@@ -294,23 +331,8 @@ fn finish(
         main_compass: None,
         current_a,
     };
-    autopilot.compasses = mags
-        .iter()
-        .map(|track| compass_of(track, &autopilot))
-        .collect();
-
+    let n_main_out_of_order = set_compasses(&mut autopilot, &mags);
     let mut notes = log_notes(summary, &counts, &autopilot);
-    // The magnetometer to calibrate: COMPASS_PRIMARY's, where its raw field is known.
-    let primary = autopilot
-        .param("COMPASS_PRIMARY")
-        .filter(|value| *value >= 0.0)
-        .map_or(0, |value| value as usize);
-    autopilot.main_compass = (0..autopilot.compasses.len())
-        .filter(|&idx| autopilot.compasses[idx].raw_in_body_ut.is_some())
-        .min_by_key(|&idx| {
-            let instance = autopilot.compasses[idx].instance;
-            (instance != primary, instance)
-        });
     let chosen = autopilot
         .main_compass
         .and_then(|idx| autopilot.compasses.get(idx));
@@ -375,11 +397,15 @@ fn finish(
             crate::civil::utc_text(start)
         ));
     }
-    let n_out_of_order = recording.sort_all_by_time();
+    // The magnetometer was sorted with its compass.
+    let n_out_of_order = recording.sort_all_by_time() + n_main_out_of_order;
     if n_out_of_order > 0 {
         diagnostics.push(
             None,
-            format!("time goes backwards {n_out_of_order} times; the samples were sorted by time"),
+            format!(
+                "time goes backwards {}; the samples were sorted by time",
+                crate::english::times(n_out_of_order)
+            ),
         );
     }
     Ok(ImportReport {

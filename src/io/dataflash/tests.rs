@@ -191,3 +191,34 @@ fn a_text_log_reads_like_the_binary_one() {
     assert!((yaw.to_degrees() - 189.54).abs() < 1e-9);
     assert_eq!(report.diagnostics.kept[0].line, Some(10));
 }
+
+#[test]
+fn a_mag_stream_out_of_time_order_stays_its_main_compass_s_raw_field() {
+    // Swap two MAG messages: the recording's magnetometer is sorted by time, and so is
+    // the compass it came from, sample for sample (the heading comparison's in-force
+    // row applies the compass's parameters to exactly these samples).
+    let mut bytes = small_log();
+    let one = mag(1000, [0, 0, 0], [0; 3]).len();
+    let end = bytes.len();
+    let (third_last, second_last) = (end - 2 * one, end - one);
+    let last = bytes[second_last..].to_vec();
+    let before = bytes[third_last..second_last].to_vec();
+    bytes.truncate(third_last);
+    bytes.extend(last);
+    bytes.extend(before);
+    let report = read_binary("swapped.bin", &bytes).unwrap();
+    let autopilot = report.autopilot.as_ref().unwrap();
+    assert_eq!(autopilot.main_compass, Some(0));
+    let raw = autopilot.compasses[0].raw_in_body_ut.as_ref().unwrap();
+    assert_eq!(*raw, report.recording.mag_in_body_ut);
+    assert!(raw.t_s.windows(2).all(|pair| pair[0] <= pair[1]));
+    assert!(
+        report
+            .diagnostics
+            .kept
+            .iter()
+            .any(|diagnostic| diagnostic.message.contains("time goes backwards once")),
+        "{:?}",
+        report.diagnostics
+    );
+}

@@ -74,7 +74,8 @@ impl DelimitedReader {
             self.diagnostics.push(
                 Some(header.line),
                 format!(
-                    "time goes backwards {n_out_of_order} times; the samples were sorted by time"
+                    "time goes backwards {}; the samples were sorted by time",
+                    crate::english::times(n_out_of_order)
                 ),
             );
         }

@@ -84,7 +84,8 @@ impl NmeaReader {
             diagnostics.push(
                 None,
                 format!(
-                    "time goes backwards {n_out_of_order} times; the samples were sorted by time"
+                    "time goes backwards {}; the samples were sorted by time",
+                    crate::english::times(n_out_of_order)
                 ),
             );
         }

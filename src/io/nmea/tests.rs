@@ -370,7 +370,7 @@ fn out_of_order_times_are_sorted_and_reported() {
     assert_eq!(report.recording.gnss.t_s, vec![-4.0, 0.0]);
     assert!(report.diagnostics.kept[0]
         .message
-        .contains("time goes backwards 1 times"));
+        .contains("time goes backwards once"));
 }
 
 #[test]

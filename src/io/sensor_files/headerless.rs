@@ -248,7 +248,10 @@ pub(super) fn headerless_import(
         streams.estimate.sort_by_time();
         streams.diagnostics.push(
             None,
-            format!("time goes backwards {n_out_of_order} times; the samples were sorted by time"),
+            format!(
+                "time goes backwards {}; the samples were sorted by time",
+                crate::english::times(n_out_of_order)
+            ),
         );
     }
     let mut recording = Recording::default();

@@ -127,7 +127,8 @@ impl SerialReader {
                 self.diagnostics.push(
                     None,
                     format!(
-                        "arrival times go backwards {n_out_of_order} times; the samples were sorted by time"
+                        "arrival times go backwards {}; the samples were sorted by time",
+                        crate::english::times(n_out_of_order)
                     ),
                 );
             }
