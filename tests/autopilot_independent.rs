@@ -5,7 +5,9 @@
 //! applied before logging. Random draws (the independent generator's own `Rng`), 40
 //! flights; every flight's written `.param` is read back and applied as ArduPilot
 //! applies it to the true raw field, and the distribution of the heading errors against
-//! the true Earth field is printed.
+//! the true Earth field is printed. Flights with an IMU whose accelerometer reads the
+//! thrust, as a multirotor's does, check that the analysis levels with the autopilot's
+//! attitude.
 
 mod physics;
 
@@ -51,6 +53,13 @@ struct Flight {
 }
 
 fn flight(rng: &mut Rng) -> Flight {
+    flight_with(rng, false)
+}
+
+/// A flight, with an IMU logged when `imu`: the gyroscope's body rates, and the
+/// accelerometer as a multirotor's reads in flight, its thrust along its own −z (what
+/// holds it up at its tilt) with vibration, whatever its roll and pitch.
+fn flight_with(rng: &mut Rng, imu: bool) -> Flight {
     // The Earth's field at some place: 250-650 mG, inclination -70° to 70°.
     let inclination = rng.range(-70.0, 70.0).to_radians();
     let declination = rng.range(-20.0, 20.0).to_radians();
@@ -100,6 +109,15 @@ fn flight(rng: &mut Rng) -> Flight {
     ));
     log.extend(fmt(131, 23, "ATT", "Qfff", "TimeUS,Roll,Pitch,Yaw"));
     log.extend(fmt(132, 15, "CURR", "Qf", "TimeUS,Curr"));
+    if imu {
+        log.extend(fmt(
+            133,
+            35,
+            "IMU",
+            "Qffffff",
+            "TimeUS,GyrX,GyrY,GyrZ,AccX,AccY,AccZ",
+        ));
+    }
     for (axis, value) in ["X", "Y", "Z"].iter().zip(stale.iter()) {
         log.extend(parm(&format!("COMPASS_OFS_{axis}"), *value as f32));
     }
@@ -144,6 +162,22 @@ fn flight(rng: &mut Rng) -> Flight {
         let mut curr = t_us.to_le_bytes().to_vec();
         curr.extend_from_slice(&(current as f32).to_le_bytes());
         log.extend(message(132, &curr));
+        if imu {
+            let rate = flight
+                .body_to_ned
+                .last()
+                .map_or(Vector3::zeros(), |before: &Rotation3<f64>| {
+                    (before.inverse() * body_to_ned).scaled_axis() / 0.1
+                });
+            let g = 9.80665;
+            let thrust = Vector3::new(0.0, 0.0, -g / (roll.cos() * pitch.cos()));
+            let vibration = Vector3::new(rng.gaussian(), rng.gaussian(), rng.gaussian()) * 1.5;
+            let mut imu_message = t_us.to_le_bytes().to_vec();
+            for value in rate.iter().chain((thrust + vibration).iter()) {
+                imu_message.extend_from_slice(&(*value as f32).to_le_bytes());
+            }
+            log.extend(message(133, &imu_message));
+        }
         // The raw field as the log gives it back: whole mG logged, offsets undone.
         flight.raw_mg.push(logged.map(f64::round) - stale);
         flight.current_a.push(current as f32 as f64);
@@ -228,4 +262,55 @@ fn random_vehicles_are_calibrated_from_their_own_flight_logs() {
         percentile(&mut spread_ratio, 0.5),
         percentile(&mut spread_ratio, 1.0),
     );
+}
+
+/// A multirotor's accelerometer reads its thrust, not gravity: levelled with it, the
+/// flights' fields would be tilted by up to 25°. The analysis levels an autopilot log
+/// with the autopilot's own roll and pitch instead; here, on 10 random flights, every
+/// magnetometer sample's tilt is the true one.
+#[test]
+fn a_multirotor_log_is_levelled_with_the_autopilot_s_attitude_not_its_thrust() {
+    use compass_pdr::calibration::{calibrate, CalibrationOptions};
+    let mut rng = Rng::stream(23, "thrust flights");
+    let (mut analysis_deg, mut accelerometer_deg) = (Vec::new(), Vec::new());
+    for case in 0..10 {
+        let flight = flight_with(&mut rng, true);
+        let report = compass_pdr::io::import::import("flight.bin", &flight.log).unwrap();
+        assert!(
+            !report.recording.acc_in_body_mps2.is_empty(),
+            "case {case}: IMU read"
+        );
+        let accelerometer = compass_pdr::calib::gravity::gravity_of(&report.recording, 2.0);
+        let analysis = calibrate(report, &CalibrationOptions::default()).unwrap();
+        let truth = |t_s: f64| {
+            let idx = ((t_s - 10.0) / 0.1).round() as usize;
+            let (roll, pitch, _) = flight.body_to_ned[idx].euler_angles();
+            (roll, pitch)
+        };
+        for (&t_s, tilt) in analysis.t_s.iter().zip(&analysis.tilt) {
+            let (roll, pitch) = truth(t_s);
+            let error = (tilt.roll_rad() - roll)
+                .abs()
+                .max((tilt.pitch_rad() - pitch).abs());
+            analysis_deg.push(error.to_degrees());
+            if let Some(force) = accelerometer.specific_force_mps2.interpolate_at(t_s, 0.5) {
+                let thrust_tilt =
+                    compass_pdr::calib::tilt::Tilt::from_specific_force(force).unwrap();
+                let error = (thrust_tilt.roll_rad() - roll)
+                    .abs()
+                    .max((thrust_tilt.pitch_rad() - pitch).abs());
+                accelerometer_deg.push(error.to_degrees());
+            }
+        }
+    }
+    let (analysis_max, accelerometer_p90) = (
+        percentile(&mut analysis_deg, 1.0),
+        percentile(&mut accelerometer_deg, 0.9),
+    );
+    eprintln!(
+        "10 random flights: tilt error of the analysis max {analysis_max:.3}°; levelled by the \
+         accelerometer (thrust) it would be p90 {accelerometer_p90:.1}°"
+    );
+    assert!(analysis_max < 0.01, "{analysis_max}°");
+    assert!(accelerometer_p90 > 5.0, "{accelerometer_p90}°");
 }
