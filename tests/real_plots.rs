@@ -112,6 +112,8 @@ fn the_3d_view_of_real_boards_shades_what_they_never_pointed_at() {
             .expect("drawn");
         }
         let n_shaded = svg.matches("fill=\"#C83C28\"").count();
+        // The latest sample's ring: where the board points now.
+        assert_eq!(svg.matches("stroke=\"#009646\"").count(), 1, "{folder}");
         eprintln!(
             "{folder}: {} of 100 regions covered, {n_shaded} shaded on the near side",
             quality.coverage.n_covered

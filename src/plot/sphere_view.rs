@@ -2,7 +2,8 @@
 //! latest fit, on the fitted sphere, turned as the user drags it. MotionCal's 100
 //! equal-area regions of direction with no sample yet are shaded red on the side facing
 //! the viewer, and the board's axes are drawn from the centre, so that "turn the +x axis
-//! down" can be read off the picture. Before a fit, the raw samples are shown about
+//! down" can be read off the picture; a ring marks the latest sample, where the board
+//! points now. Before a fit, the raw samples are shown about
 //! their mean.
 //!
 //! An orthographic projection: the sphere is turned about the board's vertical axis
@@ -24,6 +25,8 @@ use crate::live::LiveQuality;
 const MAX_POINTS: usize = 2500;
 const MISSING_COLOR: RGBColor = RGBColor(200, 60, 40);
 const GRID_COLOR: RGBColor = RGBColor(170, 178, 190);
+/// The latest sample's ring.
+const LATEST_COLOR: RGBColor = RGBColor(0, 150, 70);
 
 /// How the sphere is turned.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -77,19 +80,18 @@ fn direction(azimuth_deg: f64, sin_elevation: f64) -> Vector3<f64> {
     direction_at(azimuth_deg.to_radians(), sin_elevation)
 }
 
-/// The samples as unit-sphere points in body axes: corrected by the fit and divided by
-/// the fitted field; without a fit, about their mean and divided by the largest
-/// distance from it.
-fn sphere_points(samples_ut: &[Vector3<f64>], quality: Option<&LiveQuality>) -> Vec<Vector3<f64>> {
-    let thinned =
-        || thinned_indices(samples_ut.len(), MAX_POINTS).filter_map(|idx| samples_ut.get(idx));
+/// Where each sample goes on the view: the corrected field over the fitted field's
+/// strength (on the unit sphere when the fit holds), or, before a fit, the raw samples
+/// about their mean, scaled by the farthest.
+fn placement<'a>(
+    samples_ut: &[Vector3<f64>],
+    quality: Option<&'a LiveQuality>,
+) -> Box<dyn Fn(Vector3<f64>) -> Vector3<f64> + 'a> {
     match quality {
         Some(quality) => {
             let calibration = &quality.calibration;
             let field_ut = calibration.field_ut.max(f64::MIN_POSITIVE);
-            thinned()
-                .map(|&raw_ut| sensor_to_body(calibration.apply(raw_ut)) / field_ut)
-                .collect()
+            Box::new(move |raw_ut| sensor_to_body(calibration.apply(raw_ut)) / field_ut)
         }
         None => {
             let n = samples_ut.len().max(1) as f64;
@@ -99,9 +101,7 @@ fn sphere_points(samples_ut: &[Vector3<f64>], quality: Option<&LiveQuality>) -> 
                 .map(|sample| (sample - mean).norm())
                 .fold(0.0, f64::max)
                 .max(f64::MIN_POSITIVE);
-            thinned()
-                .map(|&raw_ut| sensor_to_body((raw_ut - mean) / scale))
-                .collect()
+            Box::new(move |raw_ut| sensor_to_body((raw_ut - mean) / scale))
         }
     }
 }
@@ -208,10 +208,14 @@ pub fn draw_sphere_view<DB: DrawingBackend>(
         centre_px: (width / 2.0, caption_px + (height - caption_px) / 2.0),
         radius_px: ((height - caption_px).min(width) / 2.0 / 1.3).max(10.0),
     };
-    let points: Vec<((i32, i32), f64)> = sphere_points(samples_ut, quality)
-        .iter()
-        .map(|point| screen.point(point))
+    let place = placement(samples_ut, quality);
+    let points: Vec<((i32, i32), f64)> = thinned_indices(samples_ut.len(), MAX_POINTS)
+        .filter_map(|idx| samples_ut.get(idx))
+        .map(|&sample_ut| screen.point(&place(sample_ut)))
         .collect();
+    let latest = samples_ut
+        .last()
+        .map(|&sample_ut| screen.point(&place(sample_ut)));
     let point_color = if quality.is_some() {
         FIT_COLOR
     } else {
@@ -252,9 +256,19 @@ pub fn draw_sphere_view<DB: DrawingBackend>(
             .map_err(&error)?;
     }
     draw_axes(area, &screen).map_err(&error)?;
+    // Where the board points now: a ring, so that a person turning it sees which way
+    // the shaded regions are.
+    if let Some((px, depth)) = latest {
+        let ring = if depth >= 0.0 {
+            LATEST_COLOR.stroke_width(3)
+        } else {
+            LATEST_COLOR.mix(0.6).stroke_width(2)
+        };
+        area.draw(&Circle::new(px, 8, ring)).map_err(&error)?;
+    }
     let caption = match quality {
         Some(quality) => format!(
-            "Field directions after the fit: {} of {} regions covered",
+            "Field directions after the fit: {} of {} regions covered (ring: now)",
             quality.coverage.n_covered, quality.coverage.n_regions
         ),
         None if samples_ut.is_empty() => "Field directions: no samples yet".to_string(),
