@@ -97,13 +97,24 @@ pub(super) fn turn_onto_raw_heading(
 }
 
 /// The declination the headings use: the user's, else the model's at the log's place and
-/// date, else 0° (with a note when the reference is absolute, so that it matters).
+/// date, else an autopilot's own (its heading, the reference, was made with it), else 0°
+/// (with a note when the reference is absolute, so that it matters).
 pub(super) fn declination_used(
-    choice: DeclinationChoice,
+    (choice, autopilot): (DeclinationChoice, Option<(f64, &str)>),
     expected: Option<&ExpectedField>,
     reference_source: Option<ReferenceSource>,
     notes: &mut Vec<String>,
 ) -> DeclinationUsed {
+    if let (DeclinationChoice::Auto, None, Some((declination_deg, param))) =
+        (choice, expected, autopilot)
+    {
+        return DeclinationUsed {
+            declination_deg,
+            source: format!(
+                "the autopilot's own ({param}); the log has no position for the magnetic model"
+            ),
+        };
+    }
     match (choice, expected) {
         (DeclinationChoice::Degrees(declination_deg), _) => DeclinationUsed {
             declination_deg,

@@ -35,6 +35,7 @@ use crate::calib::wmm::ExpectedField;
 use crate::calibration::selection::{
     choose_by_reference, choose_without_reference, Choice, Scored, RAW_KEY,
 };
+use crate::io::autopilot::AutopilotLog;
 use crate::io::{Diagnostics, ImportReport, SensorFrame};
 use crate::recording::Recording;
 use crate::reference::{choose_reference, ReferenceOptions, ReferenceSource};
@@ -433,7 +434,7 @@ impl Levelled {
 fn prepare(
     recording: &Recording,
     (samples, gravity): (TiltedSamples, &GravityEstimate),
-    options: &CalibrationOptions,
+    (options, autopilot_declination): (&CalibrationOptions, Option<(f64, &str)>),
     notes: &mut Vec<String>,
 ) -> Result<Prepared, AnalysisError> {
     notes.extend(samples.notes.iter().cloned());
@@ -451,7 +452,7 @@ fn prepare(
         .collect();
     let expected = expected_field_of(recording, options.position_deg, notes);
     let declination = declination_used(
-        options.declination,
+        (options.declination, autopilot_declination),
         expected.as_ref(),
         reference.as_ref().map(|reference| reference.source),
         notes,
@@ -611,7 +612,13 @@ fn calibrate_levelled(
             (options, autopilot.is_some()),
         )?,
     };
-    let prepared = prepare(&recording, (samples, &gravity), options, &mut notes)?;
+    let declination = autopilot.as_ref().and_then(AutopilotLog::declination_deg);
+    let prepared = prepare(
+        &recording,
+        (samples, &gravity),
+        (options, declination),
+        &mut notes,
+    )?;
     let mut outputs = MethodOutputs {
         plane_correction: None,
         field_corrected_ut: None,
@@ -698,7 +705,16 @@ fn calibrate_levelled(
         field_raw_ut,
         gravity,
     };
-    let report = &mut analysis.report;
+    settle_choice(&mut analysis.report);
+    analysis.attitude_heading = attitude_heading
+        .unwrap_or_else(|| attitude::attitude_heading(&recording, &analysis.report, &analysis.t_s));
+    Ok(analysis)
+}
+
+/// The calibration's own choice of best (by the reference where it scored the methods,
+/// else by the fits' own figures; the heading stage may replace it), and a note when no
+/// method could be fitted.
+fn settle_choice(report: &mut CalibrationReport) {
     let choice = report
         .choice
         .take()
@@ -718,9 +734,6 @@ fn calibrate_levelled(
                 .to_string(),
         );
     }
-    analysis.attitude_heading = attitude_heading
-        .unwrap_or_else(|| attitude::attitude_heading(&recording, &analysis.report, &analysis.t_s));
-    Ok(analysis)
 }
 
 /// The heading at every sample with an autopilot's calibration in force, levelled and
@@ -925,5 +938,40 @@ mod tests {
             assert!((difference_deg - 10.0).abs() < 1e-9);
         }
         assert_eq!(turned.report.declination.source, "given by the user");
+    }
+
+    #[test]
+    fn without_a_position_an_autopilot_s_own_declination_is_used() {
+        let decl = |choice, expected, autopilot| {
+            context::declination_used(
+                (choice, autopilot),
+                expected,
+                Some(crate::reference::ReferenceSource::Column),
+                &mut Vec::new(),
+            )
+        };
+        let own = decl(DeclinationChoice::Auto, None, Some((3.99, "EKF2_MAG_DECL")));
+        assert_eq!(own.declination_deg, 3.99);
+        assert!(
+            own.source.contains("EKF2_MAG_DECL") && own.is_known(),
+            "{own:?}"
+        );
+        // The user's, and the magnetic model's where the log has a position, come first.
+        let users = decl(
+            DeclinationChoice::Degrees(-2.0),
+            None,
+            Some((3.99, "EKF2_MAG_DECL")),
+        );
+        assert_eq!(users.declination_deg, -2.0);
+        let model =
+            crate::calib::wmm::expected_field(47.4, 8.5, 0.0, "2023-03-17".parse().unwrap())
+                .unwrap();
+        let wmm = decl(
+            DeclinationChoice::Auto,
+            Some(&model),
+            Some((3.99, "EKF2_MAG_DECL")),
+        );
+        assert_eq!(wmm.declination_deg, model.declination_deg);
+        assert!(!decl(DeclinationChoice::Auto, None, None).is_known());
     }
 }

@@ -83,4 +83,78 @@ impl AutopilotLog {
     pub fn param(&self, name: &str) -> Option<f64> {
         param_in(&self.params, name)
     }
+
+    /// The declination (degrees, east positive) the autopilot's heading was made with,
+    /// and the parameter it was read from, where the log says: ArduPilot's
+    /// `COMPASS_DEC` (radians) when set by hand (`COMPASS_AUTODEC` 0) or learnt and
+    /// saved (not 0); PX4's saved `EKF2_MAG_DECL`, else `ATT_MAG_DECL` (degrees), when
+    /// not 0. A 0 with the automatic declination on is no answer: it was never set.
+    pub fn declination_deg(&self) -> Option<(f64, &'static str)> {
+        let finite = |name: &str| self.param(name).filter(|value| value.is_finite());
+        match self.autopilot {
+            Autopilot::ArduPilot => {
+                let declination_rad = finite("COMPASS_DEC")?;
+                let by_hand = finite("COMPASS_AUTODEC") == Some(0.0);
+                (by_hand || declination_rad != 0.0)
+                    .then(|| (declination_rad.to_degrees(), "COMPASS_DEC"))
+            }
+            Autopilot::Px4 => ["EKF2_MAG_DECL", "ATT_MAG_DECL"]
+                .into_iter()
+                .find_map(|name| Some((finite(name).filter(|&deg| deg != 0.0)?, name))),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn log(autopilot: Autopilot, params: &[(&str, f64)]) -> AutopilotLog {
+        AutopilotLog {
+            autopilot,
+            firmware: None,
+            params: params
+                .iter()
+                .map(|&(name, value)| (name.to_string(), value))
+                .collect(),
+            params_changed: Vec::new(),
+            compasses: Vec::new(),
+            main_compass: None,
+            current_a: Stream::default(),
+        }
+    }
+
+    #[test]
+    fn the_autopilot_s_own_declination_is_read_where_it_was_ever_set() {
+        let ardupilot =
+            |params: &[(&str, f64)]| log(Autopilot::ArduPilot, params).declination_deg();
+        // Set by hand, even to 0; learnt and saved; never set (log171, nan.log).
+        let by_hand = ardupilot(&[("COMPASS_DEC", 0.2), ("COMPASS_AUTODEC", 0.0)]).unwrap();
+        assert!((by_hand.0 - 0.2f64.to_degrees()).abs() < 1e-12 && by_hand.1 == "COMPASS_DEC");
+        assert_eq!(
+            ardupilot(&[("COMPASS_DEC", 0.0), ("COMPASS_AUTODEC", 0.0)]),
+            Some((0.0, "COMPASS_DEC"))
+        );
+        assert!(ardupilot(&[("COMPASS_DEC", -0.1), ("COMPASS_AUTODEC", 1.0)]).is_some());
+        assert_eq!(
+            ardupilot(&[("COMPASS_DEC", 0.0), ("COMPASS_AUTODEC", 1.0)]),
+            None
+        );
+        assert_eq!(
+            ardupilot(&[("COMPASS_DEC", f64::NAN), ("COMPASS_AUTODEC", 0.0)]),
+            None
+        );
+        assert_eq!(ardupilot(&[]), None);
+        let px4 = |params: &[(&str, f64)]| log(Autopilot::Px4, params).declination_deg();
+        // sample_log_small.ulg's saved EKF2_MAG_DECL; sample.ulg's ATT_MAG_DECL 0.
+        assert_eq!(
+            px4(&[("EKF2_MAG_DECL", 3.99)]),
+            Some((3.99, "EKF2_MAG_DECL"))
+        );
+        assert_eq!(px4(&[("ATT_MAG_DECL", 0.0), ("ATT_MAG_DECL_A", 1.0)]), None);
+        assert_eq!(
+            px4(&[("EKF2_MAG_DECL", 0.0), ("ATT_MAG_DECL", -2.5)]),
+            Some((-2.5, "ATT_MAG_DECL"))
+        );
+    }
 }
