@@ -82,7 +82,7 @@ pub enum GravitySource {
 }
 
 /// The specific force that gravity alone would give (the negative of down, times
-/// [`crate::io::STANDARD_GRAVITY_MPS2`]) at each accelerometer sample, and how it was found.
+/// [`STANDARD_GRAVITY_MPS2`]) at each accelerometer sample, and how it was found.
 #[derive(Debug, Clone, PartialEq)]
 pub struct GravityEstimate {
     pub specific_force_mps2: Stream<Vector3<f64>>,
@@ -118,7 +118,7 @@ pub fn gravity_from_attitude(attitude: &Stream<Attitude>, tau_s: f64) -> Option<
         .map(|attitude| {
             let (sin_roll, cos_roll) = attitude.roll_rad.sin_cos();
             let (sin_pitch, cos_pitch) = attitude.pitch_rad.sin_cos();
-            crate::io::STANDARD_GRAVITY_MPS2
+            STANDARD_GRAVITY_MPS2
                 * Vector3::new(sin_pitch, -sin_roll * cos_pitch, -cos_roll * cos_pitch)
         })
         .collect();
@@ -588,7 +588,7 @@ mod tests {
                 (tilt.pitch_rad() - pitch_rad).abs() < 1e-12,
                 "{roll_rad} {pitch_rad}"
             );
-            assert!((force.norm() - crate::io::STANDARD_GRAVITY_MPS2).abs() < 1e-12);
+            assert!((force.norm() - STANDARD_GRAVITY_MPS2).abs() < 1e-12);
         }
         let one = Stream {
             t_s: vec![0.0],

@@ -285,7 +285,7 @@ pub fn expected_field(
     }
     let date = CalendarDate::new(date.year, date.month, date.day)?;
     let at = |day: CalendarDate| evaluate(lat_deg, lon_deg, alt_m, day, date);
-    let (field, model, warnings) = match outside_model(date)? {
+    let (field, model, mut warnings) = match outside_model(date)? {
         None => (at(date)?, model_at(date), Vec::new()),
         Some((from, to, years)) => {
             // Each component changes linearly over a model's five years (its secular
@@ -323,7 +323,6 @@ pub fn expected_field(
         }
     };
     let horizontal_ut = field.horizontal_ut;
-    let mut warnings = warnings;
     if horizontal_ut < BLACKOUT_ZONE_H_UT {
         warnings.push(WmmWarning::BlackoutZone { horizontal_ut });
     } else if horizontal_ut < CAUTION_ZONE_H_UT {
@@ -353,7 +352,8 @@ fn model_at(date: CalendarDate) -> String {
     format!("WMM{}", date.year.div_euclid(5) * 5)
 }
 
-/// What the crate gives at one place and covered day.
+/// The field at one place and day: as the crate gives it on a covered day, or as
+/// [`expected_field`] extrapolates it.
 struct Evaluated {
     /// North, east and down (µT).
     xyz_ut: [f64; 3],
