@@ -375,18 +375,11 @@ impl<'a> InForce<'a> {
         let compass = log.compasses.get(log.main_compass?)?;
         // The same samples bit for bit (a NaN equals itself here).
         let raw = compass.raw_in_body_ut.as_ref()?;
-        let same_bits = |a: &[f64], b: &[f64]| {
-            a.len() == b.len() && a.iter().zip(b).all(|(a, b)| a.to_bits() == b.to_bits())
-        };
-        let flat = |values: &[Vector3<f64>]| -> Vec<f64> {
-            values
-                .iter()
-                .flat_map(|value| value.iter().copied())
-                .collect()
-        };
-        if !(same_bits(&raw.t_s, &mag_in_body_ut.t_s)
-            && same_bits(&flat(&raw.values), &flat(&mag_in_body_ut.values)))
-        {
+        fn bits(stream: &Stream<Vector3<f64>>) -> impl Iterator<Item = u64> + '_ {
+            let values = stream.values.iter().flat_map(|value| value.iter());
+            stream.t_s.iter().chain(values).map(|value| value.to_bits())
+        }
+        if raw.len() != mag_in_body_ut.len() || !bits(raw).eq(bits(mag_in_body_ut)) {
             return None;
         }
         let lookup = |name: &str| log.param(name).filter(|value| value.is_finite());

@@ -210,16 +210,21 @@ fn bases_of<'a>(calibration: &'a CalibrationAnalysis, split: &Split) -> Vec<Base
             report.raw_heading_error_check,
         ),
     }];
-    if let Some((autopilot, headings_deg)) = &calibration.in_force_heading_deg {
-        let heading_rad: Vec<f64> = radians(headings_deg);
+    // A base the calibration does not score, scored here on the same split.
+    let scored_here = |key: &str, label: String, heading_deg: &'a [f64]| {
+        let heading_rad: Vec<f64> = radians(heading_deg);
         let scores = split.both_stats(&heading_rad);
-        bases.push(Base {
-            key: IN_FORCE_KEY.to_string(),
-            label: format!("{autopilot}'s parameters in force"),
+        Base {
+            key: key.to_string(),
+            label,
             heading_rad,
-            heading_deg: headings_deg,
+            heading_deg,
             scores,
-        });
+        }
+    };
+    if let Some((autopilot, headings_deg)) = &calibration.in_force_heading_deg {
+        let label = format!("{autopilot}'s parameters in force");
+        bases.push(scored_here(IN_FORCE_KEY, label, headings_deg));
     }
     for (method, headings_deg) in &calibration.headings_deg {
         let scores = report.method(*method).map_or((None, None), |method| {
@@ -234,16 +239,8 @@ fn bases_of<'a>(calibration: &'a CalibrationAnalysis, split: &Split) -> Vec<Base
         });
     }
     if let Some(attitude) = &calibration.attitude_heading {
-        let headings_deg = &attitude.heading_deg;
-        let heading_rad: Vec<f64> = radians(headings_deg);
-        let scores = split.both_stats(&heading_rad);
-        bases.push(Base {
-            key: ATTITUDE_KEY.to_string(),
-            label: "attitude filter (gyro + acc + field)".to_string(),
-            heading_rad,
-            heading_deg: headings_deg,
-            scores,
-        });
+        let label = "attitude filter (gyro + acc + field)".to_string();
+        bases.push(scored_here(ATTITUDE_KEY, label, &attitude.heading_deg));
     }
     bases
 }
