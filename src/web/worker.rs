@@ -80,9 +80,25 @@ pub(crate) struct Job {
     pub work: Work,
     /// Set by the page to stop the job at its next chunk or step.
     pub cancel: Arc<AtomicBool>,
+    /// Set by the worker when the job is done, before its `done` message: the page
+    /// then draws no more of the job's early figures, which would only hold up the
+    /// answer (the message waits for the page's thread), and draws them with the rest.
+    pub finished: Arc<AtomicBool>,
     /// The import analysed (when the files could be read) and the analysis; `None`
     /// while the job runs, and after a cancel.
     pub outcome: Option<Outcome>,
+}
+
+impl Job {
+    /// A job doing `work`, stopped by `cancel`.
+    pub(crate) fn new(work: Work, cancel: &Arc<AtomicBool>) -> Job {
+        Job {
+            work,
+            cancel: Arc::clone(cancel),
+            finished: Arc::new(AtomicBool::new(false)),
+            outcome: None,
+        }
+    }
 }
 
 /// Values handed between the page's thread and the worker through the shared memory,
@@ -264,6 +280,7 @@ impl AnalysisJob {
 
     /// Hands the job back to the page (its `done` message follows).
     pub fn finish(self) {
+        self.job.finished.store(true, Ordering::Release);
         JOBS.put(self.id, self.job);
     }
 }

@@ -124,7 +124,10 @@ impl Page {
             // The calibration's figures while the heading models wait, as the worker's
             // page shows them.
             if let Some(calibration) = steps.calibrated() {
-                self.show_calibrated(steps.import(), calibration, cancel)
+                // Nothing else runs meanwhile: the job is not finished before the
+                // figures are drawn.
+                let finished = AtomicBool::new(false);
+                self.show_calibrated(steps.import(), calibration, (cancel, &finished))
                     .await;
             }
         }

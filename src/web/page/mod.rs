@@ -269,21 +269,28 @@ impl Page {
         self.worker.as_ref().filter(|worker| worker.works())
     }
 
-    /// Where the worker's updates on the job with `cancel` go: the progress bar, the
-    /// status line and the calibration's figures.
+    /// Where the worker's updates on `job` go: the progress bar, the status line and
+    /// the calibration's figures.
     #[cfg(target_feature = "atomics")]
     fn on_update(
         self: &Rc<Self>,
-        cancel: &Arc<AtomicBool>,
+        job: &crate::web::worker::Job,
     ) -> impl Fn(crate::web::worker::Update) + 'static {
         let page = Rc::clone(self);
-        let cancel = Arc::clone(cancel);
+        let (cancel, finished) = (Arc::clone(&job.cancel), Arc::clone(&job.finished));
         move |update| match update {
             crate::web::worker::Update::Calibrated(early) => {
-                let (page, cancel) = (Rc::clone(&page), Arc::clone(&cancel));
+                let page = Rc::clone(&page);
+                let (cancel, finished) = (Arc::clone(&cancel), Arc::clone(&finished));
                 spawn_local(async move {
+                    // Most logs' heading models and dead reckoning take a few
+                    // milliseconds after the calibration: its lists and figures drawn
+                    // meanwhile (tens of milliseconds of this thread) would only hold
+                    // up the answer. They are shown early when the rest takes longer.
+                    pause(EARLY_FIGURES_AFTER_MS).await;
                     let (import, calibration) = &*early;
-                    page.show_calibrated(import, calibration, &cancel).await;
+                    page.show_calibrated(import, calibration, (&cancel, &finished))
+                        .await;
                 });
             }
             crate::web::worker::Update::Progress {
@@ -361,12 +368,9 @@ impl Page {
         let request = match self.worker() {
             Some(worker) => {
                 use crate::web::worker::{Job, Work};
-                let job = Job {
-                    work: Work::Again(Box::new(request)),
-                    cancel: Arc::clone(cancel),
-                    outcome: None,
-                };
-                match worker.run(job, &[], self.on_update(cancel)).await {
+                let job = Job::new(Work::Again(Box::new(request)), cancel);
+                let on_update = self.on_update(&job);
+                match worker.run(job, &[], on_update).await {
                     Ok(job) => return job.outcome.map(|(_, result)| result),
                     // The worker never took the job: run it here.
                     Err(Some(job)) => match job.work {
@@ -444,10 +448,20 @@ fn now_ms() -> f64 {
 /// Lets the browser run its queued work (painting, input) before the next step: a
 /// zero-delay timeout, awaited.
 async fn yield_to_browser() {
+    pause(0).await;
+}
+
+/// How long after a job's calibration (on the analysis worker) its lists and figures
+/// wait for the rest of the analysis before they are shown on their own.
+#[cfg(target_feature = "atomics")]
+const EARLY_FIGURES_AFTER_MS: i32 = 20;
+
+/// Lets the browser run for at least `ms` milliseconds (a timer's turn) before going on.
+async fn pause(ms: i32) {
     let promise = js_sys::Promise::new(&mut |resolve, _reject| {
         let scheduled = web_sys::window().is_some_and(|window| {
             window
-                .set_timeout_with_callback_and_timeout_and_arguments_0(&resolve, 0)
+                .set_timeout_with_callback_and_timeout_and_arguments_0(&resolve, ms)
                 .is_ok()
         });
         if !scheduled {

@@ -182,16 +182,14 @@ impl Page {
                     FileRead::new(name.clone(), file.size() as usize, mapping)
                 })
                 .collect();
-            let job = Job {
-                work: Work::Files {
-                    files: reads,
-                    options: Box::new(options.clone()),
-                },
-                cancel: Arc::clone(cancel),
-                outcome: None,
+            let work = Work::Files {
+                files: reads,
+                options: Box::new(options.clone()),
             };
+            let job = Job::new(work, cancel);
             let blobs: Vec<web_sys::Blob> = files.iter().map(|file| file.clone().into()).collect();
-            match worker.run(job, &blobs, self.on_update(cancel)).await {
+            let on_update = self.on_update(&job);
+            match worker.run(job, &blobs, on_update).await {
                 Ok(job) => {
                     self.hide_progress();
                     return job.outcome;

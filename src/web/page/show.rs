@@ -67,15 +67,21 @@ impl Page {
 
     /// A job's calibration while its heading models and dead reckoning still run (the
     /// analysis worker sends it): its lists and figures, a figure per task. Stops when
-    /// the job is cancelled or a finished analysis is being shown.
+    /// the job is cancelled, when it is `finished` (its answer waits for this thread:
+    /// the figures left are drawn after the summary) or when a finished analysis is
+    /// being shown.
     pub(super) async fn show_calibrated(
         &self,
         import: &ImportReport,
         calibration: &CalibrationAnalysis,
-        cancel: &AtomicBool,
+        (cancel, finished): (&AtomicBool, &AtomicBool),
     ) {
         let n_shown = self.n_shown.get();
-        let current = || !cancel.load(Ordering::Acquire) && self.n_shown.get() == n_shown;
+        let current = || {
+            !cancel.load(Ordering::Acquire)
+                && !finished.load(Ordering::Acquire)
+                && self.n_shown.get() == n_shown
+        };
         if !current() {
             return;
         }
