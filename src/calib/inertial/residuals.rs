@@ -280,9 +280,10 @@ pub(super) fn normal_equations(
         cost: 0.0,
         prior_information: ParamMat::zeros(),
     };
-    // The upper triangle is accumulated per sample in 13×13 blocks of rank two.
+    // The upper triangle is accumulated in blocks of samples' rank-two updates.
     let inv_var_magnitude = 1.0 / weights.sigma_magnitude_ut.powi(2);
     let inv_var_vertical = 1.0 / weights.sigma_vertical_ut.powi(2);
+    let mut block = Block::new();
     for (idx, &m_ut) in set.mag_ut.iter().enumerate() {
         let down = set.down(idx).filter(|_| uses_dip);
         let (magnitude, vertical) = sample_rows(state, m_ut, down, weights.kappa);
@@ -295,12 +296,13 @@ pub(super) fn normal_equations(
                 )
             })
         };
-        accumulate(
+        block.push(
             &mut normal,
             weighted(magnitude, &weights.magnitude, inv_var_magnitude),
             weighted(vertical, &weights.vertical, inv_var_vertical),
         );
     }
+    block.flush(&mut normal);
     add_priors(&mut normal, state, options, start, uses_dip);
     normal
 }
@@ -402,40 +404,83 @@ pub(super) fn row_gradient(
     gradient
 }
 
-pub(super) fn accumulate(
-    normal: &mut Normal,
-    first: Option<(f64, ParamVec, f64)>,
-    second: Option<(f64, ParamVec, f64)>,
-) {
-    // A row with no usable weight adds nothing (not even a NaN from its gradient).
-    let usable = |row: Option<(f64, ParamVec, f64)>| {
-        row.filter(|&(_, _, weight)| weight > 0.0)
-            .unwrap_or((0.0, ParamVec::zeros(), 0.0))
-    };
-    let (rho_a, g_a, w_a) = usable(first);
-    let (rho_b, g_b, w_b) = usable(second);
-    let a: [f64; N_MAX] = std::array::from_fn(|row| g_a[row] * w_a);
-    let b: [f64; N_MAX] = std::array::from_fn(|row| g_b[row] * w_b);
-    // Column by column, so that the inner loop runs along the column-major storage and
-    // vectorises; each entry gets the same sum as row by row would give it.
-    for (col, column) in normal
-        .jtj
-        .as_mut_slice()
-        .chunks_exact_mut(N_MAX)
-        .enumerate()
-    {
-        let (ga_col, gb_col) = (g_a[col], g_b[col]);
-        // One loop for every column's length: unrolled into thirteen loops of known
-        // lengths, it made the threaded browser module 3 KB larger.
-        let rows = std::hint::black_box(col + 1);
-        for ((entry, &a_row), &b_row) in column[..rows].iter_mut().zip(&a).zip(&b) {
-            *entry += a_row * ga_col + b_row * gb_col;
+/// One residual's row as the normal equations take it: `(ρ, ∂ρ, weight)`.
+type WeightedRow = Option<(f64, ParamVec, f64)>;
+
+/// Samples whose rank-two updates of `JᵀWJ` wait in a [`Block`].
+const BLOCK_SAMPLES: usize = 16;
+
+/// A block of samples' weighted gradients, by parameter (`a[p][k]`: parameter `p` of
+/// sample `k`), added to `JᵀWJ` together ([`Block::flush`]): each entry is loaded and
+/// stored once per block, not once per sample, and gets the same sum in the same
+/// order as sample by sample (`entry + (a·g_a + b·g_b)` for each sample in turn).
+struct Block {
+    /// The magnitude row's gradient times its weight, and the gradient.
+    a: [[f64; BLOCK_SAMPLES]; N_MAX],
+    g_a: [[f64; BLOCK_SAMPLES]; N_MAX],
+    /// The vertical row's.
+    b: [[f64; BLOCK_SAMPLES]; N_MAX],
+    g_b: [[f64; BLOCK_SAMPLES]; N_MAX],
+    n_samples: usize,
+}
+
+impl Block {
+    fn new() -> Block {
+        let zeros = [[0.0; BLOCK_SAMPLES]; N_MAX];
+        Block {
+            a: zeros,
+            g_a: zeros,
+            b: zeros,
+            g_b: zeros,
+            n_samples: 0,
         }
     }
-    for row in 0..N_MAX {
-        normal.jtr[row] += a[row] * rho_a + b[row] * rho_b;
+
+    /// One sample's two rows `(ρ, ∂ρ, weight)`: `JᵀWr` and the cost now, `JᵀWJ` when the
+    /// block is full.
+    fn push(&mut self, normal: &mut Normal, first: WeightedRow, second: WeightedRow) {
+        // A row with no usable weight adds nothing (not even a NaN from its gradient).
+        let usable = |row: WeightedRow| {
+            row.filter(|&(_, _, weight)| weight > 0.0)
+                .unwrap_or((0.0, ParamVec::zeros(), 0.0))
+        };
+        let (rho_a, g_a, w_a) = usable(first);
+        let (rho_b, g_b, w_b) = usable(second);
+        let k = self.n_samples;
+        for param in 0..N_MAX {
+            let (a, b) = (g_a[param] * w_a, g_b[param] * w_b);
+            self.a[param][k] = a;
+            self.g_a[param][k] = g_a[param];
+            self.b[param][k] = b;
+            self.g_b[param][k] = g_b[param];
+            normal.jtr[param] += a * rho_a + b * rho_b;
+        }
+        normal.cost += w_a * rho_a * rho_a + w_b * rho_b * rho_b;
+        self.n_samples += 1;
+        if self.n_samples == BLOCK_SAMPLES {
+            self.flush(normal);
+        }
     }
-    normal.cost += w_a * rho_a * rho_a + w_b * rho_b * rho_b;
+
+    /// Adds the block's samples to the upper triangle of `JᵀWJ`, column by column.
+    fn flush(&mut self, normal: &mut Normal) {
+        let n = self.n_samples;
+        for (col, column) in normal
+            .jtj
+            .as_mut_slice()
+            .chunks_exact_mut(N_MAX)
+            .enumerate()
+        {
+            let (ga_col, gb_col) = (&self.g_a[col][..n], &self.g_b[col][..n]);
+            for ((entry, a_row), b_row) in column[..=col].iter_mut().zip(&self.a).zip(&self.b) {
+                let samples = a_row[..n].iter().zip(ga_col).zip(&b_row[..n]).zip(gb_col);
+                *entry = samples.fold(*entry, |sum, (((&a, &ga), &b), &gb)| {
+                    sum + (a * ga + b * gb)
+                });
+            }
+        }
+        self.n_samples = 0;
+    }
 }
 
 /// The priors' residuals: the vertical field, the soft iron towards `s·I`, its rotation
@@ -528,5 +573,103 @@ pub(super) fn add_priors(
         }
         (true, None) => add_prior(normal, &unit(V), params[V], 1e3 * state.field_ut),
         (false, _) => add_prior(normal, &unit(V), params[V] - start.vertical_ut, 1e-9),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The per-sample rank-two update the blocks replace: `JᵀWJ`'s upper triangle,
+    /// `JᵀWr` and the cost, one sample after the other.
+    fn sample_by_sample(rows: &[(WeightedRow, WeightedRow)]) -> Normal {
+        let mut normal = Normal {
+            jtj: ParamMat::zeros(),
+            jtr: ParamVec::zeros(),
+            cost: 0.0,
+            prior_information: ParamMat::zeros(),
+        };
+        let usable = |row: WeightedRow| {
+            row.filter(|&(_, _, weight)| weight > 0.0)
+                .unwrap_or((0.0, ParamVec::zeros(), 0.0))
+        };
+        for &(first, second) in rows {
+            let (rho_a, g_a, w_a) = usable(first);
+            let (rho_b, g_b, w_b) = usable(second);
+            for col in 0..N_MAX {
+                for row in 0..=col {
+                    normal.jtj[(row, col)] += g_a[row] * w_a * g_a[col] + g_b[row] * w_b * g_b[col];
+                }
+            }
+            for row in 0..N_MAX {
+                normal.jtr[row] += g_a[row] * w_a * rho_a + g_b[row] * w_b * rho_b;
+            }
+            normal.cost += w_a * rho_a * rho_a + w_b * rho_b * rho_b;
+        }
+        normal
+    }
+
+    /// Blocks of samples give `JᵀWJ`, `JᵀWr` and the cost bit for bit as one sample
+    /// after the other, for partial and whole blocks, missing rows, and rows of zero
+    /// weight whose gradient is NaN.
+    #[test]
+    fn blocks_sum_as_sample_by_sample() {
+        let mut state = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut uniform = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64 * 4.0 - 2.0
+        };
+        for n_samples in [0, 1, 15, 16, 17, 40, 333] {
+            let rows: Vec<_> = (0..n_samples)
+                .map(|idx| {
+                    let mut row = || {
+                        let gradient = ParamVec::from_fn(|_, _| uniform());
+                        (uniform(), gradient, uniform().abs())
+                    };
+                    let first = row();
+                    let second = match idx % 5 {
+                        0 => None,
+                        1 => Some((f64::NAN, ParamVec::repeat(f64::NAN), 0.0)),
+                        _ => Some(row()),
+                    };
+                    (Some(first), second)
+                })
+                .collect();
+            let expected = sample_by_sample(&rows);
+            let mut normal = Normal {
+                jtj: ParamMat::zeros(),
+                jtr: ParamVec::zeros(),
+                cost: 0.0,
+                prior_information: ParamMat::zeros(),
+            };
+            let mut block = Block::new();
+            for &(first, second) in &rows {
+                block.push(&mut normal, first, second);
+            }
+            block.flush(&mut normal);
+            let bits = |values: &[f64]| {
+                values
+                    .iter()
+                    .map(|value| value.to_bits())
+                    .collect::<Vec<_>>()
+            };
+            assert_eq!(
+                bits(normal.jtj.as_slice()),
+                bits(expected.jtj.as_slice()),
+                "{n_samples} samples: JᵀWJ"
+            );
+            assert_eq!(
+                bits(normal.jtr.as_slice()),
+                bits(expected.jtr.as_slice()),
+                "{n_samples} samples: JᵀWr"
+            );
+            assert_eq!(
+                normal.cost.to_bits(),
+                expected.cost.to_bits(),
+                "{n_samples} samples: cost"
+            );
+        }
     }
 }
