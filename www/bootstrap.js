@@ -14,30 +14,19 @@ import { startAnalysisWorker, startWorkers, whenWorkersReady } from './threads.j
 const status = document.getElementById('status');
 const engine = document.getElementById('engine');
 
-/** The module's bytes asked for now, while its glue is still being imported: the
- * download (and the browser's streaming compile) does not wait for the import. */
-function fetchModule(folder) {
-  const response = fetch(new URL(`./${folder}/compass_pdr_bg.wasm`, import.meta.url));
-  // Not waited for when that module fails to load; waited for, it still throws.
-  response.catch(() => {});
-  return response;
-}
-
 /** The module's exports: the threaded build when it can run here, else the plain one. */
 async function load() {
   if (self.crossOriginIsolated) {
     try {
-      const bytes = fetchModule('pkg-threads');
       const threaded = await import('./pkg-threads/compass_pdr.js');
-      await threaded.default({ module_or_path: bytes });
+      await threaded.default();
       return { wasm: threaded, threaded: true };
     } catch (error) {
       console.warn(`compass-pdr: the threaded module did not load, using one thread: ${error}`);
     }
   }
-  const bytes = fetchModule('pkg');
   const plain = await import('./pkg/compass_pdr.js');
-  await plain.default({ module_or_path: bytes });
+  await plain.default();
   return { wasm: plain, threaded: false };
 }
 
