@@ -256,6 +256,18 @@ pub(super) struct Normal {
     pub(super) prior_information: ParamMat,
 }
 
+impl Normal {
+    /// Nothing accumulated yet.
+    fn zeros() -> Normal {
+        Normal {
+            jtj: ParamMat::zeros(),
+            jtr: ParamVec::zeros(),
+            cost: 0.0,
+            prior_information: ParamMat::zeros(),
+        }
+    }
+}
+
 /// One prior residual `(aᵀθ − b) / σ` added to the normal equations.
 pub(super) fn add_prior(normal: &mut Normal, gradient: &ParamVec, residual: f64, sigma: f64) {
     let scaled = gradient / sigma;
@@ -274,12 +286,7 @@ pub(super) fn normal_equations(
     start: &State,
 ) -> Normal {
     let uses_dip = set.uses_dip();
-    let mut normal = Normal {
-        jtj: ParamMat::zeros(),
-        jtr: ParamVec::zeros(),
-        cost: 0.0,
-        prior_information: ParamMat::zeros(),
-    };
+    let mut normal = Normal::zeros();
     // The upper triangle is accumulated in blocks of samples' rank-two updates.
     let inv_var_magnitude = 1.0 / weights.sigma_magnitude_ut.powi(2);
     let inv_var_vertical = 1.0 / weights.sigma_vertical_ut.powi(2);
@@ -319,12 +326,7 @@ pub(super) fn cost(
     let uses_dip = set.uses_dip();
     let inv_var_magnitude = 1.0 / weights.sigma_magnitude_ut.powi(2);
     let inv_var_vertical = 1.0 / weights.sigma_vertical_ut.powi(2);
-    let mut normal = Normal {
-        jtj: ParamMat::zeros(),
-        jtr: ParamVec::zeros(),
-        cost: 0.0,
-        prior_information: ParamMat::zeros(),
-    };
+    let mut normal = Normal::zeros();
     for (idx, &m_ut) in set.mag_ut.iter().enumerate() {
         let d_ut = m_ut - state.hard_iron_ut;
         let corrected = state.correction * d_ut;
@@ -583,12 +585,7 @@ mod tests {
     /// The per-sample rank-two update the blocks replace: `JᵀWJ`'s upper triangle,
     /// `JᵀWr` and the cost, one sample after the other.
     fn sample_by_sample(rows: &[(WeightedRow, WeightedRow)]) -> Normal {
-        let mut normal = Normal {
-            jtj: ParamMat::zeros(),
-            jtr: ParamVec::zeros(),
-            cost: 0.0,
-            prior_information: ParamMat::zeros(),
-        };
+        let mut normal = Normal::zeros();
         let usable = |row: WeightedRow| {
             row.filter(|&(_, _, weight)| weight > 0.0)
                 .unwrap_or((0.0, ParamVec::zeros(), 0.0))
@@ -638,12 +635,7 @@ mod tests {
                 })
                 .collect();
             let expected = sample_by_sample(&rows);
-            let mut normal = Normal {
-                jtj: ParamMat::zeros(),
-                jtr: ParamVec::zeros(),
-                cost: 0.0,
-                prior_information: ParamMat::zeros(),
-            };
+            let mut normal = Normal::zeros();
             let mut block = Block::new();
             for &(first, second) in &rows {
                 block.push(&mut normal, first, second);
