@@ -6,46 +6,30 @@
 //
 //   python3 scripts/serve.py 8877 www &
 //   node bench/redrop.mjs http://127.0.0.1:8877/ [drops] [../shared/data]
-import { readdirSync, statSync } from 'node:fs';
 import { dirname, join } from 'node:path';
 import { fileURLToPath } from 'node:url';
+import { lastDropTiming, recordMainThread, recordings } from '../tests/e2e/drops.mjs';
 
 const root = join(dirname(fileURLToPath(import.meta.url)), '..');
 const { chromium } = await import(join(root, 'tests/e2e/node_modules/playwright-core/index.mjs'));
 const [url, dropsText, dataDir] = process.argv.slice(2);
 const drops = Number(dropsText || 4);
-const data = dataDir || join(root, '..', 'shared', 'data');
-/** A folder's files as a person drops them (as tests/e2e/real.test.mjs does). */
-const dropped = (dir) => readdirSync(dir).filter((name) => !/^licen|\.md$/i.test(name))
-  .map((name) => join(dir, name)).filter((path) => statSync(path).isFile()).sort();
-const recordings = {
-  'px4-sample': [join(data, 'px4-ulog', 'sample.ulg')],
-  'ardupilot-log171': dropped(join(data, 'ardupilot-copter-log171')),
-  'msft-f1': dropped(join(data, 'msft-indoor-2020', 'site1', 'F1')),
-  'qmc5883l-calibration': dropped(join(data, 'qmc5883l-calibration')),
-  'sensorlogger-walk-ethz': dropped(join(data, 'sensorlogger-walk-ethz')),
-  'tyrex-Thibaud_Nexus5_Dist_FrontPocket': dropped(join(data, 'tyrex-attitude', 'Thibaud_Nexus5_Dist_FrontPocket')),
-};
+/** A few recordings of each kind of file (ULog, DataFlash, phone text logs and folders,
+ * a board's CSVs), of the list the end-to-end test drops. */
+const chosen = ['px4-sample', 'ardupilot-log171', 'msft-f1', 'qmc5883l-calibration', 'sensorlogger-walk-ethz',
+  'tyrex-Thibaud_Nexus5_Dist_FrontPocket'];
+const all = new Map(recordings(dataDir || join(root, '..', 'shared', 'data')));
 const browser = await chromium.launch({
   executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
   args: ['--no-sandbox', '--disable-gpu', '--disable-dev-shm-usage', '--disable-background-networking'],
 });
 console.log(`| recording | ${Array.from({ length: drops }, (_, k) => `drop ${k + 1}`).join(' | ')} |`);
 console.log(`|---|${'---:|'.repeat(drops)}`);
-for (const [name, files] of Object.entries(recordings)) {
+for (const name of chosen) {
+  const files = all.get(name);
   const context = await browser.newContext({ viewport: { width: 1360, height: 900 } });
   const page = await context.newPage();
-  await page.addInitScript(() => {
-    const perf = { changes: [], summaries: [] };
-    window.__redrop = perf;
-    document.addEventListener('change', () => perf.changes.push(performance.now()), true);
-    const watch = () => {
-      const summary = document.getElementById('summary');
-      new MutationObserver(() => { if (summary.dataset.grade) perf.summaries.push(performance.now()); })
-        .observe(summary, { attributes: true, attributeFilter: ['data-grade'] });
-    };
-    if (document.body) watch(); else document.addEventListener('DOMContentLoaded', watch);
-  });
+  await page.addInitScript(recordMainThread);
   await page.goto(url);
   await page.waitForSelector('body[data-state="ready"]', { timeout: 30_000 });
   const times = [];
@@ -57,11 +41,7 @@ for (const [name, files] of Object.entries(recordings)) {
     });
     await page.setInputFiles('#file-input', files);
     await page.waitForFunction(() => ['ready', 'error'].includes(document.body.dataset.state), null, { timeout: 100_000 });
-    times.push(await page.evaluate(() => {
-      const perf = window.__redrop;
-      const chosenAt = perf.changes.at(-1);
-      return perf.summaries.find((at) => at > chosenAt) - chosenAt;
-    }));
+    times.push((await lastDropTiming(page)).dropToSummaryMs);
   }
   console.log(`| ${name} | ${times.map((ms) => `${ms.toFixed(0)} ms`).join(' | ')} |`);
   await context.close();

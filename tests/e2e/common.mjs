@@ -93,46 +93,5 @@ export async function download(page, selector) {
   return { name: file.suggestedFilename(), bytes: Buffer.concat(chunks) };
 }
 
-/** An init script (for `openPage`) that records the main thread's long tasks (over 50 ms,
- * the browser's own threshold) and the times of the inputs' `change` events, of the
- * body's state changes and of each answer put in the summary (its grade set), on the
- * page's clock. */
-export function recordMainThread() {
-  const perf = { longTasks: [], changes: [], states: [], summaries: [] };
-  window.__perf = perf;
-  new PerformanceObserver((list) => {
-    for (const entry of list.getEntries()) perf.longTasks.push({ start: entry.startTime, duration: entry.duration });
-  }).observe({ type: 'longtask', buffered: true });
-  document.addEventListener('change', () => perf.changes.push(performance.now()), true);
-  const watchBody = () => {
-    new MutationObserver(() => {
-      const state = document.body.dataset.state;
-      if (perf.states.at(-1)?.state !== state) perf.states.push({ state, at: performance.now() });
-    }).observe(document.body, { attributes: true, attributeFilter: ['data-state'] });
-    const summary = document.getElementById('summary');
-    new MutationObserver(() => {
-      if (summary.dataset.grade) perf.summaries.push(performance.now());
-    }).observe(summary, { attributes: true, attributeFilter: ['data-grade'] });
-  };
-  if (document.body) watchBody(); else document.addEventListener('DOMContentLoaded', watchBody);
-}
-
-/** After `recordMainThread`: from the last file chosen to its answer in the summary and
- * to the next `ready` or `error` (every figure drawn), and the main thread's long tasks
- * meanwhile. */
-export async function lastDropTiming(page) {
-  return page.evaluate(() => {
-    const perf = window.__perf;
-    const chosenAt = perf.changes.at(-1);
-    const end = perf.states.find(({ state, at }) => at > chosenAt && ['ready', 'error'].includes(state));
-    const endAt = end?.at ?? performance.now();
-    const tasks = perf.longTasks.filter(({ start, duration }) => start + duration > chosenAt && start < endAt);
-    const summaryAt = perf.summaries.find((at) => at > chosenAt) ?? endAt;
-    return {
-      dropToSummaryMs: summaryAt - chosenAt,
-      dropToReadyMs: endAt - chosenAt,
-      longTasks: tasks.length,
-      longestTaskMs: Math.max(0, ...tasks.map(({ duration }) => duration)),
-    };
-  });
-}
+// The drop timings live in drops.mjs (the benchmarks use them without the test runner).
+export { lastDropTiming, recordMainThread } from './drops.mjs';

@@ -4,50 +4,16 @@
 // the page names no command-line flag, no main-thread task takes over 100 ms from the
 // drop to the summary (the analysis runs on a worker), and the screenshots of both are
 // kept in tests/e2e/out/real-*.png; the time from drop to summary is kept in
-// tests/e2e/out/real-timing-*.json for bench/real_logs.sh. Skipped, with a message, when ../shared/data is absent (a
+// tests/e2e/out/real-timing-*.json for bench/real_logs.py. Skipped, with a message, when ../shared/data is absent (a
 // user's clone); CI has it.
 import { test } from 'node:test';
 import assert from 'node:assert/strict';
-import { existsSync, readdirSync, statSync, writeFileSync } from 'node:fs';
+import { existsSync, writeFileSync } from 'node:fs';
 import { join } from 'node:path';
 import { drawnPixels, lastDropTiming, openPage, out, recordMainThread } from './common.mjs';
+import { recordings } from './drops.mjs';
 
 const data = process.env.SHARED_DATA || join(import.meta.dirname, '..', '..', '..', 'shared', 'data');
-
-/** A folder's files as a person drops them (its subfolders are recordings of their own). */
-function dropped(dir) {
-  return readdirSync(dir)
-    .filter((name) => !/^licen|\.md$/i.test(name))
-    .map((name) => join(dir, name))
-    .filter((path) => statSync(path).isFile())
-    .sort();
-}
-
-/** One entry per recording of the data README: a short name and the files dropped. */
-function recordings() {
-  const at = (...parts) => join(data, ...parts);
-  const list = [
-    ['msft-f1', dropped(at('msft-indoor-2020', 'site1', 'F1'))],
-    ['msft-f4', dropped(at('msft-indoor-2020', 'site1', 'F4'))],
-    ['vehicle-pixel6a', dropped(at('vehicle-pixel6a'))],
-    ['phyphox-hallway-loop', dropped(at('phyphox-hallway-loop'))],
-    ['sensorlogger-walk-ethz', dropped(at('sensorlogger-walk-ethz'))],
-    // The folder dropped whole: the filtered and the raw export of one calibration.
-    ['qmc5883l-calibration', dropped(at('qmc5883l-calibration'))],
-    ['qmc5883l-noisy', [at('qmc5883l-calibration', 'noisy_raw_data.csv')]],
-    ['ardupilot-log171', dropped(at('ardupilot-copter-log171'))],
-    ['ardupilot-text-log', dropped(at('ardupilot-text-log'))],
-    ['px4-sample', [at('px4-ulog', 'sample.ulg')]],
-    ['px4-sample-small', [at('px4-ulog', 'sample_log_small.ulg')]],
-  ];
-  for (const trial of readdirSync(at('hmc5883l-sphere')).sort()) {
-    if (statSync(at('hmc5883l-sphere', trial)).isDirectory()) list.push([`hmc5883l-${trial}`, dropped(at('hmc5883l-sphere', trial))]);
-  }
-  for (const trial of readdirSync(at('tyrex-attitude')).sort()) {
-    if (statSync(at('tyrex-attitude', trial)).isDirectory()) list.push([`tyrex-${trial}`, dropped(at('tyrex-attitude', trial))]);
-  }
-  return list;
-}
 
 /** The summary's parts that must be seen without scrolling, each with its box. */
 async function summaryBoxes(page) {
@@ -85,7 +51,7 @@ const MAX_TASK_MS = 100;
 const present = existsSync(data);
 if (!present) console.log(`skipped: ${data} not found (the real recordings live beside the project; CI has them)`);
 
-for (const [name, files] of present ? recordings() : []) {
+for (const [name, files] of present ? recordings(data) : []) {
   test(`${name}: the answer is on the first screen, on a desktop and on a phone`, { timeout: 120_000 }, async () => {
     const desktop = { width: 1360, height: 900 };
     const phone = { width: 390, height: 844 };
