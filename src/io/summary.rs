@@ -255,14 +255,11 @@ mod tests {
             for idx in 1..len {
                 let last = t_s[idx - 1];
                 let step = pattern[(idx * 7) % pattern.len()];
-                t_s.push(if step.is_nan() {
-                    f64::NAN
-                } else {
-                    if last.is_nan() {
-                        idx as f64
-                    } else {
-                        last + step
-                    }
+                t_s.push(match (step.is_nan(), last.is_nan()) {
+                    (true, _) => f64::NAN,
+                    // Times go on after a NaN.
+                    (false, true) => idx as f64,
+                    (false, false) => last + step,
                 });
             }
             t_s.truncate(len);
