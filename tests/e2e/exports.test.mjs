@@ -127,6 +127,16 @@ test('every export of the demo analysis downloads and reads back', async () => {
   await close();
 });
 
+/** The id of the summary's first download on the screen (its flex order, then its place). */
+async function firstShownExport(page) {
+  return page.evaluate(() => {
+    const shown = [...document.querySelectorAll('#summary .exports button')]
+      .filter((button) => button.offsetParent !== null);
+    shown.sort((a, b) => a.getBoundingClientRect().left - b.getBoundingClientRect().left);
+    return shown[0]?.id;
+  });
+}
+
 test('an ArduPilot log gives its compass parameters, and the .param download says what the page shows', async (t) => {
   const log = join(import.meta.dirname, '../../../shared/data/ardupilot-copter-log171/log171.bin');
   if (!existsSync(log)) { t.skip(`${log} not found (the real recordings live beside the project; CI has them)`); return; }
@@ -144,6 +154,14 @@ test('an ArduPilot log gives its compass parameters, and the .param download say
   assert.equal(spreads.length, 3, calibration);
   for (const [, fitted, inForce] of spreads) assert.ok(parseFloat(fitted) <= parseFloat(inForce), calibration);
   assert.equal(await page.isDisabled('#export-param'), false);
+  // The parameter file is what a drone log is for: the first download shown, also on
+  // a phone, where the downloads are one row that scrolls.
+  assert.equal(await firstShownExport(page), 'export-param');
+  await page.setViewportSize({ width: 390, height: 844 });
+  assert.equal(await firstShownExport(page), 'export-param');
+  const param = await page.locator('#export-param').boundingBox();
+  assert.ok(param && param.x >= 0 && param.x + param.width <= 390, `the parameters' button inside the phone's screen: ${JSON.stringify(param)}`);
+  await page.setViewportSize({ width: 1360, height: 1000 });
   const { bytes, name } = await download(page, '#export-param');
   assert.equal(name, 'log171-compass.param');
   const params = Object.fromEntries(bytes.toString('utf8').split('\n')
