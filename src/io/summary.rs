@@ -191,35 +191,40 @@ struct Intervals {
 }
 
 impl Intervals {
+    /// The intervals of `t_s`, in [`LANES`] lanes merged at the end.
     fn of(t_s: &[f64], threshold_s: f64) -> Intervals {
         let (Some(earlier), Some(later)) = (t_s.get(..t_s.len().saturating_sub(1)), t_s.get(1..))
         else {
             return Intervals::EMPTY;
         };
-        let (mut largest, mut repeated, mut longer) =
-            ([0.0f64; LANES], [0usize; LANES], [0usize; LANES]);
-        let mut pairs = earlier.chunks_exact(LANES).zip(later.chunks_exact(LANES));
-        for (before, after) in &mut pairs {
-            for lane in 0..LANES {
-                let interval_s = after[lane] - before[lane];
-                largest[lane] = largest[lane].max(interval_s);
-                repeated[lane] += usize::from(interval_s == 0.0);
-                longer[lane] += usize::from(interval_s > threshold_s);
+        let mut lanes = [Intervals::EMPTY; LANES];
+        let (earlier, later) = (earlier.chunks_exact(LANES), later.chunks_exact(LANES));
+        let rest = earlier.remainder().iter().zip(later.remainder());
+        for (before, after) in earlier.zip(later) {
+            for ((lane, before), after) in lanes.iter_mut().zip(before).zip(after) {
+                lane.add(after - before, threshold_s);
             }
         }
-        let n_whole = earlier.len() / LANES * LANES;
-        let mut intervals = Intervals {
-            largest_s: largest.iter().fold(0.0f64, |max, &lane| max.max(lane)),
-            n_repeated: repeated.iter().sum(),
-            n_longer: longer.iter().sum(),
-        };
-        for (before, after) in earlier.iter().zip(later).skip(n_whole) {
-            let interval_s = after - before;
-            intervals.largest_s = intervals.largest_s.max(interval_s);
-            intervals.n_repeated += usize::from(interval_s == 0.0);
-            intervals.n_longer += usize::from(interval_s > threshold_s);
+        let mut intervals = lanes.into_iter().fold(Intervals::EMPTY, Intervals::merged);
+        for (before, after) in rest {
+            intervals.add(after - before, threshold_s);
         }
         intervals
+    }
+
+    #[inline(always)]
+    fn add(&mut self, interval_s: f64, threshold_s: f64) {
+        self.largest_s = self.largest_s.max(interval_s);
+        self.n_repeated += usize::from(interval_s == 0.0);
+        self.n_longer += usize::from(interval_s > threshold_s);
+    }
+
+    fn merged(self, other: Intervals) -> Intervals {
+        Intervals {
+            largest_s: self.largest_s.max(other.largest_s),
+            n_repeated: self.n_repeated + other.n_repeated,
+            n_longer: self.n_longer + other.n_longer,
+        }
     }
 
     const EMPTY: Intervals = Intervals {
