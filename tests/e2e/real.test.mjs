@@ -21,15 +21,17 @@ async function summaryBoxes(page) {
     const box = (element) => {
       if (!element) return null;
       const rect = element.getBoundingClientRect();
-      return { top: rect.top + window.scrollY, bottom: rect.bottom + window.scrollY, height: rect.height, text: element.textContent.trim().slice(0, 80) };
+      return { top: rect.top + window.scrollY, bottom: rect.bottom + window.scrollY, left: rect.left, right: rect.right, height: rect.height, text: element.textContent.trim().slice(0, 80) };
     };
-    const firstEnabled = [...document.querySelectorAll('#summary .exports button')].find((button) => !button.disabled);
+    // The first download on the screen: the row's order is the style's, not the page's.
+    const shown = [...document.querySelectorAll('#summary .exports button')].filter((button) => button.offsetParent !== null);
+    const firstShown = shown.sort((a, b) => a.getBoundingClientRect().left - b.getBoundingClientRect().left)[0];
     return {
       grade: box(document.getElementById('verdict-grade')),
       headline: box(document.getElementById('verdict-headline')),
       method: box(document.getElementById('verdict-method')),
       figure: box(document.querySelector('#verdict-figures dd')),
-      download: box(firstEnabled),
+      download: box(firstShown),
     };
   });
 }
@@ -42,6 +44,8 @@ async function assertOnFirstScreen(page, name, viewport) {
     assert.ok(box.height > 0 && box.text.length > 0, `${name}: the ${part} is empty or hidden`);
     assert.ok(box.bottom <= viewport.height,
       `${name} at ${viewport.width}×${viewport.height}: the ${part} ends at ${box.bottom.toFixed(0)} px, below the first screen ("${box.text}")`);
+    assert.ok(box.left >= 0 && box.right <= viewport.width,
+      `${name} at ${viewport.width}×${viewport.height}: the ${part} spans ${box.left.toFixed(0)}-${box.right.toFixed(0)} px, off the screen's side ("${box.text}")`);
   }
 }
 
