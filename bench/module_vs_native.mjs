@@ -1,7 +1,8 @@
 // The page's analysis without the page: the WebAssembly module's whole pipeline
 // (`pdr_pipeline`: import, calibration, heading models, dead reckoning) in Node's V8,
 // on one thread, beside the native CLI's `compass-pdr pdr` on the same file pinned to
-// one core (`taskset -c 0`), on each single-file real recording of ../shared/data.
+// one core (`taskset -c 0`), on the bundled demo (first, on the cold module) and on each
+// single-file real recording of ../shared/data.
 // It separates what the page adds (reading the dropped files, the worker's messages,
 // the drawing) from what WebAssembly costs against native code on the same core.
 //
@@ -21,7 +22,9 @@ if (!existsSync(data)) {
   console.log(`skipped: ${data} not found (the real recordings live beside the project)`);
   process.exit(0);
 }
-const logs = [
+// The bundled demo first, on the cold module: its "first run" is the page's first analysis.
+const demo = join(import.meta.dirname, '..', 'assets', 'demo-walk.csv');
+const logs = [demo, ...[
   'px4-ulog/sample.ulg',
   'px4-ulog/sample_log_small.ulg',
   'ardupilot-copter-log171/log171.bin',
@@ -31,7 +34,7 @@ const logs = [
   'vehicle-pixel6a/2023-08-09_12-47-42.csv',
   'qmc5883l-calibration/noisy_raw_data.csv',
   'qmc5883l-calibration/filtered_raw_data.csv',
-].map((path) => join(data, path)).filter((path) => existsSync(path));
+].map((path) => join(data, path))].filter((path) => existsSync(path));
 const median = (values) => [...values].sort((a, b) => a - b)[Math.floor(values.length / 2)];
 
 console.log(`| recording | native \`pdr\`, one core (median of ${runs}) | module in Node, warm (median of ${runs} after one run) | module's first run | module / native |`);
