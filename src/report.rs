@@ -120,78 +120,68 @@ pub fn decimals_for_unit(ut_per_unit: f64) -> usize {
     }
 }
 
-/// An autopilot log's new compass calibration, compass by compass, against the one in
-/// force: what `calibrate` prints, the page lists and the report holds.
+/// An autopilot log's compass calibration, compass by compass, against the parameters
+/// in force: what `calibrate` prints, the page lists and the report holds. Each
+/// compass's first line is the sentence its parameter file carries.
 pub fn autopilot_calibration_lines(autopilot: &AutopilotCalibration) -> Vec<String> {
+    let n_written = autopilot.written().count();
     let mut lines = vec![format!(
-        "{} compass calibration, attitude-aided (the corrected field against one Earth field \
-         seen through the autopilot's attitude); {}",
+        "{} compass calibration, attitude-aided, judged against {}; {}",
         autopilot.autopilot,
-        if autopilot.compasses.is_empty() {
-            "nothing written, the parameters in force are kept (why below)"
-        } else if autopilot.autopilot == "PX4" {
-            "its .params file loads in QGroundControl"
-        } else {
-            "its .param file loads in Mission Planner or MAVProxy"
+        autopilot.earth.describe(),
+        match (n_written, autopilot.autopilot) {
+            (0, _) => "nothing written, the parameters in force are kept (why below)",
+            (_, "PX4") => "its .params file loads in QGroundControl",
+            _ => "its .param file loads in Mission Planner or MAVProxy",
         }
     )];
-    let degrees =
-        |value: Option<f64>| value.map_or_else(|| "-".to_string(), |v| format!("{v:.1}°"));
     for compass in &autopilot.compasses {
-        let fitted = &compass.fitted;
-        let against = match &compass.in_force {
-            Some(in_force) => format!(
-                "heading {:.1}° RMS (parameters in force {:.1}°), |B| spread {:.2} % (in force \
-                 {:.2} %): {}",
-                fitted.heading_rms_deg,
-                in_force.heading_rms_deg,
-                fitted.spread_pct,
-                in_force.spread_pct,
-                if fitted.spread_pct <= in_force.spread_pct {
-                    format!(
-                        "the spread {:.0} % smaller",
-                        100.0 * (1.0 - fitted.spread_pct / in_force.spread_pct)
-                    )
-                } else {
-                    format!(
-                        "the spread {:.0} % larger than the parameters in force give: keep those",
-                        100.0 * (fitted.spread_pct / in_force.spread_pct - 1.0)
-                    )
-                }
-            ),
-            None => format!(
-                "heading {:.1}° RMS, |B| spread {:.2} % (no calibration in force in the log)",
-                fitted.heading_rms_deg, fitted.spread_pct
-            ),
-        };
-        lines.push(format!(
-            "{} ({} samples), {}: {against}",
-            compass.source, compass.n_samples, compass.model
-        ));
+        lines.push(compass.sentence());
+        if compass.candidates.is_empty() {
+            continue;
+        }
         let candidates: Vec<String> = compass
             .candidates
             .iter()
             .map(|candidate| {
-                format!(
-                    "{} {}",
-                    candidate.model,
-                    degrees(candidate.check_heading_rms_deg)
-                )
+                let figure = candidate.check.map_or_else(
+                    || "-".to_string(),
+                    |score| format!("{:.1} mG", score.vector_rms_mg),
+                );
+                if candidate.refused.is_empty() {
+                    format!("{} {figure}", candidate.model)
+                } else {
+                    format!(
+                        "{} {figure} (refused: {})",
+                        candidate.model,
+                        candidate.refused.join(", ")
+                    )
+                }
             })
             .collect();
         lines.push(format!(
-            "{}: the model chosen on the held-back second half, fitted on the first (heading \
-             RMS: {}; parameters in force {}), then refitted on the whole log",
+            "{}: vector error on the held-back second half of each model fitted on the first: {}; \
+             parameters in force {}; the Earth's field turned in the body by {:.0}° and {:.0}° (1σ), \
+             crossing {} of the sphere's 100 regions",
             compass.source,
             candidates.join(", "),
-            degrees(compass.check_in_force_deg)
+            compass
+                .check
+                .in_force
+                .map_or_else(|| "-".to_string(), |score| format!("{:.1} mG", score.vector_rms_mg)),
+            compass.turned_deg[0],
+            compass.turned_deg[1],
+            compass.coverage_regions
         ));
+        if !compass.is_written() {
+            continue;
+        }
         let params: Vec<String> = compass
             .params
             .iter()
             .map(|(name, value)| format!("{name} {value:.4}"))
             .collect();
-        let sigma = compass.offsets_sigma;
+        let sigma = compass.offsets_sigma.unwrap_or([f64::NAN; 3]);
         lines.push(format!(
             "{} (formal 1σ: offsets ±{:.1}, {:.1}, {:.1} mG{}{})",
             params.join(", "),
@@ -200,7 +190,7 @@ pub fn autopilot_calibration_lines(autopilot: &AutopilotCalibration) -> Vec<Stri
             sigma[2],
             compass
                 .soft_iron_sigma
-                .map_or_else(String::new, |s| format!(", soft iron ±{s:.3}")),
+                .map_or_else(String::new, |s| format!(", iron ±{s:.3}")),
             compass.motor_sigma.map_or_else(String::new, |s| format!(
                 ", motor ±{:.2}, {:.2}, {:.2} mG/A",
                 s[0], s[1], s[2]

@@ -20,7 +20,7 @@ use nalgebra::Vector3;
 use serde::Serialize;
 
 use crate::calib::sphere_coverage::{sphere_coverage, SphereCoverage};
-use crate::calibration::autopilot::{AutopilotCalibration, Candidate, CompassResult, KeptCompass};
+use crate::calibration::autopilot::{describe, AutopilotCalibration, CompassResult};
 use crate::calibration::selection::Basis;
 use crate::calibration::CalibrationAnalysis;
 use crate::english::{duration_text, plural};
@@ -139,24 +139,16 @@ pub fn verdict(
     let read = read_line(analysis, heading);
     let method = format!("Method: {}.", heading.choice.sentence());
     let field = FieldFigures::of(analysis);
-    // An autopilot log with at least one compass fitted, and its first.
-    let fitted_autopilot = analysis
+    // An autopilot log whose compasses were assessed: its first compass leads, written
+    // or kept (the raw field's error would say nothing of the vehicle's heading).
+    let autopilot = analysis
         .report
         .autopilot
         .as_ref()
         .and_then(|autopilot| Some((autopilot, autopilot.compasses.first()?)));
-    // Or one whose compasses could not be fitted, with their parameters in force judged
-    // on it: the raw field's error would say nothing of the vehicle's heading.
-    let kept_autopilot = analysis
-        .report
-        .autopilot
-        .as_ref()
-        .and_then(|autopilot| Some((autopilot, autopilot.kept.first()?)));
-    let mut verdict = match (fitted_autopilot, kept_autopilot, &heading.choice.basis) {
-        (Some((autopilot, primary)), _, _) => autopilot_verdict(autopilot, primary, read),
-        (None, Some((autopilot, primary)), _) => kept_verdict(autopilot, primary, read),
+    let mut verdict = match (autopilot, &heading.choice.basis) {
+        (Some((autopilot, primary)), _) => autopilot_verdict(autopilot, primary, read),
         (
-            _,
             _,
             &Basis::ReferenceRms {
                 rms_deg,
@@ -567,124 +559,78 @@ fn heading_std_deg(analysis: &CalibrationAnalysis) -> Option<f64> {
     }
 }
 
+/// An autopilot log's answer: its first compass, written or kept, by the vector error
+/// against the Earth's field and the heading against the autopilot's; every compass's
+/// sentence as a figure.
 fn autopilot_verdict(
     autopilot: &AutopilotCalibration,
     primary: &CompassResult,
     read: String,
 ) -> Verdict {
-    let in_force = primary.in_force.as_ref();
-    let headline = match in_force {
-        Some(before) => format!(
-            "Compass {} ({}): heading {:.1}° → {:.1}° RMS from the autopilot's, |B| varies {:.1} % → {:.1} % with the new parameters.",
-            primary.instance + 1,
-            primary.source,
-            before.heading_rms_deg,
-            primary.fitted.heading_rms_deg,
-            before.spread_pct,
-            primary.fitted.spread_pct
+    let label = primary.label();
+    let (before, after) = (primary.whole.in_force, primary.whole.new);
+    let headline = match (&primary.kept_because, before, after) {
+        (None, Some(before), Some(after)) => format!(
+            "{label}: new parameters written: vector error {:.0} → {:.0} mG against the Earth's \
+             field{}.",
+            before.vector_rms_mg,
+            after.vector_rms_mg,
+            match (before.heading_rms_deg, after.heading_rms_deg) {
+                (Some(b), Some(a)) => format!(", heading {b:.1}° → {a:.1}° from the autopilot's"),
+                _ => String::new(),
+            }
         ),
-        None => format!(
-            "Compass {} ({}): heading {:.1}° RMS from the autopilot's, |B| varies {:.1} % with the new parameters.",
-            primary.instance + 1,
-            primary.source,
-            primary.fitted.heading_rms_deg,
-            primary.fitted.spread_pct
+        (None, _, Some(after)) => format!("{label}: new parameters written: {}.", describe(&after)),
+        (Some(_), Some(before), _) => format!(
+            "{label}: parameters in force kept ({}); nothing better to write from this log.",
+            describe(&before)
         ),
+        _ => format!("{label}: parameters in force kept; nothing better to write from this log."),
     };
+    // The grade is of what the vehicle will fly with.
+    let flown = if primary.is_written() { after } else { before };
+    let grade = flown
+        .and_then(|score| score.heading_rms_deg)
+        .map_or(Grade::Fair, Grade::of_heading_rms);
     let figures = autopilot
         .compasses
         .iter()
-        .map(|compass| {
-            let value = match &compass.in_force {
-                Some(before) => format!(
-                    "{:.1}° → {:.1}° from the autopilot's heading; |B| varies {:.2} % → {:.2} % ({})",
-                    before.heading_rms_deg,
-                    compass.fitted.heading_rms_deg,
-                    before.spread_pct,
-                    compass.fitted.spread_pct,
-                    compass.model
-                ),
-                None => format!(
-                    "{:.1}° from the autopilot's heading; |B| varies {:.2} % ({})",
-                    compass.fitted.heading_rms_deg, compass.fitted.spread_pct, compass.model
-                ),
-            };
-            Figure {
-                label: format!("Compass {} ({})", compass.instance + 1, compass.source),
-                value,
-            }
+        .map(|compass| Figure {
+            label: compass.label(),
+            value: compass
+                .sentence()
+                .strip_prefix(&format!("{}: ", compass.label()))
+                .map(str::to_string)
+                .unwrap_or_else(|| compass.sentence()),
         })
-        .chain(autopilot.kept.iter().map(kept_figure))
         .collect();
-    Verdict {
-        kind: VerdictKind::Autopilot,
-        grade: Grade::of_heading_rms(primary.fitted.heading_rms_deg),
-        headline,
-        read,
-        method: autopilot_method(autopilot, primary),
-        figures,
-        to_do: autopilot.notes.clone(),
-        coverage: None,
-        steps: None,
-    }
-}
-
-/// An autopilot log none of whose compasses could be fitted: the parameters in force
-/// judged on it (the first compass's in the headline), and why nothing was written.
-fn kept_verdict(autopilot: &AutopilotCalibration, primary: &KeptCompass, read: String) -> Verdict {
-    let headline = format!(
-        "Compass {} ({}): heading {:.1}° RMS from the autopilot's with the parameters in force, |B| varies {:.1} %; nothing new to write from this log.",
-        primary.instance + 1,
-        primary.source,
-        primary.in_force.heading_rms_deg,
-        primary.in_force.spread_pct
-    );
-    let figures = autopilot.kept.iter().map(kept_figure).collect();
-    Verdict {
-        kind: VerdictKind::Autopilot,
-        grade: Grade::of_heading_rms(primary.in_force.heading_rms_deg),
-        headline,
-        read,
-        method: format!(
-            "Method: the {} parameters in force, kept: no new calibration could be fitted from this log (why below). \
-             The autopilot's heading fuses this compass, so it leans towards them.",
+    let written: Vec<String> = autopilot.written().map(CompassResult::label).collect();
+    let method = if written.is_empty() {
+        format!(
+            "Method: every compass fitted against {} on the log's first half and scored on the \
+             held-back second half; none beat the {} parameters in force there, so none is written.",
+            autopilot.earth.describe(),
             autopilot.autopilot
-        ),
+        )
+    } else {
+        format!(
+            "Method: every compass fitted against {} on the log's first half and scored on the \
+             held-back second half; written only where it beats the {} parameters in force there \
+             and the autopilot accepts it ({}), read back from the file before its figures are shown.",
+            autopilot.earth.describe(),
+            autopilot.autopilot,
+            written.join(", ")
+        )
+    };
+    Verdict {
+        kind: VerdictKind::Autopilot,
+        grade,
+        headline,
+        read,
+        method,
         figures,
         to_do: autopilot.notes.clone(),
         coverage: None,
         steps: None,
     }
-}
-
-/// A compass not fitted, by its parameters in force.
-fn kept_figure(compass: &KeptCompass) -> Figure {
-    Figure {
-        label: compass.label(),
-        value: compass.judged(),
-    }
-}
-
-/// The model chosen for the first compass and on what: its heading error on the held-back
-/// half beside the parameters in force there.
-fn autopilot_method(autopilot: &AutopilotCalibration, primary: &CompassResult) -> String {
-    let check_deg = primary
-        .candidates
-        .iter()
-        .find(|candidate| candidate.model == primary.model)
-        .and_then(|candidate: &Candidate| candidate.check_heading_rms_deg);
-    let scored = match (check_deg, primary.check_in_force_deg) {
-        (Some(check), Some(in_force)) => {
-            format!(" ({check:.1}° there, {in_force:.1}° with the parameters in force)")
-        }
-        (Some(check), None) => format!(" ({check:.1}° there)"),
-        _ => String::new(),
-    };
-    format!(
-        "Method: {} for compass {}, the model that best predicted the autopilot's heading on the log's second half \
-         when fitted on the first{scored}; {} parameters written and read back.",
-        primary.model,
-        primary.instance + 1,
-        autopilot.autopilot
-    )
 }

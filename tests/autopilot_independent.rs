@@ -9,39 +9,15 @@
 //! thrust, as a multirotor's does, check that the analysis levels with the autopilot's
 //! attitude.
 
+mod flights;
 mod physics;
 
-use compass_pdr::calibration::autopilot::autopilot_calibration;
+use compass_pdr::calibration::autopilot::{autopilot_calibration, EarthField, Truth};
 use compass_pdr::io::autopilot::ardupilot::{parse_param_file, ArduPilotCompass};
 use compass_pdr::io::autopilot::param_in;
+use flights::{fmt, message, parm};
 use nalgebra::{Matrix3, Rotation3, Vector3};
 use physics::Rng;
-
-fn message(type_id: u8, payload: &[u8]) -> Vec<u8> {
-    let mut bytes = vec![0xA3, 0x95, type_id];
-    bytes.extend_from_slice(payload);
-    bytes
-}
-
-fn padded(text: &str, size: usize) -> Vec<u8> {
-    let mut bytes = text.as_bytes().to_vec();
-    bytes.resize(size, 0);
-    bytes
-}
-
-fn fmt(type_id: u8, length: u8, name: &str, format: &str, columns: &str) -> Vec<u8> {
-    let mut payload = vec![type_id, length];
-    payload.extend(padded(name, 4));
-    payload.extend(padded(format, 16));
-    payload.extend(padded(columns, 64));
-    message(128, &payload)
-}
-
-fn parm(name: &str, value: f32) -> Vec<u8> {
-    let mut payload = padded(name, 16);
-    payload.extend_from_slice(&value.to_le_bytes());
-    message(129, &payload)
-}
 
 /// One flight: its log's bytes and, per sample, the truth to score against.
 struct Flight {
@@ -226,12 +202,24 @@ fn percentile(values: &mut [f64], q: f64) -> f64 {
 fn random_vehicles_are_calibrated_from_their_own_flight_logs() {
     let mut rng = Rng::stream(19, "autopilot flights");
     let (mut new_deg, mut old_deg, mut spread_ratio) = (Vec::new(), Vec::new(), Vec::new());
+    let mut n_kept = 0;
     for case in 0..40 {
         let flight = flight(&mut rng);
         let report = compass_pdr::io::import::import("flight.bin", &flight.log).unwrap();
         let log = report.autopilot.as_ref().unwrap();
-        let calibration = autopilot_calibration(log, &report.recording.attitude)
+        // No GPS in these logs: the field is fitted with the offsets.
+        let truth = Truth {
+            earth: EarthField::Fitted,
+            declination_rad: None,
+        };
+        let calibration = autopilot_calibration(log, &report.recording.attitude, &truth)
             .unwrap_or_else(|| panic!("case {case}: no calibration"));
+        if !calibration.compasses[0].is_written() {
+            // Kept: the file leaves the compass as it is, and says why.
+            n_kept += 1;
+            assert!(calibration.param_file.is_empty());
+            continue;
+        }
         let written = parse_param_file(&calibration.param_file);
         let lookup = |name: &str| param_in(&written, name).or_else(|| log.param(name));
         let new = ArduPilotCompass::from_params(&lookup, 0).unwrap();
@@ -241,7 +229,7 @@ fn random_vehicles_are_calibrated_from_their_own_flight_logs() {
         let (old_rms, old_spread) = score(&flight, |raw, current| in_force.apply(raw, current));
         assert!(
             new_rms <= (0.6 * old_rms).max(1.5),
-            "case {case}: heading {new_rms:.2}° against {old_rms:.2}° in force ({})",
+            "case {case}: heading {new_rms:.2}° against {old_rms:.2}° in force ({:?})",
             calibration.compasses[0].model
         );
         assert!(
@@ -253,7 +241,7 @@ fn random_vehicles_are_calibrated_from_their_own_flight_logs() {
         spread_ratio.push(new_spread / old_spread);
     }
     eprintln!(
-        "40 random flights: heading RMS written p50 {:.2}° p90 {:.2}° max {:.2}°; in force p50 {:.1}° p90 {:.1}°; |B| spread written/in force p50 {:.2} max {:.2}",
+        "40 random flights, {n_kept} kept: heading RMS written p50 {:.2}° p90 {:.2}° max {:.2}°; in force p50 {:.1}° p90 {:.1}°; |B| spread written/in force p50 {:.2} max {:.2}",
         percentile(&mut new_deg, 0.5),
         percentile(&mut new_deg, 0.9),
         percentile(&mut new_deg, 1.0),
@@ -262,6 +250,8 @@ fn random_vehicles_are_calibrated_from_their_own_flight_logs() {
         percentile(&mut spread_ratio, 0.5),
         percentile(&mut spread_ratio, 1.0),
     );
+    // Stale offsets (up to 60 mG off) on flights that turn: most are worth replacing.
+    assert!(n_kept <= 8, "{n_kept} of 40 kept");
 }
 
 /// A multirotor's accelerometer reads its thrust, not gravity: levelled with it, the

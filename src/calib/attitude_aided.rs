@@ -3,31 +3,37 @@
 //! A vehicle's flight rarely turns its compass over the whole sphere, so the fits that
 //! only ask the corrected field to be of one size (the ellipsoid of Eq. 5) are blind
 //! along most directions. An autopilot log also holds the vehicle's attitude, estimated
-//! from gyroscopes, accelerometers and GPS. In the Earth's frame the field is one
-//! constant vector `B`, so each sample gives three equations, not one:
+//! from gyroscopes, accelerometers and GPS, and (with its GPS position and date) the
+//! Earth's field there is known from the World Magnetic Model. In the Earth's frame the
+//! field is one constant vector `B`, so each sample gives three equations, not one:
 //!
 //! ```text
-//! M · (raw_i + offsets) = R_iᵀ · B        R_i: body → north-east-down, from the log
+//! s · M · (raw_i + offsets) + k · current_i = R_iᵀ · B      R_i: body → north-east-down
 //! ```
 //!
-//! This is the fit of ArduPilot's MAGFit (WebTools, `MAGFit/MAGFit.js`), which fits
-//! offsets, scale, iron and motor compensation against the World Magnetic Model with
-//! the attitude source the user picks. Here `B` is fitted with the rest (three more
-//! unknowns), so no magnetic model is needed: the log's own date may lie outside the
-//! model's years. Written with `u = M · offsets`, both models are linear least squares:
+//! This is the fit of ArduPilot's MAGFit (WebTools, `MAGFit/magfit.js`, `fit()`), which
+//! fits it against the World Magnetic Model's `B` with the attitude source the user
+//! picks (and weights each sample by how crowded its attitude is). With `B` known every
+//! model is linear least squares, climbed one [`Step`] at a time:
 //!
-//! - offsets only, `M` held at the calibration in force: unknowns `u`, `B` (6);
-//! - offsets and soft iron: `M` symmetric with its trace held at 3 (which fixes the
-//!   scale the equations leave free), unknowns `M` (5), `u`, `B` (11);
-//! - either with motor interference, a field `k · current` added after `M` as ArduPilot's
+//! - [`Step::Offsets`]: `M` held (the iron in force), `s = 1`; unknowns `u = M·offsets` (3);
+//! - [`Step::Scale`]: one scale `s` as well (ArduPilot's `COMPASS_SCALE`); unknowns `s`,
+//!   `w = s·M·offsets` (4);
+//! - [`Step::Iron`]: `M` symmetric and free (its six entries carry the scale); unknowns
+//!   `M`, `u = M·offsets` (9);
+//! - each with motor interference, a field `k · current` added after `M` as ArduPilot's
 //!   `COMPASS_MOT` with `COMPASS_MOTCT = 2` adds it: three more unknowns `k`.
 //!
-//! The 1σ of each parameter is the formal one, `σ² · (AᵀA)⁻¹`, with the samples taken as
-//! independent (successive samples of a log are not, so it is a lower bound).
+//! Without a position (no model field), `B` is fitted with the rest (three more
+//! unknowns). Its size then cannot be told from the scale, so only the offsets and the
+//! iron with its trace held at 3 can be fitted, and a flight that barely turns cannot
+//! tell the offsets from `B` at all (the normal matrix is near singular, and the offsets'
+//! 1σ says so).
+//!
+//! The 1σ of each parameter is the formal one, `σ² · (AᵀA)⁻¹`, with the samples taken
+//! as independent (successive samples of a log are not, so it is a lower bound).
 
 use nalgebra::{DMatrix, DVector, Matrix3, Rotation3, Vector3};
-
-use crate::angle::wrap_to_pi;
 
 /// One compass sample with the vehicle's attitude at its time.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -35,77 +41,217 @@ pub struct AidedSample {
     pub t_s: f64,
     /// The raw field in body axes, in the compass's unit.
     pub raw: Vector3<f64>,
+    /// The attitude of the axes the compass is logged in (the autopilot board's).
     pub body_to_ned: Rotation3<f64>,
     /// The battery current (A) that the motor-interference term scales; 0 where unknown.
     pub current_a: f64,
 }
 
-/// Which parameters the fit frees: the offsets always, the soft iron where it is not
-/// held, and a field per ampere of battery current (motor interference, ArduPilot's
-/// `COMPASS_MOT`) where `motor` is set.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct AidedModel {
-    pub held_soft_iron: Option<Matrix3<f64>>,
-    pub motor: bool,
+/// How much of the calibration a fit frees, from least to most.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Step {
+    /// The offsets only, the iron held.
+    Offsets,
+    /// The offsets and one scale of the held iron.
+    Scale,
+    /// The offsets and a symmetric iron matrix.
+    Iron,
 }
 
-/// A fitted calibration in ArduPilot's form, `corrected = M · (raw + offsets)`.
+impl Step {
+    pub const ALL: [Step; 3] = [Step::Offsets, Step::Scale, Step::Iron];
+
+    /// As people and MAGFit name it.
+    pub fn label(self) -> &'static str {
+        match self {
+            Step::Offsets => "offsets",
+            Step::Scale => "offsets and scale",
+            Step::Iron => "offsets and iron",
+        }
+    }
+}
+
+/// One model of the ladder: which [`Step`], with or without the motor term, and the iron
+/// held where the step does not fit it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AidedModel {
+    pub step: Step,
+    pub motor: bool,
+    /// `M` where it is not fitted ([`Step::Offsets`], [`Step::Scale`]).
+    pub held_soft_iron: Matrix3<f64>,
+}
+
+impl AidedModel {
+    /// "offsets and iron, motor (current)".
+    pub fn label(&self) -> String {
+        let mut label = self.step.label().to_string();
+        if self.motor {
+            label.push_str(", motor (current)");
+        }
+        label
+    }
+}
+
+/// A fitted calibration in ArduPilot's form,
+/// `corrected = scale · M · (raw + offsets) + motor · current`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct AidedFit {
+    pub model: AidedModel,
     /// Added to the raw field (ArduPilot's sign: minus the hard iron).
     pub offsets: Vector3<f64>,
     pub soft_iron: Matrix3<f64>,
-    /// The Earth's field in north-east-down axes, in the compass's unit.
+    /// 1 unless the step is [`Step::Scale`].
+    pub scale: f64,
+    /// The field added per ampere of battery current (zero where not fitted).
+    pub motor_per_a: Vector3<f64>,
+    /// The Earth's field in north-east-down axes, in the compass's unit: the one given,
+    /// or the one fitted where none was.
     pub earth_ned: Vector3<f64>,
     /// Formal 1σ of the offsets.
     pub offsets_sigma: Vector3<f64>,
-    /// The largest formal 1σ of the soft iron's entries, where they were fitted.
+    /// The largest formal 1σ of the iron's entries, or of the scale, where fitted.
     pub soft_iron_sigma: Option<f64>,
-    /// The field added per ampere of battery current (zero where not fitted), with its
-    /// formal 1σ.
-    pub motor_per_a: Vector3<f64>,
+    /// Formal 1σ of the motor term (zero where not fitted).
     pub motor_sigma: Vector3<f64>,
     pub n_samples: usize,
 }
 
 impl AidedFit {
     pub fn apply(&self, raw: Vector3<f64>, current_a: f64) -> Vector3<f64> {
-        self.soft_iron * (raw + self.offsets) + self.motor_per_a * current_a
+        self.soft_iron * (raw + self.offsets) * self.scale + self.motor_per_a * current_a
     }
 }
 
-/// Fits `model` to the samples; `None` with fewer samples than unknowns or when the
-/// equations do not fix the unknowns (a singular normal matrix).
-pub fn fit_aided(samples: &[AidedSample], model: AidedModel) -> Option<AidedFit> {
-    // Unknowns: M's five (where fitted), the motor term's three (where fitted), u, B.
-    let n_m = if model.held_soft_iron.is_some() { 0 } else { 5 };
-    let base_u = n_m + if model.motor { 3 } else { 0 };
+/// The smallest eigenvalue of the scaled normal matrix, as a share of its largest, that
+/// still fixes every unknown: below it the formal solution is rounding error.
+const MIN_RELATIVE_EIGENVALUE: f64 = 1e-9;
+
+/// The normal equations of a linear least squares, three rows per sample.
+struct Normal {
+    a_t_a: DMatrix<f64>,
+    a_t_b: DVector<f64>,
+    b_t_b: f64,
+    n_rows: usize,
+}
+
+impl Normal {
+    fn new(n_unknowns: usize) -> Normal {
+        Normal {
+            a_t_a: DMatrix::zeros(n_unknowns, n_unknowns),
+            a_t_b: DVector::zeros(n_unknowns),
+            b_t_b: 0.0,
+            n_rows: 0,
+        }
+    }
+
+    fn add(&mut self, row: &DVector<f64>, value: f64) {
+        self.a_t_a.ger(1.0, row, row, 1.0);
+        self.a_t_b.axpy(value, row, 1.0);
+        self.b_t_b += value * value;
+        self.n_rows += 1;
+    }
+
+    /// The solution and its formal covariance; `None` where the unknowns are not fixed:
+    /// the normal matrix, scaled to a unit diagonal, has an eigenvalue under
+    /// [`MIN_RELATIVE_EIGENVALUE`] of its largest (two unknowns the samples cannot tell
+    /// apart, such as a motor term at a constant current and the offsets).
+    fn solve(self) -> Option<(DVector<f64>, DMatrix<f64>)> {
+        let n_unknowns = self.a_t_b.len();
+        let diagonal = self.a_t_a.diagonal();
+        if diagonal.iter().any(|&d| d.is_nan() || d <= 0.0) {
+            return None;
+        }
+        let scale = diagonal.map(|d| 1.0 / d.sqrt());
+        let scaled = DMatrix::from_fn(n_unknowns, n_unknowns, |row, col| {
+            self.a_t_a[(row, col)] * scale[row] * scale[col]
+        });
+        let eigenvalues = scaled.symmetric_eigenvalues();
+        let largest = eigenvalues.max();
+        // A NaN eigenvalue fails this too.
+        let fixed = eigenvalues.min() > MIN_RELATIVE_EIGENVALUE * largest;
+        if !fixed {
+            return None;
+        }
+        let decomposition = self.a_t_a.cholesky()?;
+        let x = decomposition.solve(&self.a_t_b);
+        // Residual sum of squares: bᵀb − xᵀAᵀb.
+        let ssr = (self.b_t_b - x.dot(&self.a_t_b)).max(0.0);
+        let sigma2 = ssr / self.n_rows.saturating_sub(n_unknowns).max(1) as f64;
+        Some((x, decomposition.inverse() * sigma2))
+    }
+}
+
+/// Fits `model` to the samples against the Earth's field `earth_ned` (the compass's unit,
+/// north-east-down), or with the field fitted too where it is `None`. `None` with too few
+/// samples, a model the
+/// equations cannot fix (a singular normal matrix), a scale without a known field, or a
+/// result that is not finite.
+pub fn fit_aided(
+    samples: &[AidedSample],
+    model: AidedModel,
+    earth_ned: Option<Vector3<f64>>,
+) -> Option<AidedFit> {
+    if earth_ned.is_none() && model.step == Step::Scale {
+        return None;
+    }
+    // Unknowns, in order: the step's own (0, 1 or 5-6), the motor term (3), u or w (3),
+    // B where it is fitted (3).
+    let n_step = match (model.step, earth_ned.is_some()) {
+        (Step::Offsets, _) => 0,
+        (Step::Scale, _) => 1,
+        (Step::Iron, true) => 6,
+        // The trace held at 3: five unknowns.
+        (Step::Iron, false) => 5,
+    };
+    let base_motor = n_step;
+    let base_u = base_motor + if model.motor { 3 } else { 0 };
     let base_b = base_u + 3;
-    let n_unknowns = base_b + 3;
+    let n_unknowns = base_b + if earth_ned.is_none() { 3 } else { 0 };
     if samples.len() * 3 < 2 * n_unknowns {
         return None;
     }
-    let mut normal = DMatrix::<f64>::zeros(n_unknowns, n_unknowns);
-    let mut rhs = DVector::<f64>::zeros(n_unknowns);
+    let held = model.held_soft_iron;
+    let mut normal = Normal::new(n_unknowns);
     let mut row = DVector::<f64>::zeros(n_unknowns);
-    let mut sum_squares_rhs = 0.0;
     for sample in samples {
         let r = sample.raw;
+        let held_r = held * r;
         // R_iᵀ: rows map NED to body.
         let ned_to_body = sample.body_to_ned.matrix().transpose();
+        let expected = earth_ned.map(|earth| ned_to_body * earth);
         for axis in 0..3 {
             row.fill(0.0);
             row[base_u + axis] = 1.0;
-            for col in 0..3 {
-                row[base_b + col] = -ned_to_body[(axis, col)];
-            }
             if model.motor {
-                row[n_m + axis] = sample.current_a;
+                row[base_motor + axis] = sample.current_a;
             }
-            let value = match model.held_soft_iron {
-                Some(soft_iron) => -(soft_iron * r)[axis],
+            if earth_ned.is_none() {
+                for col in 0..3 {
+                    row[base_b + col] = -ned_to_body[(axis, col)];
+                }
+            }
+            let target = expected.map_or(0.0, |e| e[axis]);
+            let value = match (model.step, earth_ned.is_some()) {
+                (Step::Offsets, _) => target - held_r[axis],
+                (Step::Scale, _) => {
+                    row[0] = held_r[axis];
+                    target
+                }
+                // M = [[a, d, e], [d, b, f], [e, f, c]]; unknowns a, b, c, d, e, f.
+                (Step::Iron, true) => {
+                    let (diagonal, off) = match axis {
+                        0 => ((0, r.x), [(3, r.y), (4, r.z)]),
+                        1 => ((1, r.y), [(3, r.x), (5, r.z)]),
+                        _ => ((2, r.z), [(4, r.x), (5, r.y)]),
+                    };
+                    row[diagonal.0] = diagonal.1;
+                    for (col, value) in off {
+                        row[col] = value;
+                    }
+                    target
+                }
                 // M = [[a, c, d], [c, b, e], [d, e, 3 − a − b]]; unknowns a, b, c, d, e.
-                None => match axis {
+                (Step::Iron, false) => match axis {
                     0 => {
                         row[0] = r.x;
                         row[2] = r.y;
@@ -127,108 +273,68 @@ pub fn fit_aided(samples: &[AidedSample], model: AidedModel) -> Option<AidedFit>
                     }
                 },
             };
-            normal.ger(1.0, &row, &row, 1.0);
-            rhs.axpy(value, &row, 1.0);
-            sum_squares_rhs += value * value;
+            normal.add(&row, value);
         }
     }
-    let decomposition = normal.cholesky()?;
-    let x = decomposition.solve(&rhs);
-    // Residual sum of squares: bᵀb − xᵀAᵀb.
-    let n_equations = samples.len() * 3;
-    let ssr = (sum_squares_rhs - x.dot(&rhs)).max(0.0);
-    let sigma2 = ssr / (n_equations - n_unknowns).max(1) as f64;
-    let covariance = decomposition.inverse() * sigma2;
+    let (x, covariance) = normal.solve()?;
     let sigma_of = |idx: usize| covariance[(idx, idx)].max(0.0).sqrt();
     let u = Vector3::new(x[base_u], x[base_u + 1], x[base_u + 2]);
-    let earth_ned = Vector3::new(x[base_b], x[base_b + 1], x[base_b + 2]);
-    let (soft_iron, soft_iron_sigma) = match model.held_soft_iron {
-        Some(soft_iron) => (soft_iron, None),
-        None => {
+    let earth = match earth_ned {
+        Some(earth) => earth,
+        None => Vector3::new(x[base_b], x[base_b + 1], x[base_b + 2]),
+    };
+    let (soft_iron, scale, soft_iron_sigma) = match (model.step, earth_ned.is_some()) {
+        (Step::Offsets, _) => (held, 1.0, None),
+        (Step::Scale, _) => (held, x[0], Some(sigma_of(0))),
+        (Step::Iron, true) => (
+            Matrix3::new(x[0], x[3], x[4], x[3], x[1], x[5], x[4], x[5], x[2]),
+            1.0,
+            Some((0..6).map(sigma_of).fold(0.0, f64::max)),
+        ),
+        (Step::Iron, false) => {
             let (a, b, c, d, e) = (x[0], x[1], x[2], x[3], x[4]);
-            let sigma = (0..5).map(sigma_of).fold(0.0, f64::max);
             (
                 Matrix3::new(a, c, d, c, b, e, d, e, 3.0 - a - b),
-                Some(sigma),
+                1.0,
+                Some((0..5).map(sigma_of).fold(0.0, f64::max)),
             )
         }
     };
     let (motor_per_a, motor_sigma) = if model.motor {
         (
-            Vector3::new(x[n_m], x[n_m + 1], x[n_m + 2]),
-            Vector3::new(sigma_of(n_m), sigma_of(n_m + 1), sigma_of(n_m + 2)),
+            Vector3::new(x[base_motor], x[base_motor + 1], x[base_motor + 2]),
+            Vector3::from_fn(|axis, _| sigma_of(base_motor + axis)),
         )
     } else {
         (Vector3::zeros(), Vector3::zeros())
     };
-    let inverse = soft_iron.try_inverse()?;
+    // u = s·M·offsets (s = 1 but for the scale step).
+    let inverse = (soft_iron * scale).try_inverse()?;
     let offsets = inverse * u;
     let u_covariance = covariance.fixed_view::<3, 3>(base_u, base_u).into_owned();
     let offsets_covariance = inverse * u_covariance * inverse.transpose();
     let offsets_sigma = offsets_covariance.diagonal().map(|v| v.max(0.0).sqrt());
     let fit = AidedFit {
+        model,
         offsets,
         soft_iron,
-        earth_ned,
+        scale,
+        motor_per_a,
+        earth_ned: earth,
         offsets_sigma,
         soft_iron_sigma,
-        motor_per_a,
         motor_sigma,
         n_samples: samples.len(),
     };
-    fit.offsets
+    let finite = fit
+        .offsets
         .iter()
         .chain(fit.soft_iron.iter())
         .chain(fit.motor_per_a.iter())
-        .all(|v| v.is_finite())
-        .then_some(fit)
-}
-
-/// How well a corrected field agrees with one Earth field seen through the attitude.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Agreement {
-    /// RMS of the heading error: the corrected field's azimuth in the Earth's frame
-    /// against the mean field's (degrees).
-    pub heading_rms_deg: f64,
-    /// The corrected field's magnitude: its standard deviation over its mean (%).
-    pub spread_pct: f64,
-    pub mean_magnitude: f64,
-    pub n_samples: usize,
-}
-
-/// The agreement of `correct(raw, current_a)` over `samples`; `None` without samples.
-pub fn agreement(
-    samples: &[AidedSample],
-    correct: impl Fn(Vector3<f64>, f64) -> Vector3<f64>,
-) -> Option<Agreement> {
-    if samples.is_empty() {
-        return None;
-    }
-    let corrected: Vec<Vector3<f64>> = samples
-        .iter()
-        .map(|s| correct(s.raw, s.current_a))
-        .collect();
-    let in_ned: Vec<Vector3<f64>> = samples
-        .iter()
-        .zip(&corrected)
-        .map(|(sample, c)| sample.body_to_ned * c)
-        .collect();
-    let n = samples.len() as f64;
-    let mean_ned = in_ned.iter().sum::<Vector3<f64>>() / n;
-    let mean_azimuth = mean_ned.y.atan2(mean_ned.x);
-    let heading_ms = in_ned
-        .iter()
-        .map(|v| wrap_to_pi(v.y.atan2(v.x) - mean_azimuth).powi(2))
-        .sum::<f64>()
-        / n;
-    let magnitudes: Vec<f64> = corrected.iter().map(|c| c.norm()).collect();
-    let mean_magnitude = magnitudes.iter().sum::<f64>() / n;
-    Some(Agreement {
-        heading_rms_deg: heading_ms.sqrt().to_degrees(),
-        spread_pct: crate::stats::spread_pct(magnitudes.iter().copied()).unwrap_or(f64::NAN),
-        mean_magnitude,
-        n_samples: samples.len(),
-    })
+        .chain(fit.earth_ned.iter())
+        .chain(std::iter::once(&fit.scale))
+        .all(|v| v.is_finite());
+    finite.then_some(fit)
 }
 
 #[cfg(test)]
@@ -249,19 +355,22 @@ mod tests {
             .collect()
     }
 
-    #[test]
-    fn a_flight_that_covers_little_of_the_sphere_still_gives_the_offsets() {
-        let earth_ned = Vector3::new(250.0, 40.0, -520.0);
-        let soft_iron = Matrix3::new(1.05, 0.02, -0.01, 0.02, 0.97, 0.03, -0.01, 0.03, 0.98);
-        let offsets = Vector3::new(-97.0, 118.0, 213.0);
+    const EARTH_NED: Vector3<f64> = Vector3::new(250.0, 40.0, -520.0);
+
+    /// Samples of a vehicle whose iron is `soft_iron`, `offsets` and a motor term of
+    /// (2, −1, 3) mG per A, with the current stepping up in flight.
+    fn flight(
+        attitudes: &[Rotation3<f64>],
+        soft_iron: Matrix3<f64>,
+        offsets: Vector3<f64>,
+    ) -> Vec<AidedSample> {
         let inverse = soft_iron.try_inverse().unwrap();
-        let samples: Vec<AidedSample> = attitudes(2000)
-            .into_iter()
+        attitudes
+            .iter()
             .enumerate()
-            .map(|(i, body_to_ned)| {
+            .map(|(i, &body_to_ned)| {
                 let noise = Vector3::new((i as f64 * 1.3).sin(), (i as f64 * 2.1).cos(), 0.5) * 2.0;
-                let corrected = body_to_ned.inverse() * earth_ned;
-                // A motor term of (2, −1, 3) per A, with the current stepping up in flight.
+                let corrected = body_to_ned.inverse() * EARTH_NED;
                 let current_a = if i < 600 {
                     0.5
                 } else {
@@ -275,45 +384,106 @@ mod tests {
                     current_a,
                 }
             })
-            .collect();
-        let model = |held_soft_iron, motor| AidedModel {
-            held_soft_iron,
+            .collect()
+    }
+
+    fn model(step: Step, motor: bool, held_soft_iron: Matrix3<f64>) -> AidedModel {
+        AidedModel {
+            step,
             motor,
-        };
-        let full = fit_aided(&samples, model(None, true)).unwrap();
-        assert!((full.offsets - offsets).amax() < 6.0, "{:?}", full.offsets);
-        let only = fit_aided(&samples, model(Some(soft_iron), true)).unwrap();
-        assert!((only.offsets - offsets).amax() < 2.0, "{:?}", only.offsets);
-        assert!((only.motor_per_a - Vector3::new(2.0, -1.0, 3.0)).amax() < 0.1);
+            held_soft_iron,
+        }
+    }
+
+    #[test]
+    fn a_flight_that_covers_little_of_the_sphere_still_gives_each_step_s_parameters() {
+        let soft_iron = Matrix3::new(1.05, 0.02, -0.01, 0.02, 0.97, 0.03, -0.01, 0.03, 0.98);
+        let offsets = Vector3::new(-97.0, 118.0, 213.0);
+        let samples = flight(&attitudes(2000), soft_iron, offsets);
+        let earth = Some(EARTH_NED);
+        let iron = fit_aided(
+            &samples,
+            model(Step::Iron, true, Matrix3::identity()),
+            earth,
+        )
+        .unwrap();
+        assert!((iron.offsets - offsets).amax() < 3.0, "{:?}", iron.offsets);
+        assert!(
+            (iron.soft_iron - soft_iron).amax() < 0.01,
+            "{}",
+            iron.soft_iron
+        );
+        let only = fit_aided(&samples, model(Step::Offsets, true, soft_iron), earth).unwrap();
+        assert!((only.offsets - offsets).amax() < 1.0, "{:?}", only.offsets);
+        assert!((only.motor_per_a - Vector3::new(2.0, -1.0, 3.0)).amax() < 0.05);
         assert!(only.offsets_sigma.amax() < 1.0);
-        let good = agreement(&samples, |raw, current| only.apply(raw, current)).unwrap();
-        let raw = agreement(&samples, |raw, _| raw).unwrap();
-        assert!(good.heading_rms_deg < 1.0 && raw.heading_rms_deg > 10.0);
-        assert!(good.spread_pct < raw.spread_pct);
-        // Without the motor term the same flight is fitted worse.
-        let no_motor = fit_aided(&samples, model(Some(soft_iron), false)).unwrap();
-        let worse = agreement(&samples, |raw, current| no_motor.apply(raw, current)).unwrap();
-        assert!(worse.heading_rms_deg > 2.0 * good.heading_rms_deg);
+        // The iron in force off by a scale of 4 %: the scale step finds it.
+        let scaled =
+            fit_aided(&samples, model(Step::Scale, true, soft_iron / 1.04), earth).unwrap();
+        assert!((scaled.scale - 1.04).abs() < 0.003, "{}", scaled.scale);
+        assert!(
+            (scaled.offsets - offsets).amax() < 2.0,
+            "{:?}",
+            scaled.offsets
+        );
+        // Without the model's field, the field is fitted with the offsets.
+        let free = fit_aided(&samples, model(Step::Offsets, true, soft_iron), None).unwrap();
+        assert!((free.offsets - offsets).amax() < 2.0, "{:?}", free.offsets);
+        assert!(
+            (free.earth_ned - EARTH_NED).amax() < 3.0,
+            "{:?}",
+            free.earth_ned
+        );
+        assert!(fit_aided(&samples, model(Step::Scale, false, soft_iron), None).is_none());
+    }
+
+    #[test]
+    fn one_heading_gives_the_offsets_against_a_known_field_and_nothing_without_one() {
+        // ±5° of yaw, ±3° of tilt: the flight the issue's written parameters went wrong on.
+        let attitudes: Vec<Rotation3<f64>> = (0..500)
+            .map(|i| {
+                let t = i as f64 * 0.1;
+                Rotation3::from_euler_angles(
+                    0.05 * (0.9 * t).sin(),
+                    0.05 * (0.7 * t).cos(),
+                    1.2 + 0.09 * (0.2 * t).sin(),
+                )
+            })
+            .collect();
+        let offsets = Vector3::new(40.0, -150.0, 90.0);
+        let samples = flight(&attitudes, Matrix3::identity(), offsets);
+        let held = Matrix3::identity();
+        let known =
+            fit_aided(&samples, model(Step::Offsets, false, held), Some(EARTH_NED)).unwrap();
+        assert!(
+            (known.offsets - offsets).amax() < 3.0,
+            "{:?}",
+            known.offsets
+        );
+        // The current never changes here: its term cannot be told from the offsets.
+        assert!(fit_aided(&samples, model(Step::Offsets, true, held), Some(EARTH_NED)).is_none());
+        // Against a fitted field the offsets are all but undetermined: their 1σ grows
+        // many times (the assessment does not even try it on one heading: the white
+        // noise of a formal 1σ is not what errs there, the reference's own error is).
+        let free = fit_aided(&samples, model(Step::Offsets, false, held), None).unwrap();
+        eprintln!("{:?} {:?}", free.offsets_sigma, known.offsets_sigma);
+        assert!(free.offsets_sigma.amax() > 10.0 * known.offsets_sigma.amax());
     }
 
     #[test]
     fn too_few_or_degenerate_samples_give_no_fit() {
-        let free = AidedModel {
-            held_soft_iron: None,
-            motor: false,
-        };
-        assert!(fit_aided(&[], free).is_none());
+        let free = model(Step::Iron, false, Matrix3::identity());
+        assert!(fit_aided(&[], free, Some(EARTH_NED)).is_none());
         let still = AidedSample {
             t_s: 0.0,
             raw: Vector3::new(100.0, 0.0, 400.0),
             body_to_ned: Rotation3::identity(),
             current_a: 0.0,
         };
-        // One attitude only: the offsets and the Earth's field cannot be told apart.
-        let model = AidedModel {
-            held_soft_iron: Some(Matrix3::identity()),
-            motor: false,
-        };
-        assert!(fit_aided(&vec![still; 100], model).is_none());
+        // One attitude only: the offsets and the Earth's field cannot be told apart, nor
+        // the iron from the offsets against a known field.
+        let offsets = model(Step::Offsets, false, Matrix3::identity());
+        assert!(fit_aided(&vec![still; 100], offsets, None).is_none());
+        assert!(fit_aided(&vec![still; 100], free, Some(EARTH_NED)).is_none());
     }
 }

@@ -594,9 +594,6 @@ fn calibrate_levelled(
         mag_frame,
         autopilot,
     } = report;
-    let autopilot_calibration = autopilot
-        .as_ref()
-        .and_then(|log| autopilot::autopilot_calibration(log, &recording.attitude));
     let Levelled {
         gravity,
         samples,
@@ -619,6 +616,10 @@ fn calibrate_levelled(
         (options, declination),
         &mut notes,
     )?;
+    let autopilot_calibration = autopilot.as_ref().and_then(|log| {
+        let truth = autopilot::Truth::of(prepared.expected.as_ref(), &prepared.declination);
+        autopilot::autopilot_calibration(log, &recording.attitude, &truth)
+    });
     let mut outputs = MethodOutputs {
         plane_correction: None,
         field_corrected_ut: None,

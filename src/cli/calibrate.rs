@@ -41,8 +41,9 @@ pub(super) fn run_calibrate(
         pipeline::headings(&report, &heading_options).map_err(|error| error.to_string())?;
     let report = &analysis.report;
     print_import_diagnostics(&report.file_name, &report.diagnostics);
-    // The other commands go on uncalibrated; this one has nothing to give.
-    if let Some(reasons) = report.why_no_method_fitted() {
+    // The other commands go on uncalibrated; this one has nothing to give, but for an
+    // autopilot log's compasses, which are assessed on their own.
+    if let (Some(reasons), None) = (report.why_no_method_fitted(), &report.autopilot) {
         return Err(format!(
             "{}: no calibration could be fitted. {reasons}{}",
             report.file_name,
@@ -99,7 +100,7 @@ pub(super) fn run_calibrate(
         let Some(autopilot) = report
             .autopilot
             .as_ref()
-            .filter(|a| !a.compasses.is_empty())
+            .filter(|a| a.written().next().is_some())
         else {
             return Err(format!(
                 "--param-out {}: no autopilot parameters to write for {}: {}",
@@ -108,7 +109,13 @@ pub(super) fn run_calibrate(
                 report.autopilot.as_ref().map_or_else(
                     || "it is not an autopilot log with its compasses' raw fields and attitude"
                         .to_string(),
-                    |autopilot| autopilot.notes.join("; ")
+                    |autopilot| autopilot
+                        .compasses
+                        .iter()
+                        .map(|compass| compass.sentence())
+                        .chain(autopilot.notes.iter().cloned())
+                        .collect::<Vec<_>>()
+                        .join("; ")
                 )
             ));
         };
@@ -281,21 +288,20 @@ pub(super) fn calibration_text(report: &CalibrationReport) -> String {
     text
 }
 
-/// An autopilot log's compasses whose parameters in force could be judged on it, as a
-/// sentence for the refusal: what the vehicle flies with is the answer then.
+/// An autopilot log's compasses whose parameters in force are kept, as a sentence for
+/// the refusal: what the vehicle flies with is the answer then.
 fn kept_parameters(report: &CalibrationReport) -> String {
-    let Some(autopilot) = report.autopilot.as_ref().filter(|a| !a.kept.is_empty()) else {
+    let Some(autopilot) = report.autopilot.as_ref() else {
         return String::new();
     };
-    let judged: Vec<String> = autopilot
-        .kept
+    let kept: Vec<String> = autopilot
+        .compasses
         .iter()
-        .map(|compass| format!("{}: {}", compass.label(), compass.judged()))
+        .filter(|compass| !compass.is_written())
+        .map(|compass| compass.sentence())
         .collect();
-    format!(
-        " The {} parameters in force give: {}; keep them ({}).",
-        autopilot.autopilot,
-        judged.join("; "),
-        autopilot.notes.join("; ")
-    )
+    if kept.is_empty() {
+        return String::new();
+    }
+    format!(" {}.", kept.join("; "))
 }

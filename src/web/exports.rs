@@ -93,7 +93,7 @@ pub fn enable(document: &Document, results: Option<&Rc<Results>>, recording: Opt
                 .report
                 .autopilot
                 .as_ref()
-                .is_some_and(|autopilot| !autopilot.compasses.is_empty()),
+                .is_some_and(|autopilot| autopilot.written().next().is_some()),
             Export::CorrectedCsv | Export::HtmlReport => true,
         });
         button.set_disabled(!available);
@@ -107,9 +107,21 @@ pub fn enable(document: &Document, results: Option<&Rc<Results>>, recording: Opt
                 ),
                 Ok(_) => None,
             },
-            (Some(_), Export::AutopilotParams) => Some(
-                "Only for an autopilot log (ArduPilot .bin or .log, PX4 .ulg) with its compasses and attitude."
-                    .to_string(),
+            (Some(results), Export::AutopilotParams) => Some(
+                match results.calibration.report.autopilot.as_ref() {
+                    // The same sentences as the summary's figures and the CLI's.
+                    Some(autopilot) => format!(
+                        "Nothing to write: {}.",
+                        autopilot
+                            .compasses
+                            .iter()
+                            .map(|compass| compass.sentence())
+                            .collect::<Vec<_>>()
+                            .join("; ")
+                    ),
+                    None => "Only for an autopilot log (ArduPilot .bin or .log, PX4 .ulg) with its compasses and attitude."
+                        .to_string(),
+                },
             ),
             (Some(_), Export::AttitudeCsv) => Some(
                 attitude_missing

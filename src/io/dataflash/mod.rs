@@ -383,6 +383,9 @@ fn finish(
              which used the compass calibration in force"
                 .to_string(),
         );
+        if let Some(note) = board_attitude(&mut recording.attitude, &autopilot) {
+            notes.push(note);
+        }
     }
     if n_gps_without_fix > 0 {
         notes.push(format!(
@@ -419,6 +422,43 @@ fn finish(
         mag_frame,
         autopilot: Some(autopilot),
     })
+}
+
+/// Turns `ATT` into the attitude of the autopilot board, whose axes the compasses are
+/// logged in: ArduPilot's AHRS estimates the board's attitude and reports the vehicle's,
+/// the board's turned back by `AHRS_TRIM` (`AP_AHRS`'s
+/// `_rotation_autopilot_body_to_vehicle_body`, from `AHRS_TRIM_X` roll and `AHRS_TRIM_Y`
+/// pitch), so the board's is `R_vehicle · R_trim`. A note says so where the trim is not
+/// zero.
+fn board_attitude(
+    attitude: &mut Stream<crate::recording::Attitude>,
+    autopilot: &AutopilotLog,
+) -> Option<String> {
+    use nalgebra::Rotation3;
+    let trim = |name: &str| autopilot.param(name).filter(|v| v.is_finite() && *v != 0.0);
+    let (trim_x_rad, trim_y_rad) = (trim("AHRS_TRIM_X"), trim("AHRS_TRIM_Y"));
+    if trim_x_rad.is_none() && trim_y_rad.is_none() {
+        return None;
+    }
+    let (trim_x_rad, trim_y_rad) = (trim_x_rad.unwrap_or(0.0), trim_y_rad.unwrap_or(0.0));
+    let vehicle_to_board = Rotation3::from_euler_angles(trim_x_rad, trim_y_rad, 0.0);
+    for value in &mut attitude.values {
+        let yaw_rad = value.yaw_rad.unwrap_or(0.0);
+        let board = Rotation3::from_euler_angles(value.roll_rad, value.pitch_rad, yaw_rad)
+            * vehicle_to_board;
+        let (roll_rad, pitch_rad, board_yaw_rad) = board.euler_angles();
+        value.roll_rad = roll_rad;
+        value.pitch_rad = pitch_rad;
+        if value.yaw_rad.is_some() {
+            value.yaw_rad = Some(board_yaw_rad.rem_euclid(std::f64::consts::TAU));
+        }
+    }
+    Some(format!(
+        "ATT turned by AHRS_TRIM (roll {:.2}°, pitch {:.2}°) into the attitude of the \
+         autopilot board, whose axes the compasses are logged in",
+        trim_x_rad.to_degrees(),
+        trim_y_rad.to_degrees()
+    ))
 }
 
 #[cfg(test)]
