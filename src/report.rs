@@ -136,7 +136,7 @@ pub fn autopilot_calibration_lines(autopilot: &AutopilotCalibration) -> Vec<Stri
         }
     )];
     for compass in &autopilot.compasses {
-        lines.push(compass.sentence());
+        lines.push(compass.sentence.clone());
         if compass.candidates.is_empty() {
             continue;
         }

@@ -598,10 +598,10 @@ fn autopilot_verdict(
         .map(|compass| Figure {
             label: compass.label(),
             value: compass
-                .sentence()
+                .sentence
                 .strip_prefix(&format!("{}: ", compass.label()))
                 .map(str::to_string)
-                .unwrap_or_else(|| compass.sentence()),
+                .unwrap_or_else(|| compass.sentence.clone()),
         })
         .collect();
     let written: Vec<String> = autopilot.written().map(CompassResult::label).collect();

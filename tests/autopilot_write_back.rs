@@ -228,3 +228,105 @@ fn what_is_written_is_never_worse_than_in_force_nor_outside_the_autopilot_s_boun
         failures.join("\n")
     );
 }
+
+/// `compass-pdr calibrate LOG --param-out FILE --json`, the console of `calibrate LOG`,
+/// the file and the page's answer (the verdict's figures) say the same of every compass
+/// of a flight where one compass is written and the other kept: the one sentence, and
+/// the written lines exactly where the JSON says the compass is written.
+#[test]
+fn the_file_the_console_the_json_and_the_page_agree_on_each_compass() {
+    use compass_pdr::heading::HeadingOptions;
+    use std::process::Command;
+    let mut rng = Rng::stream(7, "agreement");
+    // The first full-turn flight with one compass written and one kept.
+    let (flight, analysis, headings) = (0..40)
+        .find_map(|_| {
+            let (model_ned_mg, gps) = place(&mut rng);
+            let flight = flights::flight(&mut rng, Coverage::FullTurns, model_ned_mg, gps);
+            let report = compass_pdr::io::import::import("flight.bin", &flight.log).ok()?;
+            let (analysis, headings) =
+                compass_pdr::pipeline::headings(&report, &HeadingOptions::default()).ok()?;
+            let autopilot = analysis.report.autopilot.as_ref()?;
+            (autopilot.written().count() == 1).then_some((flight, analysis, headings))
+        })
+        .expect("a flight with one compass written and one kept");
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("autopilot-agreement");
+    std::fs::create_dir_all(&dir).unwrap();
+    let (log_path, param_path) = (dir.join("flight.bin"), dir.join("flight.param"));
+    std::fs::write(&log_path, &flight.log).unwrap();
+    let run = |args: &[&str]| {
+        let output = Command::new(env!("CARGO_BIN_EXE_compass-pdr"))
+            .args(args)
+            .output()
+            .expect("the CLI runs");
+        assert!(
+            output.status.success(),
+            "{}",
+            String::from_utf8_lossy(&output.stderr)
+        );
+        String::from_utf8(output.stdout).unwrap()
+    };
+    let (log_arg, param_arg) = (log_path.to_str().unwrap(), param_path.to_str().unwrap());
+    let json: serde_json::Value = serde_json::from_str(&run(&[
+        "calibrate",
+        log_arg,
+        "--param-out",
+        param_arg,
+        "--json",
+    ]))
+    .unwrap();
+    let console = run(&["calibrate", log_arg]);
+    let file = std::fs::read_to_string(&param_path).unwrap();
+    let file_params = read_param_file(&file);
+    let verdict = compass_pdr::verdict::verdict(&analysis, &headings.report, None);
+    let compasses = json["autopilot"]["compasses"].as_array().unwrap();
+    assert_eq!(compasses.len(), 2);
+    for compass in compasses {
+        let sentence = compass["sentence"].as_str().unwrap();
+        let label = sentence.split(": ").next().unwrap();
+        assert!(console.contains(sentence), "console: {sentence}");
+        assert!(
+            file.lines().any(|line| line == format!("# {sentence}")),
+            "file: {sentence}"
+        );
+        let figure = verdict
+            .figures
+            .iter()
+            .find(|figure| figure.label == label)
+            .unwrap_or_else(|| panic!("page: no figure for {label}"));
+        assert_eq!(
+            format!("{}: {}", figure.label, figure.value),
+            sentence,
+            "page"
+        );
+        let params = compass["params"].as_array().unwrap();
+        let instance = compass["instance"].as_u64().unwrap();
+        let suffix = if instance == 0 {
+            "_".to_string()
+        } else {
+            format!("{}_", instance + 1)
+        };
+        let in_file: Vec<&(String, f64)> = file_params
+            .iter()
+            .filter(|(name, _)| {
+                ["OFS", "DIA", "ODI", "MOT"]
+                    .iter()
+                    .any(|base| name.starts_with(&format!("COMPASS_{base}{suffix}")))
+            })
+            .collect();
+        match compass["kept_because"].as_str() {
+            None => {
+                assert_eq!(in_file.len(), params.len(), "{sentence}");
+                for (pair, (name, value)) in params.iter().zip(&in_file) {
+                    assert_eq!(pair[0].as_str().unwrap(), name);
+                    let json_value = pair[1].as_f64().unwrap();
+                    assert!((json_value - value).abs() <= 1e-6 * json_value.abs().max(1.0));
+                }
+            }
+            Some(reason) => {
+                assert!(params.is_empty() && in_file.is_empty(), "{sentence}");
+                assert!(sentence.contains(reason));
+            }
+        }
+    }
+}

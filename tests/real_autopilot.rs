@@ -171,7 +171,7 @@ fn log171_s_param_file_writes_only_what_beats_the_parameters_in_force() {
                 "kept"
             }
         );
-        let sentence = compass.sentence();
+        let sentence = compass.sentence.clone();
         assert!(console.contains(&sentence), "{sentence}");
         assert!(calibration
             .param_file
@@ -289,19 +289,19 @@ fn px4_logs_keep_their_parameters_where_the_flight_cannot_judge_them() {
             calibration
                 .compasses
                 .iter()
-                .any(|compass| compass.sentence().contains(why)),
+                .any(|compass| compass.sentence.clone().contains(why)),
             "{path}: {:?}",
             calibration
                 .compasses
                 .iter()
-                .map(|c| c.sentence())
+                .map(|c| c.sentence.clone())
                 .collect::<Vec<_>>()
         );
         for compass in &calibration.compasses {
             assert!(
-                compass.sentence().contains("Record a flight"),
+                compass.sentence.clone().contains("Record a flight"),
                 "{}",
-                compass.sentence()
+                compass.sentence.clone()
             );
         }
     }

@@ -112,7 +112,7 @@ pub(super) fn run_calibrate(
                     |autopilot| autopilot
                         .compasses
                         .iter()
-                        .map(|compass| compass.sentence())
+                        .map(|compass| compass.sentence.clone())
                         .chain(autopilot.notes.iter().cloned())
                         .collect::<Vec<_>>()
                         .join("; ")
@@ -298,7 +298,7 @@ fn kept_parameters(report: &CalibrationReport) -> String {
         .compasses
         .iter()
         .filter(|compass| !compass.is_written())
-        .map(|compass| compass.sentence())
+        .map(|compass| compass.sentence.clone())
         .collect();
     if kept.is_empty() {
         return String::new();

@@ -115,7 +115,7 @@ pub fn enable(document: &Document, results: Option<&Rc<Results>>, recording: Opt
                         autopilot
                             .compasses
                             .iter()
-                            .map(|compass| compass.sentence())
+                            .map(|compass| compass.sentence.clone())
                             .collect::<Vec<_>>()
                             .join("; ")
                     ),

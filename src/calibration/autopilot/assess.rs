@@ -329,6 +329,7 @@ fn unassessed(compass: &CompassLog, n_samples: usize) -> CompassResult {
         whole: none,
         kept_because: None,
         params: Vec::new(),
+        sentence: String::new(),
         offsets_sigma: None,
         soft_iron_sigma: None,
         motor_sigma: None,

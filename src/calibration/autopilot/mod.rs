@@ -86,6 +86,9 @@ pub struct CompassResult {
     pub kept_because: Option<String>,
     /// The lines written for this compass (empty where kept).
     pub params: Vec<(String, f64)>,
+    /// What is written for this compass or why nothing is, with the figures, in one
+    /// sentence: the console, the parameter file, the JSON and the page all say it.
+    pub sentence: String,
     /// Formal 1σ of the new offsets (mG), of the iron's entries or scale, and of the
     /// motor term (mG/A), where fitted.
     pub offsets_sigma: Option<[f64; 3]>,
@@ -108,8 +111,8 @@ impl CompassResult {
     }
 
     /// One sentence: what is written for this compass or why nothing is, with the
-    /// figures; the console, the parameter file, the JSON and the page all say it.
-    pub fn sentence(&self) -> String {
+    /// figures: [`CompassResult::sentence`], once the assessment is done.
+    fn compose_sentence(&self) -> String {
         let label = self.label();
         let check = |figures: &Figures| match (figures.new, figures.in_force) {
             (Some(new), Some(in_force)) => format!(
@@ -266,6 +269,10 @@ pub fn autopilot_calibration(
     let compasses: Vec<CompassResult> = assessed
         .into_iter()
         .filter_map(|compass| assess::assess(compass, log, attitude, truth))
+        .map(|mut result| {
+            result.sentence = result.compose_sentence();
+            result
+        })
         .collect();
     if compasses.is_empty() {
         return None;
@@ -327,7 +334,12 @@ fn parameter_file(calibration: &AutopilotCalibration, log: &AutopilotLog) -> Str
          the parameters in force"
             .to_string(),
     ];
-    header.extend(calibration.compasses.iter().map(CompassResult::sentence));
+    header.extend(
+        calibration
+            .compasses
+            .iter()
+            .map(|compass| compass.sentence.clone()),
+    );
     let mut params = Vec::new();
     let by_current_in_force = log.param("COMPASS_MOTCT") == Some(MOTOR_BY_CURRENT);
     if calibration

@@ -81,7 +81,7 @@ fn stale_offsets_are_replaced_and_the_file_says_what_the_console_says() {
     let (log, attitude) = log(1500, 6.3, hard, [-hard.x + 150.0, -hard.y, -hard.z]);
     let calibration = autopilot_calibration(&log, &attitude, &model_truth()).unwrap();
     let compass = &calibration.compasses[0];
-    assert!(compass.is_written(), "{}", compass.sentence());
+    assert!(compass.is_written(), "{}", compass.sentence.clone());
     assert!(compass.turned_deg[1] > 8.0, "{:?}", compass.turned_deg);
     let written = parse_param_file(&calibration.param_file);
     let offsets: Vec<f64> = ["X", "Y", "Z"]
@@ -95,7 +95,7 @@ fn stale_offsets_are_replaced_and_the_file_says_what_the_console_says() {
     assert!(calibration
         .param_file
         .lines()
-        .any(|line| line == format!("# {}", compass.sentence())));
+        .any(|line| line == format!("# {}", compass.sentence.clone())));
     let (check, whole) = (compass.check, compass.whole);
     assert!(check.new.unwrap().vector_rms_mg < 0.2 * check.in_force.unwrap().vector_rms_mg);
     assert!(whole.new.unwrap().heading_rms_deg.unwrap() < 1.0);
@@ -109,9 +109,12 @@ fn a_good_calibration_in_force_is_kept_and_nothing_is_written() {
     let (log, attitude) = log(1500, 6.3, hard, [-hard.x + 1.0, -hard.y, -hard.z]);
     let calibration = autopilot_calibration(&log, &attitude, &model_truth()).unwrap();
     let compass = &calibration.compasses[0];
-    assert!(!compass.is_written(), "{}", compass.sentence());
+    assert!(!compass.is_written(), "{}", compass.sentence.clone());
     assert!(compass.params.is_empty() && calibration.param_file.is_empty());
-    assert!(compass.sentence().contains("parameters in force kept"));
+    assert!(compass
+        .sentence
+        .clone()
+        .contains("parameters in force kept"));
 }
 
 #[test]
@@ -126,7 +129,7 @@ fn one_heading_tries_the_offsets_only_and_without_a_model_field_nothing() {
         .map(|c| c.model.as_str())
         .collect();
     assert_eq!(models, ["offsets"], "{:?}", compass.turned_deg);
-    assert!(compass.is_written(), "{}", compass.sentence());
+    assert!(compass.is_written(), "{}", compass.sentence.clone());
     // No position for the model's field: the offsets cannot be told from the field.
     let fitted = Truth {
         earth: EarthField::Fitted,
@@ -136,9 +139,9 @@ fn one_heading_tries_the_offsets_only_and_without_a_model_field_nothing() {
     let compass = &calibration.compasses[0];
     assert!(compass.candidates.is_empty() && !compass.is_written());
     assert!(
-        compass.sentence().contains("turn in the body"),
+        compass.sentence.clone().contains("turn in the body"),
         "{}",
-        compass.sentence()
+        compass.sentence.clone()
     );
 }
 
@@ -152,10 +155,46 @@ fn an_iron_outside_the_autopilot_s_bounds_is_never_held_nor_written() {
     }
     let calibration = autopilot_calibration(&log, &attitude, &model_truth()).unwrap();
     let compass = &calibration.compasses[0];
-    assert!(compass.is_written(), "{}", compass.sentence());
+    assert!(compass.is_written(), "{}", compass.sentence.clone());
     let written = parse_param_file(&calibration.param_file);
     for axis in ["X", "Y", "Z"] {
         let diagonal = param_in(&written, &format!("COMPASS_DIA_{axis}")).unwrap();
         assert!((0.8..1.2).contains(&diagonal), "{diagonal}");
     }
+}
+
+#[test]
+fn a_px4_compass_is_written_as_qgroundcontrol_params_with_the_same_sentence() {
+    let hard = Vector3::new(120.0, -80.0, 40.0);
+    let (mut log, attitude) = log(1500, 6.3, hard, [0.0; 3]);
+    log.autopilot = Autopilot::Px4;
+    log.compasses[0].px4_slot = Some((1, nalgebra::Matrix3::identity()));
+    log.compasses[0].source = "sensor_mag 1".to_string();
+    // In force: the offsets 150 mG off along x, in PX4's sign and gauss.
+    log.params = vec![
+        ("CAL_MAG1_XOFF".to_string(), (hard.x + 150.0) / 1000.0),
+        ("CAL_MAG1_YOFF".to_string(), hard.y / 1000.0),
+        ("CAL_MAG1_ZOFF".to_string(), hard.z / 1000.0),
+    ];
+    let calibration = autopilot_calibration(&log, &attitude, &model_truth()).unwrap();
+    let compass = &calibration.compasses[0];
+    assert!(compass.is_written(), "{}", compass.sentence);
+    assert!(compass
+        .sentence
+        .starts_with("CAL_MAG1 (sensor_mag 1): written"));
+    assert!(calibration
+        .param_file
+        .lines()
+        .any(|line| line == format!("# {}", compass.sentence)));
+    // QGroundControl's lines, read back: the offsets within 3 mG of the truth.
+    assert!(calibration.param_file.contains("1\t1\tCAL_MAG1_XOFF\t"));
+    let written = parse_param_file(&calibration.param_file);
+    for (axis, truth_mg) in ["X", "Y", "Z"].iter().zip(hard.iter()) {
+        let offset_ga = param_in(&written, &format!("CAL_MAG1_{axis}OFF")).unwrap();
+        assert!(
+            (offset_ga * 1000.0 - truth_mg).abs() < 3.0,
+            "{axis}: {offset_ga}"
+        );
+    }
+    assert_eq!(written.len(), compass.params.len());
 }
