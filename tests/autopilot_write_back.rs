@@ -8,6 +8,8 @@
 //! The file is applied as its own text says, by this test's own reading of ArduPilot's
 //! correction. The distributions are printed; `SEED=n` draws other flights.
 
+#![cfg(not(target_arch = "wasm32"))]
+
 mod flights;
 mod physics;
 
