@@ -77,7 +77,12 @@ fn the_text_log_gives_its_streams_and_nan_parameters() {
     let report = common::import_paths(&[data.join("ardupilot-text-log/nan.log")]);
     assert_eq!(report.format, compass_pdr::io::dataflash::TEXT);
     let recording = &report.recording;
-    assert_eq!(recording.mag_in_body_ut.len(), 141);
+    // 141 MAG messages, 51 of them (0, 0, 0): the compass read nothing then.
+    assert_eq!(recording.mag_in_body_ut.len(), 90);
+    assert!(report
+        .notes
+        .iter()
+        .any(|note| note.starts_with("MAG: 51 readings of exactly (0, 0, 0) left out")));
     assert_eq!(recording.acc_in_body_mps2.len(), 705);
     assert_eq!(recording.attitude.len(), 141);
     assert_eq!(recording.gnss.len(), 73);

@@ -261,6 +261,8 @@ pub struct MagTrack {
     pub offsets_mg: Vec<Vector3<f64>>,
     /// The motor compensation added to it (mG), where the message logs it.
     pub motor_mg: Vec<Vector3<f64>>,
+    /// Readings of exactly (0, 0, 0), left out.
+    pub n_zero_readings: usize,
 }
 
 /// What the messages of a log gave, before the end of the log.
@@ -442,6 +444,12 @@ impl Collector {
             }
         };
         let zero = Vector3::zeros();
+        // ArduPilot logs a field of exactly zero while the compass reads nothing: no
+        // measurement (the Earth's field is never zero), left out and counted.
+        if field == zero {
+            track.n_zero_readings += 1;
+            return false;
+        }
         track.t_s.push(t_s);
         track.field_mg.push(field);
         if let Some(columns) = offsets {

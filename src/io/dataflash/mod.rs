@@ -322,6 +322,19 @@ fn finish(
         });
     }
     mags.sort_by_key(|track| track.instance);
+    let zero_notes: Vec<String> = mags
+        .iter()
+        .filter(|track| track.n_zero_readings > 0)
+        .map(|track| {
+            format!(
+                "{}: {} {} of exactly (0, 0, 0) left out: ArduPilot logs zeros while the \
+                 compass reads nothing",
+                track.source,
+                thousands(track.n_zero_readings),
+                crate::english::plural(track.n_zero_readings, "reading", "readings")
+            )
+        })
+        .collect();
     let mut autopilot = AutopilotLog {
         autopilot: Autopilot::ArduPilot,
         firmware,
@@ -333,6 +346,7 @@ fn finish(
     };
     let n_main_out_of_order = set_compasses(&mut autopilot, &mags);
     let mut notes = log_notes(summary, &counts, &autopilot);
+    notes.extend(zero_notes);
     let chosen = autopilot
         .main_compass
         .and_then(|idx| autopilot.compasses.get(idx));

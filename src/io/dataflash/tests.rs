@@ -176,6 +176,7 @@ fn a_text_log_reads_like_the_binary_one() {
         PARM, COMPASS_OFS_X, -86.91773\n\
         PARM, COMPASS_MOT_X, NaN\n\
         MAG, 95980, -424, 68, 62, -86, 10, 139, 0, 0, 0\n\
+        MAG, 96080, 0, 0, 0, -86, 10, 139, 0, 0, 0\n\
         ATT, 95891, 0.00, -0.25, 0.00, 0.26, 189.54, 189.54\n\
         XYZ, 1, 2\n";
     assert!(looks_like_text(&text.lines().collect::<Vec<_>>()));
@@ -187,9 +188,15 @@ fn a_text_log_reads_like_the_binary_one() {
     // Only OFS_X is a PARM here, so the logged offsets are used.
     let raw = report.recording.mag_in_body_ut.values[0] / UT_PER_MG;
     assert!((raw - Vector3::new(-424.0 + 86.0, 68.0 - 10.0, 62.0 - 139.0)).amax() < 1e-3);
+    // A reading of exactly (0, 0, 0) is the compass reading nothing: left out, noted.
+    assert_eq!(report.recording.mag_in_body_ut.len(), 1);
+    assert!(report
+        .notes
+        .iter()
+        .any(|note| note.starts_with("MAG: 1 reading of exactly (0, 0, 0) left out")));
     let yaw = report.recording.attitude.values[0].yaw_rad.unwrap();
     assert!((yaw.to_degrees() - 189.54).abs() < 1e-9);
-    assert_eq!(report.diagnostics.kept[0].line, Some(10));
+    assert_eq!(report.diagnostics.kept[0].line, Some(11));
 }
 
 #[test]
