@@ -21,25 +21,39 @@
 //! field against the World Magnetic Model's. [`LiveQuality::verdict`] says whether the
 //! calibration is good enough to send, or why not.
 //!
+//! Before anything is sent, [`send_check`] applies the project's rule for every
+//! write-back: the samples are split into train and check blocks, and the fit (and a
+//! fit of the train blocks alone) must leave |B| varying clearly less on the check
+//! samples than the calibration in force (the one the board confirmed, else the one
+//! sent last, else the raw readings), and lie inside a device's acceptance bounds.
+//! [`LiveQuality::send`] is the decision with its reasons.
+//!
 //! [`LiveSession::packet_for_device`] makes MotionCal's 68-byte calibration packet
-//! ([`motioncal_packet`]) and remembers what was sent; the `Cal1:`/`Cal2:` lines the
-//! device echoes afterwards confirm it (or say which value differs).
+//! ([`crate::calib::export::motioncal_packet`]) when the decision allows it, and
+//! remembers what was sent; the `Cal1:`/`Cal2:` lines the device echoes afterwards
+//! confirm it (or say which value differs). A saved calibration
+//! ([`LiveSession::packet_for`]) goes through the same check on the session's samples.
+//! Both live in `live/sending.rs`.
 //!
 //! No clock here: the page passes each chunk's arrival time.
 
 mod attitude;
+pub mod send_check;
+mod sending;
 
 use nalgebra::Vector3;
 use serde::Serialize;
 
 use crate::calib::ellipsoid::{EllipsoidAccumulator, EllipsoidError, EllipsoidModel};
-use crate::calib::export::{motioncal_packet, SensorCalibration, MOTIONCAL_PACKET_LEN};
+use crate::calib::export::SensorCalibration;
 use crate::calib::model::FieldCalibration;
 use crate::calib::sphere_coverage::{sphere_coverage, SphereCoverage};
 use crate::calib::tilt::Tilt;
 use crate::io::lines::LineDecoder;
-use crate::io::serial_lines::{sensor_to_body, EchoKind, EchoSeen, LineFormat, SerialReader};
+use crate::io::serial_lines::{sensor_to_body, LineFormat, SerialReader};
 use crate::io::{nmea, Diagnostics, MagUnit, SensorFrame};
+pub use send_check::{HeldBack, InForce, InForceSource, SendDecision};
+pub use sending::Confirmation;
 
 /// Lines longer than this are cut and reported (no sensor line is near it).
 const MAX_LINE_BYTES: usize = 4096;
@@ -64,11 +78,6 @@ pub const GOOD_MAX_SPREAD_PCT: f64 = 3.0;
 /// magnetic is near.
 pub const GOOD_MAX_FIELD_DIFFERENCE_PCT: f64 = 15.0;
 
-/// An echoed value matches the one sent within this (the sketch prints `Cal1:` with 3
-/// decimals and `Cal2:` with 4; float32 adds a few 10⁻⁶ relative).
-const ECHO_ABS_TOLERANCE: f64 = 6e-4;
-const ECHO_REL_TOLERANCE: f64 = 1e-5;
-
 /// A live calibration session: everything received, what it was read as, and the fit.
 #[derive(Debug, Clone)]
 pub struct LiveSession {
@@ -85,16 +94,15 @@ pub struct LiveSession {
     first_lines: Vec<String>,
     expected_field_ut: Option<f64>,
     quality: Option<LiveQuality>,
-    sent: Option<Sent>,
+    sent: Option<sending::Sent>,
+    /// The last calibration the board confirmed before the one in `sent` went out.
+    confirmed_before: Option<FieldCalibration>,
+    /// `sent` and `confirmed_before` before the last packet, for a write that failed.
+    before_send: Option<(Option<sending::Sent>, Option<FieldCalibration>)>,
+    /// The samples split into train and check blocks, for the held-back check.
+    split: send_check::Split,
     /// The attitude filter, from the first fit on, for a stream with a gyroscope.
     attitude: Option<attitude::LiveAttitude>,
-}
-
-#[derive(Debug, Clone, Copy)]
-struct Sent {
-    calibration: FieldCalibration,
-    /// Echoes seen before the packet went out (those cannot confirm it).
-    n_echoes_before: usize,
 }
 
 /// How the latest fit looks, and whether it is good enough.
@@ -114,6 +122,11 @@ pub struct LiveQuality {
     /// `(fitted − expected) / expected`, percent.
     pub field_difference_pct: Option<f64>,
     pub verdict: Verdict,
+    /// The fit against the calibration in force on the held-back samples.
+    pub held_back: HeldBack,
+    /// Whether it may be sent: good enough, better than the calibration in force on the
+    /// held-back samples, inside the bounds.
+    pub send: SendDecision,
 }
 
 impl LiveQuality {
@@ -132,20 +145,6 @@ impl LiveQuality {
 pub struct Verdict {
     pub good_enough: bool,
     pub reasons: Vec<String>,
-}
-
-/// What became of a calibration sent to the device.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-#[serde(tag = "state", rename_all = "snake_case")]
-pub enum Confirmation {
-    /// Nothing sent yet.
-    NotSent,
-    /// Sent; no `Cal1:` and `Cal2:` echo yet.
-    Waiting,
-    /// The device echoed back the values sent.
-    Confirmed { line: usize },
-    /// The device echoed other values: the first that differs.
-    Differs { line: usize, what: String },
 }
 
 /// Counts for the page: what came in and what it was read as.
@@ -184,6 +183,9 @@ impl LiveSession {
             expected_field_ut: None,
             quality: None,
             sent: None,
+            confirmed_before: None,
+            before_send: None,
+            split: send_check::Split::new(),
             attitude: None,
         }
     }
@@ -201,6 +203,14 @@ impl LiveSession {
             reader.read_line(line.number, &line.text, Some(arrival_t_s));
         });
         self.take_new_samples();
+        // An echo may have confirmed what was sent: the calibration in force changed.
+        if self
+            .quality
+            .as_ref()
+            .is_some_and(|quality| quality.held_back.in_force != self.in_force())
+        {
+            self.reassess();
+        }
     }
 
     /// The port closed: a last line without its ending is read as it is, the reading
@@ -310,7 +320,14 @@ impl LiveSession {
             .accumulator
             .solve(EllipsoidModel::Auto, None)
             .map_err(|error| describe_fit_error(&error))?;
-        let quality = self.measure(fit.calibration, fit.model, n_samples);
+        // The train blocks alone, with the full fit's model, for the held-back check.
+        let train = self
+            .split
+            .train()
+            .solve(fit.model, None)
+            .map(|train| train.calibration)
+            .map_err(|error| error.to_string());
+        let quality = self.measure(fit.calibration, fit.model, n_samples, train);
         let recording = self.reader.recording();
         match &mut self.attitude {
             Some(attitude) => attitude.recalibrate(recording, &quality.calibration),
@@ -324,47 +341,6 @@ impl LiveSession {
         self.quality.as_ref()
     }
 
-    /// MotionCal's calibration packet for the latest fit, remembered as sent so that the
-    /// device's echoes can confirm it; `None` before the first fit.
-    pub fn packet_for_device(&mut self) -> Option<[u8; MOTIONCAL_PACKET_LEN]> {
-        let calibration = self.quality.as_ref()?.calibration;
-        Some(self.packet_for(calibration))
-    }
-
-    /// MotionCal's packet for any calibration (a saved one), remembered as sent.
-    pub fn packet_for(&mut self, calibration: FieldCalibration) -> [u8; MOTIONCAL_PACKET_LEN] {
-        self.sent = Some(Sent {
-            calibration,
-            n_echoes_before: self.reader.echoes().len(),
-        });
-        motioncal_packet(&calibration)
-    }
-
-    /// Whether the device echoed back what was sent: the first `Cal1:` and the first
-    /// `Cal2:` after the packet went out are compared with it.
-    pub fn confirmation(&self) -> Confirmation {
-        let Some(sent) = &self.sent else {
-            return Confirmation::NotSent;
-        };
-        let echoes = self
-            .reader
-            .echoes()
-            .get(sent.n_echoes_before..)
-            .unwrap_or_default();
-        let first = |kind: EchoKind| echoes.iter().find(|seen| seen.echo.kind == kind);
-        let (Some(cal1), Some(cal2)) = (first(EchoKind::Cal1), first(EchoKind::Cal2)) else {
-            return Confirmation::Waiting;
-        };
-        let last_line = cal1.line.max(cal2.line);
-        match echo_difference(&sent.calibration, cal1, cal2) {
-            None => Confirmation::Confirmed { line: last_line },
-            Some(what) => Confirmation::Differs {
-                line: last_line,
-                what,
-            },
-        }
-    }
-
     /// Adds the reader's new magnetometer samples to the fit and the kept samples.
     fn take_new_samples(&mut self) {
         let mag_in_body = &self.reader.recording().mag_in_body_ut.values;
@@ -372,6 +348,7 @@ impl LiveSession {
         for &v_in_body in new {
             let v_in_sensor = sensor_to_body(v_in_body);
             self.accumulator.add(v_in_sensor);
+            self.split.add(v_in_sensor);
             if self.n_mag_used.is_multiple_of(self.kept_stride) {
                 self.kept_ut.push(v_in_sensor);
                 if self.kept_ut.len() >= MAX_KEPT_SAMPLES {
@@ -397,7 +374,39 @@ impl LiveSession {
         calibration: FieldCalibration,
         model: EllipsoidModel,
         n_samples: usize,
+        train: Result<FieldCalibration, String>,
     ) -> LiveQuality {
+        let measured = self.measure_only(&calibration);
+        let held_back = HeldBack::assess(
+            &self.split,
+            &calibration,
+            Some(train),
+            self.in_force(),
+            self.expected_field_ut,
+        );
+        let send = SendDecision::of(
+            &measured.verdict,
+            &held_back,
+            &calibration,
+            self.expected_field_ut,
+        );
+        LiveQuality {
+            calibration,
+            model,
+            n_samples,
+            residual_rms_ut: measured.residual_rms_ut,
+            field_spread_pct: measured.field_spread_pct,
+            coverage: measured.coverage,
+            expected_field_ut: self.expected_field_ut,
+            field_difference_pct: measured.field_difference_pct,
+            verdict: measured.verdict,
+            held_back,
+            send,
+        }
+    }
+
+    /// A calibration on the kept samples, judged by the live verdict.
+    fn measure_only(&self, calibration: &FieldCalibration) -> Measured {
         let magnitudes: Vec<f64> = self
             .kept_ut
             .iter()
@@ -422,24 +431,29 @@ impl LiveSession {
             .expected_field_ut
             .map(|expected_ut| 100.0 * (calibration.field_ut - expected_ut) / expected_ut);
         let verdict = field_verdict(
-            n_samples,
+            self.accumulator.n_samples(),
             &coverage,
             field_spread_pct,
             self.expected_field_ut,
             calibration.field_ut,
         );
-        LiveQuality {
-            calibration,
-            model,
-            n_samples,
+        Measured {
             residual_rms_ut,
             field_spread_pct,
             coverage,
-            expected_field_ut: self.expected_field_ut,
             field_difference_pct,
             verdict,
         }
     }
+}
+
+/// A calibration's figures on the kept samples (see [`LiveQuality`]).
+struct Measured {
+    residual_rms_ut: f64,
+    field_spread_pct: f64,
+    coverage: SphereCoverage,
+    field_difference_pct: Option<f64>,
+    verdict: Verdict,
 }
 
 const NMEA_LABEL: &str = "NMEA 0183 sentences (headings and fixes, no magnetometer vector to \
@@ -496,56 +510,6 @@ fn describe_fit_error(error: &EllipsoidError) -> String {
     format!("No fit yet: {error}")
 }
 
-/// The first echoed value that differs from the calibration sent, named for the user;
-/// `None` when all match.
-fn echo_difference(sent: &FieldCalibration, cal1: &EchoSeen, cal2: &EchoSeen) -> Option<String> {
-    let close = |echoed: f64, sent: f64| {
-        (echoed - sent).abs() <= ECHO_ABS_TOLERANCE + ECHO_REL_TOLERANCE * sent.abs()
-    };
-    let Some(hard_iron_ut) = cal1.echo.mag_hard_iron_in_sensor_ut else {
-        return Some(format!("line {}: Cal1 has no hard iron", cal1.line));
-    };
-    for (axis, (echoed, expected)) in ["x", "y", "z"]
-        .iter()
-        .zip(hard_iron_ut.iter().zip(sent.hard_iron_ut.iter()))
-    {
-        if !close(*echoed, *expected) {
-            return Some(format!(
-                "line {}: hard iron {axis} is {echoed:.3} µT, {expected:.3} µT was sent",
-                cal1.line
-            ));
-        }
-    }
-    match cal1.echo.mag_field_ut {
-        Some(field_ut) if close(field_ut, sent.field_ut) => {}
-        other => {
-            return Some(format!(
-                "line {}: field strength is {}, {:.3} µT was sent",
-                cal1.line,
-                other.map_or("missing".to_string(), |ut| format!("{ut:.3} µT")),
-                sent.field_ut
-            ))
-        }
-    }
-    let Some(soft_iron) = cal2.echo.mag_soft_iron else {
-        return Some(format!("line {}: Cal2 has no soft-iron matrix", cal2.line));
-    };
-    // The packet carries the symmetric part; the device echoes the full matrix.
-    let sent_symmetric = (sent.soft_iron + sent.soft_iron.transpose()) * 0.5;
-    for row in 0..3 {
-        for column in 0..3 {
-            let (echoed, expected) = (soft_iron[(row, column)], sent_symmetric[(row, column)]);
-            if !close(echoed, expected) {
-                return Some(format!(
-                    "line {}: soft iron [{row}][{column}] is {echoed:.4}, {expected:.4} was sent",
-                    cal2.line
-                ));
-            }
-        }
-    }
-    None
-}
-
 /// A fitted session of a board turned through `share` of the sphere from its top (a
 /// Fibonacci spiral of `n_samples` MotionCal `Raw:` lines, hard iron (100, −50, 300)
 /// counts), for the plots' tests.
@@ -570,292 +534,4 @@ pub(crate) fn turned_session(n_samples: usize, share: f64) -> (LiveSession, Live
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::calib::export::parse_motioncal_packet;
-    use crate::sim::rng::SplitMix64;
-    use nalgebra::Matrix3;
-
-    /// A distorted sensor (sensor axes, µT) and MotionCal `Raw:` lines of it turned
-    /// over the whole sphere.
-    struct Board {
-        hard_iron_ut: Vector3<f64>,
-        distortion: Matrix3<f64>,
-        field_ut: f64,
-    }
-
-    impl Board {
-        fn new() -> Self {
-            Board {
-                hard_iron_ut: Vector3::new(12.0, -7.5, 30.0),
-                distortion: Matrix3::new(1.08, 0.03, -0.02, 0.03, 0.95, 0.01, -0.02, 0.01, 1.02),
-                field_ut: 48.0,
-            }
-        }
-
-        /// Line `idx` of a sweep: directions spread over the sphere (a spiral), with
-        /// 0.2 µT of noise, as MotionCal counts (0.1 µT) and gravity along z.
-        fn raw_line(&self, idx: usize, n: usize, rng: &mut SplitMix64) -> String {
-            let z = 1.0 - 2.0 * (idx as f64 + 0.5) / n as f64;
-            let azimuth = idx as f64 * 2.399_963;
-            let r = (1.0 - z * z).sqrt();
-            let true_ut = self.field_ut * Vector3::new(r * azimuth.cos(), r * azimuth.sin(), z);
-            let noise = Vector3::new(rng.gaussian(), rng.gaussian(), rng.gaussian()) * 0.2;
-            let measured = self.distortion * true_ut + self.hard_iron_ut + noise;
-            format!(
-                "Raw:0,0,8192,0,0,0,{},{},{}\r\n",
-                (measured.x * 10.0).round(),
-                (measured.y * 10.0).round(),
-                (measured.z * 10.0).round()
-            )
-        }
-    }
-
-    fn streamed(board: &Board, n: usize, chunk_len: usize) -> (LiveSession, Vec<u8>) {
-        let mut rng = SplitMix64::new(3);
-        let text: String = (0..n).map(|idx| board.raw_line(idx, n, &mut rng)).collect();
-        let bytes = text.into_bytes();
-        let mut session = LiveSession::new();
-        for (chunk_idx, chunk) in bytes.chunks(chunk_len).enumerate() {
-            session.feed(chunk, chunk_idx as f64 * 0.01);
-        }
-        (session, bytes)
-    }
-
-    #[test]
-    fn a_sweep_streamed_in_odd_chunks_is_kept_whole_and_calibrates_the_board() {
-        let board = Board::new();
-        let (mut session, bytes) = streamed(&board, 3000, 37);
-        assert_eq!(session.raw(), bytes.as_slice());
-        let counts = session.counts();
-        assert_eq!(counts.n_lines, 3000);
-        // The last reading waits for the next line (a `Uni:` line may replace it).
-        assert_eq!(counts.n_mag_samples, 2999);
-        assert_eq!(counts.n_skipped_lines, 0);
-        assert_eq!(counts.format, Some("MotionCal Raw: counts"));
-        session.set_expected_field(Some(48.0));
-        let quality = session
-            .refit()
-            .expect("3000 samples over the sphere fit")
-            .clone();
-        let calibration = quality.calibration;
-        assert!(
-            (calibration.hard_iron_ut - board.hard_iron_ut).norm() < 0.2,
-            "{:?}",
-            calibration.hard_iron_ut
-        );
-        // The correction undoes the distortion up to the field's scale.
-        let undone =
-            calibration.soft_iron * board.distortion * (board.field_ut / calibration.field_ut);
-        assert!((undone - Matrix3::identity()).amax() < 0.01, "{undone}");
-        assert!(
-            quality.field_spread_pct < 1.0,
-            "{}",
-            quality.field_spread_pct
-        );
-        assert!(
-            quality.coverage.gap_pct < 1.0,
-            "{}",
-            quality.coverage.gap_pct
-        );
-        assert!(quality.verdict.good_enough, "{:?}", quality.verdict);
-        // Exported as fitted: the board's axes as printed, µT.
-        let exported = quality.sensor_calibration();
-        assert_eq!(exported.hard_iron, calibration.hard_iron_ut);
-        assert_eq!(exported.frame.unit, MagUnit::MICROTESLA);
-        assert_eq!(
-            exported.frame.axes,
-            crate::io::frame::SENSOR_AXES_AS_PRINTED
-        );
-        // The fitted field is the distorted ellipsoid's mean radius: within a few
-        // percent of the true 48 µT (the distortion's determinant is 1.047).
-        let difference_pct = quality
-            .field_difference_pct
-            .expect("an expected field was given");
-        assert!(difference_pct.abs() < 3.0, "{difference_pct}");
-    }
-
-    #[test]
-    fn half_a_sphere_is_not_good_enough_and_says_where_to_turn() {
-        let board = Board::new();
-        let mut rng = SplitMix64::new(4);
-        let mut session = LiveSession::new();
-        // Only the upper half of the sweep's directions (z > 0).
-        let text: String = (0..1500)
-            .map(|idx| board.raw_line(idx, 3000, &mut rng))
-            .collect();
-        session.feed(text.as_bytes(), 0.0);
-        let verdict = match session.refit() {
-            Ok(quality) => quality.verdict.clone(),
-            Err(message) => panic!("{message}"),
-        };
-        assert!(!verdict.good_enough);
-        assert!(
-            verdict
-                .reasons
-                .iter()
-                .any(|reason| reason.contains("sphere of directions")),
-            "{verdict:?}"
-        );
-    }
-
-    #[test]
-    fn too_few_samples_say_how_many_are_needed() {
-        let board = Board::new();
-        let (mut session, _) = streamed(&board, 20, 64);
-        let message = session.refit().expect_err("20 samples are too few");
-        assert!(message.contains("needs 50"), "{message}");
-    }
-
-    #[test]
-    fn bad_lines_are_counted_and_listed_not_lost() {
-        let mut session = LiveSession::new();
-        session.feed(b"hello\nRaw:1,2,3\nRaw:0,0,8192,0,0,0,100,2", 0.0);
-        session.feed(b"00,300\nRaw:0,0,8192,0,0,0,1,2,3\n", 0.1);
-        let counts = session.counts();
-        assert_eq!(counts.n_lines, 4);
-        assert_eq!(counts.n_mag_samples, 1);
-        assert_eq!(counts.n_skipped_lines, 2);
-        let lines: Vec<Option<usize>> = session.diagnostics().kept.iter().map(|d| d.line).collect();
-        assert_eq!(lines, vec![Some(1), Some(2)]);
-        let latest = session.latest_mag_ut().expect("one reading");
-        assert!(
-            (latest - Vector3::new(10.0, 20.0, 30.0)).norm() < 1e-9,
-            "{latest}"
-        );
-    }
-
-    #[test]
-    fn the_packet_is_motioncal_s_and_the_echo_confirms_it() {
-        let board = Board::new();
-        let (mut session, _) = streamed(&board, 2000, 512);
-        assert_eq!(session.confirmation(), Confirmation::NotSent);
-        session.refit().expect("fits");
-        let packet = session.packet_for_device().expect("a fit was made");
-        assert_eq!(packet.len(), 68);
-        let sent = parse_motioncal_packet(&packet).expect("our own packet reads back");
-        assert_eq!(session.confirmation(), Confirmation::Waiting);
-        // The device echoes the float32 values it stored, as the Adafruit sketch prints.
-        let h = sent.hard_iron_ut;
-        let s = sent.soft_iron;
-        let cal1 = format!(
-            "Cal1:0.000,0.000,0.000,0.000,0.000,0.000,{:.3},{:.3},{:.3},{:.3}\n",
-            h.x, h.y, h.z, sent.field_ut
-        );
-        let cal2 = format!(
-            "Cal2:{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4}\n",
-            s[(0, 0)],
-            s[(0, 1)],
-            s[(0, 2)],
-            s[(1, 0)],
-            s[(1, 1)],
-            s[(1, 2)],
-            s[(2, 0)],
-            s[(2, 1)],
-            s[(2, 2)]
-        );
-        session.feed(cal1.as_bytes(), 30.0);
-        assert_eq!(session.confirmation(), Confirmation::Waiting);
-        session.feed(cal2.as_bytes(), 30.1);
-        assert_eq!(
-            session.confirmation(),
-            Confirmation::Confirmed { line: 2002 }
-        );
-        // An echo of another calibration is named.
-        session.packet_for_device();
-        session.feed(b"Cal1:0,0,0,0,0,0,1.000,2.000,3.000,50.000\n", 31.0);
-        session.feed(cal2.as_bytes(), 31.1);
-        match session.confirmation() {
-            Confirmation::Differs { what, .. } => assert!(what.contains("hard iron x"), "{what}"),
-            other => panic!("{other:?}"),
-        }
-    }
-
-    #[test]
-    fn a_line_cut_by_an_unplug_does_not_join_the_next_port_s_first_line() {
-        let mut session = LiveSession::new();
-        let (first_port, second_port): (&[u8], &[u8]) = (
-            b"Raw:0,0,8192,0,0,0,100,200,300\nRaw:0,0,81",
-            b"Raw:0,0,8192,0,0,0,1,2,3\nRaw:0,0,8192,0,0,0,4,5,6\n",
-        );
-        session.feed(first_port, 0.0);
-        session.port_closed();
-        session.feed(second_port, 1.0);
-        let counts = session.counts();
-        assert_eq!(counts.n_lines, 4);
-        assert_eq!(counts.n_skipped_lines, 1);
-        assert_eq!(
-            counts.n_mag_samples, 2,
-            "the last reading waits for the next line"
-        );
-        assert_eq!(
-            session.diagnostics().kept.first().and_then(|d| d.line),
-            Some(2)
-        );
-        session.port_closed();
-        assert_eq!(
-            session.counts().n_mag_samples,
-            3,
-            "a closed port's last reading is taken"
-        );
-        assert_eq!(session.raw(), [first_port, second_port].concat().as_slice());
-    }
-
-    #[test]
-    fn an_nmea_stream_is_named_and_recorded() {
-        let mut session = LiveSession::new();
-        let lines = "$HCHDG,98.3,0.0,E,12.6,W*57\r\n$HCHDG,99.1,0.0,E,12.6,W*54\r\n$HCHDG,100.0,0.0,E,12.6,W*64\r\n";
-        session.feed(lines.as_bytes(), 0.0);
-        let counts = session.counts();
-        assert_eq!(counts.n_lines, 3);
-        assert!(
-            counts
-                .format
-                .is_some_and(|format| format.starts_with("NMEA 0183")),
-            "{counts:?}"
-        );
-        assert_eq!(session.raw(), lines.as_bytes());
-    }
-
-    /// Ten minutes at 1,000 lines/s, in the chunks a port delivers every 10 ms: every
-    /// line counted, memory for the fit bounded, refits as cheap as at the start.
-    #[test]
-    fn ten_minutes_at_a_thousand_lines_a_second_stay_bounded() {
-        let board = Board::new();
-        let mut rng = SplitMix64::new(9);
-        let mut session = LiveSession::new();
-        let n_lines = 600_000;
-        let mut n_bytes = 0;
-        for tick in 0..n_lines / 10 {
-            let chunk: String = (0..10)
-                .map(|k| board.raw_line((tick * 10 + k) % 20_000, 20_000, &mut rng))
-                .collect();
-            n_bytes += chunk.len();
-            session.feed(chunk.as_bytes(), tick as f64 * 0.01);
-            if tick % 50 == 0 {
-                // The page refits every 500 ms.
-                let _ = session.refit();
-            }
-        }
-        let counts = session.counts();
-        assert_eq!(counts.n_lines, n_lines);
-        assert_eq!(counts.n_bytes, n_bytes);
-        assert_eq!(counts.n_mag_samples, n_lines - 1);
-        assert!(session.kept_samples_ut().len() < MAX_KEPT_SAMPLES);
-        let quality = session.refit().expect("fits");
-        assert!(quality.verdict.good_enough, "{:?}", quality.verdict);
-        assert!((quality.calibration.hard_iron_ut - board.hard_iron_ut).norm() < 0.1);
-    }
-
-    #[test]
-    fn thinning_keeps_the_session_evenly() {
-        let board = Board::new();
-        let (session, _) = streamed(&board, 40_000, 4096);
-        let kept = session.kept_samples_ut().len();
-        assert!(
-            (MAX_KEPT_SAMPLES / 2..MAX_KEPT_SAMPLES).contains(&kept),
-            "{kept}"
-        );
-        assert_eq!(session.counts().n_mag_samples, 39_999);
-    }
-}
+mod tests;

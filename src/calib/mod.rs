@@ -7,6 +7,7 @@
 //! the reference-heading least squares of Eq. 8; [`model`] holds what they produce,
 //! [`wmm`] the expected field, [`export`] the formats a device takes.
 
+pub mod acceptance;
 pub mod attitude_aided;
 pub mod ellipsoid;
 pub mod export;

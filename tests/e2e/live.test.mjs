@@ -208,6 +208,14 @@ test('a live session at 1,000 lines/s for 30 s converges, loses no line, and the
     assert.ok(await drawnPixels(page, id) > 5_000, `#${id} is drawn`);
   }
 
+  // Better than the raw readings on the samples held back: it may be sent.
+  await page.waitForSelector('#live[data-sendable="yes"]', { timeout: 5_000 });
+  assert.equal(await page.isDisabled('#live-send'), false);
+  assert.match(await text(page, 'live-verdict'), /better than the calibration in force on the samples held back/);
+  assert.match(await text(page, 'live-fit'),
+    /; held back \(\d+ samples\): \|B\| spread 0\.\d\d %, 0\.\d\d % fitted without them \(in force, raw: \d+\.\d\d %\); \|B\| − WMM RMS/);
+  assert.deepEqual(await page.$$eval('#live-reasons li', (items) => items.map((item) => item.textContent)), []);
+
   // Send: exactly MotionCal's 68 bytes, and the board's echo confirms them.
   await page.click('#live-send');
   await page.waitForSelector('#live[data-confirmation="confirmed"]', { timeout: 10_000 });
@@ -215,6 +223,14 @@ test('a live session at 1,000 lines/s for 30 s converges, loses no line, and the
   assert.deepEqual(Uint8Array.from(written), packetOf(calibration));
   assert.match(await text(page, 'live-confirmation'), /Confirmed: the board echoed the calibration sent/);
   await page.waitForFunction((n) => document.getElementById('live-lines').textContent === String(n), totalLines + 2);
+  // Confirmed, it is the calibration in force: the same fit is not sent again, and the
+  // button says why.
+  await page.waitForSelector('#live[data-sendable="no"]', { timeout: 5_000 });
+  assert.equal(await page.isDisabled('#live-send'), true);
+  assert.match(await page.getAttribute('#live-send', 'title'),
+    /^Not sent, the calibration in force is kept: on the held-back samples the calibration to send leaves \|B\| varying by .* the calibration the board confirmed/);
+  assert.match(await text(page, 'live-verdict'), /^Good enough, but it will not be sent: the calibration in force is kept, because$/);
+  assert.match(await text(page, 'live-fit'), /\(in force, confirmed: 0\.\d\d %\)/);
 
   // The recording is every byte received, in order.
   const { bytes: recording, name } = await download(page, '#live-download');
@@ -223,6 +239,48 @@ test('a live session at 1,000 lines/s for 30 s converges, loses no line, and the
   assert.equal(recording.length, Buffer.byteLength(sentText));
   assert.ok(recording.equals(Buffer.from(sentText)), 'the recording is the bytes sent');
   await page.locator('#live').screenshot({ path: join(out, 'live.png') });
+  await page.click('#live-disconnect');
+  await page.waitForSelector('#live[data-live-state="disconnected"]');
+  assert.deepEqual(problems, []);
+  await close();
+});
+
+test('a session that has not covered the sphere cannot send: the button says why and nothing reaches the board', async () => {
+  // The first half of the sweep: the directions with +z up only.
+  const totalLines = BOARD.sweepLines / 2;
+  const { page, problems, close } = await openPage({
+    initScript: installFakeSerial, initArg: { board: BOARD, linesPerS: 1000, totalLines },
+  });
+  await page.waitForSelector('#live[data-live-state="idle"]');
+  await page.click('#live-connect');
+  await page.waitForFunction(() => window.fakeSerial.finished, null, { timeout: 30_000, polling: 200 });
+  await page.waitForFunction((n) => document.getElementById('live-lines').textContent === String(n), totalLines,
+    { timeout: 5_000 });
+  await page.waitForFunction(() => document.getElementById('live-fit').textContent.startsWith('hard iron'), null,
+    { timeout: 5_000 });
+  assert.equal(await page.getAttribute('#live', 'data-sendable'), 'no');
+  assert.equal(await page.isDisabled('#live-send'), true);
+  const reasons = await page.$$eval('#live-reasons li', (items) => items.map((item) => item.textContent));
+  assert.ok(reasons.some((reason) => /^\d+ % of the sphere of directions is still missing/.test(reason)), reasons.join('\n'));
+  // The button's title says the same sentences as the list.
+  const title = await page.getAttribute('#live-send', 'title');
+  assert.match(title, /^Not sent, the calibration in force is kept: \d+ % of the sphere of directions is still missing/);
+  for (const reason of reasons) assert.ok(title.includes(reason.replace(/\.$/, '')), `${title} lacks ${reason}`);
+
+  // A click that gets through anyway (a race with a redraw): nothing is written, and the
+  // reasons are shown where the board's confirmation would be.
+  await page.evaluate(() => {
+    const button = document.getElementById('live-send');
+    button.disabled = false;
+    button.click();
+  });
+  await page.waitForSelector('#live[data-confirmation="refused"]', { timeout: 5_000 });
+  assert.match(await text(page, 'live-confirmation'),
+    /^Not sent, the calibration in force is kept: \d+ % of the sphere of directions is still missing/);
+  assert.equal(await page.isDisabled('#live-send'), true);
+  await new Promise((resolve) => setTimeout(resolve, 500));
+  assert.deepEqual(await page.evaluate(() => window.fakeSerial.written), [], 'nothing was written to the port');
+  await page.locator('#live').screenshot({ path: join(out, 'live-refused.png') });
   await page.click('#live-disconnect');
   await page.waitForSelector('#live[data-live-state="disconnected"]');
   assert.deepEqual(problems, []);

@@ -191,7 +191,7 @@ impl LivePanel {
                     "live-fit",
                     &format!(
                         "hard iron ({:.2}, {:.2}, {:.2}) µT, field {:.2} µT, residual RMS {:.2} µT, \
-                         |B| spread {:.2} %, gaps {:.1} % ({} of {} regions covered){}",
+                         |B| spread {:.2} %, gaps {:.1} % ({} of {} regions covered){}; {}",
                         cal.hard_iron_ut.x,
                         cal.hard_iron_ut.y,
                         cal.hard_iron_ut.z,
@@ -205,28 +205,48 @@ impl LivePanel {
                             (Some(expected), Some(pct)) =>
                                 format!(", {pct:+.1} % from the WMM's {expected:.1} µT"),
                             _ => ", no WMM comparison (type your latitude and longitude)".to_string(),
-                        }
+                        },
+                        quality.held_back.summary()
                     ),
                 );
-                let verdict = &quality.verdict;
+                let (verdict, send) = (&quality.verdict, &quality.send);
+                let yes_no = |yes: bool| if yes { "yes" } else { "no" };
                 self.section
-                    .set_attribute(
-                        "data-good-enough",
-                        if verdict.good_enough { "yes" } else { "no" },
-                    )
+                    .set_attribute("data-good-enough", yes_no(verdict.good_enough))
+                    .ok();
+                self.section
+                    .set_attribute("data-sendable", yes_no(send.sendable))
                     .ok();
                 self.set_text(
                     "live-verdict",
-                    if verdict.good_enough {
-                        "Good enough: send it to the board, or download it."
-                    } else {
-                        "Not good enough yet:"
+                    match (verdict.good_enough, send.sendable) {
+                        (_, true) => {
+                            "Good enough, and better than the calibration in force on the samples \
+                             held back: send it to the board, or download it."
+                        }
+                        (true, false) => {
+                            "Good enough, but it will not be sent: the calibration in force is \
+                             kept, because"
+                        }
+                        (false, false) => "Not good enough yet:",
                     },
                 );
-                self.fill_list("live-reasons", verdict.reasons.iter().cloned());
+                // The decision's reasons: the verdict's first, then the held-back check's
+                // and the bounds'.
+                self.fill_list("live-reasons", send.reasons.iter().cloned());
+                if send.sendable {
+                    let mut refusal = self.refusal.borrow_mut();
+                    if refusal
+                        .as_ref()
+                        .is_some_and(|refusal| refusal.of_latest_fit)
+                    {
+                        refusal.take();
+                    }
+                }
             }
             None => {
                 self.section.set_attribute("data-good-enough", "no").ok();
+                self.section.set_attribute("data-sendable", "no").ok();
                 let message = self.fit_message.borrow().clone().unwrap_or_else(|| {
                     format!("No fit yet: it needs {MIN_FIT_SAMPLES} magnetometer samples.")
                 });
@@ -263,6 +283,13 @@ impl LivePanel {
     }
 
     fn show_confirmation_of(&self, confirmation: &Confirmation) {
+        if let Some(refusal) = self.refusal.borrow().as_ref() {
+            self.section
+                .set_attribute("data-confirmation", "refused")
+                .ok();
+            self.set_text("live-confirmation", &refusal.text);
+            return;
+        }
         let (state, text) = match confirmation {
             Confirmation::NotSent => ("not-sent", String::new()),
             Confirmation::Waiting => (

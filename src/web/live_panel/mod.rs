@@ -88,6 +88,9 @@ pub struct LivePanel {
     simulation: RefCell<Option<(Ticker, Simulation)>>,
     /// Why the last refit gave no fit, for the status line.
     fit_message: RefCell<Option<String>>,
+    /// Why the last click on a Send button sent nothing, shown until a send goes out
+    /// (or, for the latest fit, until it may be sent).
+    refusal: RefCell<Option<Refusal>>,
     /// The recent calibrations (newest first), as stored.
     recent: RefCell<Vec<RecentCalibration>>,
     import: HtmlInputElement,
@@ -142,6 +145,7 @@ impl LivePanel {
             ticker: RefCell::new(None),
             simulation: RefCell::new(None),
             fit_message: RefCell::new(None),
+            refusal: RefCell::new(None),
             recent: RefCell::new(Vec::new()),
             import: cast(typed("live-import")?, "live-import")?,
             recent_list: element("live-recent")?,
@@ -212,6 +216,7 @@ impl LivePanel {
         }
         *self.session.borrow_mut() = LiveSession::new();
         self.fit_message.borrow_mut().take();
+        self.refusal.borrow_mut().take();
         self.set_text("live-confirmation", "");
         self.refit_and_draw();
         self.set_state("idle", "New session: connect a board.");
@@ -233,12 +238,33 @@ impl LivePanel {
 
     fn update_buttons(&self) {
         let session = self.session.borrow();
-        let has_fit = session.quality().is_some();
+        let quality = session.quality();
+        let has_fit = quality.is_some();
         let reading = self.reading.get();
         let has_port = self.port.borrow().is_some();
         self.connect.set_disabled(reading || serial().is_none());
         self.disconnect.set_disabled(!reading);
-        self.send.set_disabled(!(reading && has_port && has_fit));
+        // Sent only when the core's decision allows it; the title says why not.
+        let why_not = if !(reading && has_port) {
+            Some("Connect the board first: the calibration is sent over its port.".to_string())
+        } else {
+            match quality {
+                None => Some("No calibration yet: keep turning the board.".to_string()),
+                Some(quality) if !quality.send.sendable => {
+                    Some(refusal_text(&quality.send.reasons))
+                }
+                Some(_) => None,
+            }
+        };
+        self.send.set_disabled(why_not.is_some());
+        let title = why_not.unwrap_or_else(|| {
+            "Sends MotionCal's 68-byte calibration packet to the board: better than the \
+             calibration in force on the samples held back."
+                .to_string()
+        });
+        self.send
+            .set_attribute("title", &super::wording::for_page(&title))
+            .ok();
         self.simulate.set_disabled(reading);
         self.download.set_disabled(session.raw().is_empty());
         self.download_calibration.set_disabled(!has_fit);
@@ -258,6 +284,25 @@ impl LivePanel {
         self.section.set_attribute("data-live-state", state).ok();
         self.set_text("live-status", message);
     }
+}
+
+/// A click on a Send button that sent nothing.
+struct Refusal {
+    /// Of the latest fit (forgotten once the fit may be sent), or of a saved calibration.
+    of_latest_fit: bool,
+    text: String,
+}
+
+/// The core's reasons for sending nothing, as one sentence for the page.
+fn refusal_text(reasons: &[String]) -> String {
+    let reasons: Vec<&str> = reasons
+        .iter()
+        .map(|reason| reason.trim().trim_end_matches('.'))
+        .collect();
+    format!(
+        "Not sent, the calibration in force is kept: {}.",
+        reasons.join("; ")
+    )
 }
 
 /// Calls `callback` every `interval_ms` until the returned ticker is cleared; `None`

@@ -9,7 +9,7 @@ use wasm_bindgen::JsCast;
 use wasm_bindgen_futures::JsFuture;
 use web_sys::{ReadableStreamDefaultReader, SerialOptions, SerialPort};
 
-use super::{now_ms, serial, LivePanel};
+use super::{now_ms, refusal_text, serial, LivePanel, Refusal};
 use crate::calib::model::FieldCalibration;
 use crate::web::page::describe_js_error;
 
@@ -130,7 +130,9 @@ impl LivePanel {
     }
 
     /// Sends the latest fit (`saved` `None`) or a saved calibration to the board, and
-    /// keeps the latest fit among the recent calibrations.
+    /// keeps the latest fit among the recent calibrations, when the core's decision
+    /// allows it (good enough, better than the calibration in force on the samples held
+    /// back, inside the bounds); otherwise sends nothing and says why.
     pub(super) async fn send_to_device(self: Rc<Self>, saved: Option<FieldCalibration>) {
         let port = self.port.borrow().clone();
         let Some(port) = port else {
@@ -141,24 +143,37 @@ impl LivePanel {
             return;
         };
         let packet = match saved {
-            Some(calibration) => Some(self.session.borrow_mut().packet_for(calibration)),
+            Some(calibration) => self.session.borrow_mut().packet_for(calibration),
             None => {
                 self.refit_if_behind();
                 let packet = self.session.borrow_mut().packet_for_device();
-                self.keep_latest_fit();
+                if packet.is_ok() {
+                    self.keep_latest_fit();
+                }
                 packet
             }
         };
-        let Some(packet) = packet else {
-            self.set_text(
-                "live-confirmation",
-                "No calibration yet: keep turning the board.",
-            );
-            return;
+        let packet = match packet {
+            Ok(packet) => {
+                self.refusal.borrow_mut().take();
+                packet
+            }
+            Err(reasons) => {
+                *self.refusal.borrow_mut() = Some(Refusal {
+                    of_latest_fit: saved.is_none(),
+                    text: refusal_text(&reasons),
+                });
+                self.show_confirmation();
+                // A click that got through a disabled button (a race with a redraw).
+                self.update_buttons();
+                return;
+            }
         };
         let writer = match port.writable().get_writer() {
             Ok(writer) => writer,
             Err(error) => {
+                // Nothing reached the board: the calibration in force is what it was.
+                self.session.borrow_mut().send_failed();
                 self.set_text(
                     "live-confirmation",
                     &format!(
@@ -174,13 +189,16 @@ impl LivePanel {
         writer.release_lock();
         match written {
             Ok(_) => self.show_confirmation(),
-            Err(error) => self.set_text(
-                "live-confirmation",
-                &format!(
-                    "The calibration could not be sent: {}. Connect again and retry.",
-                    describe_js_error(error)
-                ),
-            ),
+            Err(error) => {
+                self.session.borrow_mut().send_failed();
+                self.set_text(
+                    "live-confirmation",
+                    &format!(
+                        "The calibration could not be sent: {}. Connect again and retry.",
+                        describe_js_error(error)
+                    ),
+                );
+            }
         }
     }
 }
