@@ -95,15 +95,24 @@ pub struct DeviceExport {
 
 /// The device calibration the analysis chose
 /// ([`CalibrationAnalysis::device_calibration`]), turned into the magnetometer's own axes
-/// and unit with the importer's frame (body axes and µT where the import gave none).
+/// and unit with the importer's frame (body axes and µT where the import gave none),
+/// where the rule every write-back follows lets it be written; `None` otherwise
+/// ([`device_export_or_why`] says why).
 pub fn device_export(analysis: &CalibrationAnalysis) -> Option<DeviceExport> {
-    let (method, body_ut) = analysis.device_calibration()?;
+    device_export_or_why(analysis).ok()
+}
+
+/// The device calibration to write back (JSON, C snippet, MotionCal packet) in the
+/// sensor's own axes and unit, or why there is none: the rule every write-back follows,
+/// [`crate::calibration::selection::device_write_back`].
+pub fn device_export_or_why(analysis: &CalibrationAnalysis) -> Result<DeviceExport, String> {
+    let (method, body_ut) = crate::calibration::selection::device_write_back(analysis)?;
     let frame = analysis
         .report
         .mag_frame
         .unwrap_or_else(SensorFrame::body_ut);
     let calibration = SensorCalibration::from_body(&body_ut, &frame);
-    Some(DeviceExport {
+    Ok(DeviceExport {
         method,
         sensor: CalibrationExport::from(&calibration),
         body_ut: CalibrationExport::body_ut(&body_ut),
@@ -218,11 +227,9 @@ pub fn device_calibration_lines(analysis: &CalibrationAnalysis) -> Vec<String> {
 
 /// The 3D calibration in the sensor's own axes and unit.
 fn sensor_calibration_lines(analysis: &CalibrationAnalysis) -> Vec<String> {
-    let Some(export) = device_export(analysis) else {
-        return vec![
-            "No 3D calibration: the ellipse and ellipsoid methods both failed (see the table)."
-                .to_string(),
-        ];
+    let export = match device_export_or_why(analysis) {
+        Ok(export) => export,
+        Err(why) => return vec![format!("No device calibration: {why}.")],
     };
     let calibration = &export.calibration;
     let frame = &calibration.frame;

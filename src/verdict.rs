@@ -145,7 +145,7 @@ pub fn verdict(
         .report
         .autopilot
         .as_ref()
-        .and_then(|autopilot| Some((autopilot, autopilot.compasses.first()?)));
+        .and_then(|autopilot| Some((autopilot, autopilot.compasses.get(autopilot.primary)?)));
     let mut verdict = match (autopilot, &heading.choice.basis) {
         (Some((autopilot, primary)), _) => autopilot_verdict(autopilot, primary, read),
         (
@@ -180,8 +180,18 @@ pub fn verdict(
             )
         });
     }
-    if let Some(warning) = field.worse_warning() {
-        verdict.to_do.insert(0, warning);
+    // What is written back to the device follows one rule: where it refuses, the answer
+    // says why (an autopilot's compasses say it in their own sentences).
+    let refused = match (&analysis.report.autopilot, analysis.device_calibration()) {
+        (None, Some(_)) => crate::calibration::selection::device_write_back(analysis).err(),
+        _ => None,
+    };
+    match (refused, field.worse_warning()) {
+        (Some(why), _) => verdict
+            .to_do
+            .insert(0, format!("Nothing is written to the device: {why}.")),
+        (None, Some(warning)) => verdict.to_do.insert(0, warning),
+        (None, None) => {}
     }
     verdict
 }
@@ -622,6 +632,29 @@ fn autopilot_verdict(
             written.join(", ")
         )
     };
+    // What to record, once, for the compasses the log could not calibrate.
+    let to_record: Vec<String> = autopilot
+        .compasses
+        .iter()
+        .filter(|compass| {
+            compass
+                .kept_because
+                .as_deref()
+                .is_some_and(|why| why.contains("Record a flight"))
+        })
+        .map(CompassResult::label)
+        .collect();
+    let mut to_do = autopilot.notes.clone();
+    if !to_record.is_empty() {
+        to_do.insert(
+            0,
+            format!(
+                "To calibrate {}: record a flight (or a walk with the vehicle in hand) that turns \
+                 through full circles with some tilt, for a minute or more.",
+                to_record.join(" and ")
+            ),
+        );
+    }
     Verdict {
         kind: VerdictKind::Autopilot,
         grade,
@@ -629,7 +662,7 @@ fn autopilot_verdict(
         read,
         method,
         figures,
-        to_do: autopilot.notes.clone(),
+        to_do,
         coverage: None,
         steps: None,
     }

@@ -41,6 +41,15 @@ fn place(rng: &mut Rng) -> (Vector3<f64>, (f64, f64, u16, u32)) {
     let year = 2020 + rng.index(10) as i32;
     let month = 1 + rng.index(12) as u8;
     let day = 1 + rng.index(28) as u8;
+    place_on(lat, lon, (year, month, day))
+}
+
+/// The model's field at a place and date, and the GPS fix that says so.
+fn place_on(
+    lat: f64,
+    lon: f64,
+    (year, month, day): (i32, u8, u8),
+) -> (Vector3<f64>, (f64, f64, u16, u32)) {
     let date = CalendarDate::new(year, month, day).unwrap();
     let field = expected_field(lat, lon, 100.0, date).unwrap();
     let declination = field.declination_deg.to_radians();
@@ -331,4 +340,27 @@ fn the_file_the_console_the_json_and_the_page_agree_on_each_compass() {
             }
         }
     }
+}
+
+/// The golden case `calibrate-flight-trim` (`tests/data/cases.txt`) replays
+/// `tests/data/flight-trim.bin`, a 60 s flight of full turns over Zurich on 2024-06-15
+/// from this generator, with its board 1-2° off the vehicle (`AHRS_TRIM`): the committed
+/// file is what the generator writes (`UPDATE_EXPECT=1` rewrites it).
+#[test]
+fn the_committed_golden_flight_is_what_the_generator_writes() {
+    let mut rng = Rng::stream(44, "golden flight");
+    let (model_ned_mg, gps) = place_on(47.4, 8.5, (2024, 6, 15));
+    let flight =
+        flights::flight_lasting(&mut rng, Coverage::FullTurns, model_ned_mg, gps, Some(60.0));
+    let trim = |name: &str| flight.params.iter().find(|(p, _)| p == name).unwrap().1;
+    assert!(trim("AHRS_TRIM_X").abs().max(trim("AHRS_TRIM_Y").abs()) > 1f64.to_radians());
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/flight-trim.bin");
+    if std::env::var_os("UPDATE_EXPECT").is_some() {
+        std::fs::write(&path, &flight.log).unwrap();
+    }
+    let committed = std::fs::read(&path).expect("tests/data/flight-trim.bin");
+    assert!(
+        committed == flight.log,
+        "tests/data/flight-trim.bin is stale: UPDATE_EXPECT=1 cargo test --test autopilot_write_back"
+    );
 }

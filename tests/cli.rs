@@ -786,24 +786,39 @@ fn the_qmc5883l_file_calibrates_at_50_hz_in_counts_without_warnings() {
     }
 }
 
-/// A drone log with nothing to fit: `calibrate` refuses (nothing new to give) and says
-/// what the parameters in force give on the log, to keep them.
+/// A drone log with nothing to write: `calibrate` reports it (the autopilot's compasses
+/// are assessed on their own, whatever the generic fits say) with each compass's
+/// parameters in force judged against the Earth's field and why they are kept, and
+/// `--param-out` refuses with the same sentences.
 #[test]
-fn a_drone_log_with_nothing_to_fit_is_told_to_keep_its_parameters_in_force() {
+fn a_drone_log_with_nothing_to_write_is_told_to_keep_its_parameters_in_force() {
     let Some(data) = common::shared_data() else {
         return;
     };
     let path = data.join("px4-ulog/sample_log_small.ulg");
     let output = compass_pdr(&["calibrate", path.to_str().unwrap_or_default()]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    let text = String::from_utf8_lossy(&output.stdout).into_owned();
+    let expected = "CAL_MAG1 (vehicle_magnetometer 0): parameters in force kept (";
+    assert!(text.contains(expected), "{expected}\n{text}");
+    assert!(text.contains("too few to judge a calibration on"), "{text}");
+    let param = scratch_dir("drone-nothing").join("sample_log_small.params");
+    let output = compass_pdr(&[
+        "calibrate",
+        path.to_str().unwrap_or_default(),
+        "--param-out",
+        param.to_str().unwrap_or_default(),
+    ]);
     assert_eq!(output.status.code(), Some(1), "{}", stderr(&output));
     let message = stderr(&output);
     for expected in [
-        "no calibration could be fitted",
-        "The PX4 parameters in force give: Compass 1 (vehicle_magnetometer 0): 3.4° from the autopilot's heading",
-        "keep them",
+        "no autopilot parameters to write",
+        expected,
+        "Record a flight",
     ] {
         assert!(message.contains(expected), "{expected}\n{message}");
     }
+    assert!(!param.exists());
 }
 
 /// `compass-pdr ARGS --json`, parsed; the command must succeed.

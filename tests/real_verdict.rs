@@ -193,9 +193,10 @@ fn an_autopilot_log_gets_each_compass_in_force_and_as_written() {
         "{}",
         verdict.headline
     );
-    // The written parameters are no worse than those in force (the fit refuses otherwise).
+    // The written parameters are no worse than those in force against the Earth's field
+    // (they are not written otherwise).
     let (before, after) = verdict.headline.split_once('→').expect("before → after");
-    let before = number(&before[before.rfind("heading").expect("heading")..]);
+    let before = number(&before[before.rfind("vector error").expect("vector error")..]);
     assert!(number(after) <= before, "{}", verdict.headline);
 }
 
@@ -225,24 +226,28 @@ fn every_other_recording_gets_an_answer() {
     }
 }
 
-/// A drone log whose compass could not be fitted is judged by its parameters in force,
-/// not by the raw field (its calibration undone, 43° from the autopilot's heading).
+/// A drone log whose compass could not be judged on it leads with its primary compass's
+/// parameters in force against the Earth's field, not the raw field (its calibration
+/// undone), and says what to record.
 #[test]
-fn an_autopilot_log_with_nothing_to_fit_is_judged_by_its_parameters_in_force() {
+fn an_autopilot_log_with_nothing_to_write_is_judged_by_its_parameters_in_force() {
     let Some(data) = shared_data() else { return };
     let verdict = verdict_of(&[data.join("px4-ulog/sample_log_small.ulg")]);
     assert_eq!(verdict.kind, VerdictKind::Autopilot, "{verdict:?}");
     assert!(
-        verdict.headline.contains("with the parameters in force"),
+        verdict
+            .headline
+            .starts_with("CAL_MAG1 (vehicle_magnetometer 0): parameters in force kept ("),
         "{}",
         verdict.headline
     );
-    assert_ne!(verdict.grade, Grade::Poor, "{}", verdict.headline);
     assert!(
-        verdict
-            .to_do
-            .iter()
-            .any(|line| line.contains("full circles")),
+        verdict.headline.contains("mG vector error"),
+        "{}",
+        verdict.headline
+    );
+    assert!(
+        verdict.to_do[0].starts_with("To calibrate CAL_MAG0 (sensor_mag 0) and CAL_MAG1"),
         "{:?}",
         verdict.to_do
     );

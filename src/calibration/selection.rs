@@ -24,7 +24,9 @@
 
 use serde::Serialize;
 
-use super::{CalibrationReport, Method, MethodParameters, MethodReport};
+use nalgebra::Vector3;
+
+use super::{CalibrationAnalysis, CalibrationReport, Method, MethodParameters, MethodReport};
 use crate::calib::model::FieldCalibration;
 
 /// Without a reference, the 3D fit is trusted when its own heading uncertainty (from
@@ -262,6 +264,79 @@ pub fn device_calibration(report: &CalibrationReport) -> Option<(Method, FieldCa
         })
         .or_else(|| three_d.first())?;
     Some((chosen.method, field_calibration_of(chosen)?))
+}
+
+/// The device calibration to write back (JSON, C snippet, MotionCal packet), in body
+/// axes, or why there is none. The rule every write-back follows: the calibration must be better than
+/// the one in force (for a sensor, its readings as logged) on the part of the log held
+/// back from the fits, and inside what a device accepts ([`crate::calib::acceptance`]).
+/// With a reference heading "better" is the heading error on the check part; without
+/// one, the |B| spread over the log (there is no held-back part then). An autopilot log's write-back is its parameter
+/// file, judged compass by compass ([`crate::calibration::autopilot`]): it gets none here.
+pub fn device_write_back(
+    analysis: &CalibrationAnalysis,
+) -> Result<(Method, FieldCalibration), String> {
+    let report = &analysis.report;
+    if let Some(autopilot) = &report.autopilot {
+        return Err(format!(
+            "an autopilot log's calibration is its {} parameter file (each compass written only \
+             where it beats the parameters in force); no sensor calibration is exported",
+            autopilot.autopilot
+        ));
+    }
+    let (method, body_ut) = analysis.device_calibration().ok_or_else(|| {
+        "the ellipse and ellipsoid methods both failed (see the table)".to_string()
+    })?;
+    let label = method.label();
+    let checked = report
+        .method(method)
+        .and_then(|row| row.heading_error_check)
+        .zip(report.raw_heading_error_check);
+    match checked {
+        Some((new, raw)) if new.rms_deg >= raw.rms_deg => {
+            return Err(format!(
+                "on the check part the {label} gives {:.1}° RMS against {:.1}° uncalibrated: \
+                 it is not better than the readings as they are, so nothing is written to the \
+                 device",
+                new.rms_deg, raw.rms_deg
+            ));
+        }
+        Some(_) => {}
+        None => {
+            let spread = |correct: &dyn Fn(Vector3<f64>) -> Vector3<f64>| {
+                crate::stats::spread_pct(analysis.mag_ut.iter().map(|&m| correct(m).norm()))
+            };
+            if let (Some(new), Some(raw)) = (spread(&|m| body_ut.apply(m)), spread(&|m| m)) {
+                if new >= raw {
+                    return Err(format!(
+                        "the {label} leaves |B| varying by {new:.1} % against {raw:.1} % for the \
+                         readings as they are: nothing better to write to the device"
+                    ));
+                }
+            }
+        }
+    }
+    let frame = report
+        .mag_frame
+        .unwrap_or_else(crate::io::SensorFrame::body_ut);
+    // The field strength is checked where it is in µT (counts of unknown sensitivity
+    // are fitted as they are).
+    let field_in_ut = frame.unit.ut_per_unit.is_some() || frame.is_body_ut();
+    let reasons = if field_in_ut {
+        crate::calib::acceptance::acceptance_reasons(
+            &body_ut,
+            report.expected_field.as_ref().map(|field| field.total_ut),
+        )
+    } else {
+        crate::calib::acceptance::shape_reasons(&body_ut)
+    };
+    if !reasons.is_empty() {
+        return Err(format!(
+            "the {label} is outside what a device accepts: {}",
+            reasons.join("; ")
+        ));
+    }
+    Ok((method, body_ut))
 }
 
 #[cfg(test)]

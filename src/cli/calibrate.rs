@@ -12,7 +12,7 @@ use compass_pdr::calibration::{CalibrationOptions, CalibrationReport, MethodPara
 use compass_pdr::heading::HeadingOptions;
 use compass_pdr::pipeline;
 use compass_pdr::plot::draw_calibration_figure;
-use compass_pdr::report::{device_calibration_lines, device_export, DeviceExport};
+use compass_pdr::report::{device_calibration_lines, device_export_or_why, DeviceExport};
 use compass_pdr::stats::HeadingErrorStats;
 use plotters::prelude::{IntoDrawingArea, SVGBackend};
 
@@ -55,12 +55,12 @@ pub(super) fn run_calibrate(
         draw_calibration_figure(&root, &analysis)
             .map_err(|error| format!("{error} ({})", plot.display()))?;
     }
-    let export = device_export(&analysis);
+    let export = device_export_or_why(&analysis);
     let mut written = Vec::new();
     if outputs.export_c.is_some() || outputs.export_packet.is_some() {
-        let Some(export) = &export else {
-            return Err("no 3D calibration to export: the ellipse and ellipsoid methods both failed (see above)".to_string());
-        };
+        let export = export
+            .as_ref()
+            .map_err(|why| format!("{}: nothing to export: {why}", report.file_name))?;
         let frame = &export.calibration.frame;
         if let Some(path) = outputs.export_c {
             let text = format!(
@@ -130,7 +130,7 @@ pub(super) fn run_calibrate(
     if outputs.json {
         let output = CalibrateOutput {
             report,
-            device_calibration: export.as_ref(),
+            device_calibration: export.as_ref().ok(),
             written: &written,
         };
         return print_report(&output, true, |_| String::new());

@@ -18,7 +18,8 @@ use crate::pdr::export::{track_text, TrackFormat};
 use crate::pipeline;
 use crate::recording::Recording;
 use crate::report::{
-    corrected_csv, device_export, escape_html, html_report, ReportFigure, ReportSection,
+    corrected_csv, device_export, device_export_or_why, escape_html, html_report, ReportFigure,
+    ReportSection,
 };
 
 /// The analysis exports: button id, what it writes.
@@ -81,7 +82,7 @@ pub fn enable(document: &Document, results: Option<&Rc<Results>>, recording: Opt
         };
         let available = results.is_some_and(|results| match export {
             Export::CalibrationJson | Export::CSnippet => {
-                results.calibration.device_calibration().is_some()
+                device_export(&results.calibration).is_some()
             }
             Export::Track(TrackFormat::GeoJson | TrackFormat::Gpx) => {
                 results.pdr.as_ref().is_ok_and(|pdr| pdr.frame.is_some())
@@ -128,12 +129,8 @@ pub fn enable(document: &Document, results: Option<&Rc<Results>>, recording: Opt
                     .clone()
                     .unwrap_or_else(|| "The log this analysis came from is gone.".to_string()),
             ),
-            (Some(results), Export::CalibrationJson | Export::CSnippet)
-                if results.calibration.device_calibration().is_none() =>
-            {
-                Some(
-                    "No 3D calibration: the ellipse and ellipsoid methods both failed.".to_string(),
-                )
+            (Some(results), Export::CalibrationJson | Export::CSnippet) => {
+                device_export_or_why(&results.calibration).err()
             }
             _ => None,
         };
@@ -172,8 +169,7 @@ fn write(page: &Page, results: &Results, export: Export) -> Result<(), String> {
     let stem = file_stem(&results.calibration.report.file_name);
     match export {
         Export::CalibrationJson => {
-            let export =
-                device_export(&results.calibration).ok_or("no 3D calibration to export")?;
+            let export = device_export_or_why(&results.calibration)?;
             let text = calibration_json(&export.sensor)?;
             download_bytes(
                 document,
@@ -183,8 +179,7 @@ fn write(page: &Page, results: &Results, export: Export) -> Result<(), String> {
             );
         }
         Export::CSnippet => {
-            let export =
-                device_export(&results.calibration).ok_or("no 3D calibration to export")?;
+            let export = device_export_or_why(&results.calibration)?;
             download_bytes(
                 document,
                 &format!("{stem}-calibration.h"),

@@ -239,6 +239,18 @@ pub fn flight(
     model_ned_mg: Vector3<f64>,
     gps: (f64, f64, u16, u32),
 ) -> Flight {
+    flight_lasting(rng, coverage, model_ned_mg, gps, None)
+}
+
+/// [`flight`], lasting `duration_s` where given (else 50-90 s on one heading, 90-240 s
+/// otherwise).
+pub fn flight_lasting(
+    rng: &mut Rng,
+    coverage: Coverage,
+    model_ned_mg: Vector3<f64>,
+    gps: (f64, f64, u16, u32),
+    duration_s: Option<f64>,
+) -> Flight {
     // The local field: the model's turned by up to 1.5° and scaled by up to ±2 %.
     let anomaly = Rotation3::new(Vector3::new(
         rng.symmetric(1.5f64.to_radians() / 3f64.sqrt()),
@@ -246,10 +258,11 @@ pub fn flight(
         rng.symmetric(1.5f64.to_radians() / 3f64.sqrt()),
     ));
     let earth_ned_mg = anomaly * model_ned_mg * (1.0 + rng.symmetric(0.02));
-    let duration_s = match coverage {
+    let drawn_s = match coverage {
         Coverage::OneHeading => rng.range(50.0, 90.0),
         _ => rng.range(90.0, 240.0),
     };
+    let duration_s = duration_s.unwrap_or(drawn_s);
     let n = (duration_s * RATE_HZ) as usize;
     let board_to_ned = attitudes(rng, coverage, n);
     let trim = Rotation3::from_euler_angles(

@@ -185,6 +185,9 @@ pub struct AutopilotCalibration {
     pub earth: EarthField,
     /// Every compass assessed, written or kept.
     pub compasses: Vec<CompassResult>,
+    /// The compass the answer leads with: the one whose raw field is the recording's
+    /// magnetometer (the autopilot's primary), else the first.
+    pub primary: usize,
     /// The parameter file to load (Mission Planner, MAVProxy, QGroundControl): the
     /// written compasses' lines, and a comment for each compass saying what was done
     /// and why; empty when nothing is written.
@@ -290,11 +293,20 @@ pub fn autopilot_calibration(
                 .to_string(),
         );
     }
+    let main_source = log
+        .main_compass
+        .and_then(|idx| log.compasses.get(idx))
+        .map(|compass| compass.source.as_str());
+    let primary = compasses
+        .iter()
+        .position(|compass| Some(compass.source.as_str()) == main_source)
+        .unwrap_or(0);
     let calibration = AutopilotCalibration {
         autopilot: log.autopilot.name(),
         param_file: String::new(),
         earth: truth.earth.clone(),
         compasses,
+        primary,
         notes,
     };
     let param_file = parameter_file(&calibration, log);
