@@ -133,9 +133,18 @@ ensure_nightly() {
 }
 
 # -Zlocation-detail=none drops the file and line of each panic location from the threaded
-# module (8.6 kB gzipped on 2026-11-27: 618,028 -> 609,432 bytes, under its 614,400): a
-# panic there is still reported with its message in the status area.
-THREADS_RUSTFLAGS="--cfg=web_sys_unstable_apis -Zlocation-detail=none -C target-feature=+atomics,+bulk-memory,+mutable-globals,+simd128 \
+# module (8.6 kB gzipped on 2026-11-27: 618,028 -> 609,432 bytes, under its 614,400).
+# Measured on 2026-12-05 with nightly 2026-05-19 (the commit of issue 41's write-back
+# rule, 636,098 bytes gzipped with the flags above alone): -Zfmt-debug=none (no Debug
+# formatting: 631,307), -C llvm-args=-inline-threshold=25 (623,133 with both) and
+# -Cpanic=immediate-abort (no panic machinery: 610,287 with all three). The real
+# recordings dropped on the page (bench/redrop.mjs) take the same time within the noise;
+# opt-level "z" would be 570,444 but twice as slow. A panic in this module stops it at
+# once, without the panic hook's message: www/bootstrap.js and the analysis worker
+# report the trap instead.
+THREADS_RUSTFLAGS="--cfg=web_sys_unstable_apis -Zlocation-detail=none -Zfmt-debug=none \
+-C llvm-args=-inline-threshold=25 -Zunstable-options -Cpanic=immediate-abort \
+-C target-feature=+atomics,+bulk-memory,+mutable-globals,+simd128 \
 -C link-arg=--shared-memory -C link-arg=--import-memory -C link-arg=--max-memory=4294967296 \
 -C link-arg=--export=__wasm_init_tls -C link-arg=--export=__tls_size \
 -C link-arg=--export=__tls_align -C link-arg=--export=__tls_base"

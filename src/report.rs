@@ -546,7 +546,7 @@ fn svg_figure(
         drawn.and_then(|()| {
             area.present().map_err(|error| crate::plot::PlotError {
                 plot: "report",
-                reason: format!("{error:?}"),
+                reason: error.to_string(),
             })
         })
     };

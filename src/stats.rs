@@ -25,6 +25,16 @@ pub fn spread_pct(magnitudes: impl Iterator<Item = f64>) -> Option<f64> {
     (mean > 0.0).then(|| 100.0 * variance.sqrt() / mean)
 }
 
+/// The median of `values` (the upper one of an even count; `f64::total_cmp`, NaN
+/// last), reordering them; `None` when empty. One selection compiled for the crate.
+pub fn median(values: &mut [f64]) -> Option<f64> {
+    if values.is_empty() {
+        return None;
+    }
+    let middle = values.len() / 2;
+    Some(*values.select_nth_unstable_by(middle, f64::total_cmp).1)
+}
+
 /// Statistics of a set of heading errors (estimate minus reference), in degrees.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct HeadingErrorStats {

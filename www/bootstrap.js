@@ -30,6 +30,17 @@ async function load() {
   return { wasm: plain, threaded: false };
 }
 
+/** The threaded module stops at once on a panic (a bug), without the panic hook's
+ * message (scripts/setup.sh leaves that machinery out of it): the trap reaches the page
+ * as a WebAssembly.RuntimeError, and is reported here as the hook reports a panic. */
+function showTrap(error) {
+  if (!(error instanceof WebAssembly.RuntimeError)) return;
+  document.body.dataset.state = 'error';
+  status.textContent = `Internal error (a bug in compass-pdr): ${error.message}. Reload the page to continue, and please report it.`;
+}
+window.addEventListener('error', (event) => showTrap(event.error));
+window.addEventListener('unhandledrejection', (event) => showTrap(event.reason));
+
 /** Says in the footer how many threads imports use. */
 function showEngine(threaded, nThreads, nCores) {
   document.body.dataset.threads = String(nThreads);

@@ -23,6 +23,7 @@ use nalgebra::Vector3;
 use serde::Serialize;
 
 use crate::recording::Stream;
+use crate::stats::median;
 
 /// The field's magnitude may differ from the reference by this fraction before it
 /// counts as disturbed: a calibration (the phone's own running one too) leaves a few
@@ -124,14 +125,6 @@ fn magnitudes_and_dips(
 pub fn dip_of(field: Vector3<f64>, down: Vector3<f64>) -> Option<f64> {
     let norm = field.norm() * down.norm();
     (norm > 0.0 && norm.is_finite()).then(|| (field.dot(&down) / norm).clamp(-1.0, 1.0).asin())
-}
-
-fn median(values: &mut [f64]) -> Option<f64> {
-    if values.is_empty() {
-        return None;
-    }
-    let middle = values.len() / 2;
-    Some(*values.select_nth_unstable_by(middle, f64::total_cmp).1)
 }
 
 /// The magnetic gate's state: open (the field is used) once the field has held for

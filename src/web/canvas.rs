@@ -46,9 +46,9 @@ fn draw_with<T>(
     plot: impl FnOnce(&DrawingArea<HiDpi, plotters::coord::Shift>) -> Result<T, PlotError>,
 ) -> Result<T, String> {
     let area = HiDpi::of(canvas)?.into_drawing_area();
-    area.fill(&WHITE).map_err(|error| format!("{error:?}"))?;
+    area.fill(&WHITE).map_err(|error| error.to_string())?;
     let drawn = plot(&area).map_err(|error| error.to_string())?;
-    area.present().map_err(|error| format!("{error:?}"))?;
+    area.present().map_err(|error| error.to_string())?;
     Ok(drawn)
 }
 
@@ -153,7 +153,7 @@ pub fn draw_dial(
 pub fn draw_message(canvas: &HtmlCanvasElement, message: &str) -> Result<(), String> {
     let area = HiDpi::of(canvas)?.into_drawing_area();
     area.fill(&RGBColor(250, 246, 240))
-        .map_err(|error| format!("{error:?}"))?;
+        .map_err(|error| error.to_string())?;
     let (width_px, height_px) = area.dim_in_pixel();
     // About 8 px per character of a 15 px sans-serif font.
     let lines = wrap_words(message, (width_px as usize).saturating_sub(32) / 8);
@@ -166,9 +166,9 @@ pub fn draw_message(canvas: &HtmlCanvasElement, message: &str) -> Result<(), Str
             (16, top_px + line_height_px * line_idx as i32),
             style.clone(),
         ))
-        .map_err(|error| format!("{error:?}"))?;
+        .map_err(|error| error.to_string())?;
     }
-    area.present().map_err(|error| format!("{error:?}"))
+    area.present().map_err(|error| error.to_string())
 }
 
 /// Splits text into lines of at most `max_chars` characters at spaces (a longer word

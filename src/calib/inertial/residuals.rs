@@ -24,12 +24,7 @@ pub(super) fn median_abs(values: &mut [f64]) -> f64 {
     for value in values.iter_mut() {
         *value = value.abs();
     }
-    if values.is_empty() {
-        return 0.0;
-    }
-    let middle = values.len() / 2;
-    let (_, median, _) = values.select_nth_unstable_by(middle, f64::total_cmp);
-    *median
+    crate::stats::median(values).unwrap_or(0.0)
 }
 
 /// The length of each residual's gradient with respect to the measurement, `|Dᵀa|`

@@ -121,11 +121,7 @@ impl Assessment<'_> {
             .iter()
             .map(|s| correct(s.raw, s.current_a).norm())
             .collect();
-        strengths.sort_by(f64::total_cmp);
-        let median_strength_mg = strengths
-            .get(strengths.len() / 2)
-            .copied()
-            .unwrap_or(f64::NAN);
+        let median_strength_mg = crate::stats::median(&mut strengths).unwrap_or(f64::NAN);
         let model = self.truth.earth.model_ned_mg().and_then(|earth| {
             let (horizontal_mg, vertical_mg) =
                 score::median_ned_difference_mg(&self.samples, &earth, correct)?;
@@ -165,11 +161,13 @@ impl Assessment<'_> {
             .map(|d| (d - mean) * (d - mean).transpose())
             .sum::<Matrix3<f64>>()
             / n;
-        let mut variances: Vec<f64> = scatter.symmetric_eigenvalues().iter().copied().collect();
-        variances.sort_by(|a, b| b.total_cmp(a));
+        let variances = scatter.symmetric_eigenvalues();
+        // The largest and the middle one (the three add up to the trace).
+        let (largest, smallest) = (variances.max(), variances.min());
+        let middle = variances.sum() - largest - smallest;
         // Unit vectors: a standard deviation of x along a direction is x radians.
         let turned = |variance: f64| variance.max(0.0).sqrt().to_degrees();
-        (n_regions, [turned(variances[0]), turned(variances[1])])
+        (n_regions, [turned(largest), turned(middle)])
     }
 
     /// The models the flight supports, from the least to the most.
@@ -291,6 +289,13 @@ fn new_params(compass: &CompassLog, log: &AutopilotLog, fit: &AidedFit) -> Vec<(
                 motor_mg_per_a: fit.motor_per_a,
             }
             .params();
+            // Compensation by throttle (COMPASS_MOTCT 1) is not modelled: its COMPASS_MOT
+            // stays as in force (it applies alike before and after).
+            if log.param("COMPASS_MOTCT") == Some(1.0) {
+                params.retain(|(name, _)| {
+                    !name.starts_with(&compass_param("MOT", compass.instance, ""))
+                });
+            }
             // COMPASS_SCALE is folded into M: write 1 where the log had another.
             let scale_name = compass_param("SCALE", compass.instance, "");
             if log.param(&scale_name).is_some_and(|scale| scale != 1.0) {

@@ -208,10 +208,7 @@ pub fn median_ned_difference_mg(
         })
         .filter(|(h, v)| h.is_finite() && v.is_finite())
         .unzip();
-    let median = |values: &mut Vec<f64>| {
-        values.sort_by(f64::total_cmp);
-        values.get(values.len() / 2).copied()
-    };
+    let median = crate::stats::median;
     Some((median(&mut horizontal)?, median(&mut vertical)?))
 }
 

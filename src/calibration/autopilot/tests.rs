@@ -198,3 +198,22 @@ fn a_px4_compass_is_written_as_qgroundcontrol_params_with_the_same_sentence() {
     }
     assert_eq!(written.len(), compass.params.len());
 }
+
+#[test]
+fn compensation_by_throttle_in_force_is_left_as_it_is() {
+    let hard = Vector3::new(120.0, -80.0, 40.0);
+    let (mut log, attitude) = log(1500, 6.3, hard, [-hard.x + 150.0, -hard.y, -hard.z]);
+    log.params.push(("COMPASS_MOTCT".to_string(), 1.0));
+    log.params.push(("COMPASS_MOT_X".to_string(), 0.5));
+    let calibration = autopilot_calibration(&log, &attitude, &model_truth()).unwrap();
+    let compass = &calibration.compasses[0];
+    assert!(compass.is_written(), "{}", compass.sentence);
+    assert!(compass
+        .params
+        .iter()
+        .all(|(name, _)| !name.starts_with("COMPASS_MOT")));
+    let written = parse_param_file(&calibration.param_file);
+    assert!(written
+        .iter()
+        .all(|(name, _)| !name.starts_with("COMPASS_MOT")));
+}

@@ -342,6 +342,5 @@ impl SerialReader {
 
 fn median(mut values: Vec<f64>) -> Option<f64> {
     values.retain(|value| value.is_finite());
-    values.sort_by(f64::total_cmp);
-    values.get(values.len() / 2).copied()
+    crate::stats::median(&mut values)
 }
