@@ -5,11 +5,19 @@ use std::path::{Path, PathBuf};
 
 use nalgebra::{Matrix3, Vector3};
 
-/// `../shared/data`, or `None` with a message saying why the test is skipped.
+/// `../shared/data`, or `None` with a message saying why the test is skipped. Where
+/// `COMPASS_PDR_REQUIRE_SHARED_DATA` is set (CI's `.ci/run` sets it: CI has the
+/// recordings), a missing folder fails the test instead of skipping it.
 pub fn shared_data() -> Option<PathBuf> {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data");
     if dir.is_dir() {
         Some(dir)
+    } else if std::env::var_os("COMPASS_PDR_REQUIRE_SHARED_DATA").is_some() {
+        panic!(
+            "{} not found, and COMPASS_PDR_REQUIRE_SHARED_DATA is set: the replay tests need \
+             the real recordings",
+            dir.display()
+        );
     } else {
         eprintln!(
             "skipped: {} not found (the real recordings live beside the project; CI has them)",
