@@ -23,6 +23,15 @@ pub fn plural<'a>(count: usize, singular: &'a str, plural: &'a str) -> &'a str {
     }
 }
 
+/// "A", "A and B", "A, B and C".
+pub fn list(items: &[String]) -> String {
+    match items {
+        [] => String::new(),
+        [one] => one.clone(),
+        [rest @ .., last] => format!("{} and {last}", rest.join(", ")),
+    }
+}
+
 /// How often something happened: "once", "twice", "3 times".
 pub fn times(count: usize) -> String {
     match count {
@@ -65,5 +74,9 @@ mod tests {
         assert_eq!(duration_text(42.4), "42 s");
         assert_eq!(duration_text(600.0), "10.0 min");
         assert_eq!(duration_text(3.0 * 3600.0), "3.0 h");
+        let names = |names: &[&str]| names.iter().map(|n| n.to_string()).collect::<Vec<_>>();
+        assert_eq!(list(&names(&["A"])), "A");
+        assert_eq!(list(&names(&["A", "B", "C"])), "A, B and C");
+        assert_eq!(list(&[]), "");
     }
 }

@@ -625,11 +625,12 @@ fn autopilot_verdict(
     } else {
         format!(
             "Method: every compass fitted against {} on the log's first half and scored on the \
-             held-back second half; written only where it beats the {} parameters in force there \
-             and the autopilot accepts it ({}), read back from the file before its figures are shown.",
+             held-back second half, and written only where it beats the {} parameters in force \
+             there and the autopilot accepts it: here {}, each read back from the file before its \
+             figures are shown.",
             autopilot.earth.describe(),
             autopilot.autopilot,
-            written.join(", ")
+            crate::english::list(&written)
         )
     };
     // What to record, once, for the compasses the log could not calibrate.

@@ -58,21 +58,18 @@ const REFERENCE_ERROR_SHARE: f64 = 0.05;
 /// it, and only the attitude's wandering (about 1°) is left.
 const FITTED_REFERENCE_ERROR_SHARE: f64 = 0.02;
 
-fn candidate_of(correction: &ArduPilotCompass) -> acceptance::Candidate {
+/// A correction as the autopilot's acceptance checks it: the scale folded into the iron,
+/// as it is written.
+fn candidate_of(
+    offsets_mg: Vector3<f64>,
+    soft_iron: Matrix3<f64>,
+    motor_mg_per_a: Vector3<f64>,
+) -> acceptance::Candidate {
     acceptance::Candidate {
-        offsets_mg: correction.offsets_mg,
-        soft_iron: correction.soft_iron * correction.scale,
+        offsets_mg,
+        soft_iron,
         scale: 1.0,
-        motor_mg_per_a: correction.motor_mg_per_a,
-    }
-}
-
-fn fit_candidate(fit: &AidedFit) -> acceptance::Candidate {
-    acceptance::Candidate {
-        offsets_mg: fit.offsets,
-        soft_iron: fit.soft_iron * fit.scale,
-        scale: 1.0,
-        motor_mg_per_a: fit.motor_per_a,
+        motor_mg_per_a,
     }
 }
 
@@ -204,12 +201,7 @@ impl Assessment<'_> {
         let held_accepted = self
             .limits
             .refusals(
-                &acceptance::Candidate {
-                    offsets_mg: Vector3::zeros(),
-                    soft_iron: held,
-                    scale: 1.0,
-                    motor_mg_per_a: Vector3::zeros(),
-                },
+                &candidate_of(Vector3::zeros(), held, Vector3::zeros()),
                 None,
             )
             .is_empty();
@@ -243,7 +235,10 @@ impl Assessment<'_> {
     /// its parameters (without the pre-arm field checks, which are for the whole log),
     /// and the parameters the flight did not determine.
     fn refusals(&self, fit: &AidedFit) -> Vec<String> {
-        let mut reasons = self.limits.refusals(&fit_candidate(fit), None);
+        let mut reasons = self.limits.refusals(
+            &candidate_of(fit.offsets, fit.soft_iron * fit.scale, fit.motor_per_a),
+            None,
+        );
         reasons.extend(undetermined(fit));
         reasons
     }
@@ -468,9 +463,12 @@ impl Assessment<'_> {
         result.whole.new = self.score(all, all, &read_back_correct);
         let read_back_check = self.score(check, train, &read_back_correct);
         let field = self.field_seen(&read_back_correct);
-        let mut refusals = self
-            .limits
-            .refusals(&candidate_of(&read_back), Some(&field));
+        let written = candidate_of(
+            read_back.offsets_mg,
+            read_back.soft_iron * read_back.scale,
+            read_back.motor_mg_per_a,
+        );
+        let mut refusals = self.limits.refusals(&written, Some(&field));
         refusals.extend(undetermined(fit));
         let in_force_check = result.check.in_force.map(|score| score.vector_rms_mg);
         let beats = |score: Option<Score>| match (score, in_force_check) {
