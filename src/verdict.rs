@@ -592,10 +592,13 @@ fn autopilot_verdict(
         ),
         (None, _, Some(after)) => format!("{label}: new parameters written: {}.", describe(&after)),
         (Some(_), Some(before), _) => format!(
-            "{label}: parameters in force kept ({}); nothing better to write from this log.",
-            describe(&before)
+            "{label}: parameters in force kept: {:.0} mG from the Earth's field{}.",
+            before.vector_rms_mg,
+            before.heading_rms_deg.map_or_else(String::new, |h| format!(
+                ", {h:.1}° from the autopilot's heading"
+            ))
         ),
-        _ => format!("{label}: parameters in force kept; nothing better to write from this log."),
+        _ => format!("{label}: parameters in force kept."),
     };
     // The grade is of what the vehicle will fly with.
     let flown = if primary.is_written() { after } else { before };
@@ -615,24 +618,19 @@ fn autopilot_verdict(
         })
         .collect();
     let written: Vec<String> = autopilot.written().map(CompassResult::label).collect();
-    let method = if written.is_empty() {
-        format!(
-            "Method: every compass fitted against {} on the log's first half and scored on the \
-             held-back second half; none beat the {} parameters in force there, so none is written.",
-            autopilot.earth.describe(),
-            autopilot.autopilot
-        )
-    } else {
-        format!(
-            "Method: every compass fitted against {} on the log's first half and scored on the \
-             held-back second half, and written only where it beats the {} parameters in force \
-             there and the autopilot accepts it: here {}, each read back from the file before its \
-             figures are shown.",
-            autopilot.earth.describe(),
-            autopilot.autopilot,
+    // Short, for a phone's first screen: the details list says the rest.
+    let method = format!(
+        "Method: fitted on the log's first half against {} through the autopilot's attitude; \
+         written only where better than the {} parameters in force on the second half and \
+         within the autopilot's limits: {}.",
+        autopilot.earth.short(),
+        autopilot.autopilot,
+        if written.is_empty() {
+            "none here".to_string()
+        } else {
             crate::english::list(&written)
-        )
-    };
+        }
+    );
     // What to record, once, for the compasses the log could not calibrate.
     let to_record: Vec<String> = autopilot
         .compasses

@@ -237,12 +237,12 @@ fn an_autopilot_log_with_nothing_to_write_is_judged_by_its_parameters_in_force()
     assert!(
         verdict
             .headline
-            .starts_with("CAL_MAG1 (vehicle_magnetometer 0): parameters in force kept ("),
+            .starts_with("CAL_MAG1 (vehicle_magnetometer 0): parameters in force kept: "),
         "{}",
         verdict.headline
     );
     assert!(
-        verdict.headline.contains("mG vector error"),
+        verdict.headline.contains("mG from the Earth's field"),
         "{}",
         verdict.headline
     );

@@ -47,6 +47,19 @@ impl EarthField {
         }
     }
 
+    /// The same in as few words as a phone's first screen allows.
+    pub fn short(&self) -> String {
+        match self {
+            EarthField::Model { ned_mg, .. } => format!(
+                "the World Magnetic Model's {:.0} mG field",
+                Vector3::from(*ned_mg).norm()
+            ),
+            EarthField::Fitted => {
+                "the field it sees itself (no position for the model)".to_string()
+            }
+        }
+    }
+
     /// What the vector error is measured against, in a few words.
     pub fn describe(&self) -> String {
         match self {
