@@ -16,11 +16,14 @@ For every GetSensorData walk given (default: ../shared/data/ipin2023-track3-walk
 - the walked distance between the first and last landmark, against the landmarks'
   polyline;
 - in the outage run, each landmark inside the outage: error / true distance walked
-  since the outage began (along the landmarks' polyline).
+  since the outage began (along the landmarks' polyline), and the drift: the error of
+  the track's displacement since the outage began against the truth's, over the same
+  distance (the error the track already had when the GNSS went is not the bridge's).
 
 Prints per walk, per route and pooled figures; --json writes them all.
 
-    target/bench-venv/bin/python bench/ipin.py [--cli target/release/compass-pdr] [WALK...]
+    target/bench-venv/bin/python bench/ipin.py [--cli target/release/compass-pdr]
+        [--filter smoother|causal|paper] [--json out.json] [WALK...]
 """
 import argparse
 import json
@@ -148,8 +151,8 @@ def polyline_length(points):
     return sum(math.dist(a, b) for a, b in zip(points, points[1:]))
 
 
-def run_cli(cli, walk, outage, out):
-    args = [str(cli), "pdr", str(walk), "--out", str(out)]
+def run_cli(cli, walk, outage, out, extra):
+    args = [str(cli), "pdr", str(walk), "--out", str(out)] + extra
     if outage:
         args += ["--outage", f"{outage[0]:.3f}:{outage[1]:.3f}"]
     done = subprocess.run(args, capture_output=True, text=True)
@@ -157,7 +160,7 @@ def run_cli(cli, walk, outage, out):
         raise RuntimeError(f"{walk.name}: compass-pdr exited {done.returncode}: {done.stderr[-400:]}")
 
 
-def score_walk(cli, walk, tmp):
+def score_walk(cli, walk, tmp, extra):
     fixes, landmarks = read_walk(walk)
     frame = Frame(landmarks[0][1], landmarks[0][2])
     truth = [(t, *frame.en(lat, lon)) for t, lat, lon in landmarks]
@@ -185,7 +188,7 @@ def score_walk(cli, walk, tmp):
 
     for name, cut in (("track", None), ("outage", outage)):
         out = Path(tmp) / f"{walk.stem}-{name}.csv"
-        run_cli(cli, walk, cut, out)
+        run_cli(cli, walk, cut, out, extra)
         rows = read_track(out)
         ts = np.array([r[0] for r in rows])
         geo = not any(math.isnan(r[1]) for r in rows)
@@ -214,7 +217,12 @@ def score_walk(cli, walk, tmp):
                 interp(np.array([p[0] for p in truth]), np.array([p[1] for p in truth]), outage[0]),
                 interp(np.array([p[0] for p in truth]), np.array([p[2] for p in truth]), outage[0]),
             )
-            ratios = []
+            # The track's own position when the outage began, to tell the drift inside
+            # it from the error it started with.
+            track_e = np.array([r[4] for r in rows])
+            track_n = np.array([r[5] for r in rows])
+            track_start = (interp(ts, track_e, outage[0]), interp(ts, track_n, outage[0]))
+            ratios, drifts = [], []
             for i, (t, e, n) in enumerate(truth):
                 if not (outage[0] < t <= outage[1]):
                     continue
@@ -222,7 +230,11 @@ def score_walk(cli, walk, tmp):
                 walked = polyline_length(path)
                 if walked > 1.0 and not math.isnan(errors[i]):
                     ratios.append(100.0 * errors[i] / walked)
+                    moved = (interp(ts, track_e, t) - track_start[0], interp(ts, track_n, t) - track_start[1])
+                    drift = math.dist(moved, (e - start[0], n - start[1]))
+                    drifts.append(100.0 * drift / walked)
             result["outage_pct"] = ratios
+            result["outage_drift_pct"] = drifts
     return result
 
 
@@ -247,12 +259,13 @@ def summary(label, results):
     raw = [e for r in results for e in r["raw_gnss_m"]]
     smooth = [e for r in results for e in r["gnss_smoother_m"]]
     outage = [x for r in results for x in r["outage_pct"]]
+    drift = [x for r in results for x in r["outage_drift_pct"]]
     nan = sum(math.isnan(e) for e in track)
     print(
         f"{label:<10} P75 track {p75(track):5.1f} m  raw GNSS {p75(raw):5.1f}  GNSS smoother "
         f"{p75(smooth):5.1f}  | median {median(track):4.1f} / {median(raw):4.1f} / {median(smooth):4.1f}"
         f"  | 1σ {coverage(track, sig, 1):3.0f} %  2σ {coverage(track, sig, 2):3.0f} %"
-        f"  | outage median {median(outage):4.1f} % of distance ({len(outage)} landmarks)"
+        f"  | outage: median error {median(outage):4.1f} %, drift {median(drift):4.1f} % of the distance ({len(outage)} landmarks)"
         + (f"  | {nan} landmarks without lat/lon" if nan else "")
     )
 
@@ -261,6 +274,7 @@ def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--cli", default=str(ROOT / "target" / "release" / "compass-pdr"))
     parser.add_argument("--json")
+    parser.add_argument("--filter", help="passed to compass-pdr pdr --filter")
     parser.add_argument("walks", nargs="*")
     args = parser.parse_args()
     walks = [Path(w) for w in args.walks] or sorted(DEFAULT_DIR.glob("*.txt"))
@@ -269,7 +283,8 @@ def main():
     results = []
     with tempfile.TemporaryDirectory() as tmp:
         for walk in walks:
-            r = score_walk(Path(args.cli), walk, tmp)
+            extra = ["--filter", args.filter] if args.filter else []
+            r = score_walk(Path(args.cli), walk, tmp, extra)
             results.append(r)
             ratio = r["walked_m"] / r["truth_m"] - 1.0
             print(

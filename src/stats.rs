@@ -35,6 +35,19 @@ pub fn median(values: &mut [f64]) -> Option<f64> {
     Some(*values.select_nth_unstable_by(middle, f64::total_cmp).1)
 }
 
+/// The `q` quantile (0-1) of sorted values, linearly interpolated between ranks (numpy's
+/// default); NaN when empty.
+pub fn quantile_sorted(sorted: &[f64], q: f64) -> f64 {
+    match sorted.len() {
+        0 => f64::NAN,
+        n => {
+            let rank = q.clamp(0.0, 1.0) * (n - 1) as f64;
+            let (low, high) = (rank.floor() as usize, rank.ceil() as usize);
+            sorted[low] + (sorted[high] - sorted[low]) * (rank - low as f64)
+        }
+    }
+}
+
 /// Statistics of a set of heading errors (estimate minus reference), in degrees.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct HeadingErrorStats {

@@ -102,20 +102,23 @@ pub(super) fn pdr_text(report: &PdrReport) -> String {
             let _ = writeln!(text, "  GNSS: none in the log");
         }
     }
-    let position_row =
-        |text: &mut String, name: &str, errors: &compass_pdr::pdr::metrics::PositionErrors| {
-            let _ = writeln!(
+    let position_row = |text: &mut String,
+                        name: &str,
+                        errors: &compass_pdr::pdr::metrics::PositionErrors| {
+        let _ = writeln!(
             text,
-            "  {name:<26} {:>5} pts {:>8.1} m {:>7.2} m {:>6.2} % {:>7.2} m {:>6.2} % {:>+7.2} %",
+            "  {name:<26} {:>5} pts {:>8.1} m {:>7.2} m {:>6.2} % {:>7.2} m {:>6.2} % {:>+7.2} % {:>7.2} m {:>5.0} %",
             errors.n_points,
             errors.distance_m,
             errors.rms_m,
             errors.rms_pct,
             errors.max_m,
             errors.max_pct,
-            errors.distance_error_pct
+            errors.distance_error_pct,
+            errors.p75_m,
+            errors.within_2_sigma_pct
         );
-        };
+    };
     let gap_errors: Vec<&compass_pdr::pdr::metrics::PositionErrors> = report
         .gnss_gaps
         .iter()
@@ -127,8 +130,17 @@ pub(super) fn pdr_text(report: &PdrReport) -> String {
     {
         let _ = writeln!(
             text,
-            "  {:<26} {:>9} {:>10} {:>9} {:>8} {:>9} {:>8} {:>9}",
-            "position error", "points", "distance", "RMS", "RMS", "max", "max", "distance"
+            "  {:<26} {:>9} {:>10} {:>9} {:>8} {:>9} {:>8} {:>9} {:>9} {:>7}",
+            "position error",
+            "points",
+            "distance",
+            "RMS",
+            "RMS",
+            "max",
+            "max",
+            "distance",
+            "P75",
+            "in 2σ"
         );
     }
     if let Some(errors) = &report.position_error {

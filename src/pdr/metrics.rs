@@ -27,6 +27,15 @@ pub struct PositionErrors {
     pub max_pct: f64,
     /// PDR distance over the span minus the reference's, in % of the reference's.
     pub distance_error_pct: f64,
+    /// The median and the 75th percentile of the errors (m): the IPIN competitions'
+    /// metric is the latter.
+    pub median_m: f64,
+    pub p75_m: f64,
+    /// The share of the errors within 1 and 2 × the track's stated `position_sigma_m`
+    /// (%): a σ that holds covers about 63 % and 98 % (√(σ_E² + σ_N²) of a circular
+    /// normal).
+    pub within_1_sigma_pct: f64,
+    pub within_2_sigma_pct: f64,
 }
 
 /// Mean and sample standard deviation.
@@ -86,6 +95,26 @@ pub fn position_at(track: &[TrackPoint], t_s: f64) -> Option<[f64; 2]> {
     ])
 }
 
+/// The track's stated position σ at `t_s`, linearly interpolated.
+pub fn sigma_at(track: &[TrackPoint], t_s: f64) -> Option<f64> {
+    let first = track.first()?;
+    let last = track.last()?;
+    if !(first.t_s..=last.t_s).contains(&t_s) {
+        return None;
+    }
+    let after = track
+        .partition_point(|point| point.t_s < t_s)
+        .min(track.len() - 1);
+    let (a, b) = (track.get(after.saturating_sub(1))?, track.get(after)?);
+    let span_s = b.t_s - a.t_s;
+    let fraction = if span_s > 0.0 {
+        (t_s - a.t_s) / span_s
+    } else {
+        1.0
+    };
+    Some(a.position_sigma_m + (b.position_sigma_m - a.position_sigma_m) * fraction)
+}
+
 /// The length of the track between two times (m).
 pub fn track_distance_m(track: &[TrackPoint], start_s: f64, end_s: f64) -> f64 {
     let mut points: Vec<[f64; 2]> = Vec::new();
@@ -119,13 +148,15 @@ pub fn position_errors(
         .iter()
         .filter(|(t_s, _)| (start_s..=end_s).contains(t_s))
         .collect();
-    let errors: Vec<f64> = in_span
+    let (errors, sigmas): (Vec<f64>, Vec<f64>) = in_span
         .iter()
         .filter_map(|(t_s, truth)| {
             let estimate = position_at(track, *t_s)?;
-            Some(((estimate[0] - truth[0]).powi(2) + (estimate[1] - truth[1]).powi(2)).sqrt())
+            let error_m =
+                ((estimate[0] - truth[0]).powi(2) + (estimate[1] - truth[1]).powi(2)).sqrt();
+            Some((error_m, sigma_at(track, *t_s)?))
         })
-        .collect();
+        .unzip();
     if errors.len() < 2 {
         return None;
     }
@@ -143,7 +174,22 @@ pub fn position_errors(
             f64::NAN
         }
     };
+    let within = |k: f64| {
+        100.0
+            * errors
+                .iter()
+                .zip(&sigmas)
+                .filter(|(e, s)| **e <= k * **s)
+                .count() as f64
+            / errors.len() as f64
+    };
+    let mut sorted = errors.clone();
+    sorted.sort_by(f64::total_cmp);
     Some(PositionErrors {
+        median_m: crate::stats::quantile_sorted(&sorted, 0.5),
+        p75_m: crate::stats::quantile_sorted(&sorted, 0.75),
+        within_1_sigma_pct: within(1.0),
+        within_2_sigma_pct: within(2.0),
         start_s: first_s,
         end_s: last_s,
         n_points: errors.len(),

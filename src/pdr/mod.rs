@@ -47,8 +47,9 @@ pub mod fusion;
 pub mod heading;
 pub mod metrics;
 mod references;
-pub mod smoother;
 mod report;
+mod small_matrix;
+pub mod smoother;
 pub mod step_length;
 pub mod steps;
 
@@ -409,12 +410,14 @@ impl Smoothed {
 
 /// How well the step model's training proves it: the 1σ of its scale the filter starts
 /// from.
+/// A phone's GNSS indoors moves less than the walker (its fixes lag and stay put), so
+/// the fixes alone would shrink a walk by half: the scale's prior holds it.
 fn scale_sigma(step_model: &StepModelReport) -> f64 {
     match step_model.trained_on {
-        "known_distance" => 0.03,
-        "reference_positions" => 0.05,
-        "gnss_speed" | "gnss_positions" | "given_k" => 0.10,
-        _ => 0.15,
+        "known_distance" => 0.01,
+        "reference_positions" => 0.02,
+        "gnss_speed" | "gnss_positions" | "given_k" => 0.03,
+        _ => 0.05,
     }
 }
 
@@ -434,7 +437,10 @@ fn plausible_step_model(
     let default = step_length::StepLengthModel::Weinberg {
         k: step_length::DEFAULT_WEINBERG_K,
     };
-    let trained_m: f64 = steps.iter().map(|step| step_model.model.length_m(step)).sum();
+    let trained_m: f64 = steps
+        .iter()
+        .map(|step| step_model.model.length_m(step))
+        .sum();
     let default_m: f64 = steps.iter().map(|step| default.length_m(step)).sum();
     let ratio = trained_m / default_m;
     if default_m > 0.0 && (0.6..=1.6).contains(&ratio) {
@@ -590,7 +596,8 @@ fn count_fixes(
             ));
         }
     }
-    if n_fixes > 0 && fix_counts.used + fix_counts.used_after_reset + fix_counts.down_weighted == 0 {
+    if n_fixes > 0 && fix_counts.used + fix_counts.used_after_reset + fix_counts.down_weighted == 0
+    {
         let why = if policy.max_hacc_m.is_finite() {
             format!("accuracy worse than {} m, or in outages", policy.max_hacc_m)
         } else {

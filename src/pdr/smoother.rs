@@ -4,23 +4,30 @@
 //! likelihood estimates of linear dynamic systems*, AIAA J. 1965; the extended form as
 //! in Särkkä, *Bayesian Filtering and Smoothing*, 2013, Algorithm 9.1).
 //!
-//! The state extends the PDR paper's `[E, N, l, a]` (Chen et al., Eq. 13) by the three
-//! errors that are correlated along a walk, so that the stated σ holds where they are:
+//! The state extends the PDR paper's `[E, N, l, a]` (Chen et al., Eq. 13) by the errors
+//! that are correlated along a walk, so that the stated σ holds where they are:
 //!
 //! ```text
-//! x = [E, N, s, δ, β_E, β_N]
+//! x = [E, N, s, δ, β_E, β_N, a]
 //! step k (model length l_k, measured heading h_k):
-//!     E += s·l_k·sin(h_k − δ),   N += s·l_k·cos(h_k − δ)      (+ white length and heading noise)
-//!     s: the step model's scale, prior 1 ± σ_s (how well its training proved it), a slow random walk
+//!     h_k = a + v_k                    (v_k white: the step's own heading noise)
+//!     E += s·l_k·sin(a − δ),   N += s·l_k·cos(a − δ)   (+ white length noise), then a turns
+//!     a: the heading as measured, the paper's state, a random walk per step
+//!     s: the step model's scale, prior 1 ± σ_s (how well its training proved it), a slow
+//!        random walk: the paper's l as a scale on the model's lengths
 //!     δ: the heading's error, first-order Gauss-Markov, time constant τ_δ, stationary σ the
-//!        attitude filter's heading σ where it states one
+//!        attitude filter's heading σ where it states one (never below a floor)
 //! fix j (position z_j, reported accuracy A_j, σ_j = c·A_j / 1.51 per axis):
 //!     z_j = [E, N] + β + ε_j,   ε_j white with variance (1 − ρ)·σ_j²
 //!     β: the GNSS error that moves slowly (multipath, a building's shadow), metres,
 //!        first-order Gauss-Markov with time constant τ_β towards the stationary
-//!        variance ρ·σ_j² of the latest fix (not scaled by each fix's accuracy: fixes of
-//!        different accuracy would then tell the error from the position)
+//!        variance ρ·σ_j² of the latest fix, which it follows at once (a better accuracy
+//!        is a new satellite geometry: the old error is mostly forgotten)
 //! ```
+//!
+//! A part of the GNSS error, ρ_c·σ_j², is constant over the walk: no filter can tell it
+//! from the position, so it is not a state; it moves the whole track with the fixes and
+//! is added to the stated σ.
 //!
 //! Android's accuracy is the radius of 68 % confidence, 1.51 σ per axis. How far to
 //! trust it, `c`, is learnt from the fixes' own innovations (their median normalised
@@ -30,20 +37,27 @@
 //! Frames and units: `E`, `N` metres east and north of the local origin; headings in
 //! radians clockwise from true north; times in seconds of log time.
 
-use nalgebra::{SMatrix, SVector};
 use serde::Serialize;
 
 use super::fusion::{FixInput, FixUse, GnssPolicy, StepInput, TrackPoint};
-use crate::angle::wrap_to_2pi;
+use crate::angle::{wrap_to_2pi, wrap_to_pi};
 
-type State = SVector<f64, 6>;
-type Cov = SMatrix<f64, 6, 6>;
+use super::small_matrix::{Cov, State};
+
+fn identity() -> Cov {
+    Cov::identity()
+}
+
+fn zeros() -> Cov {
+    Cov::zeros()
+}
 const E: usize = 0;
 const N: usize = 1;
 const S: usize = 2;
 const D: usize = 3;
 const BE: usize = 4;
 const BN: usize = 5;
+const A: usize = 6;
 
 /// Per-axis σ over Android's accuracy (the radius of 68 % confidence of a circular
 /// normal: √(−2 ln 0.32) = 1.51).
@@ -58,14 +72,22 @@ pub struct WalkNoise {
     pub scale_walk_per_step: f64,
     /// White noise of one step's length, as a fraction of it.
     pub length_white_fraction: f64,
-    /// White noise of one step's heading (rad).
+    /// White noise of one step's measured heading (rad).
     pub heading_white_rad: f64,
-    /// The heading error's stationary σ where the heading states none (rad).
+    /// How far the walked heading may turn in one step, 1σ of its random walk (rad).
+    pub turn_per_step_rad: f64,
+    /// The heading error's stationary σ where the heading states none, and the least
+    /// taken where it states one (rad): indoors a phone's heading is off by more than
+    /// its filter believes.
     pub heading_error_rad: f64,
+    pub heading_error_floor_rad: f64,
     pub heading_error_tau_s: f64,
     pub gnss_bias_tau_s: f64,
     /// The share ρ of a fix's error variance that moves slowly.
     pub gnss_bias_share: f64,
+    /// The share ρ_c of a fix's error variance that is constant over the walk: added to
+    /// the stated σ, never estimated.
+    pub gnss_constant_share: f64,
     /// The accuracy taken for a fix that reports none, and the least taken (m).
     pub gnss_default_accuracy_m: f64,
     pub gnss_min_accuracy_m: f64,
@@ -75,45 +97,30 @@ pub struct WalkNoise {
     /// what it reports (a phone's fixes are smoother than their errors are small, so
     /// their innovations alone would trust them too far).
     pub trust_bounds: [f64; 2],
-}
-
-/// WORK IN PROGRESS (issue 42): tuning hooks read from the environment, to be removed
-/// before this filter leaves its branch (the core reads no environment).
-fn tune(name: &str, default: f64) -> f64 {
-    std::env::var(name).ok().and_then(|v| v.parse().ok()).unwrap_or(default)
+    /// The start's σ where the fixes place it, in multiples of the first fix's accuracy.
+    pub start_accuracy_multiple: f64,
 }
 
 impl Default for WalkNoise {
+    /// Chosen on route 01 of the IPIN 2023 walks (GNSS of 4-5 m) and checked on routes 21
+    /// and 24 (indoors, 11-36 m), the msft walks and the phyphox loop: ACCURACY.md.
     fn default() -> Self {
-        WalkNoise {
-            scale_walk_per_step: tune("T_SW", 0.002),
-            length_white_fraction: tune("T_LW", 0.10),
-            heading_white_rad: tune("T_HW", 3.0).to_radians(),
-            heading_error_rad: tune("T_HE", 10.0).to_radians(),
-            heading_error_tau_s: tune("T_HT", 60.0),
-            gnss_bias_tau_s: tune("T_BT", 30.0),
-            gnss_bias_share: tune("T_BS", 0.5),
-            gnss_default_accuracy_m: 10.0,
-            gnss_min_accuracy_m: 1.5,
-            robust_gate: tune("T_G", 9.21),
-            trust_bounds: [tune("T_TL", 1.0), 4.0],
-        }
-    }
-}
-impl WalkNoise {
-    fn _old() -> Self {
         WalkNoise {
             scale_walk_per_step: 0.002,
             length_white_fraction: 0.10,
-            heading_white_rad: 3f64.to_radians(),
-            heading_error_rad: 10f64.to_radians(),
-            heading_error_tau_s: 60.0,
-            gnss_bias_tau_s: 60.0,
-            gnss_bias_share: 0.8,
+            heading_white_rad: 5f64.to_radians(),
+            turn_per_step_rad: 10f64.to_radians(),
+            heading_error_rad: 15f64.to_radians(),
+            heading_error_floor_rad: 15f64.to_radians(),
+            heading_error_tau_s: 20.0,
+            gnss_bias_tau_s: 30.0,
+            gnss_bias_share: 0.5,
+            gnss_constant_share: 0.3,
             gnss_default_accuracy_m: 10.0,
             gnss_min_accuracy_m: 1.5,
             robust_gate: 9.21,
             trust_bounds: [1.0, 4.0],
+            start_accuracy_multiple: 3.0,
         }
     }
 }
@@ -142,6 +149,9 @@ pub struct WalkFusion {
 enum Event {
     /// The walk's first point: the state before the first step.
     Start,
+    /// Step k's measured heading.
+    Heading(usize),
+    /// Step k's move.
     Step(usize),
     Fix(usize),
 }
@@ -195,19 +205,46 @@ pub fn fuse_walk(
         pass.stored.iter().map(|s| (s.x_post, s.p_post)).unzip()
     };
 
+    // The GNSS error that is constant over the walk cannot be told from the position
+    // by any filter: it moves the whole track and adds its variance to the position's,
+    // 2·ρ_c·σ² (two axes) with σ the per-axis σ of the fix nearest in time.
+    let taken: Vec<(f64, f64)> = events
+        .iter()
+        .filter_map(|event| match *event {
+            Event::Fix(j) => Some((
+                fixes[j].t_s,
+                trust * fix_accuracy_m(&fixes[j], noise) / ACCURACY_PER_SIGMA,
+            )),
+            _ => None,
+        })
+        .collect();
+    let constant_var_m2 = |t_s: f64| -> f64 {
+        let i = taken.partition_point(|(t, _)| *t < t_s);
+        let nearest = [i.checked_sub(1), Some(i)]
+            .into_iter()
+            .flatten()
+            .filter_map(|k| taken.get(k))
+            .min_by(|a, b| (a.0 - t_s).abs().total_cmp(&(b.0 - t_s).abs()));
+        nearest.map_or(0.0, |(_, sigma)| {
+            2.0 * noise.gnss_constant_share * sigma * sigma
+        })
+    };
     let mut track = Vec::with_capacity(steps.len() + 1);
     let mut gnss_used = false;
     let mut fix_use = vec![FixUse::AfterWalk; fixes.len()];
     let last_step_s = steps.last().map_or(first.t_s, |step| step.t_s);
     for ((event, x), p) in events.iter().zip(&states).zip(&covs) {
-        let sigma_m = (p[(E, E)] + p[(N, N)]).max(0.0).sqrt();
+        let t_s = event_time(*event, steps, fixes, first.t_start_s);
+        let sigma_m = (p[(E, E)] + p[(N, N)] + constant_var_m2(t_s))
+            .max(0.0)
+            .sqrt();
         match *event {
             Event::Start => track.push(TrackPoint {
                 t_s: first.t_start_s,
                 east_m: x[E],
                 north_m: x[N],
                 length_m: 0.0,
-                heading_rad: wrap_to_2pi(first.heading_rad - x[D]),
+                heading_rad: wrap_to_2pi(x[A] - x[D]),
                 position_sigma_m: sigma_m,
                 gnss_used: false,
             }),
@@ -218,12 +255,13 @@ pub fn fuse_walk(
                     east_m: x[E],
                     north_m: x[N],
                     length_m: x[S] * step.length_m,
-                    heading_rad: wrap_to_2pi(step.heading_rad - x[D]),
+                    heading_rad: wrap_to_2pi(x[A] - x[D]),
                     position_sigma_m: sigma_m,
                     gnss_used,
                 });
                 gnss_used = false;
             }
+            Event::Heading(_) => {}
             Event::Fix(j) => {
                 let used = pass.fix_use[j];
                 fix_use[j] = match used {
@@ -260,17 +298,15 @@ pub fn fuse_walk(
 
 /// The steps, the usable fixes and the start, in time order (a fix at a step's end
 /// time comes first).
-fn events(steps: &[StepInput], fixes: &[FixInput], start_s: f64, policy: &GnssPolicy) -> Vec<Event> {
-    let mut timed: Vec<(f64, u8, Event)> = Vec::with_capacity(steps.len() + fixes.len() + 1);
-    timed.push((start_s, 1, Event::Start));
-    timed.extend(
-        steps
-            .iter()
-            .enumerate()
-            .map(|(k, step)| (step.t_s, 2, Event::Step(k))),
-    );
+fn events(
+    steps: &[StepInput],
+    fixes: &[FixInput],
+    start_s: f64,
+    policy: &GnssPolicy,
+) -> Vec<Event> {
     // A fix logged twice (the same position and accuracy within 1.5 s, as
     // GetSensorData does) is one measurement, not two.
+    let mut taken: Vec<(f64, Event)> = Vec::with_capacity(fixes.len());
     let mut previous: Option<&FixInput> = None;
     for (j, fix) in fixes.iter().enumerate() {
         if policy.in_outage(fix.t_s) || !fix.en_m.iter().all(|v| v.is_finite()) {
@@ -279,11 +315,26 @@ fn events(steps: &[StepInput], fixes: &[FixInput], start_s: f64, policy: &GnssPo
         let repeated = previous.is_some_and(|p| repeats(p, fix));
         previous = Some(fix);
         if !repeated {
-            timed.push((fix.t_s, 0, Event::Fix(j)));
+            taken.push((fix.t_s, Event::Fix(j)));
         }
     }
-    timed.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-    timed.into_iter().map(|(_, _, event)| event).collect()
+    let walked = std::iter::once((start_s, Event::Start)).chain(
+        steps
+            .iter()
+            .enumerate()
+            .flat_map(|(k, step)| [(step.t_s, Event::Heading(k)), (step.t_s, Event::Step(k))]),
+    );
+    // Both are in time order: merged, a fix at a step's time comes first.
+    let mut out = Vec::with_capacity(taken.len() + 2 * steps.len() + 1);
+    let mut fixes_left = taken.into_iter().peekable();
+    for (t_s, event) in walked {
+        while let Some((_, fix)) = fixes_left.next_if(|(t_fix, _)| *t_fix <= t_s) {
+            out.push(fix);
+        }
+        out.push(event);
+    }
+    out.extend(fixes_left.map(|(_, fix)| fix));
+    out
 }
 
 /// Whether `fix` is `earlier` logged again.
@@ -301,8 +352,168 @@ struct Pass {
 fn event_time(event: Event, steps: &[StepInput], fixes: &[FixInput], start_s: f64) -> f64 {
     match event {
         Event::Start => start_s,
-        Event::Step(k) => steps[k].t_s,
+        Event::Heading(k) | Event::Step(k) => steps[k].t_s,
         Event::Fix(j) => fixes[j].t_s,
+    }
+}
+
+/// The state, its covariance and the transition into the current event, moved by one
+/// model equation at a time.
+struct Belief {
+    x: State,
+    p: Cov,
+    f: Cov,
+}
+
+impl Belief {
+    /// `x ← F·x`, `P ← F·P·Fᵀ + Q`, and `F` composed into this event's transition.
+    fn transition(&mut self, f: Cov, q: Cov) {
+        self.x = f.times(&self.x);
+        self.p = f * self.p * f.transpose() + q;
+        self.f = f * self.f;
+    }
+
+    /// The slow errors decay towards zero over `dt_s` (first-order Gauss-Markov).
+    fn decay(&mut self, dt_s: f64, noise: &WalkNoise, heading_error_rad: f64, bias_var_m2: f64) {
+        let phi_d = (-dt_s / noise.heading_error_tau_s).exp();
+        let phi_b = (-dt_s / noise.gnss_bias_tau_s).exp();
+        let mut f = identity();
+        f[(D, D)] = phi_d;
+        f[(BE, BE)] = phi_b;
+        f[(BN, BN)] = phi_b;
+        let mut q = zeros();
+        q[(D, D)] = heading_error_rad.powi(2) * (1.0 - phi_d * phi_d);
+        q[(BE, BE)] = bias_var_m2 * (1.0 - phi_b * phi_b);
+        q[(BN, BN)] = q[(BE, BE)];
+        self.transition(f, q);
+    }
+
+    /// One step of `length_m` along `a − δ`, after which the heading may turn.
+    fn step(&mut self, length_m: f64, noise: &WalkNoise) {
+        let x = self.x;
+        let (sin_a, cos_a) = (x[A] - x[D]).sin_cos();
+        let d_m = x[S] * length_m;
+        let mut f = identity();
+        f[(E, S)] = length_m * sin_a;
+        f[(E, A)] = d_m * cos_a;
+        f[(E, D)] = -d_m * cos_a;
+        f[(N, S)] = length_m * cos_a;
+        f[(N, A)] = -d_m * sin_a;
+        f[(N, D)] = d_m * sin_a;
+        let sl = noise.length_white_fraction * d_m;
+        let mut q = zeros();
+        q[(E, E)] = (sin_a * sl).powi(2);
+        q[(N, N)] = (cos_a * sl).powi(2);
+        q[(E, N)] = sin_a * cos_a * sl * sl;
+        q[(N, E)] = q[(E, N)];
+        q[(S, S)] = noise.scale_walk_per_step.powi(2);
+        q[(A, A)] = noise.turn_per_step_rad.powi(2);
+        // The motion is nonlinear: move the mean exactly, the covariance by F.
+        self.transition(f, q);
+        self.x = x;
+        self.x[E] += d_m * sin_a;
+        self.x[N] += d_m * cos_a;
+    }
+
+    /// The slow GNSS error's variance follows a fix's reported accuracy at once: a
+    /// better one is a new satellite geometry, so the old error is mostly forgotten
+    /// (`β ← k·β + w`, `k` the ratio of the σs); a worse one adds to it.
+    fn follow_accuracy(&mut self, from_m2: f64, to_m2: f64) {
+        let mut f = identity();
+        let mut q = zeros();
+        if to_m2 < from_m2 {
+            let k = (to_m2 / from_m2).sqrt();
+            f[(BE, BE)] = k;
+            f[(BN, BN)] = k;
+            q[(BE, BE)] = to_m2 * (1.0 - k * k);
+        } else {
+            q[(BE, BE)] = to_m2 - from_m2;
+        }
+        q[(BN, BN)] = q[(BE, BE)];
+        self.transition(f, q);
+    }
+
+    /// The Kalman update of two measurements, rows `h` of `H`, innovation `y` and noise
+    /// `r`, in Joseph form. Returns false when `S` is singular.
+    fn update(&mut self, h: [State; 2], y: [f64; 2], r: [[f64; 2]; 2]) -> bool {
+        let Some((ph, s)) = self.innovation(&h, r) else {
+            return false;
+        };
+        let det = s[0][0] * s[1][1] - s[0][1] * s[1][0];
+        if !(det.abs() > 1e-300) {
+            return false;
+        }
+        let s_inv = [
+            [s[1][1] / det, -s[0][1] / det],
+            [-s[1][0] / det, s[0][0] / det],
+        ];
+        // K = P·Hᵀ·S⁻¹, two columns.
+        let k = [
+            ph[0].scaled(s_inv[0][0]) + ph[1].scaled(s_inv[1][0]),
+            ph[0].scaled(s_inv[0][1]) + ph[1].scaled(s_inv[1][1]),
+        ];
+        self.x += k[0].scaled(y[0]) + k[1].scaled(y[1]);
+        let i_kh = identity() - k[0].outer(&h[0]) - k[1].outer(&h[1]);
+        let mut krk = zeros();
+        for (a, b) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
+            krk = krk + k[a].outer(&k[b]).scaled(r[a][b]);
+        }
+        self.p = (i_kh * self.p * i_kh.transpose() + krk).symmetric();
+        true
+    }
+
+    /// `P·Hᵀ` (as two columns) and `S = H·P·Hᵀ + R`.
+    fn innovation(&self, h: &[State; 2], r: [[f64; 2]; 2]) -> Option<([State; 2], [[f64; 2]; 2])> {
+        let ph = [self.p.times(&h[0]), self.p.times(&h[1])];
+        let s = [
+            [h[0].dot(&ph[0]) + r[0][0], h[0].dot(&ph[1]) + r[0][1]],
+            [h[1].dot(&ph[0]) + r[1][0], h[1].dot(&ph[1]) + r[1][1]],
+        ];
+        s.iter().flatten().all(|v| v.is_finite()).then_some((ph, s))
+    }
+
+    /// `h_k = a + v_k`: `a` is the heading as measured, smoothed; the walk goes along
+    /// `a − δ`. (A second, empty row keeps one update for both kinds.)
+    fn heading(&mut self, heading_rad: f64, noise: &WalkNoise) {
+        let mut h = State::zeros();
+        h[A] = 1.0;
+        let y = wrap_to_pi(heading_rad - self.x[A]);
+        let r = noise.heading_white_rad.powi(2);
+        self.update([h, State::zeros()], [y, 0.0], [[r, 0.0], [0.0, 1.0]]);
+        self.x[A] = wrap_to_2pi(self.x[A]);
+    }
+
+    /// `z = [E, N] + β + ε`. Returns the normalised innovation squared and whether the
+    /// fix was down-weighted; `None` when the update could not be made.
+    fn fix(&mut self, fix: &FixInput, sigma_m: f64, noise: &WalkNoise) -> Option<(f64, bool)> {
+        let white_var = sigma_m.powi(2) * (1.0 - noise.gnss_bias_share);
+        let mut h = [State::zeros(), State::zeros()];
+        h[0][E] = 1.0;
+        h[0][BE] = 1.0;
+        h[1][N] = 1.0;
+        h[1][BN] = 1.0;
+        let y = [
+            fix.en_m[0] - h[0].dot(&self.x),
+            fix.en_m[1] - h[1].dot(&self.x),
+        ];
+        let mut r = [[white_var, 0.0], [0.0, white_var]];
+        let (_, s) = self.innovation(&h, r)?;
+        let det = s[0][0] * s[1][1] - s[0][1] * s[1][0];
+        let nis = (y[0] * (s[1][1] * y[0] - s[0][1] * y[1])
+            + y[1] * (s[0][0] * y[1] - s[1][0] * y[0]))
+            / det;
+        // Heavy tails: a fix beyond the gate counts as if its whole noise were larger by
+        // its own innovation (Huber's weight in the Mahalanobis norm).
+        let down_weighted = !(nis <= noise.robust_gate);
+        if down_weighted {
+            let extra = nis / noise.robust_gate - 1.0;
+            for (row, s_row) in r.iter_mut().zip(&s) {
+                for (cell, s_cell) in row.iter_mut().zip(s_row) {
+                    *cell += s_cell * extra;
+                }
+            }
+        }
+        self.update(h, y, r).then_some((nis, down_weighted))
     }
 }
 
@@ -315,136 +526,71 @@ fn forward(
     trust: f64,
 ) -> Pass {
     let start_s = steps.first().map_or(0.0, |step| step.t_start_s);
-    let (mut x, mut p) = initial(events, steps, fixes, prior, noise, trust);
+    let (x, p) = initial(events, steps, fixes, prior, noise, trust);
+    let mut belief = Belief {
+        x,
+        p,
+        f: identity(),
+    };
     let mut t_prev = events
         .first()
         .map_or(start_s, |&event| event_time(event, steps, fixes, start_s));
     let mut stored = Vec::with_capacity(events.len());
     let mut fix_use = vec![FixUse::AfterWalk; fixes.len()];
     let mut nis_all = Vec::new();
-    // The heading error's stationary σ: the latest step's stated one.
+    // The heading error's stationary σ (the latest step's stated one), and the GNSS
+    // slow error's stationary variance (m², the latest fix's).
     let mut heading_error_rad = noise.heading_error_rad;
-    // The GNSS slow error's stationary variance (m²): the latest fix's.
-    let mut bias_var_m2 = p[(BE, BE)];
+    let mut bias_var_m2 = belief.p[(BE, BE)];
     for &event in events {
         let t_s = event_time(event, steps, fixes, start_s);
-        let dt_s = (t_s - t_prev).max(0.0);
-        t_prev = t_s;
-        if let Event::Step(k) = event {
+        belief.f = identity();
+        if let Event::Heading(k) = event {
             if let Some(sigma) = steps[k]
                 .heading_sigma_rad
                 .filter(|sigma| sigma.is_finite() && *sigma > 0.0)
             {
-                heading_error_rad = sigma.max(tune("T_HF", 0.0).to_radians());
+                heading_error_rad = sigma.max(noise.heading_error_floor_rad);
             }
         }
-        // The slow errors decay towards zero over the time since the last event.
-        let phi_d = (-dt_s / noise.heading_error_tau_s).exp();
-        let phi_b = (-dt_s / noise.gnss_bias_tau_s).exp();
-        let mut f = Cov::identity();
-        f[(D, D)] = phi_d;
-        f[(BE, BE)] = phi_b;
-        f[(BN, BN)] = phi_b;
-        let mut q = Cov::zeros();
-        q[(D, D)] = heading_error_rad.powi(2) * (1.0 - phi_d * phi_d);
-        q[(BE, BE)] = bias_var_m2 * (1.0 - phi_b * phi_b);
-        q[(BN, BN)] = q[(BE, BE)];
-        x = f * x;
-        p = f * p * f.transpose() + q;
-        if let Event::Step(k) = event {
-            let step = &steps[k];
-            let length_m = step.length_m.max(0.0);
-            let (sin_a, cos_a) = (step.heading_rad - x[D]).sin_cos();
-            let d_m = x[S] * length_m;
-            let mut fm = Cov::identity();
-            fm[(E, S)] = length_m * sin_a;
-            fm[(E, D)] = -d_m * cos_a;
-            fm[(N, S)] = length_m * cos_a;
-            fm[(N, D)] = d_m * sin_a;
-            // White noise of this step's length and heading, into E and N.
-            let sl = noise.length_white_fraction * d_m;
-            let sh = noise.heading_white_rad * d_m;
-            let mut qm = Cov::zeros();
-            qm[(E, E)] = (sin_a * sl).powi(2) + (cos_a * sh).powi(2);
-            qm[(N, N)] = (cos_a * sl).powi(2) + (sin_a * sh).powi(2);
-            qm[(E, N)] = sin_a * cos_a * (sl * sl - sh * sh);
-            qm[(N, E)] = qm[(E, N)];
-            qm[(S, S)] = noise.scale_walk_per_step.powi(2);
-            x[E] += d_m * sin_a;
-            x[N] += d_m * cos_a;
-            p = fm * p * fm.transpose() + qm;
-            f = fm * f;
+        belief.decay(
+            (t_s - t_prev).max(0.0),
+            &noise,
+            heading_error_rad,
+            bias_var_m2,
+        );
+        t_prev = t_s;
+        let fix_sigma_m = |j: usize| trust * fix_accuracy_m(&fixes[j], noise) / ACCURACY_PER_SIGMA;
+        match event {
+            Event::Step(k) => belief.step(steps[k].length_m.max(0.0), &noise),
+            Event::Fix(j) => {
+                let target_m2 = fix_sigma_m(j).powi(2) * noise.gnss_bias_share;
+                belief.follow_accuracy(bias_var_m2, target_m2);
+                bias_var_m2 = target_m2;
+            }
+            Event::Start | Event::Heading(_) => {}
         }
-        if let Event::Fix(j) = event {
-            // The slow error's variance follows the accuracy the fix reports at once:
-            // a better one means a new satellite geometry, so the old error is mostly
-            // forgotten (b ← k·b + w, k the ratio of the σs); a worse one adds to it.
-            let sigma_m = trust * fix_accuracy_m(&fixes[j], noise) / ACCURACY_PER_SIGMA;
-            let target_m2 = sigma_m.powi(2) * noise.gnss_bias_share;
-            let mut fa = Cov::identity();
-            let mut qa = Cov::zeros();
-            if target_m2 < bias_var_m2 {
-                let k = (target_m2 / bias_var_m2).sqrt();
-                fa[(BE, BE)] = k;
-                fa[(BN, BN)] = k;
-                qa[(BE, BE)] = target_m2 * (1.0 - k * k);
-            } else {
-                qa[(BE, BE)] = target_m2 - bias_var_m2;
+        let (x_prior, p_prior) = (belief.x, belief.p);
+        match event {
+            Event::Heading(k) => belief.heading(steps[k].heading_rad, &noise),
+            Event::Fix(j) => {
+                if let Some((nis, down_weighted)) = belief.fix(&fixes[j], fix_sigma_m(j), &noise) {
+                    nis_all.push(nis);
+                    fix_use[j] = if down_weighted {
+                        FixUse::DownWeighted
+                    } else {
+                        FixUse::Used
+                    };
+                }
             }
-            qa[(BN, BN)] = qa[(BE, BE)];
-            x = fa * x;
-            p = fa * p * fa.transpose() + qa;
-            f = fa * f;
-            bias_var_m2 = target_m2;
-        }
-        let (x_prior, p_prior) = (x, p);
-        if let Event::Fix(j) = event {
-            let fix = &fixes[j];
-            let sigma_m = trust * fix_accuracy_m(fix, noise) / ACCURACY_PER_SIGMA;
-            let g = 1.0;
-            let white_var = sigma_m.powi(2) * (1.0 - noise.gnss_bias_share);
-            let mut h = SMatrix::<f64, 2, 6>::zeros();
-            h[(0, E)] = 1.0;
-            h[(1, N)] = 1.0;
-            h[(0, BE)] = g;
-            h[(1, BN)] = g;
-            let y = SVector::<f64, 2>::new(fix.en_m[0], fix.en_m[1]) - h * x;
-            let mut r = SMatrix::<f64, 2, 2>::identity() * white_var;
-            let s = h * p * h.transpose() + r;
-            let nis = s
-                .try_inverse()
-                .map_or(f64::INFINITY, |s_inv| (y.transpose() * s_inv * y)[(0, 0)]);
-            nis_all.push(nis);
-            // Heavy tails: a fix beyond the gate counts as if its noise were larger by
-            // its own innovation (Huber's weight in the Mahalanobis norm).
-            let down_weighted = nis > noise.robust_gate;
-            if std::env::var("T_DBG").is_ok() {
-                eprintln!("fix t {:.1} z ({:.1},{:.1}) x ({:.1},{:.1}) b ({:.2},{:.2}) s {:.2} d {:.1} sigE {:.1} nis {:.1} acc {:?} trust {trust:.2}", fix.t_s, fix.en_m[0], fix.en_m[1], x[E], x[N], x[BE]*g, x[BN]*g, x[S], x[D].to_degrees(), p[(E,E)].sqrt(), nis, fix.hacc_m);
-            }
-            if down_weighted {
-                // Inflate the whole measurement (slow and white parts alike).
-                let inflation = nis / noise.robust_gate;
-                r += (h * p * h.transpose() + r) * (inflation - 1.0);
-            }
-            let s = h * p * h.transpose() + r;
-            if let Some(s_inv) = s.try_inverse() {
-                let k = p * h.transpose() * s_inv;
-                x += k * y;
-                let i_kh = Cov::identity() - k * h;
-                p = i_kh * p * i_kh.transpose() + k * r * k.transpose();
-                fix_use[j] = if down_weighted {
-                    FixUse::DownWeighted
-                } else {
-                    FixUse::Used
-                };
-            }
+            Event::Start | Event::Step(_) => {}
         }
         stored.push(Stored {
             x_prior,
             p_prior,
-            x_post: x,
-            p_post: p,
-            f,
+            x_post: belief.x,
+            p_post: belief.p,
+            f: belief.f,
         });
     }
     Pass {
@@ -466,7 +612,7 @@ fn initial(
 ) -> (State, Cov) {
     let mut x = State::zeros();
     x[S] = 1.0;
-    let mut p = Cov::zeros();
+    let mut p = zeros();
     let first_fix = events.iter().find_map(|event| match event {
         Event::Fix(j) => Some(&fixes[*j]),
         _ => None,
@@ -474,20 +620,29 @@ fn initial(
     let (start_en_m, start_sigma_m) = match (prior.start, first_fix) {
         (Some(start), _) => start,
         // Diffuse: the first fix places it.
-        (None, Some(fix)) => (fix.en_m, tune("T_SM", 3.0) * trust * fix_accuracy_m(fix, noise)),
+        (None, Some(fix)) => (
+            fix.en_m,
+            noise.start_accuracy_multiple * trust * fix_accuracy_m(fix, noise),
+        ),
         (None, None) => ([0.0, 0.0], 0.0),
     };
     x[E] = start_en_m[0];
     x[N] = start_en_m[1];
     p[(E, E)] = start_sigma_m.powi(2);
     p[(N, N)] = p[(E, E)];
-    p[(S, S)] = (prior.scale_sigma * tune("T_SS", 0.33)).powi(2);
+    p[(S, S)] = prior.scale_sigma.powi(2);
     let heading_error_rad = steps
         .first()
         .and_then(|step| step.heading_sigma_rad)
         .filter(|sigma| sigma.is_finite() && *sigma > 0.0)
-        .unwrap_or(noise.heading_error_rad);
+        .map_or(noise.heading_error_rad, |sigma| {
+            sigma.max(noise.heading_error_floor_rad)
+        });
     p[(D, D)] = heading_error_rad.powi(2);
+    x[A] = steps
+        .first()
+        .map_or(0.0, |step| wrap_to_2pi(step.heading_rad));
+    p[(A, A)] = noise.heading_white_rad.powi(2) + noise.turn_per_step_rad.powi(2);
     let bias_sigma_m = first_fix.map_or(0.0, |fix| {
         trust * fix_accuracy_m(fix, noise) / ACCURACY_PER_SIGMA * noise.gnss_bias_share.sqrt()
     });
@@ -510,13 +665,18 @@ fn backward(stored: &[Stored]) -> (Vec<State>, Vec<Cov>) {
     let mut covs: Vec<Cov> = stored.iter().map(|s| s.p_post).collect();
     for k in (0..n.saturating_sub(1)).rev() {
         let next = &stored[k + 1];
-        let Some(p_prior_inv) = next.p_prior.try_inverse() else {
+        // States the walk never excites (the GNSS error of a walk without fixes) have
+        // no variance: a whisker on the diagonal keeps the inverse defined.
+        let Some(p_prior_inv) = (next.p_prior + identity().scaled(1e-12)).try_inverse() else {
             continue;
         };
         let c = stored[k].p_post * next.f.transpose() * p_prior_inv;
-        states[k] = stored[k].x_post + c * (states[k + 1] - next.x_prior);
+        let mut difference = states[k + 1] - next.x_prior;
+        difference[A] = wrap_to_pi(difference[A]);
+        states[k] = stored[k].x_post + c.times(&difference);
+        states[k][A] = wrap_to_2pi(states[k][A]);
         let p = stored[k].p_post + c * (covs[k + 1] - next.p_prior) * c.transpose();
-        covs[k] = (p + p.transpose()) * 0.5;
+        covs[k] = p.symmetric();
     }
     (states, covs)
 }
@@ -566,7 +726,11 @@ mod tests {
         let smoothed = fuse_walk(&steps, &fixes, prior, WalkNoise::default(), &policy, true);
         let causal = fuse_walk(&steps, &fixes, prior, WalkNoise::default(), &policy, false);
         assert_eq!(smoothed.track.len(), 241);
-        assert!((smoothed.scale.0 - 7.0 / 6.0).abs() < 0.03, "{:?}", smoothed.scale);
+        assert!(
+            (smoothed.scale.0 - 7.0 / 6.0).abs() < 0.03,
+            "{:?}",
+            smoothed.scale
+        );
         let mid = &smoothed.track[120];
         let heading_deg = mid.heading_rad.to_degrees();
         assert!(!(2.0..358.0).contains(&heading_deg), "{heading_deg}");
@@ -645,6 +809,9 @@ mod tests {
         let mid = &fused.track[60];
         assert!(mid.east_m > 10.0, "{mid:?}");
         assert!(mid.position_sigma_m > 5.0, "{mid:?}");
-        assert!(fused.fix_use.iter().all(|u| matches!(u, FixUse::Used | FixUse::DownWeighted)));
+        assert!(fused
+            .fix_use
+            .iter()
+            .all(|u| matches!(u, FixUse::Used | FixUse::DownWeighted)));
     }
 }
