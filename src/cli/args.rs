@@ -9,7 +9,7 @@ use compass_pdr::calibration::{CalibrationOptions, DeclinationChoice, Method};
 use compass_pdr::heading::HeadingOptions;
 use compass_pdr::pdr::fusion::{GnssPolicy, Outage};
 use compass_pdr::pdr::step_length::StepModelKind;
-use compass_pdr::pdr::{HeadingChoice, PdrOptions};
+use compass_pdr::pdr::{FilterKind, HeadingChoice, PdrOptions};
 use compass_pdr::recording::GyroBias;
 use compass_pdr::reference::{ReferenceChoice, ReferenceOptions};
 
@@ -99,6 +99,12 @@ pub(super) struct PdrArgs {
     /// does; repeat for several outages.
     #[arg(long = "outage", value_name = "START:END")]
     pub(super) outages: Vec<String>,
+    /// How the steps and the fixes are fused: `smoother` (every fix weighted by its
+    /// accuracy and innovation, forward and backward, so each position uses the fixes
+    /// before and after it), `causal` (its forward pass: what a live track would show)
+    /// or `paper` (the PDR paper's EKF with GNSS/PDR switching)
+    #[arg(long, default_value = "smoother", value_parser = ["smoother", "causal", "paper"])]
+    pub(super) filter: String,
     /// The step-length model: linear (SL = A + B·SF + C·SV), weinberg
     /// (SL = K·(Amax − Amin)^¼) or mlp (16 tanh neurons).
     #[arg(long, default_value = "weinberg")]
@@ -178,6 +184,7 @@ impl PdrArgs {
                 outages,
                 ..defaults.gnss.clone()
             },
+            filter: FilterKind::parse(&self.filter).unwrap_or(defaults.filter),
             ..defaults
         })
     }

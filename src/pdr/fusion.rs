@@ -139,6 +139,9 @@ pub enum FixUse {
     PoorAccuracy,
     /// Beyond the χ² gate.
     Rejected,
+    /// Beyond the smoother's χ² gate: taken with its noise inflated by its own
+    /// normalised innovation ([`super::smoother`]).
+    DownWeighted,
     /// Before the first step: the start position comes from it or its like.
     BeforeWalk,
     /// After the last step: nothing is dead-reckoned after it.

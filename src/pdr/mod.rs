@@ -11,7 +11,11 @@
 //! - `ekf.rs`: the `[E, N, l, a]` filter of Eq. 13 with GNSS position updates ("how to
 //!   fuse").
 //! - `fusion.rs`: GNSS/PDR switching: outages, accuracy and χ² gates, recovery ("when
-//!   to fuse").
+//!   to fuse"), the paper's causal filter (`--filter paper`).
+//! - `smoother.rs`: the default for logs: every fix weighted by its accuracy and
+//!   innovation, the step scale, the heading error and the GNSS's slow error as states,
+//!   forward and then backward (Rauch-Tung-Striebel); `--filter causal` is its forward
+//!   pass alone.
 //! - `metrics.rs`: the paper's accuracy figures (Tables I, III, IV) and loop closure.
 //! - `heading.rs`: the heading each step takes: the analysis's one best model, fitted
 //!   again on the GNSS course outside the outages, optionally carried by the gyro.
@@ -31,7 +35,9 @@
 //!    length); the reference positions, when asked to; the GNSS speed over each step
 //!    while GNSS is good; the distance between GNSS fixes on straight stretches (logs
 //!    without speed); else a K given from an earlier walk, else Weinberg's default.
-//! 4. One filter runs through the steps and the admissible fixes.
+//! 4. One filter runs through the steps and the fixes: by default the smoother of
+//!    `smoother.rs` over every fix, else the paper's switching EKF over the admissible
+//!    ones.
 //! 5. Reference positions (a truth track, surveyed waypoints) score the track; a
 //!    reference-heading column scores the headings.
 
@@ -42,6 +48,8 @@ pub mod heading;
 pub mod metrics;
 mod references;
 mod report;
+mod small_matrix;
+pub mod smoother;
 pub mod step_length;
 pub mod steps;
 
@@ -64,6 +72,7 @@ use references::{
     step_reference_lengths, train_step_model, ReferenceSets,
 };
 use report::gnss_gaps;
+use smoother::{fuse_walk, WalkNoise, WalkPrior};
 use step_length::StepModelKind;
 use steps::{detect_steps, Step, StepOptions};
 
@@ -115,6 +124,38 @@ impl HeadingChoice {
     }
 }
 
+/// How the steps and the fixes are fused.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FilterKind {
+    /// Forward and backward over every fix ([`smoother`]): for logs, analysed after the
+    /// fact.
+    Smoother,
+    /// The smoother's forward pass alone: each position from what came before it.
+    Causal,
+    /// The paper's `[E, N, l, a]` EKF with GNSS/PDR switching ([`fusion`]).
+    Paper,
+}
+
+impl FilterKind {
+    pub fn key(self) -> &'static str {
+        match self {
+            FilterKind::Smoother => "smoother",
+            FilterKind::Causal => "causal",
+            FilterKind::Paper => "paper",
+        }
+    }
+
+    pub fn parse(text: &str) -> Option<FilterKind> {
+        match text.trim() {
+            "smoother" => Some(FilterKind::Smoother),
+            "causal" => Some(FilterKind::Causal),
+            "paper" => Some(FilterKind::Paper),
+            _ => None,
+        }
+    }
+}
+
 /// Everything that changes the result.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct PdrOptions {
@@ -136,7 +177,11 @@ pub struct PdrOptions {
     /// The walk ends where it started: report the loop-closure error.
     pub closed_loop: bool,
     pub gnss: GnssPolicy,
+    pub filter: FilterKind,
+    /// The paper filter's noise.
     pub noise: EkfNoise,
+    /// The smoother's noise.
+    pub walk_noise: WalkNoise,
     /// The network's initial weights.
     pub seed: u64,
 }
@@ -153,7 +198,9 @@ impl Default for PdrOptions {
             train_on_reference_positions: false,
             closed_loop: false,
             gnss: GnssPolicy::default(),
+            filter: FilterKind::Smoother,
             noise: EkfNoise::default(),
+            walk_noise: WalkNoise::default(),
             seed: 1,
         }
     }
@@ -210,9 +257,10 @@ pub fn dead_reckon(
         .collect();
 
     // 3. The local frame, the fixes and the reference positions.
-    let (frame, fixes) = local_fixes(recording, &options.gnss);
+    let fix_policy = options.fix_policy();
+    let (frame, fixes) = local_fixes(recording, &fix_policy);
     let reference_en_m =
-        reference_positions(recording, frame.as_ref(), &fixes, &options.gnss, &mut notes);
+        reference_positions(recording, frame.as_ref(), &fixes, &fix_policy, &mut notes);
 
     // 4. Step lengths.
     let gnss_references = gnss_step_references(recording, &steps, &options.gnss);
@@ -225,26 +273,30 @@ pub fn dead_reckon(
         options,
     );
     let step_model = train_step_model(&steps, &sets, options, &mut notes);
+    let step_model = plausible_step_model(step_model, &steps, options, &mut notes);
     let step_lengths_m: Vec<f64> = steps
         .iter()
         .map(|step| step_model.model.length_m(step))
         .collect();
 
     // 5. The filter.
-    let fused = run_filter(
+    let (fused, smoothed) = run_filter(
         &steps,
         &step_lengths_m,
         (&step_headings_rad, &step_heading_sigmas_rad),
         &fixes,
         &reference_en_m,
-        options,
+        (options, &step_model),
     );
+    if let Some(smoothed) = smoothed {
+        notes.push(smoothed.describe(options.filter, !fixes.is_empty()));
+    }
     let fix_counts = count_fixes(
         &fused.fix_use,
         frame.is_some(),
         recording,
         fixes.len(),
-        &options.gnss,
+        &fix_policy,
         &mut notes,
     );
 
@@ -314,6 +366,102 @@ fn step_headings(steps: &[Step], heading: &Stream<f64>, notes: &mut Vec<String>)
     fill_forward(step_headings_rad)
 }
 
+impl PdrOptions {
+    /// The policy the filter takes fixes by: the smoother weighs every fix by its
+    /// accuracy and its innovation, so only an outage keeps one out; the paper's filter
+    /// refuses the inaccurate ones.
+    fn fix_policy(&self) -> GnssPolicy {
+        match self.filter {
+            FilterKind::Paper => self.gnss.clone(),
+            FilterKind::Smoother | FilterKind::Causal => GnssPolicy {
+                max_hacc_m: f64::INFINITY,
+                ..self.gnss.clone()
+            },
+        }
+    }
+}
+
+/// What the smoother learnt, for the notes.
+struct Smoothed {
+    trust: f64,
+    scale: (f64, f64),
+}
+
+impl Smoothed {
+    fn describe(&self, filter: FilterKind, has_fixes: bool) -> String {
+        let how = match filter {
+            FilterKind::Smoother => "smoothed forward and backward (Rauch-Tung-Striebel), so each position uses the fixes before and after it",
+            _ => "filtered forward only (causal): each position uses what came before it",
+        };
+        let trust = if has_fixes {
+            format!(
+                "; every GNSS fix weighted by its reported accuracy × {:.2} (learnt from the fixes' innovations), those beyond the χ² gate down-weighted",
+                self.trust
+            )
+        } else {
+            String::new()
+        };
+        format!(
+            "The track is {how}{trust}; the step model's lengths × {:.3} ± {:.3} (learnt by the filter).",
+            self.scale.0, self.scale.1
+        )
+    }
+}
+
+/// How well the step model's training proves it: the 1σ of its scale the filter starts
+/// from.
+/// A phone's GNSS indoors moves less than the walker (its fixes lag and stay put), so
+/// the fixes alone would shrink a walk by half: the scale's prior holds it.
+fn scale_sigma(step_model: &StepModelReport) -> f64 {
+    match step_model.trained_on {
+        "known_distance" => 0.01,
+        "reference_positions" => 0.02,
+        "gnss_speed" | "gnss_positions" | "given_k" => 0.03,
+        _ => 0.05,
+    }
+}
+
+/// A step model trained on GNSS that makes this walk's steps shorter than 0.6 or
+/// longer than 1.6 times Weinberg's default K would is not proved by its references
+/// (indoor fixes report a speed near zero while the walker walks): the default K is
+/// used instead, and the filter learns the scale.
+fn plausible_step_model(
+    step_model: StepModelReport,
+    steps: &[Step],
+    options: &PdrOptions,
+    notes: &mut Vec<String>,
+) -> StepModelReport {
+    if !matches!(step_model.trained_on, "gnss_speed" | "gnss_positions") || steps.is_empty() {
+        return step_model;
+    }
+    let default = step_length::StepLengthModel::Weinberg {
+        k: step_length::DEFAULT_WEINBERG_K,
+    };
+    let trained_m: f64 = steps
+        .iter()
+        .map(|step| step_model.model.length_m(step))
+        .sum();
+    let default_m: f64 = steps.iter().map(|step| default.length_m(step)).sum();
+    let ratio = trained_m / default_m;
+    if default_m > 0.0 && (0.6..=1.6).contains(&ratio) {
+        return step_model;
+    }
+    notes.push(format!(
+        "The step model trained on {} made the steps {:.0} % of the usual length ({}): not believed. Weinberg's K = {} was used, its scale learnt by the filter.",
+        step_model.trained_on.replace('_', " "),
+        100.0 * ratio,
+        step_model.describe(),
+        step_length::DEFAULT_WEINBERG_K
+    ));
+    StepModelReport {
+        requested: options.step_model,
+        model: default,
+        trained_on: "default",
+        n_references: 0,
+        train_rms_m: None,
+    }
+}
+
 /// The filter over the steps and the fixes, from the start position.
 fn run_filter(
     steps: &[Step],
@@ -321,13 +469,14 @@ fn run_filter(
     (step_headings_rad, step_heading_sigmas_rad): (&[f64], &[Option<f64>]),
     fixes: &[FixInput],
     reference_en_m: &[(f64, [f64; 2])],
-    options: &PdrOptions,
-) -> Fused {
+    (options, step_model): (&PdrOptions, &StepModelReport),
+) -> (Fused, Option<Smoothed>) {
     let Some(first_step) = steps.first() else {
-        return fuse(&[], fixes, [0.0, 0.0], 0.0, options.noise, &options.gnss);
+        return (
+            fuse(&[], fixes, [0.0, 0.0], 0.0, options.noise, &options.gnss),
+            None,
+        );
     };
-    let (start_en_m, start_sigma_m) =
-        start_position(first_step, fixes, reference_en_m, &options.gnss);
     let inputs: Vec<StepInput> = steps
         .iter()
         .zip(step_lengths_m)
@@ -342,13 +491,46 @@ fn run_filter(
             },
         )
         .collect();
-    fuse(
+    if options.filter == FilterKind::Paper {
+        let (start_en_m, start_sigma_m) =
+            start_position(first_step, fixes, reference_en_m, &options.gnss);
+        let fused = fuse(
+            &inputs,
+            fixes,
+            start_en_m,
+            start_sigma_m,
+            options.noise,
+            &options.gnss,
+        );
+        return (fused, None);
+    }
+    // Where there are fixes they place the walk; else a surveyed start, else the origin.
+    let start = fixes.is_empty().then(|| {
+        reference_en_m
+            .first()
+            .map_or(([0.0, 0.0], 0.0), |(_, first)| (*first, 0.5))
+    });
+    let prior = WalkPrior {
+        start,
+        scale_sigma: scale_sigma(step_model),
+    };
+    let walk = fuse_walk(
         &inputs,
         fixes,
-        start_en_m,
-        start_sigma_m,
-        options.noise,
+        prior,
+        options.walk_noise,
         &options.gnss,
+        options.filter == FilterKind::Smoother,
+    );
+    (
+        Fused {
+            track: walk.track,
+            fix_use: walk.fix_use,
+        },
+        Some(Smoothed {
+            trust: walk.trust,
+            scale: walk.scale,
+        }),
     )
 }
 
@@ -394,6 +576,7 @@ fn count_fixes(
             FixUse::InOutage => &mut fix_counts.in_outage,
             FixUse::PoorAccuracy => &mut fix_counts.poor_accuracy,
             FixUse::Rejected => &mut fix_counts.rejected,
+            FixUse::DownWeighted => &mut fix_counts.down_weighted,
             FixUse::BeforeWalk | FixUse::AfterWalk => &mut fix_counts.outside_walk,
         };
         *counter += 1;
@@ -413,11 +596,15 @@ fn count_fixes(
             ));
         }
     }
-    if n_fixes > 0 && fix_counts.used + fix_counts.used_after_reset == 0 {
+    if n_fixes > 0 && fix_counts.used + fix_counts.used_after_reset + fix_counts.down_weighted == 0
+    {
+        let why = if policy.max_hacc_m.is_finite() {
+            format!("accuracy worse than {} m, or in outages", policy.max_hacc_m)
+        } else {
+            "all in outages or outside the walk".to_string()
+        };
         notes.push(format!(
-            "None of the {} GNSS fixes was used (accuracy worse than {} m, or in outages): the track is dead-reckoned throughout.",
-            n_fixes,
-            policy.max_hacc_m
+            "None of the {n_fixes} GNSS fixes was used ({why}): the track is dead-reckoned throughout."
         ));
     }
     fix_counts

@@ -66,6 +66,8 @@ pub struct FixCounts {
     pub in_outage: usize,
     pub poor_accuracy: usize,
     pub rejected: usize,
+    /// Taken with less weight: beyond the smoother's χ² gate.
+    pub down_weighted: usize,
     /// Before the first step or after the last.
     pub outside_walk: usize,
 }
@@ -73,13 +75,19 @@ pub struct FixCounts {
 impl FixCounts {
     /// "N used, … rejected by the gate", or `None` when the log had no fix to judge.
     pub fn describe(&self) -> Option<String> {
-        (self.used + self.used_after_reset + self.in_outage + self.poor_accuracy + self.rejected > 0)
-            .then(|| {
-                format!(
-                    "{} used, {} after a reset, {} in outages, {} too inaccurate, {} rejected by the gate",
-                    self.used, self.used_after_reset, self.in_outage, self.poor_accuracy, self.rejected
-                )
-            })
+        let parts: Vec<String> = [
+            (self.used, "used"),
+            (self.down_weighted, "down-weighted beyond the gate"),
+            (self.used_after_reset, "after a reset"),
+            (self.in_outage, "in outages"),
+            (self.poor_accuracy, "too inaccurate"),
+            (self.rejected, "rejected by the gate"),
+        ]
+        .iter()
+        .filter(|(n, _)| *n > 0)
+        .map(|(n, what)| format!("{n} {what}"))
+        .collect();
+        (!parts.is_empty()).then(|| parts.join(", "))
     }
 }
 

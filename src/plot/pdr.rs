@@ -92,7 +92,10 @@ pub fn draw_trajectory<DB: DrawingBackend>(
                 FixUse::Used | FixUse::UsedAfterReset => used.push(point),
                 FixUse::InOutage | FixUse::Rejected => ignored.push(point),
                 // Fixes of hundreds of metres of error would only stretch the axes.
-                FixUse::PoorAccuracy | FixUse::BeforeWalk | FixUse::AfterWalk => {}
+                FixUse::PoorAccuracy
+                | FixUse::DownWeighted
+                | FixUse::BeforeWalk
+                | FixUse::AfterWalk => {}
             }
         }
     }
