@@ -142,9 +142,11 @@ test('phyphox files dropped together are merged into one recording', async (t) =
   // No reference heading in a phyphox walk: the figures say so instead of inventing one.
   assert.equal(await text(page, 'stat-min_max-check-rms'), '—');
   assert.match(await text(page, 'notes'), /no reference heading/);
-  // The loop's 168 steps (169 detected), dead-reckoned without GNSS (indoor fixes refused).
+  // The loop's 168 steps (169 detected); its indoor fixes (22-669 m) are weighted by their
+  // accuracy, none refused (issue 42), and the page says the track is smoothed.
   assert.match(await text(page, 'pdr-summary'), /169 steps in 1 bout at/);
-  assert.match(await text(page, 'pdr-summary'), /GNSS fixes reported an accuracy within 15 m/);
+  assert.match(await text(page, 'pdr-summary'), /GNSS fixes: 3\d used\./);
+  assert.match(await text(page, 'pdr-summary'), /The track is smoothed forward and backward/);
   await assertPlotsDrawn(page);
   await page.screenshot({ path: join(out, 'phyphox.png'), fullPage: true });
   assert.deepEqual(problems, []);
