@@ -73,30 +73,23 @@ pub struct LoopClosure {
 
 /// The track's position at `t_s`, linear between track points; `None` outside it.
 pub fn position_at(track: &[TrackPoint], t_s: f64) -> Option<[f64; 2]> {
-    let first = track.first()?;
-    let last = track.last()?;
-    if !(first.t_s..=last.t_s).contains(&t_s) {
-        return None;
-    }
-    let after = track
-        .partition_point(|point| point.t_s < t_s)
-        .min(track.len() - 1);
-    let before = after.saturating_sub(1);
-    let (a, b) = (track.get(before)?, track.get(after)?);
-    let span_s = b.t_s - a.t_s;
-    let fraction = if span_s > 0.0 {
-        (t_s - a.t_s) / span_s
-    } else {
-        1.0
-    };
     Some([
-        a.east_m + (b.east_m - a.east_m) * fraction,
-        a.north_m + (b.north_m - a.north_m) * fraction,
+        interpolate_at(track, t_s, |point| point.east_m)?,
+        interpolate_at(track, t_s, |point| point.north_m)?,
     ])
 }
 
 /// The track's stated position σ at `t_s`, linearly interpolated.
 pub fn sigma_at(track: &[TrackPoint], t_s: f64) -> Option<f64> {
+    interpolate_at(track, t_s, |point| point.position_sigma_m)
+}
+
+/// One value of the track at `t_s`, linear between track points; `None` outside it.
+fn interpolate_at(
+    track: &[TrackPoint],
+    t_s: f64,
+    value: impl Fn(&TrackPoint) -> f64,
+) -> Option<f64> {
     let first = track.first()?;
     let last = track.last()?;
     if !(first.t_s..=last.t_s).contains(&t_s) {
@@ -112,7 +105,7 @@ pub fn sigma_at(track: &[TrackPoint], t_s: f64) -> Option<f64> {
     } else {
         1.0
     };
-    Some(a.position_sigma_m + (b.position_sigma_m - a.position_sigma_m) * fraction)
+    Some(value(a) + (value(b) - value(a)) * fraction)
 }
 
 /// The length of the track between two times (m).

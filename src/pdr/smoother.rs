@@ -44,13 +44,6 @@ use crate::angle::{wrap_to_2pi, wrap_to_pi};
 
 use super::small_matrix::{Cov, State};
 
-fn identity() -> Cov {
-    Cov::identity()
-}
-
-fn zeros() -> Cov {
-    Cov::zeros()
-}
 const E: usize = 0;
 const N: usize = 1;
 const S: usize = 2;
@@ -396,11 +389,11 @@ impl Belief {
     fn decay(&mut self, dt_s: f64, noise: &WalkNoise, heading_error_rad: f64, bias_var_m2: f64) {
         let phi_d = (-dt_s / noise.heading_error_tau_s).exp();
         let phi_b = (-dt_s / noise.gnss_bias_tau_s).exp();
-        let mut f = identity();
+        let mut f = Cov::identity();
         f[(D, D)] = phi_d;
         f[(BE, BE)] = phi_b;
         f[(BN, BN)] = phi_b;
-        let mut q = zeros();
+        let mut q = Cov::zeros();
         q[(D, D)] = heading_error_rad.powi(2) * (1.0 - phi_d * phi_d);
         q[(BE, BE)] = bias_var_m2 * (1.0 - phi_b * phi_b);
         q[(BN, BN)] = q[(BE, BE)];
@@ -412,7 +405,7 @@ impl Belief {
         let x = self.x;
         let (sin_a, cos_a) = (x[A] - x[D]).sin_cos();
         let d_m = x[S] * length_m;
-        let mut f = identity();
+        let mut f = Cov::identity();
         f[(E, S)] = length_m * sin_a;
         f[(E, A)] = d_m * cos_a;
         f[(E, D)] = -d_m * cos_a;
@@ -420,7 +413,7 @@ impl Belief {
         f[(N, A)] = -d_m * sin_a;
         f[(N, D)] = d_m * sin_a;
         let sl = noise.length_white_fraction * d_m;
-        let mut q = zeros();
+        let mut q = Cov::zeros();
         q[(E, E)] = (sin_a * sl).powi(2);
         q[(N, N)] = (cos_a * sl).powi(2);
         q[(E, N)] = sin_a * cos_a * sl * sl;
@@ -438,8 +431,8 @@ impl Belief {
     /// better one is a new satellite geometry, so the old error is mostly forgotten
     /// (`β ← k·β + w`, `k` the ratio of the σs); a worse one adds to it.
     fn follow_accuracy(&mut self, from_m2: f64, to_m2: f64) {
-        let mut f = identity();
-        let mut q = zeros();
+        let mut f = Cov::identity();
+        let mut q = Cov::zeros();
         if to_m2 < from_m2 {
             let k = (to_m2 / from_m2).sqrt();
             f[(BE, BE)] = k;
@@ -472,8 +465,8 @@ impl Belief {
             ph[0].scaled(s_inv[0][1]) + ph[1].scaled(s_inv[1][1]),
         ];
         self.x += k[0].scaled(y[0]) + k[1].scaled(y[1]);
-        let i_kh = identity() - k[0].outer(&h[0]) - k[1].outer(&h[1]);
-        let mut krk = zeros();
+        let i_kh = Cov::identity() - k[0].outer(&h[0]) - k[1].outer(&h[1]);
+        let mut krk = Cov::zeros();
         for (a, b) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
             krk = krk + k[a].outer(&k[b]).scaled(r[a][b]);
         }
@@ -502,37 +495,45 @@ impl Belief {
         self.x[A] = wrap_to_2pi(self.x[A]);
     }
 
-    /// The squared distance from the track to a fix when the fix is beyond the gate.
-    fn gap_beyond_gate(&self, fix: &FixInput, sigma_m: f64, noise: &WalkNoise) -> Option<f64> {
+    /// A fix's innovation `y`, its covariance `S` and its normalised square, with the
+    /// white part of its noise `R`.
+    fn fix_innovation(
+        &self,
+        fix: &FixInput,
+        sigma_m: f64,
+        noise: &WalkNoise,
+    ) -> Option<FixInnovation> {
         let white_var = sigma_m.powi(2) * (1.0 - noise.gnss_bias_share);
         let h = fix_rows();
         let y = [
             fix.en_m[0] - h[0].dot(&self.x),
             fix.en_m[1] - h[1].dot(&self.x),
         ];
-        let (_, s) = self.innovation(&h, [[white_var, 0.0], [0.0, white_var]])?;
+        let r = [[white_var, 0.0], [0.0, white_var]];
+        let (_, s) = self.innovation(&h, r)?;
         let det = s[0][0] * s[1][1] - s[0][1] * s[1][0];
         let nis = (y[0] * (s[1][1] * y[0] - s[0][1] * y[1])
             + y[1] * (s[0][0] * y[1] - s[1][0] * y[0]))
             / det;
+        Some(FixInnovation { h, y, r, s, nis })
+    }
+
+    /// The squared distance from the track to a fix when the fix is beyond the gate.
+    fn gap_beyond_gate(&self, fix: &FixInput, sigma_m: f64, noise: &WalkNoise) -> Option<f64> {
+        let FixInnovation { y, nis, .. } = self.fix_innovation(fix, sigma_m, noise)?;
         (nis > noise.robust_gate).then_some(y[0] * y[0] + y[1] * y[1])
     }
 
     /// `z = [E, N] + β + ε`. Returns the normalised innovation squared and whether the
     /// fix was down-weighted; `None` when the update could not be made.
     fn fix(&mut self, fix: &FixInput, sigma_m: f64, noise: &WalkNoise) -> Option<(f64, bool)> {
-        let white_var = sigma_m.powi(2) * (1.0 - noise.gnss_bias_share);
-        let h = fix_rows();
-        let y = [
-            fix.en_m[0] - h[0].dot(&self.x),
-            fix.en_m[1] - h[1].dot(&self.x),
-        ];
-        let mut r = [[white_var, 0.0], [0.0, white_var]];
-        let (_, s) = self.innovation(&h, r)?;
-        let det = s[0][0] * s[1][1] - s[0][1] * s[1][0];
-        let nis = (y[0] * (s[1][1] * y[0] - s[0][1] * y[1])
-            + y[1] * (s[0][0] * y[1] - s[1][0] * y[0]))
-            / det;
+        let FixInnovation {
+            h,
+            y,
+            mut r,
+            s,
+            nis,
+        } = self.fix_innovation(fix, sigma_m, noise)?;
         // Heavy tails: a fix beyond the gate counts as if its whole noise were larger by
         // its own innovation (Huber's weight in the Mahalanobis norm).
         let down_weighted = nis.is_nan() || nis > noise.robust_gate;
@@ -546,6 +547,15 @@ impl Belief {
         }
         self.update(h, y, r).then_some((nis, down_weighted))
     }
+}
+
+/// What a fix would do to the track, before it does.
+struct FixInnovation {
+    h: [State; 2],
+    y: [f64; 2],
+    r: [[f64; 2]; 2],
+    s: [[f64; 2]; 2],
+    nis: f64,
 }
 
 /// The rows of `H` for a fix: `E + β_E`, `N + β_N`.
@@ -570,7 +580,7 @@ fn forward(
     let mut belief = Belief {
         x,
         p,
-        f: identity(),
+        f: Cov::identity(),
     };
     let mut t_prev = events
         .first()
@@ -585,7 +595,7 @@ fn forward(
     let mut rejected_in_row = 0usize;
     for &event in events {
         let t_s = event_time(event, steps, fixes, start_s);
-        belief.f = identity();
+        belief.f = Cov::identity();
         let mut reset = false;
         if let Event::Heading(k) = event {
             if let Some(sigma) = steps[k]
@@ -615,10 +625,10 @@ fn forward(
                 if rejected_in_row + 1 >= reset_after.max(1) {
                     if let Some(gap_m2) = belief.gap_beyond_gate(&fixes[j], fix_sigma_m(j), &noise)
                     {
-                        let mut q = zeros();
+                        let mut q = Cov::zeros();
                         q[(E, E)] = gap_m2;
                         q[(N, N)] = gap_m2;
-                        belief.transition(identity(), q);
+                        belief.transition(Cov::identity(), q);
                         reset = true;
                     }
                 }
@@ -672,7 +682,7 @@ fn initial(
 ) -> (State, Cov) {
     let mut x = State::zeros();
     x[S] = 1.0;
-    let mut p = zeros();
+    let mut p = Cov::zeros();
     let first_fix = events.iter().find_map(|event| match event {
         Event::Fix(j) => Some(&fixes[*j]),
         _ => None,
@@ -727,7 +737,7 @@ fn backward(stored: &[Stored]) -> (Vec<State>, Vec<Cov>) {
         let next = &stored[k + 1];
         // States the walk never excites (the GNSS error of a walk without fixes) have
         // no variance: a whisker on the diagonal keeps the inverse defined.
-        let Some(p_prior_inv) = (next.p_prior + identity().scaled(1e-12)).try_inverse() else {
+        let Some(p_prior_inv) = (next.p_prior + Cov::identity().scaled(1e-12)).try_inverse() else {
             continue;
         };
         let c = stored[k].p_post * next.f.transpose() * p_prior_inv;
@@ -763,21 +773,29 @@ mod tests {
         [0.0, 1.4 * t_s]
     }
 
+    /// A fix a second for `seconds`, reporting `hacc_m`, at the truth plus `error(t)`.
+    fn fixes(seconds: usize, hacc_m: f64, error: impl Fn(usize) -> [f64; 2]) -> Vec<FixInput> {
+        (1..seconds)
+            .map(|t| {
+                let t_s = t as f64;
+                let ([e, n], [de, dn]) = (truth_at(t_s), error(t));
+                FixInput {
+                    t_s,
+                    en_m: [e + de, n + dn],
+                    hacc_m: Some(hacc_m),
+                }
+            })
+            .collect()
+    }
+
     #[test]
     fn good_fixes_teach_the_scale_and_the_heading_error_and_the_smoother_uses_them() {
         let steps = walk(240);
         // Fixes every second, 3 m accuracy, with a deterministic ±2 m wobble.
-        let fixes: Vec<FixInput> = (1..120)
-            .map(|t| {
-                let t_s = t as f64;
-                let [e, n] = truth_at(t_s);
-                FixInput {
-                    t_s,
-                    en_m: [e + 2.0 * (0.7 * t_s).sin(), n + 2.0 * (1.3 * t_s).cos()],
-                    hacc_m: Some(3.0),
-                }
-            })
-            .collect();
+        let fixes = fixes(120, 3.0, |t| {
+            let t_s = t as f64;
+            [2.0 * (0.7 * t_s).sin(), 2.0 * (1.3 * t_s).cos()]
+        });
         let prior = WalkPrior {
             start: None,
             scale_sigma: 0.15,
@@ -809,17 +827,7 @@ mod tests {
     #[test]
     fn an_outlier_is_down_weighted_and_an_outage_is_bridged() {
         let steps = walk(240);
-        let fixes: Vec<FixInput> = (1..120)
-            .map(|t| {
-                let t_s = t as f64;
-                let [e, n] = truth_at(t_s);
-                FixInput {
-                    t_s,
-                    en_m: [e + if t == 30 { 80.0 } else { 0.0 }, n],
-                    hacc_m: Some(4.0),
-                }
-            })
-            .collect();
+        let fixes = fixes(120, 4.0, |t| [if t == 30 { 80.0 } else { 0.0 }, 0.0]);
         let policy = GnssPolicy {
             outages: vec![super::super::fusion::Outage {
                 start_s: 60.0,
@@ -847,13 +855,7 @@ mod tests {
     #[test]
     fn fixes_alone_in_poor_accuracy_still_place_the_walk() {
         let steps = walk(120);
-        let fixes: Vec<FixInput> = (1..60)
-            .map(|t| FixInput {
-                t_s: t as f64,
-                en_m: [25.0, 1.4 * t as f64 + 10.0],
-                hacc_m: Some(36.0),
-            })
-            .collect();
+        let fixes = fixes(60, 36.0, |_| [25.0, 10.0]);
         let prior = WalkPrior {
             start: None,
             scale_sigma: 0.15,
