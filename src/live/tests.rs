@@ -103,16 +103,21 @@ fn a_sweep_streamed_in_odd_chunks_is_kept_whole_and_calibrates_the_board() {
     assert!(difference_pct.abs() < 3.0, "{difference_pct}");
 }
 
-#[test]
-fn half_a_sphere_is_not_good_enough_and_says_where_to_turn() {
+/// A session fed only the upper half of the sweep's directions (z > 0).
+fn half_sphere_session() -> LiveSession {
     let board = Board::new();
     let mut rng = SplitMix64::new(4);
     let mut session = LiveSession::new();
-    // Only the upper half of the sweep's directions (z > 0).
     let text: String = (0..1500)
         .map(|idx| board.raw_line(idx, 3000, &mut rng))
         .collect();
     session.feed(text.as_bytes(), 0.0);
+    session
+}
+
+#[test]
+fn half_a_sphere_is_not_good_enough_and_says_where_to_turn() {
+    let mut session = half_sphere_session();
     let verdict = match session.refit() {
         Ok(quality) => quality.verdict.clone(),
         Err(message) => panic!("{message}"),
@@ -360,14 +365,7 @@ fn a_good_session_beats_the_raw_readings_on_the_samples_held_back_and_is_sent() 
 
 #[test]
 fn a_session_that_has_not_covered_the_sphere_is_not_sent() {
-    let board = Board::new();
-    let mut rng = SplitMix64::new(4);
-    let mut session = LiveSession::new();
-    // The upper half of the directions only.
-    let text: String = (0..1500)
-        .map(|idx| board.raw_line(idx, 3000, &mut rng))
-        .collect();
-    session.feed(text.as_bytes(), 0.0);
+    let mut session = half_sphere_session();
     let quality = fitted(&mut session);
     assert!(!quality.send.sendable);
     assert!(
