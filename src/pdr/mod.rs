@@ -6,6 +6,8 @@
 //!
 //! - `steps.rs`: step detection (sliding window, zero crossing and peak detection on
 //!   `|f|`) with SF, SV, Amax and Amin per step.
+//! - `turning_over.rs`: the "steps" of a phone turned over in the hand (a compass
+//!   calibration's figure eight) left out.
 //! - `step_length.rs`: the linear (Eq. 2), Weinberg (Eq. 3) and neural step-length
 //!   models, fitted to per-step references or to a known distance.
 //! - `ekf.rs`: the `[E, N, l, a]` filter of Eq. 13 with GNSS position updates ("how to
@@ -29,7 +31,7 @@
 //!    "the speed and heading from GPS are utilized to train the step length model and
 //!    calibrate the compass"), never on a reference-heading column, which in a test log
 //!    is the truth.
-//! 2. Steps are detected; each gets the heading of the chosen model (circular mean over
+//! 2. Steps are detected, those of a phone turned over left out; each gets the heading of the chosen model (circular mean over
 //!    the step) and a length from the step model.
 //! 3. The step model trains on, in this order: a known distance (a loop of known
 //!    length); the reference positions, when asked to; the GNSS speed over each step
@@ -52,6 +54,7 @@ mod small_matrix;
 pub mod smoother;
 pub mod step_length;
 pub mod steps;
+pub mod turning_over;
 
 pub use report::{FixCounts, GnssGap, PdrAnalysis, PdrError, PdrReport, StepModelReport};
 
@@ -75,6 +78,7 @@ use report::gnss_gaps;
 use smoother::{fuse_walk, WalkNoise, WalkPrior};
 use step_length::StepModelKind;
 use steps::{detect_steps, Step, StepOptions};
+use turning_over::walking_steps;
 
 /// Where each step's heading comes from: a base heading, optionally carried by the gyro.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -238,7 +242,10 @@ pub fn dead_reckon(
     // 2. Steps and their headings.
     let detection = detect_steps(acc, &options.steps);
     notes.extend(detection.notes.iter().cloned());
-    let steps = detection.steps.clone();
+    let walking = walking_steps(&detection.steps, acc, &recording.gyro_in_body_radps);
+    notes.extend(walking.note());
+    let steps = walking.steps;
+    let n_bouts = steps.iter().filter(|step| step.ends_bout).count();
     if steps.is_empty() {
         return Err(PdrError::NoSteps {
             file_name,
@@ -320,8 +327,8 @@ pub fn dead_reckon(
     let report = PdrReport {
         file_name,
         n_steps: steps.len(),
-        n_bouts: detection.n_bouts,
-        mean_step_frequency_hz: detection.mean_frequency_hz(),
+        n_bouts,
+        mean_step_frequency_hz: steps::mean_frequency_hz(&steps),
         pdr_distance_m: scores.pdr_distance_m,
         duration_s: scores.walk_end_s - scores.walk_start_s,
         step_model,

@@ -108,14 +108,18 @@ pub struct StepDetection {
 impl StepDetection {
     /// Mean step frequency over the steps whose end was observed (Hz).
     pub fn mean_frequency_hz(&self) -> Option<f64> {
-        let observed: Vec<f64> = self
-            .steps
-            .iter()
-            .filter(|step| !step.ends_bout)
-            .map(|step| step.frequency_hz)
-            .collect();
-        (!observed.is_empty()).then(|| observed.iter().sum::<f64>() / observed.len() as f64)
+        mean_frequency_hz(&self.steps)
     }
+}
+
+/// Mean step frequency over the steps whose end was observed (Hz).
+pub fn mean_frequency_hz(steps: &[Step]) -> Option<f64> {
+    let observed: Vec<f64> = steps
+        .iter()
+        .filter(|step| !step.ends_bout)
+        .map(|step| step.frequency_hz)
+        .collect();
+    (!observed.is_empty()).then(|| observed.iter().sum::<f64>() / observed.len() as f64)
 }
 
 /// Detects the steps in the accelerometer stream (specific force in the body frame).
