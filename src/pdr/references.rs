@@ -120,12 +120,21 @@ pub(super) fn gnss_step_references(
         .collect()
 }
 
+/// A straight stretch between fixes trains the step model only when its length is at
+/// least this many times the worst reported accuracy among its fixes: 15 m for fixes
+/// of 5 m, so that a fix's slowly moving error (metres over the stretch's 20 s) cannot
+/// make it half or twice as long.
+const CHORD_PER_ACCURACY: f64 = 3.0;
+
 /// Where the step model's references come from, in the order they are tried.
 pub(super) struct ReferenceSets<'a> {
     pub(super) known_distance: Option<Vec<SegmentReference>>,
     pub(super) reference_positions: Option<Vec<SegmentReference>>,
     pub(super) gnss_speed: &'a [StepReference],
     pub(super) gnss_positions: Vec<SegmentReference>,
+    /// The straight stretches whatever the fixes' accuracy: they cannot train the step
+    /// model, but they can tell a GNSS speed that reads half the walking speed.
+    pub(super) gnss_stretches_any_accuracy: Vec<SegmentReference>,
 }
 
 impl<'a> ReferenceSets<'a> {
@@ -139,11 +148,39 @@ impl<'a> ReferenceSets<'a> {
         gnss_references: &'a [StepReference],
         options: &PdrOptions,
     ) -> ReferenceSets<'a> {
-        let admissible_fixes: Vec<(f64, [f64; 2])> = fixes
+        let admissible: Vec<(f64, [f64; 2], f64)> = fixes
             .iter()
-            .filter(|fix| options.gnss.admissible(fix).is_ok())
-            .map(|fix| (fix.t_s, fix.en_m))
+            .filter_map(|fix| {
+                let sigma_m = options.gnss.admissible(fix).ok()?;
+                Some((fix.t_s, fix.en_m, sigma_m))
+            })
             .collect();
+        let admissible_fixes: Vec<(f64, [f64; 2])> = admissible
+            .iter()
+            .map(|&(t_s, en_m, _)| (t_s, en_m))
+            .collect();
+        // A stretch proves a length only when it is long against the fixes' accuracy.
+        let gnss_stretches_any_accuracy =
+            straight_segments(&admissible_fixes, steps, step_headings_rad, 20.0, 15.0);
+        let mut gnss_positions = gnss_stretches_any_accuracy.clone();
+        gnss_positions.retain(|segment| {
+            let (Some(first), Some(last)) = (
+                steps.get(segment.steps.start),
+                segment
+                    .steps
+                    .end
+                    .checked_sub(1)
+                    .and_then(|idx| steps.get(idx)),
+            ) else {
+                return false;
+            };
+            let worst_sigma_m = admissible
+                .iter()
+                .filter(|(t_s, _, _)| (first.t_start_s..=last.t_end_s).contains(t_s))
+                .map(|&(_, _, sigma_m)| sigma_m)
+                .fold(0.0, f64::max);
+            segment.distance_m >= CHORD_PER_ACCURACY * worst_sigma_m
+        });
         ReferenceSets {
             known_distance: options.known_distance_m.map(|distance_m| {
                 vec![SegmentReference {
@@ -155,15 +192,47 @@ impl<'a> ReferenceSets<'a> {
                 .train_on_reference_positions
                 .then(|| straight_segments(reference_en_m, steps, step_headings_rad, 3.0, 5.0)),
             gnss_speed: gnss_references,
-            gnss_positions: straight_segments(
-                &admissible_fixes,
-                steps,
-                step_headings_rad,
-                20.0,
-                15.0,
-            ),
+            gnss_positions,
+            gnss_stretches_any_accuracy,
         }
     }
+}
+
+/// A GNSS speed trains the step model only where the distance between the fixes
+/// confirms it: the lengths it gives the steps of the straight stretches, against the
+/// stretches' own lengths, within these bounds.
+const SPEED_CONFIRMED_BY_STRETCHES: [f64; 2] = [0.8, 1.25];
+
+/// Why a step model fitted to the GNSS speed is not believed, if it is not.
+pub(super) fn unconfirmed_speed(
+    model: &StepLengthModel,
+    steps: &[Step],
+    stretches: &[SegmentReference],
+) -> Option<String> {
+    let (modelled_m, chord_m) = stretches
+        .iter()
+        .filter_map(|stretch| {
+            let run = steps.get(stretch.steps.clone())?;
+            Some((
+                run.iter().map(|step| model.length_m(step)).sum::<f64>(),
+                stretch.distance_m,
+            ))
+        })
+        .fold((0.0, 0.0), |(a, b), (m, c)| (a + m, b + c));
+    if chord_m <= 0.0 {
+        return Some(
+            "no straight stretch between the fixes confirms the distance it gives (a phone's fused GNSS speed read 44-62 % of the walking speed on the IPIN 2023 walks)".to_string(),
+        );
+    }
+    let ratio = modelled_m / chord_m;
+    let [low, high] = SPEED_CONFIRMED_BY_STRETCHES;
+    (!(low..=high).contains(&ratio)).then(|| {
+        format!(
+            "on {} straight stretches between the fixes it makes the walk {:.0} % of their length",
+            stretches.len(),
+            100.0 * ratio
+        )
+    })
 }
 
 pub(super) fn train_step_model(
@@ -192,6 +261,8 @@ pub(super) fn train_step_model(
             distance_m: reference.length_m,
         })
         .collect();
+    // The GNSS speed gives every step a reference (the linear model and the network
+    // need many), and is taken first where the stretches confirm it.
     let candidates: [(&'static str, Option<&[SegmentReference]>); 4] = [
         ("known_distance", sets.known_distance.as_deref()),
         ("reference_positions", sets.reference_positions.as_deref()),
@@ -218,6 +289,17 @@ pub(super) fn train_step_model(
             requested
         };
         match step_length::fit_segments(kind, steps, segments, options.seed) {
+            Ok(model)
+                if source == "gnss_speed"
+                    && unconfirmed_speed(&model, steps, &sets.gnss_stretches_any_accuracy)
+                        .is_some() =>
+            {
+                let why = unconfirmed_speed(&model, steps, &sets.gnss_stretches_any_accuracy)
+                    .unwrap_or_default();
+                notes.push(format!(
+                    "The GNSS speed did not train the step model: {why}."
+                ));
+            }
             Ok(model) => {
                 let train_rms_m = rms_on(&model, segments);
                 return StepModelReport {
@@ -249,7 +331,7 @@ pub(super) fn train_step_model(
         };
     }
     notes.push(format!(
-        "Nothing trained the step model (no GNSS while GNSS was good, no known distance): Weinberg's K = {} was used. Give --known-distance for a walk of known length, or --weinberg-k from an earlier walk.",
+        "Nothing in the log proves a step length (no straight stretch between fixes long against their accuracy, no GNSS speed they confirm, no known distance): Weinberg's K = {} was used. Give --known-distance for a walk of known length, or --weinberg-k from an earlier walk.",
         step_length::DEFAULT_WEINBERG_K
     ));
     StepModelReport {

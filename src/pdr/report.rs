@@ -52,7 +52,7 @@ impl StepModelReport {
                 format!("trained on {n} straight stretches between GNSS fixes{rms}")
             }
             "given_k" => "K given from an earlier walk".to_string(),
-            _ => "not trained (no usable GNSS and no known distance: the default K)".to_string(),
+            _ => "the default K (nothing in the log proves a step length)".to_string(),
         };
         format!("{model}, {trained}")
     }

@@ -1,5 +1,5 @@
 use super::fusion::Outage;
-use super::references::straight_segments;
+use super::references::{straight_segments, unconfirmed_speed};
 use super::step_length::StepLengthModel;
 use super::*;
 use crate::io::canonical_csv;
@@ -138,4 +138,35 @@ fn straight_segments_follow_straight_runs_of_steps_only() {
         assert!(segment.steps.end <= 100, "{segment:?}");
         assert!(segment.distance_m >= 15.0);
     }
+}
+
+#[test]
+fn a_gnss_speed_trains_only_where_the_fixes_confirm_it() {
+    let steps: Vec<Step> = (0..40)
+        .map(|k| Step {
+            t_start_s: 0.5 * k as f64,
+            t_end_s: 0.5 * (k + 1) as f64,
+            t_peak_s: 0.5 * k as f64 + 0.1,
+            frequency_hz: 2.0,
+            variance_mps2_sq: 1.0,
+            a_max_mps2: 12.0,
+            a_min_mps2: 8.0,
+            ends_bout: false,
+        })
+        .collect();
+    // Weinberg's K = 0.47 makes each of these steps 0.47 · 4^¼ = 0.665 m: 26.6 m.
+    let model = StepLengthModel::Weinberg { k: 0.47 };
+    let stretch = |distance_m: f64| {
+        vec![step_length::SegmentReference {
+            steps: 0..40,
+            distance_m,
+        }]
+    };
+    assert_eq!(unconfirmed_speed(&model, &steps, &stretch(26.6)), None);
+    assert_eq!(unconfirmed_speed(&model, &steps, &stretch(30.0)), None);
+    // A speed that makes the walk 60 % of what the fixes say is not believed ...
+    let why = unconfirmed_speed(&model, &steps, &stretch(44.3)).expect("refused");
+    assert!(why.contains("60 %"), "{why}");
+    // ... and nor is one that nothing confirms.
+    assert!(unconfirmed_speed(&model, &steps, &[]).is_some());
 }
