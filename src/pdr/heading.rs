@@ -8,8 +8,12 @@
 //! the CLI and the report name the same method. What is done here is to fit that one
 //! model again for the track: on every GNSS-referenced sample outside the outages, never
 //! on a reference-heading column (in a test log that column is the truth), so that no
-//! fix inside an outage trains what bridges it.
+//! fix inside an outage trains what bridges it. Where the comparison itself was scored
+//! against the track's truth (that column, or the legs between reference positions),
+//! its choice is not taken either: the track gets the calibration chosen without a
+//! reference, unless the user asks to train on the reference positions.
 
+use crate::calibration::selection::choose_without_reference;
 use crate::calibration::{calibrate_again, CalibrationAnalysis, CalibrationOptions, Method};
 use crate::heading::ATTITUDE_KEY;
 use crate::heading::{HeadingAnalysis, HeadingOptions};
@@ -79,11 +83,20 @@ fn compass_heading(
     options: &PdrOptions,
     notes: &mut Vec<String>,
 ) -> Option<StepHeading> {
-    let wanted = match &options.heading.base {
+    let mut wanted = match &options.heading.base {
         HeadingBase::Model(key) => key.clone(),
         _ => headings.report.choice.key.clone(),
     };
-    let refit = refit_on_gnss(import, calibration, &wanted, options, notes);
+    let mut refit = refit_on_gnss(import, calibration, &wanted, options, notes);
+    let refitted = refit
+        .as_ref()
+        .is_some_and(|refit| series_of(refit, &wanted).is_some());
+    if !refitted && !matches!(options.heading.base, HeadingBase::Model(_)) {
+        if let Some(key) = reference_free_choice(calibration, headings, options, notes) {
+            wanted = key;
+            refit = None;
+        }
+    }
     let from_refit = refit
         .as_ref()
         .and_then(|refit| series_of(refit, &wanted).map(|series| (refit, series)));
@@ -189,6 +202,43 @@ fn refit_on_gnss(
             None
         }
     }
+}
+
+/// Where the comparison was scored against what also scores the track (a
+/// reference-heading column, the legs between reference positions) and GNSS could not
+/// fit its model again, the model as the comparison fitted it would be fitted on the
+/// truth that judges the track: the track then takes a heading that needs no reference,
+/// the attitude filter where the log has one, else the calibration the comparison would
+/// choose without a reference. `None` (the comparison's model stands) otherwise, or when
+/// the user asked to train on the reference positions (`--train-on-reference`).
+fn reference_free_choice(
+    calibration: &CalibrationAnalysis,
+    headings: &HeadingAnalysis,
+    options: &PdrOptions,
+    notes: &mut Vec<String>,
+) -> Option<String> {
+    let source = headings
+        .report
+        .reference
+        .filter(|source| source.scores_the_track())?;
+    if options.train_on_reference_positions {
+        return None;
+    }
+    let (key, label) = if series_of(headings, ATTITUDE_KEY).is_some() {
+        (ATTITUDE_KEY.to_string(), "the attitude filter".to_string())
+    } else {
+        let choice = choose_without_reference(&calibration.report);
+        (choice.key, choice.label)
+    };
+    let chosen = &headings.report.choice;
+    if key != chosen.key {
+        notes.push(format!(
+            "The heading comparison was scored against {}, which also scores the track, and GNSS could not fit its choice again: the track takes {label}, which needs no reference (not {}, fitted on it; --train-on-reference would take it).",
+            source.describe(),
+            chosen.label
+        ));
+    }
+    Some(key)
 }
 
 /// The device's own fused yaw turned to true north, if the log has one.

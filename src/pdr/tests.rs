@@ -170,3 +170,43 @@ fn a_gnss_speed_trains_only_where_the_fixes_confirm_it() {
     // ... and nor is one that nothing confirms.
     assert!(unconfirmed_speed(&model, &steps, &[]).is_some());
 }
+
+#[test]
+fn a_heading_fitted_on_the_track_s_own_truth_does_not_steer_it() {
+    // A simulated walk without GNSS: its reference-heading column is the truth that
+    // scores the track, and the comparison is scored (and its models fitted) on it.
+    let report = sim_report(&WalkConfig::from_seed(7, 240.0));
+    let (calibration, mut headings) =
+        crate::pipeline::headings(&report, &PdrOptions::default().heading_options)
+            .expect("headings");
+    let source = headings.report.reference.expect("a reference");
+    assert!(source.scores_the_track(), "{source:?}");
+    // Whatever the comparison chose, make it a model fitted on that reference.
+    let fitted = headings
+        .headings_deg
+        .iter()
+        .map(|(key, _)| key.clone())
+        .find(|key| key.contains("fourier"))
+        .expect("a Fourier model on the reference");
+    headings.report.choice.key = fitted.clone();
+    let options = PdrOptions::default();
+    let analysis = dead_reckon(&report, (&calibration, &headings), &options).expect("runs");
+    // The track takes the attitude filter, which needs no reference, and says why.
+    assert_eq!(analysis.report.heading_key, crate::heading::ATTITUDE_KEY);
+    assert!(
+        analysis
+            .report
+            .notes
+            .iter()
+            .any(|note| note.contains("also scores the track")),
+        "{:?}",
+        analysis.report.notes
+    );
+    // Asked to train on the reference, it takes the comparison's choice.
+    let trained = PdrOptions {
+        train_on_reference_positions: true,
+        ..PdrOptions::default()
+    };
+    let analysis = dead_reckon(&report, (&calibration, &headings), &trained).expect("runs");
+    assert_eq!(analysis.report.heading_key, fitted);
+}

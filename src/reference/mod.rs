@@ -83,6 +83,19 @@ pub enum ReferenceSource {
 }
 
 impl ReferenceSource {
+    /// Whether the reference is what also scores a track: the log's reference-heading
+    /// column or its reference positions' legs (in a test log, the truth), or the gyro
+    /// anchored to either.
+    pub fn scores_the_track(&self) -> bool {
+        match self {
+            ReferenceSource::Column | ReferenceSource::Legs { .. } => true,
+            ReferenceSource::Gyro { anchor, .. } => {
+                matches!(anchor, Some("reference column" | "map legs"))
+            }
+            ReferenceSource::Autopilot | ReferenceSource::GpsCourse { .. } => false,
+        }
+    }
+
     /// Whether the reference knows north (a relative gyro heading does not).
     pub fn is_absolute(&self) -> bool {
         !matches!(
