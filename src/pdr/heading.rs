@@ -205,40 +205,50 @@ fn refit_on_gnss(
 }
 
 /// Where the comparison was scored against what also scores the track (a
-/// reference-heading column, the legs between reference positions) and GNSS could not
-/// fit its model again, the model as the comparison fitted it would be fitted on the
-/// truth that judges the track: the track then takes a heading that needs no reference,
-/// the attitude filter where the log has one, else the calibration the comparison would
-/// choose without a reference. `None` (the comparison's model stands) otherwise, or when
-/// the user asked to train on the reference positions (`--train-on-reference`).
+/// reference-heading column, the legs between reference positions), chose a model whose
+/// parameters it fitted on that reference (a reference least squares, a Fourier
+/// deviation, a network), and GNSS could not fit that model again, the track would be
+/// steered by the truth that judges it. It then takes the choice's part that needs no
+/// reference (`ahrs` for `ahrs+fourier`), else the attitude filter, else the calibration
+/// the comparison would choose without a reference. `None` (the comparison's model
+/// stands) otherwise, or when the user asked to train on the reference positions
+/// (`--train-on-reference`).
 fn reference_free_choice(
     calibration: &CalibrationAnalysis,
     headings: &HeadingAnalysis,
     options: &PdrOptions,
     notes: &mut Vec<String>,
 ) -> Option<String> {
+    let chosen = &headings.report.choice;
+    if !trained_on_reference(&chosen.key) || options.train_on_reference_positions {
+        return None;
+    }
     let source = headings
         .report
         .reference
         .filter(|source| source.scores_the_track())?;
-    if options.train_on_reference_positions {
-        return None;
-    }
-    let (key, label) = if series_of(headings, ATTITUDE_KEY).is_some() {
-        (ATTITUDE_KEY.to_string(), "the attitude filter".to_string())
+    let base = chosen.key.split('+').next().unwrap_or_default();
+    let (key, label) = if !trained_on_reference(base) && series_of(headings, base).is_some() {
+        (base.to_string(), label_of(headings, base))
+    } else if series_of(headings, ATTITUDE_KEY).is_some() {
+        (ATTITUDE_KEY.to_string(), label_of(headings, ATTITUDE_KEY))
     } else {
         let choice = choose_without_reference(&calibration.report);
         (choice.key, choice.label)
     };
-    let chosen = &headings.report.choice;
-    if key != chosen.key {
-        notes.push(format!(
-            "The heading comparison was scored against {}, which also scores the track, and GNSS could not fit its choice again: the track takes {label}, which needs no reference (not {}, fitted on it; --train-on-reference would take it).",
-            source.describe(),
-            chosen.label
-        ));
-    }
+    notes.push(format!(
+        "The heading comparison was scored against {}, which also scores the track, and GNSS could not fit its choice again: the track takes {label}, which needs no reference (not {}, fitted on it; --train-on-reference would take it).",
+        source.describe(),
+        chosen.label
+    ));
     Some(key)
+}
+
+/// Whether a heading model's parameters are fitted on a reference heading (Eq. 8's
+/// least squares, the Fourier deviation of Eq. 12, the network), not on the field alone.
+fn trained_on_reference(key: &str) -> bool {
+    key.split('+')
+        .any(|part| matches!(part, "ref_ls" | "fourier" | "mlp"))
 }
 
 /// The device's own fused yaw turned to true north, if the log has one.

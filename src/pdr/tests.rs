@@ -181,18 +181,20 @@ fn a_heading_fitted_on_the_track_s_own_truth_does_not_steer_it() {
             .expect("headings");
     let source = headings.report.reference.expect("a reference");
     assert!(source.scores_the_track(), "{source:?}");
-    // Whatever the comparison chose, make it a model fitted on that reference.
+    // Whatever the comparison chose, make it a model fitted on that reference: a
+    // Fourier deviation on top of a calibration.
     let fitted = headings
         .headings_deg
         .iter()
         .map(|(key, _)| key.clone())
-        .find(|key| key.contains("fourier"))
+        .find(|key| key.ends_with("+fourier") && !key.starts_with("ref_ls"))
         .expect("a Fourier model on the reference");
+    let base = fitted.split('+').next().unwrap_or_default().to_string();
     headings.report.choice.key = fitted.clone();
     let options = PdrOptions::default();
     let analysis = dead_reckon(&report, (&calibration, &headings), &options).expect("runs");
-    // The track takes the attitude filter, which needs no reference, and says why.
-    assert_eq!(analysis.report.heading_key, crate::heading::ATTITUDE_KEY);
+    // The track takes the calibration under it, which needs no reference, and says why.
+    assert_eq!(analysis.report.heading_key, base);
     assert!(
         analysis
             .report
@@ -202,6 +204,11 @@ fn a_heading_fitted_on_the_track_s_own_truth_does_not_steer_it() {
         "{:?}",
         analysis.report.notes
     );
+    // A choice with nothing fitted on the reference stands.
+    headings.report.choice.key = base.clone();
+    let analysis = dead_reckon(&report, (&calibration, &headings), &options).expect("runs");
+    assert_eq!(analysis.report.heading_key, base);
+    headings.report.choice.key = fitted.clone();
     // Asked to train on the reference, it takes the comparison's choice.
     let trained = PdrOptions {
         train_on_reference_positions: true,
