@@ -13,7 +13,7 @@
 //! its choice is not taken either: the track gets the calibration chosen without a
 //! reference, unless the user asks to train on the reference positions.
 
-use crate::calibration::selection::choose_without_reference;
+use crate::calibration::selection::{choose_without_reference, Basis, RAW_KEY};
 use crate::calibration::{calibrate_again, CalibrationAnalysis, CalibrationOptions, Method};
 use crate::heading::ATTITUDE_KEY;
 use crate::heading::{HeadingAnalysis, HeadingOptions};
@@ -87,13 +87,18 @@ fn compass_heading(
         HeadingBase::Model(key) => key.clone(),
         _ => headings.report.choice.key.clone(),
     };
-    let mut refit = refit_on_gnss(import, calibration, &wanted, options, notes);
-    let refitted = refit
-        .as_ref()
-        .is_some_and(|refit| series_of(refit, &wanted).is_some());
-    if !refitted && !matches!(options.heading.base, HeadingBase::Model(_)) {
-        if let Some(key) = reference_free_choice(calibration, headings, options, notes) {
-            wanted = key;
+    let asked = matches!(options.heading.base, HeadingBase::Model(_));
+    let mut refit = None;
+    if !asked && reference_cannot_choose(headings).is_some() {
+        // A reference no model comes near chose nothing, and fits nothing again.
+        wanted = reference_free_choice(calibration, headings, options, notes);
+    } else {
+        refit = refit_on_gnss(import, calibration, &wanted, options, notes);
+        let refitted = refit
+            .as_ref()
+            .is_some_and(|refit| series_of(refit, &wanted).is_some());
+        if !refitted && !asked && fitted_on_the_track_s_truth(headings, options) {
+            wanted = reference_free_choice(calibration, headings, options, notes);
             refit = None;
         }
     }
@@ -204,31 +209,50 @@ fn refit_on_gnss(
     }
 }
 
-/// Where the comparison was scored against what also scores the track (a
-/// reference-heading column, the legs between reference positions), chose a model whose
-/// parameters it fitted on that reference (a reference least squares, a Fourier
-/// deviation, a network), and GNSS could not fit that model again, the track would be
-/// steered by the truth that judges it. It then takes the choice's part that needs no
-/// reference (`ahrs` for `ahrs+fourier`), else the attitude filter, else the calibration
-/// the comparison would choose without a reference. `None` (the comparison's model
-/// stands) otherwise, or when the user asked to train on the reference positions
-/// (`--train-on-reference`).
+/// A reference from which even the best model is more than this far (RMS on the check
+/// part, degrees) cannot choose among them: indoors a phone's GNSS course is that far
+/// from every heading (44-139° on the IPIN walks that have one), where a compass that
+/// calibrations can mend comes within 5-28° of a usable reference.
+pub const MAX_CHOOSING_RMS_DEG: f64 = 30.0;
+
+/// The best model's RMS against the comparison's reference, when it is too far for the
+/// reference to have chosen it.
+fn reference_cannot_choose(headings: &HeadingAnalysis) -> Option<f64> {
+    match headings.report.choice.basis {
+        Basis::ReferenceRms { rms_deg, .. } if rms_deg > MAX_CHOOSING_RMS_DEG => Some(rms_deg),
+        _ => None,
+    }
+}
+
+/// Whether the comparison's choice has parameters fitted on what also scores the track
+/// (a reference-heading column, the legs between reference positions: in a test log the
+/// truth), which the user did not ask to train on (`--train-on-reference`).
+fn fitted_on_the_track_s_truth(headings: &HeadingAnalysis, options: &PdrOptions) -> bool {
+    trained_on_reference(&headings.report.choice.key)
+        && !options.train_on_reference_positions
+        && headings
+            .report
+            .reference
+            .is_some_and(|source| source.scores_the_track())
+}
+
+/// The heading the track takes when the comparison's choice is set aside (its reference
+/// could not choose, or it was fitted on the track's own truth and GNSS could not fit it
+/// again): the choice's part that needs no reference (`ahrs` for `ahrs+fourier`), else
+/// the attitude filter, else the calibration chosen without a reference. Says why.
 fn reference_free_choice(
     calibration: &CalibrationAnalysis,
     headings: &HeadingAnalysis,
     options: &PdrOptions,
     notes: &mut Vec<String>,
-) -> Option<String> {
+) -> String {
     let chosen = &headings.report.choice;
-    if !trained_on_reference(&chosen.key) || options.train_on_reference_positions {
-        return None;
-    }
-    let source = headings
-        .report
-        .reference
-        .filter(|source| source.scores_the_track())?;
     let base = chosen.key.split('+').next().unwrap_or_default();
-    let (key, label) = if !trained_on_reference(base) && series_of(headings, base).is_some() {
+    let (key, label) = if !trained_on_reference(base)
+        && base != RAW_KEY
+        && series_of(headings, base).is_some()
+        && reference_cannot_choose(headings).is_none()
+    {
         (base.to_string(), label_of(headings, base))
     } else if series_of(headings, ATTITUDE_KEY).is_some() {
         (ATTITUDE_KEY.to_string(), label_of(headings, ATTITUDE_KEY))
@@ -236,12 +260,25 @@ fn reference_free_choice(
         let choice = choose_without_reference(&calibration.report);
         (choice.key, choice.label)
     };
+    let reference = headings
+        .report
+        .reference
+        .map_or_else(|| "the reference".to_string(), |source| source.describe());
+    let why = match reference_cannot_choose(headings) {
+        Some(rms_deg) => format!(
+            "the heading comparison's reference, {reference}, is {rms_deg:.0}° RMS from even its best model ({}), too far to choose one",
+            chosen.label
+        ),
+        None => format!(
+            "the heading comparison was scored against {reference}, which also scores the track, and GNSS could not fit its choice ({}) again{}",
+            chosen.label,
+            if options.train_on_reference_positions { "" } else { " (--train-on-reference would take it)" }
+        ),
+    };
     notes.push(format!(
-        "The heading comparison was scored against {}, which also scores the track, and GNSS could not fit its choice again: the track takes {label}, which needs no reference (not {}, fitted on it; --train-on-reference would take it).",
-        source.describe(),
-        chosen.label
+        "The track's heading is the {label}, which needs no reference: {why}."
     ));
-    Some(key)
+    key
 }
 
 /// Whether a heading model's parameters are fitted on a reference heading (Eq. 8's

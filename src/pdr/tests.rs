@@ -208,6 +208,26 @@ fn a_heading_fitted_on_the_track_s_own_truth_does_not_steer_it() {
     headings.report.choice.key = base.clone();
     let analysis = dead_reckon(&report, (&calibration, &headings), &options).expect("runs");
     assert_eq!(analysis.report.heading_key, base);
+    // A reference that even the best model is 45° RMS from chooses nothing: the track
+    // takes the attitude filter.
+    let chosen_basis = headings.report.choice.basis.clone();
+    headings.report.choice.basis = crate::calibration::selection::Basis::ReferenceRms {
+        rms_deg: 45.0,
+        raw_rms_deg: None,
+        on_train: false,
+    };
+    let analysis = dead_reckon(&report, (&calibration, &headings), &options).expect("runs");
+    assert_eq!(analysis.report.heading_key, crate::heading::ATTITUDE_KEY);
+    assert!(
+        analysis
+            .report
+            .notes
+            .iter()
+            .any(|note| note.contains("too far to choose one")),
+        "{:?}",
+        analysis.report.notes
+    );
+    headings.report.choice.basis = chosen_basis;
     headings.report.choice.key = fitted.clone();
     // Asked to train on the reference, it takes the comparison's choice.
     let trained = PdrOptions {
