@@ -14,6 +14,8 @@
 //!   fuse").
 //! - `fusion.rs`: GNSS/PDR switching: outages, accuracy and χ² gates, recovery ("when
 //!   to fuse"), the paper's causal filter (`--filter paper`).
+//! - `fix_accuracy.rs`: the accuracy a fix is taken at (no better than its
+//!   neighbours' by more than a share).
 //! - `smoother.rs`: the default for logs: every fix weighted by its accuracy and
 //!   innovation, the step scale, the heading error and the GNSS's slow error as states,
 //!   forward and then backward (Rauch-Tung-Striebel); `--filter causal` is its forward
@@ -45,6 +47,7 @@
 
 pub mod ekf;
 pub mod export;
+mod fix_accuracy;
 pub mod fusion;
 pub mod heading;
 pub mod metrics;

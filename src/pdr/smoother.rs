@@ -178,6 +178,8 @@ pub fn fuse_walk(
             scale: (1.0, prior.scale_sigma),
         };
     };
+    let floored = super::fix_accuracy::with_neighbourhood_accuracy(fixes);
+    let fixes = floored.as_slice();
     let events = events(steps, fixes, first.t_start_s, policy);
     // The trust in the reported accuracy, from the innovations (three passes converge:
     // each moves c² by the ratio of the median NIS to χ²₂'s).
