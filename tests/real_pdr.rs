@@ -165,3 +165,68 @@ fn indoor_walks_at_the_waypoints() {
         assert!(filtered[&(floor, "gyro+ahrs")] < 2.5, "{filtered:?}");
     }
 }
+
+/// The figure-eight check (`pdr/turning_over.rs`) on real carrying: every step of the
+/// nine TYREX trials (in hand, texting, phoning, swinging, front and back pocket,
+/// running in hand and in a pocket) is kept, and every IPIN 2023 walk loses the 30-56
+/// "steps" of the compass calibration it begins with (at most three lone steps of its
+/// first 26 s are left).
+#[test]
+fn a_compass_calibration_s_figure_eight_is_left_out_and_no_real_walk_or_run_is() {
+    let Some(data) = common::shared_data() else {
+        return;
+    };
+    let mut trials = Vec::new();
+    for set in ["tyrex-attitude", "tyrex-attitude-more"] {
+        for entry in std::fs::read_dir(data.join(set)).expect("readable") {
+            let dir = entry.expect("entry").path();
+            if dir.is_dir() {
+                trials.push(dir);
+            }
+        }
+    }
+    assert_eq!(trials.len(), 9, "{trials:?}");
+    for dir in &trials {
+        let paths: Vec<PathBuf> = [
+            "accelerometer.txt",
+            "gyroscope-calibrated.txt",
+            "magnetometer-calibrated.txt",
+        ]
+        .iter()
+        .map(|name| dir.join(name))
+        .collect();
+        let analysis = dead_reckon(&paths, &PdrOptions::default());
+        let left_out = analysis
+            .report
+            .notes
+            .iter()
+            .find(|note| note.contains("turned over"));
+        eprintln!("{}: {} steps", dir.display(), analysis.report.n_steps);
+        assert!(left_out.is_none(), "{}: {left_out:?}", dir.display());
+        assert!(analysis.report.n_steps >= 100, "{}", dir.display());
+    }
+    let walks = common::files_in(&data.join("ipin2023-track3-walks"), "txt");
+    assert_eq!(walks.len(), 12);
+    for walk in &walks {
+        let analysis = dead_reckon(std::slice::from_ref(walk), &PdrOptions::default());
+        let note = analysis
+            .report
+            .notes
+            .iter()
+            .find(|note| note.contains("turned over"))
+            .unwrap_or_else(|| panic!("{}: no figure eight left out", walk.display()));
+        let n_left_out: usize = note
+            .split_whitespace()
+            .next()
+            .and_then(|n| n.parse().ok())
+            .unwrap_or(0);
+        assert!((30..=56).contains(&n_left_out), "{}: {note}", walk.display());
+        // At most a lone step or two at the ends of the figure eight are left.
+        let n_left = analysis
+            .steps
+            .iter()
+            .filter(|step| step.t_start_s < 26.0)
+            .count();
+        assert!(n_left <= 3, "{}: {n_left} steps before 26 s", walk.display());
+    }
+}

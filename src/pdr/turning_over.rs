@@ -21,7 +21,9 @@
 //!   the stride from it differ by more than [`GRAVITY_DRIFT_DEG`].
 //!
 //! A bout of steps (no pause longer than the detector's `max_step_s`) of which at least
-//! half are turned over is left out whole, and no step of any other bout is: a phone
+//! half are turned over, at a walking pace or slower (its median step at least
+//! [`MIN_FIGURE_EIGHT_STEP_S`]: a runner's phone turns as fast), is left out whole, and no
+//! step of any other bout is: a phone
 //! in hand tilts at 1.2-1.5 rad/s through a few steps of a walk (8 of the 56 steps of
 //! the first bout of the msft F1 walk pass both tests), where a figure eight is a bout
 //! of its own. Without a gyroscope nothing is left out.
@@ -43,6 +45,12 @@ pub const TILT_RATE_RADPS: f64 = 1.0;
 /// ... if the direction of gravity in the phone also moved this far from one stride to
 /// the next (degrees): a swinging arm's comes back within a stride.
 pub const GRAVITY_DRIFT_DEG: f64 = 5.0;
+/// A bout whose median step is shorter than this is running, never a figure eight (s):
+/// a runner's phone, in the hand or a pocket, tilts and swings like one (TYREX's running
+/// trials: 0.37-0.40 s steps, 2.5-2.6 rad/s of tilt, gravity moving 6-8° from stride to
+/// stride), where a hand turning a phone over bounces it every 0.6-1.0 s (IPIN's figure
+/// eights).
+pub const MIN_FIGURE_EIGHT_STEP_S: f64 = 0.45;
 /// Half the window over which `ĝ` is averaged for the tilt rate (s).
 const GRAVITY_HALF_WINDOW_S: f64 = 0.5;
 /// How far the tilt rate's window reaches beyond the step (s).
@@ -101,7 +109,10 @@ pub fn walking_steps(
                 fast && gravity_drift_deg(&gravity, steps, bout, idx) > GRAVITY_DRIFT_DEG;
         }
         let n_turned = bout.clone().filter(|&idx| turned_over[idx]).count();
-        turned_over[bout.clone()].fill(2 * n_turned >= bout.len());
+        let mut durations_s: Vec<f64> = steps[bout.clone()].iter().map(Step::duration_s).collect();
+        let running = crate::stats::median(&mut durations_s)
+            .is_some_and(|median_s| median_s < MIN_FIGURE_EIGHT_STEP_S);
+        turned_over[bout.clone()].fill(2 * n_turned >= bout.len() && !running);
     }
     let left_out: Vec<usize> = (0..steps.len()).filter(|&idx| turned_over[idx]).collect();
     let (Some(&first), Some(&last)) = (left_out.first(), left_out.last()) else {
@@ -281,11 +292,19 @@ mod tests {
     fn motion(
         attitude: impl Fn(f64) -> Rotation3<f64>,
     ) -> (Stream<Vector3<f64>>, Stream<Vector3<f64>>) {
+        motion_at(1.8, attitude)
+    }
+
+    /// [`motion`] with the bounce at `bounce_hz`.
+    fn motion_at(
+        bounce_hz: f64,
+        attitude: impl Fn(f64) -> Rotation3<f64>,
+    ) -> (Stream<Vector3<f64>>, Stream<Vector3<f64>>) {
         let (mut acc, mut gyro) = (Stream::default(), Stream::default());
         let dt_s = 1.0 / RATE_HZ;
         for idx in 0..(20.0 * RATE_HZ) as usize {
             let t_s = idx as f64 * dt_s;
-            let bounce = 2.5 * (TAU * 1.8 * t_s).sin();
+            let bounce = 2.5 * (TAU * bounce_hz * t_s).sin();
             // z down: a level phone at rest reads z = −g.
             let force_in_world = Vector3::new(0.0, 0.0, -STANDARD_GRAVITY_MPS2 - bounce);
             let body_from_world = attitude(t_s);
@@ -346,6 +365,21 @@ mod tests {
         assert!(walking
             .left_out_tilt_rate_radps
             .is_some_and(|rate| rate > TILT_RATE_RADPS));
+    }
+
+    #[test]
+    fn a_runner_s_phone_turning_as_fast_keeps_every_step() {
+        // The figure eight's turning, at a runner's 2.7 steps per second.
+        let (acc, gyro) = motion_at(2.7, |t| {
+            Rotation3::from_euler_angles(
+                1.5 * (TAU * 0.4 * t).sin(),
+                1.2 * (TAU * 0.27 * t + 1.0).sin(),
+                2.0 * (TAU * 0.2 * t).sin(),
+            )
+        });
+        let (n_detected, walking) = walking_of(&acc, &gyro);
+        assert!(n_detected >= 30, "{n_detected} steps");
+        assert_eq!(walking.n_left_out, 0, "{walking:?}");
     }
 
     #[test]
