@@ -220,13 +220,21 @@ fn a_compass_calibration_s_figure_eight_is_left_out_and_no_real_walk_or_run_is()
             .next()
             .and_then(|n| n.parse().ok())
             .unwrap_or(0);
-        assert!((30..=56).contains(&n_left_out), "{}: {note}", walk.display());
+        assert!(
+            (30..=56).contains(&n_left_out),
+            "{}: {note}",
+            walk.display()
+        );
         // At most a lone step or two at the ends of the figure eight are left.
         let n_left = analysis
             .steps
             .iter()
             .filter(|step| step.t_start_s < 26.0)
             .count();
-        assert!(n_left <= 3, "{}: {n_left} steps before 26 s", walk.display());
+        assert!(
+            n_left <= 3,
+            "{}: {n_left} steps before 26 s",
+            walk.display()
+        );
     }
 }
