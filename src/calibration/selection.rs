@@ -60,6 +60,13 @@ pub fn complexity(key: &str) -> u32 {
         .sum::<u32>()
 }
 
+/// Whether a heading model's parameters are fitted on the reference heading (Eq. 8's
+/// least squares, the Fourier deviation of Eq. 12, the network), not on the field alone.
+pub fn learns_from_reference(key: &str) -> bool {
+    key.split('+')
+        .any(|part| matches!(part, "ref_ls" | "fourier" | "mlp"))
+}
+
 /// What a choice was made on.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
@@ -349,6 +356,16 @@ mod tests {
             label: key,
             train_rms_deg: train,
             check_rms_deg: check,
+        }
+    }
+
+    #[test]
+    fn what_learns_from_the_reference_is_told_by_its_key() {
+        for key in ["ref_ls", "ellipsoid+fourier", "fourier", "ref_ls+mlp", "mlp"] {
+            assert!(learns_from_reference(key), "{key}");
+        }
+        for key in ["raw", "min_max", "ellipse", "ellipsoid", "ahrs", "in_force"] {
+            assert!(!learns_from_reference(key), "{key}");
         }
     }
 

@@ -13,7 +13,9 @@
 //! its choice is not taken either: the track gets the calibration chosen without a
 //! reference, unless the user asks to train on the reference positions.
 
-use crate::calibration::selection::{choose_without_reference, Basis, RAW_KEY};
+use crate::calibration::selection::{
+    choose_without_reference, learns_from_reference, Basis, RAW_KEY,
+};
 use crate::calibration::{calibrate_again, CalibrationAnalysis, CalibrationOptions, Method};
 use crate::heading::ATTITUDE_KEY;
 use crate::heading::{HeadingAnalysis, HeadingOptions};
@@ -228,7 +230,7 @@ fn reference_cannot_choose(headings: &HeadingAnalysis) -> Option<f64> {
 /// (a reference-heading column, the legs between reference positions: in a test log the
 /// truth), which the user did not ask to train on (`--train-on-reference`).
 fn fitted_on_the_track_s_truth(headings: &HeadingAnalysis, options: &PdrOptions) -> bool {
-    trained_on_reference(&headings.report.choice.key)
+    learns_from_reference(&headings.report.choice.key)
         && !options.train_on_reference_positions
         && headings
             .report
@@ -248,7 +250,7 @@ fn reference_free_choice(
 ) -> String {
     let chosen = &headings.report.choice;
     let base = chosen.key.split('+').next().unwrap_or_default();
-    let (key, label) = if !trained_on_reference(base)
+    let (key, label) = if !learns_from_reference(base)
         && base != RAW_KEY
         && series_of(headings, base).is_some()
         && reference_cannot_choose(headings).is_none()
@@ -279,13 +281,6 @@ fn reference_free_choice(
         "The track's heading is the {label}, which needs no reference: {why}."
     ));
     key
-}
-
-/// Whether a heading model's parameters are fitted on a reference heading (Eq. 8's
-/// least squares, the Fourier deviation of Eq. 12, the network), not on the field alone.
-fn trained_on_reference(key: &str) -> bool {
-    key.split('+')
-        .any(|part| matches!(part, "ref_ls" | "fourier" | "mlp"))
 }
 
 /// The device's own fused yaw turned to true north, if the log has one.

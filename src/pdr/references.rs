@@ -289,18 +289,16 @@ pub(super) fn train_step_model(
             requested
         };
         match step_length::fit_segments(kind, steps, segments, options.seed) {
-            Ok(model)
-                if source == "gnss_speed"
-                    && unconfirmed_speed(&model, steps, &sets.gnss_stretches_any_accuracy)
-                        .is_some() =>
-            {
-                let why = unconfirmed_speed(&model, steps, &sets.gnss_stretches_any_accuracy)
-                    .unwrap_or_default();
-                notes.push(format!(
-                    "The GNSS speed did not train the step model: {why}."
-                ));
-            }
             Ok(model) => {
+                let unconfirmed = (source == "gnss_speed")
+                    .then(|| unconfirmed_speed(&model, steps, &sets.gnss_stretches_any_accuracy))
+                    .flatten();
+                if let Some(why) = unconfirmed {
+                    notes.push(format!(
+                        "The GNSS speed did not train the step model: {why}."
+                    ));
+                    continue;
+                }
                 let train_rms_m = rms_on(&model, segments);
                 return StepModelReport {
                     requested,

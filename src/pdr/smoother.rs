@@ -183,15 +183,18 @@ pub fn fuse_walk(
     let events = events(steps, fixes, first.t_start_s, policy);
     // The trust in the reported accuracy, from the innovations (three passes converge:
     // each moves c² by the ratio of the median NIS to χ²₂'s).
-    let mut trust = 1.0f64;
-    for _ in 0..3 {
-        let pass = forward(
+    let pass_at = |trust: f64| {
+        forward(
             &events,
             (steps, fixes),
             (prior, noise),
             trust,
             policy.reset_after_rejections,
-        );
+        )
+    };
+    let mut trust = 1.0f64;
+    for _ in 0..3 {
+        let pass = pass_at(trust);
         if pass.nis.len() < 5 {
             break;
         }
@@ -199,13 +202,7 @@ pub fn fuse_walk(
         trust = (trust * (median / CHI2_2_MEDIAN).sqrt())
             .clamp(noise.trust_bounds[0], noise.trust_bounds[1]);
     }
-    let pass = forward(
-        &events,
-        (steps, fixes),
-        (prior, noise),
-        trust,
-        policy.reset_after_rejections,
-    );
+    let pass = pass_at(trust);
     let (states, covs): (Vec<State>, Vec<Cov>) = if smooth {
         backward(&pass.stored)
     } else {

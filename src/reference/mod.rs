@@ -56,6 +56,11 @@ impl ReferenceChoice {
     }
 }
 
+/// The short labels of the references that also score a track (a gyro reference names
+/// its anchor by them).
+const COLUMN_LABEL: &str = "reference column";
+const LEGS_LABEL: &str = "map legs";
+
 /// Where a reference heading came from, as the result reports it.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 #[serde(rename_all = "snake_case", tag = "kind")]
@@ -90,7 +95,7 @@ impl ReferenceSource {
         match self {
             ReferenceSource::Column | ReferenceSource::Legs { .. } => true,
             ReferenceSource::Gyro { anchor, .. } => {
-                matches!(anchor, Some("reference column" | "map legs"))
+                matches!(anchor, Some(label) if [COLUMN_LABEL, LEGS_LABEL].contains(label))
             }
             ReferenceSource::Autopilot | ReferenceSource::GpsCourse { .. } => false,
         }
@@ -167,10 +172,10 @@ impl ReferenceSource {
     /// A short name for tables.
     pub fn label(&self) -> &'static str {
         match self {
-            ReferenceSource::Column => "reference column",
+            ReferenceSource::Column => COLUMN_LABEL,
             ReferenceSource::Autopilot => "autopilot heading",
             ReferenceSource::GpsCourse { .. } => "GPS course",
-            ReferenceSource::Legs { .. } => "map legs",
+            ReferenceSource::Legs { .. } => LEGS_LABEL,
             ReferenceSource::Gyro { .. } => "gyro",
         }
     }
