@@ -176,34 +176,19 @@ fn a_compass_calibration_s_figure_eight_is_left_out_and_no_real_walk_or_run_is()
     let Some(data) = common::shared_data() else {
         return;
     };
-    let mut trials = Vec::new();
-    for set in ["tyrex-attitude", "tyrex-attitude-more"] {
-        for entry in std::fs::read_dir(data.join(set)).expect("readable") {
-            let dir = entry.expect("entry").path();
-            if dir.is_dir() {
-                trials.push(dir);
-            }
-        }
-    }
+    let mut trials = common::tyrex_trials(&data);
+    trials.extend(common::tyrex_trials_in(&data, "tyrex-attitude-more"));
     assert_eq!(trials.len(), 9, "{trials:?}");
-    for dir in &trials {
-        let paths: Vec<PathBuf> = [
-            "accelerometer.txt",
-            "gyroscope-calibrated.txt",
-            "magnetometer-calibrated.txt",
-        ]
-        .iter()
-        .map(|name| dir.join(name))
-        .collect();
-        let analysis = dead_reckon(&paths, &PdrOptions::default());
+    for (name, paths) in &trials {
+        let analysis = dead_reckon(paths, &PdrOptions::default());
         let left_out = analysis
             .report
             .notes
             .iter()
             .find(|note| note.contains("turned over"));
-        eprintln!("{}: {} steps", dir.display(), analysis.report.n_steps);
-        assert!(left_out.is_none(), "{}: {left_out:?}", dir.display());
-        assert!(analysis.report.n_steps >= 100, "{}", dir.display());
+        eprintln!("{name}: {} steps", analysis.report.n_steps);
+        assert!(left_out.is_none(), "{name}: {left_out:?}");
+        assert!(analysis.report.n_steps >= 100, "{name}");
     }
     let walks = common::files_in(&data.join("ipin2023-track3-walks"), "txt");
     assert_eq!(walks.len(), 12);

@@ -361,7 +361,13 @@ mod tests {
 
     #[test]
     fn what_learns_from_the_reference_is_told_by_its_key() {
-        for key in ["ref_ls", "ellipsoid+fourier", "fourier", "ref_ls+mlp", "mlp"] {
+        for key in [
+            "ref_ls",
+            "ellipsoid+fourier",
+            "fourier",
+            "ref_ls+mlp",
+            "mlp",
+        ] {
             assert!(learns_from_reference(key), "{key}");
         }
         for key in ["raw", "min_max", "ellipse", "ellipsoid", "ahrs", "in_force"] {

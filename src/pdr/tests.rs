@@ -106,19 +106,28 @@ fn gnss_positions_train_the_step_model_when_the_log_has_no_speed() {
     );
 }
 
-#[test]
-fn straight_segments_follow_straight_runs_of_steps_only() {
-    let step = |k: usize| Step {
+/// Step `k` of a walk at two steps a second, its bounce from `a_min_mps2` to `a_max_mps2`.
+fn step_at(k: usize, a_max_mps2: f64, a_min_mps2: f64) -> Step {
+    Step {
         t_start_s: 0.5 * k as f64,
         t_end_s: 0.5 * (k + 1) as f64,
         t_peak_s: 0.5 * k as f64 + 0.1,
         frequency_hz: 2.0,
         variance_mps2_sq: 1.0,
-        a_max_mps2: 11.0,
-        a_min_mps2: 8.5,
+        a_max_mps2,
+        a_min_mps2,
         ends_bout: false,
-    };
-    let steps: Vec<Step> = (0..200).map(step).collect();
+    }
+}
+
+/// Whether a note of the analysis says `text`.
+fn has_note(analysis: &PdrAnalysis, text: &str) -> bool {
+    analysis.report.notes.iter().any(|note| note.contains(text))
+}
+
+#[test]
+fn straight_segments_follow_straight_runs_of_steps_only() {
+    let steps: Vec<Step> = (0..200).map(|k| step_at(k, 11.0, 8.5)).collect();
     // North for 50 s, then turning 9° a step.
     let headings: Vec<f64> = (0..200)
         .map(|k| {
@@ -142,18 +151,7 @@ fn straight_segments_follow_straight_runs_of_steps_only() {
 
 #[test]
 fn a_gnss_speed_trains_only_where_the_fixes_confirm_it() {
-    let steps: Vec<Step> = (0..40)
-        .map(|k| Step {
-            t_start_s: 0.5 * k as f64,
-            t_end_s: 0.5 * (k + 1) as f64,
-            t_peak_s: 0.5 * k as f64 + 0.1,
-            frequency_hz: 2.0,
-            variance_mps2_sq: 1.0,
-            a_max_mps2: 12.0,
-            a_min_mps2: 8.0,
-            ends_bout: false,
-        })
-        .collect();
+    let steps: Vec<Step> = (0..40).map(|k| step_at(k, 12.0, 8.0)).collect();
     // Weinberg's K = 0.47 makes each of these steps 0.47 · 4^¼ = 0.665 m: 26.6 m.
     let model = StepLengthModel::Weinberg { k: 0.47 };
     let stretch = |distance_m: f64| {
@@ -196,11 +194,7 @@ fn a_heading_fitted_on_the_track_s_own_truth_does_not_steer_it() {
     // The track takes the calibration under it, which needs no reference, and says why.
     assert_eq!(analysis.report.heading_key, base);
     assert!(
-        analysis
-            .report
-            .notes
-            .iter()
-            .any(|note| note.contains("also scores the track")),
+        has_note(&analysis, "also scores the track"),
         "{:?}",
         analysis.report.notes
     );
@@ -219,11 +213,7 @@ fn a_heading_fitted_on_the_track_s_own_truth_does_not_steer_it() {
     let analysis = dead_reckon(&report, (&calibration, &headings), &options).expect("runs");
     assert_eq!(analysis.report.heading_key, crate::heading::ATTITUDE_KEY);
     assert!(
-        analysis
-            .report
-            .notes
-            .iter()
-            .any(|note| note.contains("too far to choose one")),
+        has_note(&analysis, "too far to choose one"),
         "{:?}",
         analysis.report.notes
     );

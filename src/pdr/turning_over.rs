@@ -315,6 +315,15 @@ mod tests {
         (acc, gyro)
     }
 
+    /// A phone turned through every orientation, 1-3 rad/s about changing axes.
+    fn figure_eight(t: f64) -> Rotation3<f64> {
+        Rotation3::from_euler_angles(
+            1.5 * (TAU * 0.4 * t).sin(),
+            1.2 * (TAU * 0.27 * t + 1.0).sin(),
+            2.0 * (TAU * 0.2 * t).sin(),
+        )
+    }
+
     fn walking_of(acc: &Stream<Vector3<f64>>, gyro: &Stream<Vector3<f64>>) -> (usize, Walking) {
         let detection = detect_steps(acc, &StepOptions::default());
         let n_detected = detection.steps.len();
@@ -349,13 +358,7 @@ mod tests {
     #[test]
     fn a_calibration_figure_eight_is_not_walking() {
         // The phone turned through every orientation, 1-3 rad/s about changing axes.
-        let (acc, gyro) = motion(|t| {
-            Rotation3::from_euler_angles(
-                1.5 * (TAU * 0.4 * t).sin(),
-                1.2 * (TAU * 0.27 * t + 1.0).sin(),
-                2.0 * (TAU * 0.2 * t).sin(),
-            )
-        });
+        let (acc, gyro) = motion(figure_eight);
         let (n_detected, walking) = walking_of(&acc, &gyro);
         assert!(n_detected >= 15, "{n_detected} steps");
         assert_eq!(walking.n_left_out, n_detected, "{walking:?}");
@@ -370,13 +373,7 @@ mod tests {
     #[test]
     fn a_runner_s_phone_turning_as_fast_keeps_every_step() {
         // The figure eight's turning, at a runner's 2.7 steps per second.
-        let (acc, gyro) = motion_at(2.7, |t| {
-            Rotation3::from_euler_angles(
-                1.5 * (TAU * 0.4 * t).sin(),
-                1.2 * (TAU * 0.27 * t + 1.0).sin(),
-                2.0 * (TAU * 0.2 * t).sin(),
-            )
-        });
+        let (acc, gyro) = motion_at(2.7, figure_eight);
         let (n_detected, walking) = walking_of(&acc, &gyro);
         assert!(n_detected >= 30, "{n_detected} steps");
         assert_eq!(walking.n_left_out, 0, "{walking:?}");
@@ -384,13 +381,7 @@ mod tests {
 
     #[test]
     fn without_a_gyroscope_nothing_is_left_out() {
-        let (acc, _) = motion(|t| {
-            Rotation3::from_euler_angles(
-                1.5 * (TAU * 0.4 * t).sin(),
-                1.2 * (TAU * 0.27 * t).sin(),
-                0.0,
-            )
-        });
+        let (acc, _) = motion(figure_eight);
         let (n_detected, walking) = walking_of(&acc, &Stream::default());
         assert_eq!(walking.steps.len(), n_detected);
     }

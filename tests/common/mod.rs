@@ -56,7 +56,12 @@ pub fn files_in(dir: &Path, ext: &str) -> Vec<PathBuf> {
 /// its files as a user drops the folder (the headerless per-sensor `.txt` files and
 /// `record.properties`). None when the folder is absent.
 pub fn tyrex_trials(data: &Path) -> Vec<(String, Vec<PathBuf>)> {
-    let mut trials: Vec<PathBuf> = std::fs::read_dir(data.join("tyrex-attitude"))
+    tyrex_trials_in(data, "tyrex-attitude")
+}
+
+/// [`tyrex_trials`] under `data/SET` (`tyrex-attitude-more` holds four more).
+pub fn tyrex_trials_in(data: &Path, set: &str) -> Vec<(String, Vec<PathBuf>)> {
+    let mut trials: Vec<PathBuf> = std::fs::read_dir(data.join(set))
         .map(|entries| {
             entries
                 .filter_map(|entry| entry.ok().map(|entry| entry.path()))
