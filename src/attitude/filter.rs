@@ -150,11 +150,7 @@ impl AttitudeFilter {
                 return;
             }
             let field = self.last_field.filter(|_| wants_field);
-            let yaw_sigma_rad = if field.is_some() {
-                INITIAL_YAW_SIGMA_RAD
-            } else {
-                std::f64::consts::PI
-            };
+            let yaw_sigma_rad = self.seed_yaw_sigma_rad(force, field);
             self.filter = Some(Eskf::new(
                 eskf::attitude_from(force, field),
                 (
@@ -164,6 +160,15 @@ impl AttitudeFilter {
                 ),
                 self.options.noise,
             ));
+        }
+    }
+
+    /// The yaw's 1σ when the filter starts from `force` and `field` (`None`: no field).
+    fn seed_yaw_sigma_rad(&self, force: Vector3<f64>, field: Option<Vector3<f64>>) -> f64 {
+        match (field, self.gate.as_ref()) {
+            (Some(field), Some(gate)) => seed_yaw_sigma_rad(gate.reference(), force, field),
+            (Some(_), None) => INITIAL_YAW_SIGMA_RAD,
+            (None, _) => std::f64::consts::PI,
         }
     }
 
@@ -290,8 +295,9 @@ impl AttitudeFilter {
                 if t_s - since_s >= RECOVERY_S {
                     if let Some(force) = self.last_force {
                         filter.reset_tilt_to(force, sigma_rad.max(INITIAL_TILT_SIGMA_RAD));
-                        if let (Some(field), Some(_)) = (self.last_field, self.gate.as_ref()) {
-                            filter.reset_yaw_to(field, INITIAL_YAW_SIGMA_RAD);
+                        if let (Some(field), Some(gate)) = (self.last_field, self.gate.as_ref()) {
+                            let sigma_rad = seed_yaw_sigma_rad(gate.reference(), force, field);
+                            filter.reset_yaw_to(field, sigma_rad);
                         }
                         self.summary.n_tilt_recoveries += 1;
                     }
@@ -350,6 +356,21 @@ impl AttitudeFilter {
             }
             Fused::Degenerate => self.field_used = false,
         }
+    }
+}
+
+/// The yaw's 1σ when it is taken from one `field` sample levelled with one `force`:
+/// [`INITIAL_YAW_SIGMA_RAD`] where the field's magnitude and dip are the undisturbed
+/// field's, else unknown (π). A phone started in the hand (a compass-calibration figure
+/// eight, a pocket, iron nearby) can seed a yaw 60-100° wrong from a disturbed field;
+/// stated as 11°, the first undisturbed field then looked like a contradiction, and
+/// the shared IPIN walks carried such a yaw for two minutes. Unknown, the first field
+/// the gates pass sets it.
+fn seed_yaw_sigma_rad(reference: &FieldReference, force: Vector3<f64>, field: Vector3<f64>) -> f64 {
+    let down = -force.try_normalize(1e-9).unwrap_or_else(Vector3::zeros);
+    match dip_of(field, down) {
+        Some(dip_rad) if reference.holds(field.norm(), dip_rad) => INITIAL_YAW_SIGMA_RAD,
+        _ => std::f64::consts::PI,
     }
 }
 
@@ -477,5 +498,52 @@ mod tests {
         );
         assert!(roll_at(19.9).abs() < 1.0, "{}", roll_at(19.9));
         assert_eq!(filter.summary().n_tilt_recoveries, 1);
+    }
+
+    /// A phone started beside iron (a figure eight in the hand, indoors): the first
+    /// field is off in magnitude and turned 90°. The yaw it seeds is not trusted, so the
+    /// first undisturbed field, contradicting it by 90°, sets the heading at once; seeded
+    /// as trusted (σ 11°) it was refused as a contradiction until a long stretch of clean
+    /// field re-aimed it, two minutes on a shared IPIN walk.
+    #[test]
+    fn a_yaw_seeded_by_a_disturbed_field_is_set_by_the_first_undisturbed_one() {
+        let timing = StreamTiming {
+            field_interval_s: 0.01,
+            max_gyro_gap_s: MAX_GYRO_GAP_S,
+            expects_field: true,
+        };
+        let reference = FieldReference {
+            field_ut: 48.0,
+            dip_rad: 65f64.to_radians(),
+            magnitude_tolerance: super::super::gates::MAGNITUDE_TOLERANCE,
+            dip_tolerance_rad: super::super::gates::DIP_TOLERANCE_RAD,
+        };
+        // Level, facing north: the field north and down in body axes.
+        let (cos_dip, sin_dip) = (65f64.to_radians().cos(), 65f64.to_radians().sin());
+        let earth = Vector3::new(48.0 * cos_dip, 0.0, 48.0 * sin_dip);
+        // Beside iron: weaker, and its horizontal part pointing east of the body.
+        let disturbed = Vector3::new(0.0, 30.0 * cos_dip, 30.0 * sin_dip);
+        let at_rest = Vector3::new(0.0, 0.0, -crate::io::STANDARD_GRAVITY_MPS2);
+        let mut filter = AttitudeFilter::new(Some(reference), timing, &AttitudeOptions::default());
+        let mut yaw_deg = Vec::new();
+        for idx in 0..1000 {
+            let t_s = idx as f64 * 0.01;
+            filter.acc(t_s, at_rest);
+            filter.field(t_s, if idx < 100 { disturbed } else { earth });
+            if let Some(estimate) = filter.gyro(t_s, Vector3::zeros()) {
+                yaw_deg.push((t_s, estimate.yaw_rad.to_degrees()));
+            }
+        }
+        let yaw_at = |at_s: f64| {
+            yaw_deg
+                .iter()
+                .find(|(t_s, _)| *t_s >= at_s)
+                .map_or(f64::NAN, |(_, yaw)| *yaw)
+        };
+        // Seeded 90° off, north within the gate's hold and the quasi-static blocks.
+        assert!((yaw_at(0.5).abs() - 90.0).abs() < 1.0, "{}", yaw_at(0.5));
+        assert!(yaw_at(4.0).abs() < 1.0, "{}", yaw_at(4.0));
+        assert_eq!(filter.summary().n_recoveries, 0);
+        assert_eq!(filter.summary().n_field_contradicting, 0);
     }
 }

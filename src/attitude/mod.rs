@@ -26,7 +26,8 @@
 //!   the navigation frame holds over a second and a half ([`gates::QuasiStaticField`]):
 //!   iron passed while walking turns it; a heading that the
 //!   field contradicts for longer than [`RECOVERY_S`] while it looks undisturbed is
-//!   re-aimed at it (the filter, not the field, was wrong);
+//!   re-aimed at it (the filter, not the field, was wrong); a yaw seeded by a field the
+//!   gate calls disturbed is unknown, so the first field it passes sets it;
 //! - every output carries the yaw's 1σ, which grows while the field is refused.
 //!
 //! It runs sample by sample in time order ([`filter::AttitudeFilter`]), so the same code
