@@ -1,6 +1,6 @@
 //! The attitude filter's speed (`attitude::estimate_attitude`) on the same samples as
 //! its peers in `bench/attitude_peers.py` (imufusion's Fusion AHRS, the `ahrs` package's
-//! Madgwick): each TYREX trial in `../shared/data/tyrex-attitude`, imported as a user
+//! Madgwick): each TYREX trial in `../shared/data/tyrex-attitude` and `tyrex-attitude-more`, imported as a user
 //! drops the folder, its field corrected by the phone's own hard-iron estimate (one
 //! filter run; `attitude_of` runs one per candidate correction). A trial that is
 //! absent is skipped with a message.
@@ -62,7 +62,8 @@ mod native {
         let Some(data) = common::shared_data() else {
             return;
         };
-        let trials = common::tyrex_trials(&data);
+        let mut trials = common::tyrex_trials(&data);
+        trials.extend(common::tyrex_trials_in(&data, "tyrex-attitude-more"));
         if trials.is_empty() {
             eprintln!("skipped: no TYREX trials under {}", data.display());
             return;
