@@ -47,7 +47,7 @@ use serde::Serialize;
 use crate::calib::ellipsoid::{EllipsoidAccumulator, EllipsoidError, EllipsoidModel};
 use crate::calib::export::SensorCalibration;
 use crate::calib::model::FieldCalibration;
-use crate::calib::sphere_coverage::{sphere_coverage, SphereCoverage};
+use crate::calib::sphere_coverage::{sphere_coverage, SphereCoverage, MAX_GOOD_GAP_PCT};
 use crate::calib::tilt::Tilt;
 use crate::io::lines::LineDecoder;
 use crate::io::serial_lines::{sensor_to_body, LineFormat, SerialReader};
@@ -68,8 +68,6 @@ pub const MIN_FIT_SAMPLES: usize = 50;
 
 /// Good enough to send: fewer samples than this are not.
 pub const GOOD_MIN_SAMPLES: usize = 300;
-/// Good enough: MotionCal's gaps figure under this (percent of the sphere).
-pub const GOOD_MAX_GAP_PCT: f64 = 15.0;
 /// Good enough: the corrected field's magnitude varies by less than this (standard
 /// deviation over mean, percent). A good fit of a MEMS magnetometer leaves about 1 %.
 pub const GOOD_MAX_SPREAD_PCT: f64 = 3.0;
@@ -475,12 +473,12 @@ pub fn field_verdict(
             "only {n_samples} samples; at least {GOOD_MIN_SAMPLES} are needed. Keep turning the device."
         ));
     }
-    if coverage.gap_pct >= GOOD_MAX_GAP_PCT {
+    if coverage.gaps_too_large() {
         let advice = coverage
             .largest_gap
             .map_or(String::new(), |gap| format!(": {}", gap.advice()));
         reasons.push(format!(
-            "{:.0} % of the sphere of directions is still missing (under {GOOD_MAX_GAP_PCT:.0} % is needed){advice}",
+            "{:.0} % of the sphere of directions is still missing (under {MAX_GOOD_GAP_PCT:.0} % is needed){advice}",
             coverage.gap_pct
         ));
     }

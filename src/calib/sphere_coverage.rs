@@ -67,6 +67,18 @@ pub struct SphereCoverage {
     pub counts_per_region: Vec<usize>,
 }
 
+/// MotionCal's bar: a calibration is good only with "gaps" under this (percent of the
+/// sphere). The one rule for the live panel's Send and for a log's coverage advice.
+pub const MAX_GOOD_GAP_PCT: f64 = 15.0;
+
+impl SphereCoverage {
+    /// Whether too much of the sphere is missing for MotionCal to call the calibration
+    /// good ([`MAX_GOOD_GAP_PCT`]).
+    pub fn gaps_too_large(&self) -> bool {
+        self.gap_pct >= MAX_GOOD_GAP_PCT
+    }
+}
+
 /// Where a region lies on the sphere: a longitude range and a band of latitude, given
 /// as the sine of the elevation (so that, drawn on those axes, every region has the
 /// same area: Lambert's cylindrical equal-area projection).

@@ -5,10 +5,7 @@
 
 use nalgebra::{Vector2, Vector3};
 
-use super::{
-    inertial_options, plane_options, FittedEllipse, MethodParameters, MethodReport,
-    MAX_SPHERE_GAP_PCT,
-};
+use super::{inertial_options, plane_options, FittedEllipse, MethodParameters, MethodReport};
 use crate::analysis::Levelling;
 use crate::calib::heading::heading_rad;
 use crate::calib::inertial::fit_inertial;
@@ -155,10 +152,7 @@ pub(super) fn fit_ellipsoid(inputs: &MethodInputs, outputs: &mut MethodOutputs) 
             // MotionCal counts it, and which way to turn to fill it.
             let coverage =
                 sphere_coverage(inputs.mag_train.iter().map(|&mag| calibration.apply(mag)));
-            if let Some(gap) = coverage
-                .largest_gap
-                .filter(|_| coverage.gap_pct > MAX_SPHERE_GAP_PCT)
-            {
+            if let Some(gap) = coverage.largest_gap.filter(|_| coverage.gaps_too_large()) {
                 outputs.notes.push(format!(
                     "ellipsoid: {:.0} % of the sphere is uncovered (MotionCal's gaps); {}",
                     coverage.gap_pct,

@@ -132,9 +132,6 @@ impl Default for CalibrationOptions {
     }
 }
 
-/// MotionCal's "gaps" above which the 3D coverage is reported with advice (it asks for
-/// under 15 % before it calls a calibration good).
-const MAX_SPHERE_GAP_PCT: f64 = 15.0;
 /// The most train samples a fit sees (evenly thinned beyond).
 const MAX_FIT_SAMPLES: usize = 20_000;
 /// The longest gap (s) across which a temperature or a gyro heading is interpolated.
