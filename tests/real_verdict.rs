@@ -165,6 +165,36 @@ fn logs_with_a_reference_get_the_heading_error_before_and_after() {
     assert_eq!(verdict.steps, None);
 }
 
+/// An indoor GPS course (14 samples at a walk, 40-139° from every heading on the IPIN
+/// walks) cannot judge the headings: the answer is the field's figures and says why,
+/// never "Poor: 75.6° → 43.7° with reference LS" fitted to that course. Surveyed legs
+/// (msft F4) judge however far the compass is from them.
+#[test]
+fn a_gps_course_far_from_every_heading_judges_nothing_but_surveyed_legs_do() {
+    let Some(data) = shared_data() else { return };
+    let walk = data.join("ipin2023-track3-walks/IPIN2023_T3_TrainingTrial24_repetition01.txt");
+    let verdict = verdict_of(&[walk]);
+    assert_eq!(verdict.kind, VerdictKind::FieldOnly, "{}", verdict.headline);
+    assert!(
+        verdict.method.contains("the GPS course is") && verdict.method.contains("too far to judge"),
+        "{}",
+        verdict.method
+    );
+    assert!(
+        !verdict.headline.contains("Heading error"),
+        "{}",
+        verdict.headline
+    );
+    let f4 = data.join("msft-indoor-2020/site1/F4");
+    let verdict = verdict_of(&dropped(&f4));
+    assert_eq!(verdict.kind, VerdictKind::Heading, "{}", verdict.headline);
+    assert!(
+        verdict.method.starts_with("Method: min/max"),
+        "{}",
+        verdict.method
+    );
+}
+
 #[test]
 fn an_indoor_walk_without_a_north_reference_gets_the_field_figures_and_its_steps() {
     let Some(data) = shared_data() else { return };

@@ -32,9 +32,7 @@ use crate::calib::plane::PlaneFit;
 use crate::calib::refls::RefLsFit;
 use crate::calib::tilt::Tilt;
 use crate::calib::wmm::ExpectedField;
-use crate::calibration::selection::{
-    choose_by_reference, choose_without_reference, Choice, Scored, RAW_KEY,
-};
+use crate::calibration::selection::{choose_by_reference, Choice, Scored, RAW_KEY};
 use crate::io::autopilot::AutopilotLog;
 use crate::io::{Diagnostics, ImportReport, SensorFrame};
 use crate::recording::Recording;
@@ -713,10 +711,8 @@ fn calibrate_levelled(
 /// else by the fits' own figures; the heading stage may replace it), and a note when no
 /// method could be fitted.
 fn settle_choice(report: &mut CalibrationReport) {
-    let choice = report
-        .choice
-        .take()
-        .unwrap_or_else(|| choose_without_reference(report));
+    let by_reference = report.choice.take();
+    let choice = selection::settle(by_reference, report);
     report.best = Method::ALL
         .into_iter()
         .find(|method| method.key() == choice.key);

@@ -28,6 +28,7 @@ use nalgebra::Vector3;
 
 use super::{CalibrationAnalysis, CalibrationReport, Method, MethodParameters, MethodReport};
 use crate::calib::model::FieldCalibration;
+use crate::reference::ReferenceSource;
 
 /// Without a reference, the 3D fit is trusted when its own heading uncertainty (from
 /// its parameters' covariance, at the log's attitudes) is within this many degrees.
@@ -79,6 +80,45 @@ pub enum Basis {
     },
     /// No reference heading: the fits' own figures.
     WithoutReference { reason: String },
+    /// A GPS course that even its closest model is more than [`MAX_CHOOSING_RMS_DEG`]
+    /// from (RMS): it cannot judge the models, so the fits' own figures chose. `closest`
+    /// is that model's label.
+    ReferenceTooFar { rms_deg: f64, closest: String },
+}
+
+/// A GPS course from which even the best model is more than this far (RMS on the check
+/// part, degrees) cannot choose among them: indoors a phone's course is that far from
+/// every heading (40-139° on the IPIN walks that have one), where a compass that
+/// calibrations can mend comes within 5-28° of a usable course (the shared phone and
+/// car logs). A reference that is a truth by construction (a heading column, the legs
+/// between surveyed positions, the autopilot's estimate) still judges: a compass can be
+/// that far wrong (msft F4's raw field is 300-400 µT; its best model is 34° from the
+/// legs and its track is best with that model).
+pub const MAX_CHOOSING_RMS_DEG: f64 = 30.0;
+
+/// The choice: by the reference where it scored the methods and can judge them, else
+/// by the fits' own figures ([`choose_without_reference`]), saying when a GPS course was
+/// too far to judge.
+pub fn settle(by_reference: Option<Choice>, report: &CalibrationReport) -> Choice {
+    let course = matches!(report.reference, Some(ReferenceSource::GpsCourse { .. }));
+    match by_reference {
+        Some(Choice {
+            basis: Basis::ReferenceRms { rms_deg, .. },
+            label,
+            ..
+        }) if course && rms_deg > MAX_CHOOSING_RMS_DEG => {
+            let chosen = choose_without_reference(report);
+            Choice {
+                basis: Basis::ReferenceTooFar {
+                    rms_deg,
+                    closest: label,
+                },
+                ..chosen
+            }
+        }
+        Some(choice) => choice,
+        None => choose_without_reference(report),
+    }
 }
 
 /// The method chosen, by its row key (`raw`, `ellipsoid`, `ellipsoid+fourier`, ...).
@@ -114,6 +154,10 @@ impl Choice {
                 }
             }
             Basis::WithoutReference { reason } => format!("{}: {reason}", self.label),
+            Basis::ReferenceTooFar { rms_deg, closest } => format!(
+                "{}: the GPS course is {rms_deg:.0}° RMS from even the closest model ({closest}), too far to judge them (a phone's course indoors is that far), so the fits' own figures chose",
+                self.label
+            ),
         }
     }
 }
@@ -255,10 +299,7 @@ pub fn device_calibration(report: &CalibrationReport) -> Option<(Method, FieldCa
             check_rms_deg: method.heading_error_check.map(|stats| stats.rms_deg),
         })
         .collect();
-    let key = match choose_by_reference(&scored) {
-        Some(choice) => choice.key,
-        None => choose_without_reference(report).key,
-    };
+    let key = settle(choose_by_reference(&scored), report).key;
     let chosen = three_d
         .iter()
         .find(|method| method.method.key() == key)

@@ -4,9 +4,7 @@
 //! the best-fitting calibration), the online adaptation of the featured Fourier model,
 //! and the one choice of "best" by [`crate::calibration::selection`]'s rule.
 
-use crate::calibration::selection::{
-    choose_by_reference, choose_without_reference, Choice, Scored,
-};
+use crate::calibration::selection::{choose_by_reference, settle, Choice, Scored};
 use crate::calibration::{CalibrationAnalysis, CalibrationReport};
 use crate::stats::HeadingErrorStats;
 
@@ -471,7 +469,7 @@ fn choose(rows: &[HeadingRow], calibration_report: &CalibrationReport) -> Choice
             check_rms_deg: row.check.map(|stats| stats.rms_deg),
         })
         .collect();
-    choose_by_reference(&scored).unwrap_or_else(|| choose_without_reference(calibration_report))
+    settle(choose_by_reference(&scored), calibration_report)
 }
 
 fn to_degrees(headings_rad: &[f64]) -> Vec<f64> {

@@ -211,17 +211,11 @@ fn refit_on_gnss(
     }
 }
 
-/// A reference from which even the best model is more than this far (RMS on the check
-/// part, degrees) cannot choose among them: indoors a phone's GNSS course is that far
-/// from every heading (44-139° on the IPIN walks that have one), where a compass that
-/// calibrations can mend comes within 5-28° of a usable reference.
-pub const MAX_CHOOSING_RMS_DEG: f64 = 30.0;
-
-/// The best model's RMS against the comparison's reference, when it is too far for the
-/// reference to have chosen it.
-fn reference_cannot_choose(headings: &HeadingAnalysis) -> Option<f64> {
-    match headings.report.choice.basis {
-        Basis::ReferenceRms { rms_deg, .. } if rms_deg > MAX_CHOOSING_RMS_DEG => Some(rms_deg),
+/// The closest model's RMS against the comparison's reference and its label, when the
+/// reference was too far to choose ([`Basis::ReferenceTooFar`]).
+fn reference_cannot_choose(headings: &HeadingAnalysis) -> Option<(f64, &str)> {
+    match &headings.report.choice.basis {
+        Basis::ReferenceTooFar { rms_deg, closest } => Some((*rms_deg, closest)),
         _ => None,
     }
 }
@@ -267,9 +261,8 @@ fn reference_free_choice(
         .reference
         .map_or_else(|| "the reference".to_string(), |source| source.describe());
     let why = match reference_cannot_choose(headings) {
-        Some(rms_deg) => format!(
-            "the heading comparison's reference, {reference}, is {rms_deg:.0}° RMS from even its best model ({}), too far to choose one",
-            chosen.label
+        Some((rms_deg, closest)) => format!(
+            "the heading comparison's reference, {reference}, is {rms_deg:.0}° RMS from even its closest model ({closest}), too far to choose one"
         ),
         None => format!(
             "the heading comparison was scored against {reference}, which also scores the track, and GNSS could not fit its choice ({}) again{}",
