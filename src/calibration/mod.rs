@@ -357,6 +357,16 @@ fn kept<T: Copy>(values: &[T], keep: &[bool]) -> Vec<T> {
         .collect()
 }
 
+/// Where down comes from when a log is levelled.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum DownFrom {
+    /// The autopilot's own attitude estimate where it logged one (its accelerometer
+    /// reads the thrust in flight), else the accelerometer.
+    AutopilotAttitude,
+    /// The accelerometer averaged over the gravity window.
+    Accelerometer,
+}
+
 /// The samples levelled and the conditions at each: what a calibration takes from the
 /// magnetometer, the accelerometer and the gyroscope alone, so a second calibration of
 /// the same sensors with other options (or fewer fixes) can take it from the first.
@@ -378,16 +388,16 @@ impl Levelled {
         file_name: &str,
         recording: &Recording,
         import: (Option<&crate::io::HeaderInfo>, &Diagnostics, usize),
-        (options, autopilot): (&CalibrationOptions, bool),
+        options: &CalibrationOptions,
+        down: DownFrom,
     ) -> Result<Levelled, AnalysisError> {
         let (header, diagnostics, n_data_lines) = import;
         let tau_s = options.gravity_window_s;
-        let gravity = Arc::new(
-            autopilot
-                .then(|| gravity_from_attitude(&recording.attitude, tau_s))
-                .flatten()
-                .unwrap_or_else(|| gravity_of(recording, tau_s)),
-        );
+        let from_attitude = match down {
+            DownFrom::AutopilotAttitude => gravity_from_attitude(&recording.attitude, tau_s),
+            DownFrom::Accelerometer => None,
+        };
+        let gravity = Arc::new(from_attitude.unwrap_or_else(|| gravity_of(recording, tau_s)));
         let samples = crate::analysis::tilted_samples(
             file_name,
             recording,
@@ -601,7 +611,12 @@ fn calibrate_levelled(
             &file_name,
             &recording,
             (header.as_ref(), &diagnostics, n_data_lines),
-            (options, autopilot.is_some()),
+            options,
+            if autopilot.is_some() {
+                DownFrom::AutopilotAttitude
+            } else {
+                DownFrom::Accelerometer
+            },
         )?,
     };
     let declination = autopilot.as_ref().and_then(AutopilotLog::declination_deg);

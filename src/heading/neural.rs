@@ -68,11 +68,20 @@ pub struct NeuralReport {
     pub validation_mse_deg2: Option<f64>,
 }
 
+/// Which of the paper's optional inputs the network takes (each where the log covers
+/// enough of its samples, [`MIN_INPUT_COVERAGE`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct OptionalInputs {
+    /// The gyro heading's sine and cosine.
+    gyro: bool,
+    /// The temperature.
+    temp: bool,
+}
+
 /// A trained correction: predicts the deviation (radians) at a sample.
 pub struct NeuralCorrection {
     model: Mlp,
-    use_gyro: bool,
-    use_temp: bool,
+    inputs: OptionalInputs,
     pub report: NeuralReport,
 }
 
@@ -97,9 +106,8 @@ impl NeuralCorrection {
         {
             rows.clear();
             indices.clear();
-            let uses = (self.use_gyro, self.use_temp);
             for (idx, &heading_rad) in (start..).zip(headings) {
-                if push_input_row(&mut rows, heading_rad, conditions, idx, uses) {
+                if push_input_row(&mut rows, heading_rad, conditions, idx, self.inputs) {
                     indices.push(idx);
                 }
             }
@@ -128,11 +136,10 @@ fn input_row(
     heading_rad: f64,
     conditions: &Conditions<'_>,
     idx: usize,
-    use_gyro: bool,
-    use_temp: bool,
+    inputs: OptionalInputs,
 ) -> Option<Vec<f64>> {
     let mut row = Vec::with_capacity(7);
-    push_input_row(&mut row, heading_rad, conditions, idx, (use_gyro, use_temp)).then_some(row)
+    push_input_row(&mut row, heading_rad, conditions, idx, inputs).then_some(row)
 }
 
 /// Appends the network's inputs at sample `idx` to `rows`; `false`, with nothing
@@ -142,19 +149,19 @@ fn push_input_row(
     heading_rad: f64,
     conditions: &Conditions<'_>,
     idx: usize,
-    (use_gyro, use_temp): (bool, bool),
+    inputs: OptionalInputs,
 ) -> bool {
     let start = rows.len();
     let mut push = || -> Option<()> {
         let (sin, cos) = heading_rad.sin_cos();
         rows.extend_from_slice(&[sin, cos, *conditions.horizontal_ut.get(idx)?]);
-        if use_gyro {
+        if inputs.gyro {
             let gyro_rad = (*conditions.gyro_heading_deg.get(idx)?)?.to_radians();
             let (sin, cos) = gyro_rad.sin_cos();
             rows.extend_from_slice(&[sin, cos]);
         }
         rows.push(*conditions.dip_deg.get(idx)?);
-        if use_temp {
+        if inputs.temp {
             rows.push((*conditions.temp_c.get(idx)?)?);
         }
         Some(())
@@ -180,11 +187,13 @@ pub fn train_correction(
     bins: &[Vec<usize>],
     seed: u64,
 ) -> Result<NeuralCorrection, String> {
-    let use_gyro = coverage(conditions.gyro_heading_deg) >= MIN_INPUT_COVERAGE;
-    let use_temp = coverage(conditions.temp_c) >= MIN_INPUT_COVERAGE;
+    let optional = OptionalInputs {
+        gyro: coverage(conditions.gyro_heading_deg) >= MIN_INPUT_COVERAGE,
+        temp: coverage(conditions.temp_c) >= MIN_INPUT_COVERAGE,
+    };
     let mut inputs = vec!["heading", "|H|"];
     let mut missing = Vec::new();
-    if use_gyro {
+    if optional.gyro {
         inputs.push(match conditions.gyro_heading_source {
             GyroHeadingSource::AttitudeFilter => "gyro heading (attitude filter)",
             GyroHeadingSource::IntegratedGyroscope => "gyro heading",
@@ -193,7 +202,7 @@ pub fn train_correction(
         missing.push("gyro heading");
     }
     inputs.push("dip");
-    if use_temp {
+    if optional.temp {
         inputs.push("temperature");
     } else {
         missing.push("temperature");
@@ -213,7 +222,7 @@ pub fn train_correction(
             else {
                 continue;
             };
-            let Some(row) = input_row(heading, conditions, idx, use_gyro, use_temp) else {
+            let Some(row) = input_row(heading, conditions, idx, optional) else {
                 continue;
             };
             if sum.is_empty() {
@@ -237,7 +246,7 @@ pub fn train_correction(
         paper_rows.push(heading_deg);
         paper_rows.push(mean[2]);
         let mut next = 3;
-        if use_gyro {
+        if optional.gyro {
             paper_rows.push(mean[3].atan2(mean[4]).to_degrees().rem_euclid(360.0));
             next = 5;
         }
@@ -270,8 +279,7 @@ pub fn train_correction(
         .unwrap_or_default();
     Ok(NeuralCorrection {
         model,
-        use_gyro,
-        use_temp,
+        inputs: optional,
         report: NeuralReport {
             base_key: base_key.to_string(),
             base_label: base_label.to_string(),
