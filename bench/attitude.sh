@@ -53,7 +53,7 @@ printf 'prior the filter gave 16.6 / 7.6 / 10.4 / 5.8 / 2.1° on the five trials
 printf 'rad/s 9.2 / 5.8 / 9.3 / 5.9 / 2.0° (runs of 2026-11-27): the tighter the prior, the less a disturbed field that passes the gates\n'
 printf 'can teach the filter a false bias. The 0.002 was chosen with these trials in view (as a round figure for the residual of an\n'
 printf 'OS'"'"'s running bias estimate, about 0.1°/s, not fitted to them), so it is not an independent test either.\n\n'
-"$venv/bin/python" bench/attitude_peers.py "$data" "$more" --ours "$ours" --json "$results/attitude.json" 2>/dev/null
+"$venv/bin/python" bench/attitude_peers.py "$data" "$more" --ours "$ours" --json "$results/attitude.json" --truth-out "$results/tyrex-truth" 2>/dev/null
 "$venv/bin/python" - "$results/attitude.json" <<'PY'
 import json, statistics, sys
 trials = [t for t in json.load(open(sys.argv[1]))["trials"] if "methods" in t and "ours" in t["methods"]]

@@ -4,7 +4,7 @@ attitude benchmark (Michel et al., "On Attitude Estimation with Smartphones",
 tyrex-team/benchmarks-attitude-smartphones), for docs/BENCHMARKS.md.
 
 Usage:
-    attitude_peers.py DATA_DIR [--ours DIR] [--json OUT.json]
+    attitude_peers.py DATA_DIR... [--ours DIR] [--json OUT.json] [--truth-out DIR]
 
 DATA_DIR holds one folder per trial (the five Thibaud_Nexus5_* trials listed in
 TRIALS), each with the phone's sensor files and the Qualisys ground truth. Prints a
@@ -470,7 +470,7 @@ def frame_check(trial, base, t_phone, matrices, valid):
 # ------------------------------------------------------------------------- a trial
 
 
-def process_trial(folder, name, ours_dir):
+def process_trial(folder, name, ours_dir, truth_dir=None):
     trial = load_trial(folder, name)
     mount, body_x, mean_force = detect_mount(trial["acc"])
     t_mocap, matrices = trial["mocap"]
@@ -516,6 +516,15 @@ def process_trial(folder, name, ours_dir):
     scored = candidates & ~vertical
     t_scored = t_phone[scored]
     truth = heading_deg(truth_axis[scored], "room")
+    if truth_dir is not None:
+        truth_dir.mkdir(parents=True, exist_ok=True)
+        np.savetxt(
+            truth_dir / f"{name}.csv",
+            np.column_stack([t_scored, truth]),
+            fmt="%.4f",
+            delimiter=",",
+            header="t_s (phone clock),heading_deg (body x, the mocap room's north)",
+        )
     result["frames_candidate"] = int(candidates.sum())
     result["frames_near_vertical"] = int((candidates & vertical).sum())
     result["frames_scored"] = int(scored.sum())
@@ -622,6 +631,12 @@ def main():
     parser.add_argument("data_dir", type=Path, nargs="+", help="folders holding the trial folders")
     parser.add_argument("--ours", type=Path, help="folder of <trial>.csv from our filter")
     parser.add_argument("--json", type=Path, help="write all figures here")
+    parser.add_argument(
+        "--truth-out",
+        type=Path,
+        help="write each trial's scored truth (t_s, heading of body x) as DIR/<trial>.csv, "
+        "for benches/attitude_tune.rs",
+    )
     args = parser.parse_args()
 
     results = []
@@ -632,7 +647,7 @@ def main():
             print(f"{name}: in none of {', '.join(map(str, args.data_dir))}, skipped", file=sys.stderr)
             continue
         folder = folders[0]
-        result, timing = process_trial(folder, name, args.ours)
+        result, timing = process_trial(folder, name, args.ours, args.truth_out)
         if "skipped" in result:
             print(f"{name}: skipped, {result['skipped']}", file=sys.stderr)
         for method, seconds in timing.items():

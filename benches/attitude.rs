@@ -21,41 +21,10 @@ mod native {
     use std::hint::black_box;
     use std::time::{Duration, Instant};
 
-    use compass_pdr::attitude::gates::FieldReference;
     use compass_pdr::attitude::{estimate_attitude, AttitudeOptions, Sensors};
-    use compass_pdr::recording::{Recording, Stream};
     use criterion::{Criterion, SamplingMode, Throughput};
-    use nalgebra::Vector3;
 
     use super::common;
-
-    /// The field corrected by the device's own estimate, and the gate's reference.
-    fn field_of(recording: &Recording) -> (Stream<Vector3<f64>>, Option<FieldReference>) {
-        let bias = &recording.mag_bias_in_body_ut;
-        let mut field = Stream::default();
-        for (&t_s, &raw) in recording
-            .mag_in_body_ut
-            .t_s
-            .iter()
-            .zip(&recording.mag_in_body_ut.values)
-        {
-            let correction = bias
-                .interpolate_at(t_s, f64::INFINITY)
-                .unwrap_or_else(Vector3::zeros);
-            field.push(t_s, raw - correction);
-        }
-        let mut down = Stream::default();
-        for (&t_s, force) in recording
-            .acc_in_body_mps2
-            .t_s
-            .iter()
-            .zip(&recording.acc_in_body_mps2.values)
-        {
-            down.push(t_s, -force.normalize());
-        }
-        let reference = FieldReference::of_log(&field, &down, (None, None));
-        (field, reference)
-    }
 
     pub fn main() {
         let measuring = std::env::args().any(|arg| arg == "--bench");
@@ -73,7 +42,7 @@ mod native {
         for (name, paths) in &trials {
             let recording = common::import_paths(paths).recording;
             let options = AttitudeOptions::for_gyro(recording.gyro_bias);
-            let (field, reference) = field_of(&recording);
+            let (field, reference) = common::field_by_device_estimate(&recording);
             let sensors = Sensors {
                 acc_in_body_mps2: &recording.acc_in_body_mps2,
                 gyro_in_body_radps: &recording.gyro_in_body_radps,

@@ -212,3 +212,38 @@ pub fn spread_pct(values: impl Iterator<Item = Vector3<f64>>) -> f64 {
     let variance = norms.iter().map(|norm| (norm - mean).powi(2)).sum::<f64>() / n;
     100.0 * variance.sqrt() / mean
 }
+
+/// A recording's field corrected by the device's own hard-iron estimate (a TYREX trial's
+/// uncalibrated and calibrated magnetometers), and the attitude gate's reference for it.
+pub fn field_by_device_estimate(
+    recording: &compass_pdr::recording::Recording,
+) -> (
+    compass_pdr::recording::Stream<Vector3<f64>>,
+    Option<compass_pdr::attitude::gates::FieldReference>,
+) {
+    let bias = &recording.mag_bias_in_body_ut;
+    let mut field = compass_pdr::recording::Stream::default();
+    for (&t_s, &raw) in recording
+        .mag_in_body_ut
+        .t_s
+        .iter()
+        .zip(&recording.mag_in_body_ut.values)
+    {
+        let correction = bias
+            .interpolate_at(t_s, f64::INFINITY)
+            .unwrap_or_else(Vector3::zeros);
+        field.push(t_s, raw - correction);
+    }
+    let mut down = compass_pdr::recording::Stream::default();
+    for (&t_s, force) in recording
+        .acc_in_body_mps2
+        .t_s
+        .iter()
+        .zip(&recording.acc_in_body_mps2.values)
+    {
+        down.push(t_s, -force.normalize());
+    }
+    let reference =
+        compass_pdr::attitude::gates::FieldReference::of_log(&field, &down, (None, None));
+    (field, reference)
+}
