@@ -165,7 +165,7 @@ pub fn verdict(
             &field,
             (read, method),
         ),
-        _ => field_verdict(analysis, &field, read, method),
+        (_, basis) => field_verdict(analysis, &field, (read, method), basis),
     };
     // A vehicle does not walk: its log gets no step count.
     if let Some(pdr) = pdr.filter(|_| verdict.kind != VerdictKind::Autopilot) {
@@ -474,8 +474,8 @@ fn heading_verdict(
 fn field_verdict(
     analysis: &CalibrationAnalysis,
     field: &FieldFigures,
-    read: String,
-    method: String,
+    (read, method): (String, String),
+    basis: &Basis,
 ) -> Verdict {
     let Some(corrected_spread) = field.corrected_spread_pct else {
         return Verdict {
@@ -539,11 +539,15 @@ fn field_verdict(
         ));
     }
     let mut to_do = live.reasons;
-    to_do.push(
+    to_do.push(if matches!(basis, Basis::ReferenceTooFar { .. }) {
+        "To measure the heading error itself, record with a reference heading that can judge it: \
+         GPS while walking or driving straight outdoors (this log's course is too far from every \
+         heading, as indoors), a ref_heading_deg column, or an autopilot's attitude."
+    } else {
         "To measure the heading error itself, record with a reference heading (a ref_heading_deg column, \
          GPS while walking or driving straight, or an autopilot's attitude)."
-            .to_string(),
-    );
+    }
+    .to_string());
     Verdict {
         kind: VerdictKind::FieldOnly,
         grade,

@@ -185,6 +185,15 @@ fn a_gps_course_far_from_every_heading_judges_nothing_but_surveyed_legs_do() {
         "{}",
         verdict.headline
     );
+    // ... and what to record instead says why this log's GPS could not judge.
+    assert!(
+        verdict
+            .to_do
+            .iter()
+            .any(|item| item.contains("course is too far from every heading")),
+        "{:?}",
+        verdict.to_do
+    );
     let f4 = data.join("msft-indoor-2020/site1/F4");
     let verdict = verdict_of(&dropped(&f4));
     assert_eq!(verdict.kind, VerdictKind::Heading, "{}", verdict.headline);
