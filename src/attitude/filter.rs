@@ -150,7 +150,7 @@ impl AttitudeFilter {
                 return;
             }
             let field = self.last_field.filter(|_| wants_field);
-            let yaw_sigma_rad = self.seed_yaw_sigma_rad(force, field);
+            let yaw_sigma_rad = self.start_yaw_sigma_rad(force, field);
             self.filter = Some(Eskf::new(
                 eskf::attitude_from(force, field),
                 (
@@ -164,7 +164,7 @@ impl AttitudeFilter {
     }
 
     /// The yaw's 1σ when the filter starts from `force` and `field` (`None`: no field).
-    fn seed_yaw_sigma_rad(&self, force: Vector3<f64>, field: Option<Vector3<f64>>) -> f64 {
+    fn start_yaw_sigma_rad(&self, force: Vector3<f64>, field: Option<Vector3<f64>>) -> f64 {
         match (field, self.gate.as_ref()) {
             (Some(field), Some(gate)) => seed_yaw_sigma_rad(gate.reference(), force, field),
             (Some(_), None) => INITIAL_YAW_SIGMA_RAD,
