@@ -77,11 +77,7 @@ mod report {
         verdicts: &mut Vec<String>,
     ) -> String {
         let row = |key: &str| analysis.report.row(key);
-        let stats = |key: &str| {
-            row(key)
-                .map(|row| (row.train, row.check))
-                .unwrap_or((None, None))
-        };
+        let stats = |key: &str| row(key).map_or((None, None), |row| (row.train, row.check));
         let (raw_train, raw_check) = stats("raw");
         let (min_max_train, min_max_check) = stats("min_max");
         let (mlp_train, mlp_check) = stats("mlp");

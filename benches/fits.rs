@@ -338,7 +338,7 @@ mod native {
                                 black_box(&case.tilt),
                                 &case.plane_options,
                             )
-                        })
+                        });
                     },
                 );
                 group.bench_with_input(
@@ -348,7 +348,7 @@ mod native {
                         let tilt = case.tilt_from_accelerometer.then_some(case.tilt.as_slice());
                         bencher.iter(|| {
                             fit_inertial(black_box(&case.mag_ut), tilt, &case.inertial_options)
-                        })
+                        });
                     },
                 );
             }

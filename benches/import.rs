@@ -204,7 +204,7 @@ mod native {
             for input in &inputs {
                 group.throughput(Throughput::BytesDecimal(input.bytes.len() as u64));
                 group.bench_function(input.bench_name, |bencher| {
-                    bencher.iter(|| import(input.file_name, black_box(&input.bytes)))
+                    bencher.iter(|| import(input.file_name, black_box(&input.bytes)));
                 });
             }
             group.finish();

@@ -186,7 +186,7 @@ mod native {
                 .warm_up_time(Duration::from_millis(500))
                 .measurement_time(Duration::from_secs(3));
             group.bench_function(format!("lbfgs/{n_train}"), |bencher| {
-                bencher.iter(|| train(black_box(&train_data), &options))
+                bencher.iter(|| train(black_box(&train_data), &options));
             });
             group.finish();
         }

@@ -340,7 +340,7 @@ mod native {
                 .measurement_time(Duration::from_secs(3))
                 .throughput(Throughput::Elements(n_steps as u64));
             group.bench_function(format!("ekf/{n_steps}"), |bencher| {
-                bencher.iter(|| run_filter(black_box(start), black_box(&inputs)).x)
+                bencher.iter(|| run_filter(black_box(start), black_box(&inputs)).x);
             });
             group.finish();
         }
@@ -359,7 +359,7 @@ mod native {
                         .expect("dead-reckons")
                         .report
                         .n_steps
-                })
+                });
             });
             group.finish();
         }

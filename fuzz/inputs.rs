@@ -15,7 +15,7 @@ pub fn fix_nmea_checksums(data: &[u8]) -> Vec<u8> {
             out.push(b'\n');
         }
         match line.first() {
-            Some(b'$') | Some(b'!') => {
+            Some(b'$' | b'!') => {
                 let body = match line.iter().rposition(|&byte| byte == b'*') {
                     Some(star) => &line[..star],
                     None => line,

@@ -74,7 +74,12 @@ mod tests {
         assert_eq!(duration_text(42.4), "42 s");
         assert_eq!(duration_text(600.0), "10.0 min");
         assert_eq!(duration_text(3.0 * 3600.0), "3.0 h");
-        let names = |names: &[&str]| names.iter().map(|n| n.to_string()).collect::<Vec<_>>();
+        let names = |names: &[&str]| {
+            names
+                .iter()
+                .map(std::string::ToString::to_string)
+                .collect::<Vec<_>>()
+        };
         assert_eq!(list(&names(&["A"])), "A");
         assert_eq!(list(&names(&["A", "B", "C"])), "A, B and C");
         assert_eq!(list(&[]), "");

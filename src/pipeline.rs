@@ -230,7 +230,7 @@ pub fn attitude_csv(
     let declination = &calibration.report.declination;
     let body_axes = calibration.report.mag_frame.as_ref().map_or_else(
         || "as logged (x forward, y right, z down)".to_string(),
-        |frame| frame.describe(),
+        super::io::frame::SensorFrame::describe,
     );
     Ok(crate::attitude::track::attitude_csv(
         &track,

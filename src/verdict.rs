@@ -617,8 +617,7 @@ fn autopilot_verdict(
             value: compass
                 .sentence
                 .strip_prefix(&format!("{}: ", compass.label()))
-                .map(str::to_string)
-                .unwrap_or_else(|| compass.sentence.clone()),
+                .map_or_else(|| compass.sentence.clone(), str::to_string),
         })
         .collect();
     let written: Vec<String> = autopilot.written().map(CompassResult::label).collect();

@@ -249,7 +249,7 @@ fn no_function_is_over_150_lines() {
         match KNOWN.iter().find(|(known, _)| *known == key) {
             Some(&(_, max)) if length <= max => {}
             Some(&(_, max)) => {
-                violations.push(format!("{place}: {length} lines, more than its {max}"))
+                violations.push(format!("{place}: {length} lines, more than its {max}"));
             }
             None => violations.push(format!("{place}: {length} lines")),
         }

@@ -68,7 +68,7 @@ fn flight_with(rng: &mut Rng, imu: bool) -> Flight {
             rng.symmetric(60.0),
             rng.symmetric(60.0),
         );
-    let stale = stale.map(|v| v.round());
+    let stale = stale.map(f64::round);
 
     let yaw0 = rng.range(0.0, std::f64::consts::TAU);
     let yaw_span = rng.range(90.0, 360.0).to_radians();

@@ -90,7 +90,7 @@ fn read_param_file(text: &str) -> Vec<(String, f64)> {
         .collect()
 }
 
-fn lookup<'a>(params: &'a [(String, f64)]) -> impl Fn(&str) -> Option<f64> + 'a {
+fn lookup(params: &[(String, f64)]) -> impl Fn(&str) -> Option<f64> + '_ {
     move |name: &str| {
         params
             .iter()

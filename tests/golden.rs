@@ -132,7 +132,7 @@ fn run(name: &str, line: &str) -> String {
             .file_name()
             .map(|name| name.to_string_lossy().to_string())
             .unwrap_or_default();
-        if file_name.ends_with(".html") {
+        if path.extension().is_some_and(|ext| ext == "html") {
             // The report's figures are SVG by the hundred kilobytes: its words stand for it.
             record.push_str(&format!(
                 "--- file {file_name} (its text, without the figures and styles)\n{}",

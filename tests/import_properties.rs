@@ -56,7 +56,7 @@ fn lines_of(bytes: &[u8], chunk_ends: &[usize]) -> Vec<(usize, String, bool)> {
     for &end in chunk_ends.iter().chain(std::iter::once(&bytes.len())) {
         let end = end.clamp(start, bytes.len());
         decoder.feed(&bytes[start..end], |line| {
-            lines.push((line.number, line.text.into_owned(), line.truncated))
+            lines.push((line.number, line.text.into_owned(), line.truncated));
         });
         start = end;
     }
@@ -116,7 +116,7 @@ proptest! {
             let whole = import("f.txt", bytes);
             match (chunked_result, whole) {
                 (Ok(Ok(chunked)), Ok(whole)) => prop_assert_eq!(chunked, whole),
-                (Ok(Err(chunked)), Err(whole)) | (Err(chunked), Err(whole)) => prop_assert_eq!(chunked, whole),
+                (Ok(Err(chunked)) | Err(chunked), Err(whole)) => prop_assert_eq!(chunked, whole),
                 (chunked, whole) => prop_assert!(false, "chunked {:?} but whole {:?}", chunked.is_ok(), whole.is_ok()),
             }
         }

@@ -778,7 +778,8 @@ fn qmc5883l_calibration_agrees_with_its_author_s() {
             .iter()
             .map(|&m| correction * (m - hard_iron))
             .collect();
-        let field = corrected.iter().map(|c| c.norm()).sum::<f64>() / corrected.len() as f64;
+        let field =
+            corrected.iter().map(nalgebra::Matrix::norm).sum::<f64>() / corrected.len() as f64;
         let sum_sq: f64 = corrected
             .iter()
             .map(|c| ((c.norm() - field) / (correction.transpose() * c.normalize()).norm()).powi(2))

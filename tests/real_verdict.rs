@@ -27,7 +27,10 @@ fn dropped(dir: &Path) -> Vec<PathBuf> {
             let name = path
                 .file_name()
                 .map_or(String::new(), |name| name.to_string_lossy().to_lowercase());
-            !name.starts_with("licen") && !name.ends_with(".md")
+            let markdown = path
+                .extension()
+                .is_some_and(|ext| ext.eq_ignore_ascii_case("md"));
+            !name.starts_with("licen") && !markdown
         })
         .collect();
     paths.sort();
@@ -68,8 +71,10 @@ fn figure<'a>(verdict: &'a Verdict, label: &str) -> &'a str {
         .figures
         .iter()
         .find(|figure| figure.label == label)
-        .map(|figure| figure.value.as_str())
-        .unwrap_or_else(|| panic!("no figure {label:?} in {:?}", verdict.figures))
+        .map_or_else(
+            || panic!("no figure {label:?} in {:?}", verdict.figures),
+            |figure| figure.value.as_str(),
+        )
 }
 
 /// The first number in `text`.

@@ -186,7 +186,7 @@ impl AttitudeFilter {
         let filter = self.filter.as_mut()?;
         match dt_s {
             Some(dt_s) if dt_s > 0.0 && dt_s <= self.timing.max_gyro_gap_s => {
-                filter.propagate(rate_radps, dt_s)
+                filter.propagate(rate_radps, dt_s);
             }
             Some(dt_s) if dt_s > self.timing.max_gyro_gap_s => {
                 filter.inflate_yaw(

@@ -391,7 +391,7 @@ pub fn device_write_back(
 mod tests {
     use super::*;
 
-    fn scored<'a>(key: &'a str, train: Option<f64>, check: Option<f64>) -> Scored<'a> {
+    fn scored(key: &str, train: Option<f64>, check: Option<f64>) -> Scored<'_> {
         Scored {
             key,
             label: key,

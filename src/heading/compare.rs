@@ -329,7 +329,7 @@ fn neural_stacks(
     let horizontal_ut: Vec<f64> = calibration
         .level_raw_ut
         .iter()
-        .map(|level| level.norm())
+        .map(nalgebra::Matrix::norm)
         .collect();
     let dip_deg: Vec<f64> = horizontal_ut
         .iter()

@@ -148,7 +148,7 @@ mod tests {
         let mut decoder = LineDecoder::new(max_line_bytes);
         for chunk in chunks {
             decoder.feed(chunk, |line| {
-                lines.push((line.number, line.text.into_owned(), line.truncated))
+                lines.push((line.number, line.text.into_owned(), line.truncated));
             });
         }
         decoder.finish(|line| lines.push((line.number, line.text.into_owned(), line.truncated)));

@@ -191,7 +191,7 @@ pub enum ImportError {
 /// Refuses a file that is empty (or only white space) or not text, with the message
 /// that names it; every importer starts here.
 pub fn ensure_text(file_name: &str, bytes: &[u8]) -> Result<(), ImportError> {
-    if bytes.iter().all(|byte| byte.is_ascii_whitespace()) {
+    if bytes.iter().all(u8::is_ascii_whitespace) {
         return Err(ImportError::Empty {
             file_name: file_name.to_string(),
         });

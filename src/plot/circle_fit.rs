@@ -90,7 +90,8 @@ pub fn draw_circle_fit<DB: DrawingBackend>(
     let radius_ut = analysis.fitted_ellipse.map_or_else(
         || {
             let corrected = &analysis.level_corrected_ut;
-            corrected.iter().map(|point| point.norm()).sum::<f64>() / corrected.len().max(1) as f64
+            corrected.iter().map(nalgebra::Matrix::norm).sum::<f64>()
+                / corrected.len().max(1) as f64
         },
         |(_, _, radius_ut)| radius_ut,
     );

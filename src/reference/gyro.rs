@@ -212,7 +212,7 @@ pub fn gyro_heading(
 fn loop_closing_drift(recording: &Recording, relative: &Stream<f64>) -> Option<(f64, f64)> {
     // Walking where the specific force varies over a one-second window.
     let acc = &recording.acc_in_body_mps2;
-    let magnitudes: Vec<f64> = acc.values.iter().map(|value| value.norm()).collect();
+    let magnitudes: Vec<f64> = acc.values.iter().map(nalgebra::Matrix::norm).collect();
     let mut walking = Stream::default();
     let (mut start, mut end) = (0usize, 0usize);
     let (mut sum, mut sum_sq) = (0.0, 0.0);

@@ -63,8 +63,9 @@ pub fn run_page(analysis_worker: Option<web_sys::Worker>) -> Result<(), JsError>
 pub fn analyse_file(file_name: &str, bytes: &[u8]) -> Result<JsValue, JsError> {
     let import = crate::io::import::import(file_name, bytes)
         .map_err(|error| JsError::new(&error.to_string()))?;
-    let (analysis, _) = crate::pipeline::headings(&import, &Default::default())
-        .map_err(|error| JsError::new(&error.to_string()))?;
+    let (analysis, _) =
+        crate::pipeline::headings(&import, &crate::heading::HeadingOptions::default())
+            .map_err(|error| JsError::new(&error.to_string()))?;
     let serializer = serde_wasm_bindgen::Serializer::json_compatible();
     serde::Serialize::serialize(&analysis.report, &serializer)
         .map_err(|error| JsError::new(&error.to_string()))

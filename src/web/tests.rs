@@ -160,7 +160,7 @@ fn the_page_shows_an_analysis_then_an_error() {
         import: std::sync::Arc::clone(&import),
         stage: crate::pipeline::Stage::Calibration,
         previous: None,
-        options: Default::default(),
+        options: crate::pdr::PdrOptions::default(),
     })
     .finish()
     .expect("analysable");

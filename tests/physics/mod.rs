@@ -847,7 +847,7 @@ fn loops_route(rng: &mut Rng, total_s: f64, speed_mps: f64) -> Plan {
     for half in 0..2 {
         let lead_in = if half == 0 { WALK_LEAD_IN_S } else { 0.0 };
         let lead_out = if half == 1 { WALK_LEAD_OUT_S } else { 0.0 };
-        let mut loops: Vec<Phase> = (0..1 + rng.index(2))
+        let mut loops: Vec<Phase> = (0..=rng.index(2))
             .map(|_| {
                 let radius_m = rng.range(6.0, 15.0);
                 let turns = if rng.uniform() < 0.25 { 2.0 } else { 1.0 };

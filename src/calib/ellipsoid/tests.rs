@@ -334,10 +334,10 @@ fn each_model_can_be_asked_for() {
                 assert!(
                     (soft_iron - Matrix3::identity()).amax() < 1e-9,
                     "{soft_iron}"
-                )
+                );
             }
             EllipsoidModel::Diagonal => {
-                assert!((soft_iron - Matrix3::from_diagonal(&soft_iron.diagonal())).amax() == 0.0)
+                assert!((soft_iron - Matrix3::from_diagonal(&soft_iron.diagonal())).amax() == 0.0);
             }
             _ => {}
         }

@@ -178,7 +178,7 @@ fn a_level_turn_says_the_vertical_parameters_were_not_seen_and_still_gives_headi
     // level turn (it is a constant heading offset that only a reference can see).
     let mut case = case(5, 0.0, 30.0, 0.0);
     let symmetric = (case.distortion + case.distortion.transpose()) / 2.0;
-    for m in case.mag_ut.iter_mut() {
+    for m in &mut case.mag_ut {
         *m = symmetric
             * case.distortion.try_inverse().expect("invertible")
             * (*m - case.hard_iron_ut)

@@ -594,7 +594,7 @@ fn refine_partial(
         / n)
         .sqrt()
         .max(1e-3);
-    let field_ut = level_ut.iter().map(|level| level.norm()).sum::<f64>() / n;
+    let field_ut = level_ut.iter().map(nalgebra::Matrix::norm).sum::<f64>() / n;
     let priors = Priors {
         centre: start,
         weight_log_scale: heading_rms_rad / prior.log_scale_std,

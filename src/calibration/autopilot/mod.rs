@@ -255,7 +255,12 @@ pub fn autopilot_calibration(
     let mut notes = Vec::new();
     // PX4 logs a compass under several topics (sensor_mag, vehicle_magnetometer): one
     // calibration slot is assessed once, on the topic with the most raw samples.
-    let n_raw = |compass: &CompassLog| compass.raw_in_body_ut.as_ref().map_or(0, |raw| raw.len());
+    let n_raw = |compass: &CompassLog| {
+        compass
+            .raw_in_body_ut
+            .as_ref()
+            .map_or(0, super::super::recording::Stream::len)
+    };
     let assessed: Vec<&CompassLog> = log
         .compasses
         .iter()

@@ -63,7 +63,7 @@ pub fn read_binary(file_name: &str, bytes: &[u8]) -> Result<ImportReport, Import
 pub fn read_text(file_name: &str, bytes: &[u8]) -> Result<ImportReport, ImportError> {
     let mut reader = TextReader::default();
     crate::io::lines::decode_all(bytes, super::MAX_LINE_BYTES, |line| {
-        reader.read_line(line.number, &line.text)
+        reader.read_line(line.number, &line.text);
     });
     finish_text(reader, file_name)
 }
@@ -143,7 +143,7 @@ fn set_compasses(autopilot: &mut AutopilotLog, mags: &[MagTrack]) -> usize {
             compass
                 .raw_in_body_ut
                 .as_mut()
-                .map_or(0, |raw| raw.sort_by_time())
+                .map_or(0, super::super::recording::Stream::sort_by_time)
         })
         .collect();
     let primary = autopilot

@@ -20,7 +20,9 @@ impl Fields for TextFields<'_> {
     }
 
     fn text(&self, column: usize) -> Option<String> {
-        self.values.get(column).map(|value| value.to_string())
+        self.values
+            .get(column)
+            .map(std::string::ToString::to_string)
     }
 }
 

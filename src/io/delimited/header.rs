@@ -95,7 +95,7 @@ pub(super) fn setting_of(text: &str, mapping: Option<&ColumnMapping>) -> Option<
     let value = parse_f64(value).filter(|value| value.is_finite())?;
     let names_a_column =
         mapping.is_some_and(|mapping| mapping.target_of(key).is_some()) || resolve(key).is_some();
-    (key.chars().any(|c| c.is_alphabetic()) && !names_a_column).then(|| Setting {
+    (key.chars().any(char::is_alphabetic) && !names_a_column).then(|| Setting {
         key: key.to_string(),
         value,
         text: text.to_string(),

@@ -609,11 +609,7 @@ fn read_field_slowly(
 }
 
 fn field_name(header: &Header, field_idx: usize) -> &str {
-    header
-        .names
-        .get(field_idx)
-        .map(String::as_str)
-        .unwrap_or("?")
+    header.names.get(field_idx).map_or("?", String::as_str)
 }
 
 /// A field the fast parser did not take: quoted or padded numbers, and date-times in

@@ -168,7 +168,7 @@ fn a_large_file_read_in_parts_equals_reading_it_line_by_line() {
     let in_parts = read_raw("big.csv", text.as_bytes()).expect("readable");
     let mut reader = DelimitedReader::new(None);
     decode_all(text.as_bytes(), MAX_LINE_BYTES, |line| {
-        reader.read_line(&line)
+        reader.read_line(&line);
     });
     let line_by_line = reader.finish("big.csv").expect("readable");
     assert_eq!(in_parts, line_by_line);

@@ -183,10 +183,10 @@ impl FormatReader {
             FormatReader::Nmea(reader) => reader.read_decoded(line),
             FormatReader::Serial(reader) => reader.read_line(line.number, &line.text, None),
             FormatReader::Android(reader) => {
-                reader.read_line(line.number, &line.text, line.truncated)
+                reader.read_line(line.number, &line.text, line.truncated);
             }
             FormatReader::GetSensorData(reader) => {
-                reader.read_line(line.number, &line.text, line.truncated)
+                reader.read_line(line.number, &line.text, line.truncated);
             }
             FormatReader::DataflashText(reader) => reader.read_line(line.number, &line.text),
         }

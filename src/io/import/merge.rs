@@ -26,13 +26,12 @@ pub fn merge(
     let (imports, mut choice_notes) = choose_among_sensor_files(imports);
     let mut imports = leave_out_second_magnetometers(imports, &mut choice_notes);
     if imports.is_empty() {
-        return Err(failures
-            .into_iter()
-            .next()
-            .map(|(_, error)| error)
-            .unwrap_or(ImportError::Empty {
+        return Err(failures.into_iter().next().map_or(
+            ImportError::Empty {
                 file_name: String::new(),
-            }));
+            },
+            |(_, error)| error,
+        ));
     }
     if imports.len() == 1 && failures.is_empty() {
         let mut report = match imports.remove(0).1 {

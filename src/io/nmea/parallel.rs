@@ -381,7 +381,7 @@ mod tests {
         let bytes = tricky_log();
         let mut reader = NmeaReader::new();
         decode_all(&bytes, super::super::MAX_LINE_BYTES, |line| {
-            reader.read_decoded(&line)
+            reader.read_decoded(&line);
         });
         let sequential = reader.finish("tricky.nmea").expect("readable");
         // The log exercises what it should.
@@ -413,7 +413,7 @@ mod tests {
         }
         let mut reader = NmeaReader::new();
         decode_all(&bytes, super::super::MAX_LINE_BYTES, |line| {
-            reader.read_decoded(&line)
+            reader.read_decoded(&line);
         });
         let sequential = reader.finish("tricky.nmea").expect("readable");
         // Blocks of whole lines, as a file read in chunks gives them: two large enough
@@ -439,7 +439,7 @@ mod tests {
             }
             let mut decoded = Vec::new();
             decode_all(bytes, 100, |line| {
-                decoded.push(line.text.as_bytes().to_vec())
+                decoded.push(line.text.as_bytes().to_vec());
             });
             assert_eq!(lines, decoded, "batches of {batch_bytes}");
         }

@@ -247,7 +247,7 @@ mod tests {
             "1 ",
         ]
         .iter()
-        .map(|text| text.to_string())
+        .map(std::string::ToString::to_string)
         .collect();
         let mut state = 11u64;
         for _ in 0..20_000 {

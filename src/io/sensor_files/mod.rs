@@ -164,7 +164,7 @@ impl SensorFileReader {
         }
         match self.file {
             SensorFile::Headerless(kind) if kind.not_used().is_none() => {
-                self.read_numbers(kind, line.number, text, line.truncated)
+                self.read_numbers(kind, line.number, text, line.truncated);
             }
             SensorFile::SensorLogger {
                 kind: LoggerFile::Metadata,

@@ -193,7 +193,7 @@ fn read_in_chunks(bytes: &[u8], splits: &[usize]) -> Result<ImportReport, Import
     let mut start = 0;
     for &split in splits.iter().chain(std::iter::once(&bytes.len())) {
         decoder.feed(&bytes[start..split], |line| {
-            reader.read_line(line.number, &line.text, None)
+            reader.read_line(line.number, &line.text, None);
         });
         start = split;
     }

@@ -99,7 +99,7 @@ fn read_bytes(
     ensure_text(file_name, bytes)?;
     let file_name = file_name.to_string();
     decode_all(bytes, MAX_LINE_BYTES, |line| {
-        reader.read_line(line.number, &line.text, line.truncated)
+        reader.read_line(line.number, &line.text, line.truncated);
     });
     reader.finish(file_name)
 }

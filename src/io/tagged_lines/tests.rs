@@ -163,7 +163,7 @@ fn read_chunks(reader: impl LineReader, chunks: &[&[u8]]) -> Result<ImportReport
     let mut decoder = LineDecoder::new(MAX_LINE_BYTES);
     for chunk in chunks {
         decoder.feed(chunk, |line| {
-            reader.read_line(line.number, &line.text, line.truncated)
+            reader.read_line(line.number, &line.text, line.truncated);
         });
     }
     decoder.finish(|line| reader.read_line(line.number, &line.text, line.truncated));
@@ -319,12 +319,12 @@ fn check_msft_walk(path: &str, expected: Expected) {
         .zip(&r.mag_bias_in_body_ut.values)
         .map(|(raw, bias)| raw - bias)
         .collect();
-    let mean_calibrated_ut = calibrated.iter().map(|m| m.norm()).sum::<f64>() / n_mag;
+    let mean_calibrated_ut = calibrated.iter().map(nalgebra::Matrix::norm).sum::<f64>() / n_mag;
     let mean_raw_ut = r
         .mag_in_body_ut
         .values
         .iter()
-        .map(|m| m.norm())
+        .map(nalgebra::Matrix::norm)
         .sum::<f64>()
         / n_mag;
     assert!(

@@ -309,7 +309,7 @@ impl UlogReader {
             params_changed: std::mem::take(&mut self.params_changed),
             compasses: made.into_iter().map(|made| made.log).collect(),
             main_compass,
-            current_a: Default::default(),
+            current_a: Stream::default(),
         };
         Ok(ImportReport {
             file_name: file_name.to_string(),

@@ -163,11 +163,11 @@ impl LivePanel {
             EventListener::new(button, "click", move |_| action(&panel)).forget();
         };
         // A simulated board, its downloads and a new session need no Web Serial.
-        on(&self.simulate, |panel| panel.start_simulation());
+        on(&self.simulate, LivePanel::start_simulation);
         on(&self.disconnect, |panel| panel.stop_simulation());
         on(&self.download, |panel| panel.download_recording());
         on(&self.download_calibration, |panel| {
-            panel.download_calibration_json()
+            panel.download_calibration_json();
         });
         on(&self.download_snippet, |panel| panel.download_c_snippet());
         on(&self.reset, |panel| panel.new_session());

@@ -119,7 +119,7 @@ impl LivePanel {
             .session
             .borrow()
             .quality()
-            .map(|quality| quality.sensor_calibration());
+            .map(crate::live::LiveQuality::sensor_calibration);
         if let Some(calibration) = calibration {
             self.keep(RecentCalibration {
                 source: "live session".to_string(),

@@ -169,7 +169,7 @@ impl Page {
         let prevent_default = EventListenerOptions::enable_prevent_default();
         for event_name in ["dragover", "drop"] {
             EventListener::new_with_options(&self.document, event_name, prevent_default, |event| {
-                event.prevent_default()
+                event.prevent_default();
             })
             .forget();
         }

@@ -70,7 +70,7 @@ impl Page {
                 let page = Rc::clone(self);
                 let options = EventListenerOptions::enable_prevent_default();
                 EventListener::new_with_options(&element, name, options, move |event| {
-                    action(&page, idx, event)
+                    action(&page, idx, event);
                 })
                 .forget();
             };
@@ -115,7 +115,7 @@ impl Page {
                 });
             }
             listen("dblclick", |page, idx, _| {
-                page.change_zoom(idx, |_, _| Zoom::WHOLE)
+                page.change_zoom(idx, |_, _| Zoom::WHOLE);
             });
             listen("keydown", |page, idx, event| {
                 let Some(key) = event.dyn_ref::<KeyboardEvent>().map(KeyboardEvent::key) else {
