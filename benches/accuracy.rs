@@ -120,11 +120,11 @@ mod report {
     }
 
     fn headings(
-        report: compass_pdr::io::ImportReport,
+        report: &compass_pdr::io::ImportReport,
         calibration: CalibrationOptions,
     ) -> HeadingAnalysis {
         compass_pdr::pipeline::headings(
-            &report,
+            report,
             &HeadingOptions {
                 calibration,
                 ..HeadingOptions::default()
@@ -213,7 +213,7 @@ mod report {
                     label,
                     "its reference-heading column (truth)",
                     &headings(
-                        import_simulated(file_name, &config),
+                        &import_simulated(file_name, &config),
                         CalibrationOptions::default()
                     ),
                     &mut heading_verdicts
@@ -231,7 +231,7 @@ mod report {
                 "simulator: a car's loop (`vehicle_loop(1, 1200 s, 10 Hz)`: fixed mount, Eq. 12 deviation of the car's iron)",
                 "GPS course above 5 m/s",
                 &headings(
-                    car,
+                    &car,
                     CalibrationOptions {
                         reference: ReferenceOptions {
                             choice: ReferenceChoice::Gps,
@@ -246,7 +246,7 @@ mod report {
         if have_data {
             let vehicle =
                 common::import_paths(&[data.join("vehicle-pixel6a/2023-08-09_12-47-42.csv")]);
-            let vehicle_headings = headings(vehicle, CalibrationOptions::default());
+            let vehicle_headings = headings(&vehicle, CalibrationOptions::default());
             let _ = writeln!(
                 text,
                 "{}",
@@ -284,7 +284,7 @@ mod report {
                 let paths =
                     common::files_in(&data.join("msft-indoor-2020/site1").join(floor), "txt");
                 let analysis = headings(
-                    common::import_paths(&paths),
+                    &common::import_paths(&paths),
                     CalibrationOptions {
                         reference: ReferenceOptions {
                             choice: ReferenceChoice::Legs,
@@ -307,7 +307,7 @@ mod report {
             }
             let loop_paths = common::files_in(&data.join("phyphox-hallway-loop"), "csv");
             let analysis = headings(
-                common::import_paths(&loop_paths),
+                &common::import_paths(&loop_paths),
                 CalibrationOptions {
                     reference: ReferenceOptions {
                         choice: ReferenceChoice::Gyro,

@@ -390,6 +390,7 @@ fn row_rms(stats: Option<HeadingErrorStats>) -> Option<f64> {
 }
 
 /// The chosen heading's score against the reference (from [`Basis::ReferenceRms`]).
+#[derive(Debug, Clone, Copy)]
 struct Scores {
     rms_deg: f64,
     raw_rms_deg: Option<f64>,

@@ -243,6 +243,10 @@ fn microtesla() -> String {
     "µT".to_string()
 }
 
+#[expect(
+    clippy::unnecessary_wraps,
+    reason = "serde's default for an Option field must return the Option"
+)]
 fn one() -> Option<f64> {
     Some(1.0)
 }

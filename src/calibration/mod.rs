@@ -441,7 +441,7 @@ fn prepare(
     (samples, gravity): (TiltedSamples, &GravityEstimate),
     (options, autopilot_declination): (&CalibrationOptions, Option<(f64, &str)>),
     notes: &mut Vec<String>,
-) -> Result<Prepared, AnalysisError> {
+) -> Prepared {
     notes.extend(samples.notes.iter().cloned());
     let reference = choose_reference(recording, gravity, &options.reference);
     let mut ref_heading_rad: Vec<Option<f64>> = samples
@@ -484,7 +484,7 @@ fn prepare(
             &mut ref_heading_rad,
         ));
     }
-    Ok(Prepared {
+    Prepared {
         samples,
         reference,
         ref_heading_rad,
@@ -493,7 +493,7 @@ fn prepare(
         split,
         level_raw_ut,
         raw_heading_rad,
-    })
+    }
 }
 
 /// Each method fitted on the train part and scored on both: its report, and its heading
@@ -625,7 +625,7 @@ fn calibrate_levelled(
         (samples, &gravity),
         (options, declination),
         &mut notes,
-    )?;
+    );
     let autopilot_calibration = autopilot.as_ref().and_then(|log| {
         let truth = autopilot::Truth::of(prepared.expected.as_ref(), &prepared.declination);
         autopilot::autopilot_calibration(log, &recording.attitude, &truth)

@@ -180,7 +180,7 @@ fn sum_of_norms(values: &[Vector3<f64>]) -> f64 {
 }
 
 /// What the intervals between consecutive times hold.
-#[derive(Debug, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 struct Intervals {
     /// The longest (0 when none is positive; NaN intervals are passed over).
     largest_s: f64,

@@ -452,6 +452,7 @@ fn run_lbfgs(
     };
 }
 
+#[derive(Debug, Clone, Copy)]
 struct GradientDescent {
     learning_rate: f64,
     momentum: f64,

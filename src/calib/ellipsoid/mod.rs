@@ -319,6 +319,7 @@ fn check_expected_field(expected_field_ut: Option<f64>) -> Result<Option<f64>, E
 }
 
 /// One model's fit: algebraic, then refined when asked and when the refinement holds.
+#[derive(Debug, Clone, Copy)]
 struct Candidate {
     model: EllipsoidModel,
     calibration: FieldCalibration,

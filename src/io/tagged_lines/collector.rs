@@ -196,10 +196,15 @@ impl Collector {
                     .to_string(),
             );
         }
-        notes.push(clock.note.clone());
+        let Clock {
+            origin,
+            scale,
+            note,
+        } = clock;
+        notes.push(note);
         let mount = detect_mount(&self.acc_in_device_mps2, &mut notes);
 
-        let to_s = |t: f64| (t - clock.origin) * clock.scale;
+        let to_s = |t: f64| (t - origin) * scale;
         let to_body = |v: &Vector3<f64>| mount.device_to_body(*v);
         let mut recording = Recording {
             acc_in_body_mps2: convert(&self.acc_in_device_mps2, to_s, to_body),

@@ -252,6 +252,7 @@ fn shared_data(path: &str) -> Option<Vec<u8>> {
     }
 }
 
+#[derive(Debug, Clone, Copy)]
 struct Expected {
     n_samples: usize,
     n_waypoints: usize,

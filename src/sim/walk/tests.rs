@@ -27,7 +27,7 @@ fn the_demo_config_writes_the_committed_demo_byte_for_byte() {
 }
 
 /// A level, still-handed walk with a perfect sensor, for the field's geometry.
-fn ideal(config: WalkConfig) -> WalkConfig {
+fn ideal(config: &WalkConfig) -> WalkConfig {
     WalkConfig {
         hard_iron_ut: [0.0; 3],
         scale: [1.0; 3],
@@ -36,13 +36,13 @@ fn ideal(config: WalkConfig) -> WalkConfig {
         mean_roll_deg: 0.0,
         sway_pitch_deg: 0.0,
         sway_roll_deg: 0.0,
-        ..config
+        ..config.clone()
     }
 }
 
 #[test]
 fn the_compass_points_to_magnetic_north_the_declination_east_of_true_north() {
-    let config = ideal(WalkConfig::from_seed(5, 60.0))
+    let config = ideal(&WalkConfig::from_seed(5, 60.0))
         .at_place(47.6062, -122.3321, 1_778_776_200.0)
         .expect("inside the model");
     let expected = crate::calib::wmm::expected_field(
@@ -181,7 +181,7 @@ fn soft_iron_off_the_diagonal_is_what_the_level_ellipse_fit_removes() {
 
 #[test]
 fn iron_near_the_path_changes_the_field_only_while_passing() {
-    let base = ideal(WalkConfig::from_seed(5, 60.0));
+    let base = ideal(&WalkConfig::from_seed(5, 60.0));
     let disturbed = WalkConfig {
         disturbance: Some(Disturbance {
             start_s: 20.0,

@@ -159,7 +159,7 @@ impl Page {
             let Some(files) = page.file_input.files() else {
                 return;
             };
-            page.analyse_files(files);
+            page.analyse_files(&files);
             // Choosing the same file again should analyse it again.
             page.file_input.set_value("");
         })
@@ -192,7 +192,7 @@ impl Page {
                 .and_then(DragEvent::data_transfer)
                 .and_then(|transfer| transfer.files());
             match files {
-                Some(files) if files.length() > 0 => page.analyse_files(files),
+                Some(files) if files.length() > 0 => page.analyse_files(&files),
                 _ => page.show_error(
                     "Nothing to read in what was dropped. Drop a CSV file from your computer.",
                 ),
@@ -505,6 +505,10 @@ async fn fetch_file(url: &str, file_name: &str) -> Result<web_sys::File, String>
 
 /// The message of a JavaScript error, without a final full stop (the page's sentences
 /// go on after it).
+#[expect(
+    clippy::needless_pass_by_value,
+    reason = "map_err and the JS promises hand their errors over by value"
+)]
 pub(super) fn describe_js_error(value: wasm_bindgen::JsValue) -> String {
     let message = value
         .dyn_ref::<js_sys::Error>()

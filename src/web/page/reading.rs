@@ -61,7 +61,7 @@ async fn head_of(file: &web_sys::File) -> Result<Vec<u8>, String> {
 impl Page {
     /// Reads every file dropped or chosen, in chunks, and analyses them as one recording
     /// (phyphox writes one file per sensor), on the analysis worker where there is one.
-    pub(super) fn analyse_files(self: &Rc<Self>, files: web_sys::FileList) {
+    pub(super) fn analyse_files(self: &Rc<Self>, files: &web_sys::FileList) {
         let files: Vec<web_sys::File> = (0..files.length())
             .filter_map(|idx| files.get(idx))
             .collect();
