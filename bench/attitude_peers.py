@@ -423,6 +423,24 @@ def score(t_scored, truth, t_method, heading, max_bracket_s=0.5):
     return {"rms_deg": rms, "offset_deg": offset, "frames": int(ok.sum())}
 
 
+def sigma_coverage(t_scored, truth, t_method, heading, sigma, max_bracket_s=0.5):
+    """Shares of the frames whose error (the trial's constant offset removed) is within
+    1 and 2 x the stated yaw sigma at that time: a sigma that holds covers ~68 / 95 %.
+    The offset removed (the mocap room's north) makes the errors, and so the shares,
+    if anything smaller than the filter's own absolute error."""
+    h = interpolate_heading(t_method, heading, t_scored, max_bracket_s)
+    s = np.interp(t_scored, t_method, sigma)
+    ok = np.isfinite(h) & np.isfinite(s)
+    if not ok.any():
+        return {"within_1_sigma_pct": None, "within_2_sigma_pct": None}
+    _, offset = offset_removed_rms(wrap_deg(h[ok] - truth[ok]))
+    residual = np.abs(wrap_deg(h[ok] - truth[ok] - offset))
+    return {
+        "within_1_sigma_pct": float(100.0 * np.mean(residual <= s[ok])),
+        "within_2_sigma_pct": float(100.0 * np.mean(residual <= 2.0 * s[ok])),
+    }
+
+
 # ------------------------------------------------------------------- frame checks
 
 
@@ -567,6 +585,7 @@ def process_trial(folder, name, ours_dir, truth_dir=None):
             result["methods"]["ours"]["median_yaw_sigma_deg"] = (
                 float(np.median(sigma[window])) if window.any() else None
             )
+            result["methods"]["ours"].update(sigma_coverage(t_scored, truth, t, yaw, sigma))
         else:
             result["methods"]["ours"] = {"rms_deg": None, "frames": 0, "missing": str(path)}
 
@@ -590,13 +609,14 @@ def markdown(results, with_ours):
     head += [f"{m} RMS (°)" for m in methods] + ["best peer"]
     if with_ours:
         head.append("ours median σ (°)")
+        head.append("ours within 1σ / 2σ")
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in results:
         row = [r["trial"], r["mount"], "yes" if r["disturbed"] else "no"]
         if "skipped" in r:
             row += ["skipped: " + r["skipped"], ""] + [""] * len(methods) + [""]
             if with_ours:
-                row.append("")
+                row += ["", ""]
         else:
             share = r["frames_near_vertical"] / max(r["frames_candidate"], 1)
             row += [str(r["frames_scored"]), f"{r['frames_near_vertical']} ({100 * share:.1f} %)"]
@@ -608,7 +628,9 @@ def markdown(results, with_ours):
                 row.append(text)
             row.append(r["best_peer"] or "—")
             if with_ours:
-                row.append(cell(r["methods"]["ours"].get("median_yaw_sigma_deg")))
+                ours = r["methods"]["ours"]
+                row.append(cell(ours.get("median_yaw_sigma_deg")))
+                row.append(f"{cell(ours.get('within_1_sigma_pct'), 0)} / {cell(ours.get('within_2_sigma_pct'), 0)} %")
         lines.append("| " + " | ".join(row) + " |")
     return "\n".join(lines)
 

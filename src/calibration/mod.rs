@@ -660,7 +660,7 @@ fn calibrate_levelled(
         level_raw_ut,
         raw_heading_rad,
     } = prepared;
-    let field_raw_ut: Vec<f64> = samples.mag_ut.iter().map(nalgebra::Matrix::norm).collect();
+    let field_raw_ut: Vec<f64> = samples.mag_ut.iter().map(Vector3::norm).collect();
     let mean_raw_field_ut = field_raw_ut.iter().sum::<f64>() / field_raw_ut.len().max(1) as f64;
     notes.extend(field_and_reference_notes(
         mean_raw_field_ut,

@@ -175,7 +175,7 @@ fn sum_of_norms(values: &[Vector3<f64>]) -> f64 {
             *sum += value.norm();
         }
     }
-    let rest: f64 = chunks.remainder().iter().map(nalgebra::Matrix::norm).sum();
+    let rest: f64 = chunks.remainder().iter().map(Vector3::norm).sum();
     sums.iter().sum::<f64>() + rest
 }
 
@@ -280,7 +280,7 @@ mod tests {
         let values: Vec<Vector3<f64>> = (0..11)
             .map(|idx| Vector3::new(idx as f64, 1.0, -2.0))
             .collect();
-        let one_chain: f64 = values.iter().map(nalgebra::Matrix::norm).sum();
+        let one_chain: f64 = values.iter().map(Vector3::norm).sum();
         assert!((sum_of_norms(&values) - one_chain).abs() < 1e-12 * one_chain);
     }
 

@@ -9,9 +9,10 @@
 //! model again for the track: on every GNSS-referenced sample outside the outages, never
 //! on a reference-heading column (in a test log that column is the truth), so that no
 //! fix inside an outage trains what bridges it. Where the comparison itself was scored
-//! against the track's truth (that column, or the legs between reference positions),
-//! its choice is not taken either: the track gets the calibration chosen without a
-//! reference, unless the user asks to train on the reference positions.
+//! against the track's truth (that column, or the legs between reference positions) and
+//! GNSS cannot fit its choice again, or where a GPS course was too far from every model
+//! to choose ([`Basis::ReferenceTooFar`]), the track takes a heading that needs no
+//! reference (`reference_free_choice`), unless the user asks for one.
 
 use crate::calibration::selection::{
     choose_without_reference, learns_from_reference, Basis, RAW_KEY,

@@ -450,7 +450,7 @@ fn unit_or_guess(
 fn median_norm(values: &[Vector3<f64>]) -> f64 {
     let mut norms: Vec<f64> = values
         .iter()
-        .map(nalgebra::Matrix::norm)
+        .map(Vector3::norm)
         .filter(|norm| norm.is_finite())
         .collect();
     norms.sort_by(f64::total_cmp);

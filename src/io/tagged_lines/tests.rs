@@ -320,12 +320,12 @@ fn check_msft_walk(path: &str, expected: Expected) {
         .zip(&r.mag_bias_in_body_ut.values)
         .map(|(raw, bias)| raw - bias)
         .collect();
-    let mean_calibrated_ut = calibrated.iter().map(nalgebra::Matrix::norm).sum::<f64>() / n_mag;
+    let mean_calibrated_ut = calibrated.iter().map(Vector3::norm).sum::<f64>() / n_mag;
     let mean_raw_ut = r
         .mag_in_body_ut
         .values
         .iter()
-        .map(nalgebra::Matrix::norm)
+        .map(Vector3::norm)
         .sum::<f64>()
         / n_mag;
     assert!(

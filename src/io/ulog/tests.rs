@@ -437,7 +437,7 @@ fn rate_hz(stream_t_s: &[f64]) -> f64 {
 }
 
 fn earth_like(values: &[Vector3<f64>]) -> f64 {
-    let mut norms: Vec<f64> = values.iter().map(nalgebra::Matrix::norm).collect();
+    let mut norms: Vec<f64> = values.iter().map(Vector3::norm).collect();
     norms.sort_by(f64::total_cmp);
     let median_ut = norms[norms.len() / 2];
     assert!(
@@ -496,7 +496,7 @@ fn sample_ulg_as_pyulog_reads_it() {
 }
 
 fn earth_like_any(values: &[Vector3<f64>]) -> f64 {
-    let mut norms: Vec<f64> = values.iter().map(nalgebra::Matrix::norm).collect();
+    let mut norms: Vec<f64> = values.iter().map(Vector3::norm).collect();
     norms.sort_by(f64::total_cmp);
     norms[norms.len() / 2]
 }
