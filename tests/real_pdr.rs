@@ -223,3 +223,39 @@ fn a_compass_calibration_s_figure_eight_is_left_out_and_no_real_walk_or_run_is()
         );
     }
 }
+
+/// A phone's fixes move less than its walker (they lag and cut corners): on IPIN route 01
+/// (fixes of 4-7 m, legs of 8 m between turns) a filter that learnt the step scale from
+/// them shrank reps. 3 and 4 by 15 and 13 % and was sure of it. The fixes must not shrink a
+/// walk that nothing proves a step length for: the distance walked between the first and
+/// last landmark is within ±10 % of the landmarks' polyline on each of the four walks.
+#[test]
+fn the_fixes_do_not_shrink_route_01_s_walks() {
+    let Some(data) = common::shared_data() else {
+        return;
+    };
+    let walks: Vec<PathBuf> = common::files_in(&data.join("ipin2023-track3-walks"), "txt")
+        .into_iter()
+        .filter(|walk| walk.to_string_lossy().contains("Trial01"))
+        .collect();
+    assert_eq!(walks.len(), 4);
+    for walk in &walks {
+        let analysis = dead_reckon(std::slice::from_ref(walk), &PdrOptions::default());
+        let errors = analysis
+            .report
+            .position_error
+            .as_ref()
+            .unwrap_or_else(|| panic!("{}: no landmarks scored", walk.display()));
+        eprintln!(
+            "{}: walked {:+.1} % of the landmarks' {:.1} m",
+            walk.display(),
+            errors.distance_error_pct,
+            errors.distance_m
+        );
+        assert!(
+            errors.distance_error_pct.abs() <= 10.0,
+            "{}: {errors:?}",
+            walk.display()
+        );
+    }
+}

@@ -17,7 +17,7 @@
 //! - `fix_accuracy.rs`: the accuracy a fix is taken at (no better than its
 //!   neighbours' by more than a share).
 //! - `smoother.rs`: the default for logs: every fix weighted by its accuracy and
-//!   innovation, the step scale, the heading error and the GNSS's slow error as states,
+//!   innovation, the step scale (never learnt from the fixes), the heading error and the GNSS's slow error as states,
 //!   forward and then backward (Rauch-Tung-Striebel); `--filter causal` is its forward
 //!   pass alone.
 //! - `metrics.rs`: the paper's accuracy figures (Tables I, III, IV) and loop closure.
@@ -411,17 +411,23 @@ impl Smoothed {
         } else {
             String::new()
         };
-        format!(
-            "The track is {how}{trust}; the step model's lengths × {:.3} ± {:.3} (learnt by the filter).",
-            self.scale.0, self.scale.1
-        )
+        let lengths = if has_fixes {
+            "the step model's lengths are taken as they are (a phone's fixes move less than its walker, so they do not teach a step length)".to_string()
+        } else {
+            format!(
+                "the step model's lengths are taken as they are, their scale's σ ({:.1} % by the walk's end) carried into the track's σ",
+                100.0 * self.scale.1
+            )
+        };
+        format!("The track is {how}{trust}; {lengths}.")
     }
 }
 
 /// How well the step model's training proves it: the 1σ of its scale the filter starts
 /// from.
-/// A phone's GNSS indoors moves less than the walker (its fixes lag and stay put), so
-/// the fixes alone would shrink a walk by half: the scale's prior holds it.
+/// The filter carries it but never learns it: a phone's GNSS moves less than the
+/// walker (its fixes lag, stay put indoors and cut corners), so the fixes alone would
+/// shrink a walk (`smoother.rs`).
 fn scale_sigma(step_model: &StepModelReport) -> f64 {
     match step_model.trained_on {
         "known_distance" => 0.01,
@@ -434,7 +440,7 @@ fn scale_sigma(step_model: &StepModelReport) -> f64 {
 /// A step model trained on GNSS that makes this walk's steps shorter than 0.6 or
 /// longer than 1.6 times Weinberg's default K would is not proved by its references
 /// (indoor fixes report a speed near zero while the walker walks): the default K is
-/// used instead, and the filter learns the scale.
+/// used instead.
 fn plausible_step_model(
     step_model: StepModelReport,
     steps: &[Step],
@@ -457,7 +463,7 @@ fn plausible_step_model(
         return step_model;
     }
     notes.push(format!(
-        "The step model trained on {} made the steps {:.0} % of the usual length ({}): not believed. Weinberg's K = {} was used, its scale learnt by the filter.",
+        "The step model trained on {} made the steps {:.0} % of the usual length ({}): not believed. Weinberg's K = {} was used.",
         step_model.trained_on.replace('_', " "),
         100.0 * ratio,
         step_model.describe(),
