@@ -27,17 +27,13 @@
 //! ```
 //!
 //! Why the fixes never teach the scale: a phone's fixes move less than its walker (they
-//! lag and cut the corners of a route whose legs are as short as their accuracy), so a
-//! filter that learns `s` from them shrinks the walk while its σ says it is sure: on the
-//! IPIN 2023 route 01 walks (fixes of 4-7 m) it learnt × 0.87-0.90 ± 0.045 where the
-//! landmarks say the untrained model's lengths were within 7 % (ACCURACY.md, "Walked
-//! distance"). A step length is learnt where it is proved: the step model's training on
-//! straight stretches long against their fixes' accuracy, a known distance, surveyed
-//! positions (`step_length.rs`), which sets σ_s. Where there are fixes, `s` is held at 1
-//! without variance rather than carried as a consider state (a Schmidt filter's
-//! covariance does not survive the Rauch-Tung-Striebel pass): over a gap of `d` metres its
-//! σ_s·d (5 % untrained) adds in quadrature to the heading error's ≥ sin 15°·d, under 2 %
-//! of the stated σ. Without fixes nothing could move `s`, so it keeps its σ_s.
+//! lag, and cut the corners of legs as short as their accuracy), so a filter that learnt
+//! `s` from them shrank IPIN route 01's walks by up to 15 % (× 0.87 ± 0.045) where the
+//! untrained lengths were within 7 % (ACCURACY.md). A step length is learnt only where
+//! something proves it (`step_length.rs`), which sets σ_s. With fixes `s` is exact rather
+//! than a consider state (a Schmidt filter's covariance does not survive the RTS pass):
+//! over a gap of `d` metres its σ_s·d (5 %) adds in quadrature to the heading error's
+//! ≥ sin 15°·d, under 2 % of the stated σ.
 //!
 //! A part of the GNSS error, ρ_c·σ_j², is constant over the walk: no filter can tell it
 //! from the position, so it is not a state; it moves the whole track with the fixes and
@@ -195,21 +191,7 @@ pub fn fuse_walk(
     let floored = super::fix_accuracy::with_neighbourhood_accuracy(fixes);
     let fixes = floored.as_slice();
     let events = events(steps, fixes, first.t_start_s, policy);
-    // The fixes never teach the scale (see the module's doc): with fixes it is exact.
-    let (prior, noise) = if events.iter().any(|event| matches!(event, Event::Fix(_))) {
-        (
-            WalkPrior {
-                scale_sigma: 0.0,
-                ..prior
-            },
-            WalkNoise {
-                scale_walk_per_step: 0.0,
-                ..noise
-            },
-        )
-    } else {
-        (prior, noise)
-    };
+    let (prior, noise) = scale_untaught(&events, prior, noise);
     // The trust in the reported accuracy, from the innovations (three passes converge:
     // each moves c² by the ratio of the median NIS to χ²₂'s).
     let pass_at = |trust: f64| {
@@ -238,37 +220,14 @@ pub fn fuse_walk(
         pass.stored.iter().map(|s| (s.x_post, s.p_post)).unzip()
     };
 
-    // The GNSS error that is constant over the walk cannot be told from the position
-    // by any filter: it moves the whole track and adds its variance to the position's,
-    // 2·ρ_c·σ² (two axes) with σ the per-axis σ of the fix nearest in time.
-    let taken: Vec<(f64, f64)> = events
-        .iter()
-        .filter_map(|event| match *event {
-            Event::Fix(j) => Some((
-                fixes[j].t_s,
-                trust * fix_accuracy_m(&fixes[j], noise) / ACCURACY_PER_SIGMA,
-            )),
-            _ => None,
-        })
-        .collect();
-    let constant_var_m2 = |t_s: f64| -> f64 {
-        let i = taken.partition_point(|(t, _)| *t < t_s);
-        let nearest = [i.checked_sub(1), Some(i)]
-            .into_iter()
-            .flatten()
-            .filter_map(|k| taken.get(k))
-            .min_by(|a, b| (a.0 - t_s).abs().total_cmp(&(b.0 - t_s).abs()));
-        nearest.map_or(0.0, |(_, sigma)| {
-            2.0 * noise.gnss_constant_share * sigma * sigma
-        })
-    };
+    let constant = ConstantError::of(&events, fixes, trust, noise);
     let mut track = Vec::with_capacity(steps.len() + 1);
     let mut gnss_used = false;
     let mut fix_use = vec![FixUse::AfterWalk; fixes.len()];
     let last_step_s = steps.last().map_or(first.t_s, |step| step.t_s);
     for ((event, x), p) in events.iter().zip(&states).zip(&covs) {
         let t_s = event_time(*event, steps, fixes, first.t_start_s);
-        let sigma_m = (p[(E, E)] + p[(N, N)] + constant_var_m2(t_s))
+        let sigma_m = (p[(E, E)] + p[(N, N)] + constant.variance_m2(t_s))
             .max(0.0)
             .sqrt();
         match *event {
@@ -333,6 +292,63 @@ pub fn fuse_walk(
         scale: last.map_or((1.0, prior.scale_sigma), |(x, p)| {
             (x[S], p[(S, S)].max(0.0).sqrt())
         }),
+    }
+}
+
+/// The fixes never teach the scale (see the module's doc): where the walk takes fixes it
+/// is exact; without any it keeps its prior σ and walk.
+fn scale_untaught(events: &[Event], prior: WalkPrior, noise: WalkNoise) -> (WalkPrior, WalkNoise) {
+    if !events.iter().any(|event| matches!(event, Event::Fix(_))) {
+        return (prior, noise);
+    }
+    (
+        WalkPrior {
+            scale_sigma: 0.0,
+            ..prior
+        },
+        WalkNoise {
+            scale_walk_per_step: 0.0,
+            ..noise
+        },
+    )
+}
+
+/// The GNSS error that is constant over the walk cannot be told from the position by
+/// any filter: it moves the whole track and adds its variance to the position's,
+/// 2·ρ_c·σ² (two axes) with σ the per-axis σ of the fix nearest in time.
+struct ConstantError {
+    /// Each taken fix's time (s) and per-axis σ (m), in time order.
+    taken: Vec<(f64, f64)>,
+    share: f64,
+}
+
+impl ConstantError {
+    fn of(events: &[Event], fixes: &[FixInput], trust: f64, noise: WalkNoise) -> ConstantError {
+        let taken = events
+            .iter()
+            .filter_map(|event| match *event {
+                Event::Fix(j) => Some((
+                    fixes[j].t_s,
+                    trust * fix_accuracy_m(&fixes[j], noise) / ACCURACY_PER_SIGMA,
+                )),
+                _ => None,
+            })
+            .collect();
+        ConstantError {
+            taken,
+            share: noise.gnss_constant_share,
+        }
+    }
+
+    /// Its variance (m², both axes) at `t_s`: none without fixes.
+    fn variance_m2(&self, t_s: f64) -> f64 {
+        let i = self.taken.partition_point(|(t, _)| *t < t_s);
+        let nearest = [i.checked_sub(1), Some(i)]
+            .into_iter()
+            .flatten()
+            .filter_map(|k| self.taken.get(k))
+            .min_by(|a, b| (a.0 - t_s).abs().total_cmp(&(b.0 - t_s).abs()));
+        nearest.map_or(0.0, |(_, sigma)| 2.0 * self.share * sigma * sigma)
     }
 }
 
