@@ -36,10 +36,11 @@
 //! differs by the sway it tracks), the averaged accelerometer is used, and
 //! [`GravityEstimate::source`] says which and why.
 
-use nalgebra::{Rotation3, Vector3};
+use nalgebra::{Rotation3, Vector2, Vector3};
 use serde::Serialize;
 
 use super::tilt::smooth_specific_force;
+use crate::geo::{Geodetic, LocalFrame};
 use crate::recording::{Attitude, GnssFix, Recording, Stream};
 
 /// Standard gravity (m/s²), the magnitude given to the estimated specific force
@@ -90,6 +91,13 @@ pub struct GravityEstimate {
     /// The fixes whose speed and course were taken out of the accelerometer (the
     /// recording's GNSS when motion-compensated, else empty).
     pub gnss_used: Stream<GnssFix>,
+    /// How far the tilt may be wrong (rad, 1σ) at each accelerometer sample. With the
+    /// gyroscope, half the angle between the forward and the backward pass: where the
+    /// accelerometer pulled them off gravity (an arm's swing, a run) each lags it the
+    /// other way, where it read gravity (a bounce the gyroscope carries, a turn on the
+    /// spot) they agree. With the accelerometer alone, the acceleration the average left
+    /// out over g. Empty for an autopilot's attitude.
+    pub tilt_sigma_rad: Stream<f64>,
 }
 
 /// [`estimate_gravity`] on a recording's accelerometer, gyroscope and GNSS: computed
@@ -129,6 +137,7 @@ pub fn gravity_from_attitude(attitude: &Stream<Attitude>, tau_s: f64) -> Option<
         },
         source: GravitySource::Autopilot { tau_s },
         gnss_used: Stream::default(),
+        tilt_sigma_rad: Stream::default(),
     })
 }
 
@@ -140,6 +149,40 @@ impl GravityEstimate {
             GravitySource::Accelerometer { window_s, .. } => window_s,
             GravitySource::Autopilot { tau_s } => tau_s,
         }
+    }
+
+    /// How far each of the times `t_s` may trust this down, 0 to 1: `1 / (1 + (σ/σ½)²)`
+    /// with `σ` the RMS over [`TRUST_WINDOW_S`] of [`GravityEstimate::tilt_sigma_rad`]
+    /// and `σ½` = [`TRUST_HALF_DEG`]. 1 where nothing was measured (down from an
+    /// autopilot, no accelerometer).
+    pub fn tilt_trust_at(&self, t_s: &[f64]) -> Vec<f64> {
+        let values = &self.tilt_sigma_rad;
+        if values.is_empty() {
+            return vec![1.0; t_s.len()];
+        }
+        // A running RMS over the window, on the accelerometer's own times.
+        let mut rms = Stream::default();
+        let (mut lo, mut hi, mut sum_sq) = (0usize, 0usize, 0.0f64);
+        for (&centre_s, _) in values.t_s.iter().zip(&values.values) {
+            while hi < values.len() && values.t_s[hi] <= centre_s + TRUST_WINDOW_S / 2.0 {
+                sum_sq += values.values[hi] * values.values[hi];
+                hi += 1;
+            }
+            while lo < hi && values.t_s[lo] < centre_s - TRUST_WINDOW_S / 2.0 {
+                sum_sq -= values.values[lo] * values.values[lo];
+                lo += 1;
+            }
+            let n = (hi - lo).max(1) as f64;
+            rms.push(centre_s, (sum_sq.max(0.0) / n).sqrt());
+        }
+        t_s.iter()
+            .map(|&t_s| {
+                rms.interpolate_at(t_s, MAX_GYRO_GAP_S)
+                    .map_or(1.0, |sigma_rad| {
+                        1.0 / (1.0 + (sigma_rad / TRUST_HALF_DEG.to_radians()).powi(2))
+                    })
+            })
+            .collect()
     }
 
     /// Whether the estimate is the same with `gnss` as the recording's fixes (with the
@@ -160,13 +203,26 @@ pub fn estimate_gravity(
     gnss: &Stream<GnssFix>,
     tau_s: f64,
 ) -> GravityEstimate {
-    let fallback = |reason: String| GravityEstimate {
-        specific_force_mps2: smooth_specific_force(acc_in_body_mps2, tau_s),
-        source: GravitySource::Accelerometer {
-            window_s: tau_s,
-            reason,
-        },
-        gnss_used: Stream::default(),
+    let fallback = |reason: String| {
+        let smoothed = smooth_specific_force(acc_in_body_mps2, tau_s);
+        let mut tilt_sigma_rad = Stream::default();
+        for (&t_s, &f) in acc_in_body_mps2.t_s.iter().zip(&acc_in_body_mps2.values) {
+            if let Some(gravity) = smoothed.interpolate_at(t_s, MAX_GYRO_GAP_S) {
+                let sigma_rad = ((f - gravity).norm() / STANDARD_GRAVITY_MPS2).atan();
+                if sigma_rad.is_finite() {
+                    tilt_sigma_rad.push(t_s, sigma_rad);
+                }
+            }
+        }
+        GravityEstimate {
+            specific_force_mps2: smoothed,
+            source: GravitySource::Accelerometer {
+                window_s: tau_s,
+                reason,
+            },
+            gnss_used: Stream::default(),
+            tilt_sigma_rad,
+        }
     };
     if gyro_in_body_radps.len() < 2 {
         return fallback("the log has no gyroscope".to_string());
@@ -177,10 +233,12 @@ pub fn estimate_gravity(
     // an assumed rate gives (50 lines/s read as 100 Hz). The one whose gyroscope
     // predicts the accelerometer's down best wins; another than the plain one only when
     // clearly better.
-    let speed_mps = speed_of(gnss);
+    let derived = with_speeds_from_positions(gnss);
+    let gnss_moving = derived.as_ref().unwrap_or(gnss);
+    let speed_mps = speed_of(gnss_moving);
     let moving = Motion::Forward {
         speed_mps: &speed_mps,
-        yaw_rate_bias_radps: yaw_rate_bias_radps(gnss, gyro_in_body_radps),
+        yaw_rate_bias_radps: yaw_rate_bias_radps(gnss_moving, gyro_in_body_radps),
     };
     let mut motions = vec![Motion::None];
     if speed_mps.len() >= 2 {
@@ -246,21 +304,7 @@ pub fn estimate_gravity(
         f64::INFINITY,
     )
     .unwrap_or_default();
-    let mut fused = Stream::default();
-    for (&t_s, (a, b)) in acc_in_body_mps2
-        .t_s
-        .iter()
-        .zip(forward.iter().zip(&backward))
-    {
-        let down = match (a, b) {
-            (Some(a), Some(b)) => (a + b).try_normalize(1e-9),
-            (Some(one), None) | (None, Some(one)) => Some(*one),
-            (None, None) => None,
-        };
-        if let Some(down) = down {
-            fused.push(t_s, -down * STANDARD_GRAVITY_MPS2);
-        }
-    }
+    let (fused, tilt_sigma_rad) = fuse_passes(&acc_in_body_mps2.t_s, (&forward, &backward));
     if fused.is_empty() {
         return fallback("the gyroscope does not overlap the accelerometer in time".to_string());
     }
@@ -277,7 +321,39 @@ pub fn estimate_gravity(
         } else {
             Stream::default()
         },
+        tilt_sigma_rad,
     }
+}
+
+/// One pass's down at an accelerometer sample (a unit vector in body axes), if any.
+type Down = Option<Vector3<f64>>;
+
+/// Down from the two passes (their mean direction) at each accelerometer sample, as the
+/// specific force gravity alone gives, and half the angle between them
+/// ([`GravityEstimate::tilt_sigma_rad`]).
+fn fuse_passes(
+    t_s: &[f64],
+    (forward, backward): (&[Down], &[Down]),
+) -> (Stream<Vector3<f64>>, Stream<f64>) {
+    let mut fused = Stream::default();
+    let mut tilt_sigma_rad = Stream::default();
+    for (&t_s, (a, b)) in t_s.iter().zip(forward.iter().zip(backward)) {
+        let down = match (a, b) {
+            (Some(a), Some(b)) => {
+                let sigma_rad = 0.5 * a.angle(b);
+                if sigma_rad.is_finite() {
+                    tilt_sigma_rad.push(t_s, sigma_rad);
+                }
+                (a + b).try_normalize(1e-9)
+            }
+            (Some(one), None) | (None, Some(one)) => Some(*one),
+            (None, None) => None,
+        };
+        if let Some(down) = down {
+            fused.push(t_s, -down * STANDARD_GRAVITY_MPS2);
+        }
+    }
+    (fused, tilt_sigma_rad)
 }
 
 /// What the accelerometer senses besides gravity, when known.
@@ -304,6 +380,52 @@ fn speed_of(gnss: &Stream<GnssFix>) -> Stream<f64> {
         }
     }
     speed
+}
+
+/// The fixes as the motion sees them where none states a speed (a receiver without a
+/// Doppler speed, NMEA's GGA alone, a log that kept only positions): each fix between
+/// two others takes the speed between their positions, `|p₊ − p₋| / (t₊ − t₋)`, when
+/// they are at most 2 × [`MAX_SPEED_GAP_S`] apart. Without it a car's turns tilt "down"
+/// by their centripetal acceleration, `v·ω/g` (17° at 3 m/s²), always towards the
+/// turn's centre, and the calibration's dip takes it for iron (issue 43: on the
+/// independent generator's drives without a speed the exported calibration was 1.4 ×
+/// the true one's heading error at the median, 4.3 × at worst). `None` when a fix states
+/// a speed or no two fixes give one.
+fn with_speeds_from_positions(gnss: &Stream<GnssFix>) -> Option<Stream<GnssFix>> {
+    if gnss
+        .values
+        .iter()
+        .any(|fix| fix.speed_mps.is_some_and(f64::is_finite))
+    {
+        return None;
+    }
+    let (lat_deg, lon_deg) = gnss
+        .values
+        .iter()
+        .find_map(|fix| Some((fix.lat_deg?, fix.lon_deg?)))?;
+    let frame = LocalFrame::at(Geodetic {
+        lat_deg,
+        lon_deg,
+        alt_m: 0.0,
+    });
+    let en_m: Vec<Option<Vector2<f64>>> = gnss
+        .values
+        .iter()
+        .map(|fix| Some(frame.en_of(fix.lat_deg?, fix.lon_deg?)))
+        .collect();
+    let mut filled = gnss.clone();
+    let mut any = false;
+    for i in 1..gnss.len().saturating_sub(1) {
+        let (Some(before), Some(after)) = (en_m[i - 1], en_m[i + 1]) else {
+            continue;
+        };
+        let dt_s = gnss.t_s[i + 1] - gnss.t_s[i - 1];
+        if dt_s > 0.0 && dt_s <= 2.0 * MAX_SPEED_GAP_S {
+            filled.values[i].speed_mps = Some((after - before).norm() / dt_s);
+            any = true;
+        }
+    }
+    any.then_some(filled)
 }
 
 /// The median, over consecutive fixes at [`MIN_COURSE_SPEED_MPS`] or faster, of the
@@ -348,6 +470,12 @@ fn yaw_rate_bias_radps(gnss: &Stream<GnssFix>, gyro: &Stream<Vector3<f64>>) -> f
 /// bias needs this many pairs of fixes.
 const MIN_COURSE_SPEED_MPS: f64 = 2.0;
 const MIN_BIAS_PAIRS: usize = 20;
+
+/// The window of [`GravityEstimate::tilt_trust_at`]'s RMS (s): a stride, so that a
+/// walker's bounce and an arm's swing count as what they are on average.
+pub const TRUST_WINDOW_S: f64 = 1.0;
+/// The tilt's σ (degrees) at which it is trusted half ([`GravityEstimate::tilt_trust_at`]).
+pub const TRUST_HALF_DEG: f64 = 2.0;
 
 /// The factors tried on the gyroscope's rates (see [`estimate_gravity`]).
 const GYRO_TIME_SCALES: [f64; 3] = [1.0, 2.0, 0.5];

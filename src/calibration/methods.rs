@@ -8,7 +8,7 @@ use nalgebra::{Vector2, Vector3};
 use super::{inertial_options, plane_options, FittedEllipse, MethodParameters, MethodReport};
 use crate::analysis::Levelling;
 use crate::calib::heading::heading_rad;
-use crate::calib::inertial::fit_inertial;
+use crate::calib::inertial::{fit_inertial_trusting, TiltTrusted};
 use crate::calib::minmax::MinMaxCalibration;
 use crate::calib::plane::fit_plane;
 use crate::calib::refls::{fit_reference_ls, PartialPrior, RefLsOptions};
@@ -25,6 +25,8 @@ pub(super) struct MethodInputs<'a> {
     pub(super) level_train: &'a [Vector2<f64>],
     pub(super) mag_train: &'a [Vector3<f64>],
     pub(super) tilt_train: &'a [Tilt],
+    /// How far each train sample's tilt is trusted (0 to 1).
+    pub(super) tilt_trust_train: &'a [f64],
     pub(super) ref_heading_rad: &'a [Option<f64>],
     pub(super) is_fit: &'a [bool],
     pub(super) declination_rad: f64,
@@ -131,9 +133,13 @@ pub(super) fn fit_ellipsoid(inputs: &MethodInputs, outputs: &mut MethodOutputs) 
     let inertial_options = inertial_options(inputs.expected, inputs.mag_frame);
     // The dip-angle invariance needs the accelerometer's tilt; a log without
     // one was only assumed level.
-    let tilt = matches!(inputs.samples.levelling, Levelling::Accelerometer { .. })
-        .then_some(inputs.tilt_train);
-    fit_inertial(inputs.mag_train, tilt, &inertial_options)
+    let tilt = matches!(inputs.samples.levelling, Levelling::Accelerometer { .. }).then_some(
+        TiltTrusted {
+            tilt: inputs.tilt_train,
+            trust: Some(inputs.tilt_trust_train),
+        },
+    );
+    fit_inertial_trusting(inputs.mag_train, tilt, &inertial_options)
         .map_err(|error| error.to_string())
         .map(|fit| {
             let calibration = fit.calibration;

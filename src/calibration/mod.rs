@@ -230,6 +230,10 @@ pub struct CalibrationReport {
     /// The uncalibrated heading (levelled raw field plus declination) as a baseline.
     pub raw_heading_error_train: Option<HeadingErrorStats>,
     pub raw_heading_error_check: Option<HeadingErrorStats>,
+    /// The samples' mean trust in their tilt, 0 to 1 ([`GravityEstimate::tilt_trust_at`]):
+    /// below a half, the headings the methods are checked with are levelled with a tilt
+    /// the accelerometer mostly got wrong.
+    pub tilt_trust_mean: f64,
     pub methods: Vec<MethodReport>,
     /// The field-domain method of the analysis's one best heading ([`crate::calibration::selection`]):
     /// [`calibrate`] sets the best of the field-domain methods alone (the lowest check
@@ -425,6 +429,7 @@ impl Levelled {
                 t_s: previous.t_s.clone(),
                 mag_ut: previous.mag_ut.clone(),
                 tilt: previous.tilt.clone(),
+                tilt_trust: previous.gravity.tilt_trust_at(&previous.t_s),
                 levelling,
                 notes: Vec::new(),
             },
@@ -511,12 +516,14 @@ fn run_methods(
         kept(&samples.tilt, is_fit),
         kept(level_raw_ut, is_fit),
     );
+    let tilt_trust_train = kept(&samples.tilt_trust, is_fit);
     let inputs = MethodInputs {
         samples,
         level_raw_ut,
         level_train: &level_train,
         mag_train: &mag_train,
         tilt_train: &tilt_train,
+        tilt_trust_train: &tilt_trust_train,
         ref_heading_rad: &prepared.ref_heading_rad,
         is_fit,
         declination_rad: prepared.declination.declination_deg.to_radians(),
@@ -685,6 +692,8 @@ fn calibrate_levelled(
             device_hard_iron: DeviceHardIron::of(&recording),
             raw_heading_error_train: raw_train,
             raw_heading_error_check: raw_check,
+            tilt_trust_mean: samples.tilt_trust.iter().sum::<f64>()
+                / samples.tilt_trust.len().max(1) as f64,
             methods: method_reports,
             best: None,
             choice: by_reference,

@@ -185,6 +185,30 @@ pub fn moving_iron_walk(seed: u64) -> GeneratedLog {
     walk(seed, &WalkOptions::moving_iron_walk())
 }
 
+/// Issue 43's motions, each with its magnetometer (symmetric soft iron, 10-60 µT of hard
+/// iron) and the GNSS course as the only reference: a car on open roads (turns of up to
+/// 6 m/s²), with and without a GNSS speed, and a walker with the phone held steady in
+/// front, moved about by the hand, or swinging at the arm's end.
+pub fn car(seed: u64) -> GeneratedLog {
+    drive(seed, &DriveOptions::issue_43_car())
+}
+
+pub fn car_without_speed(seed: u64) -> GeneratedLog {
+    drive(seed, &DriveOptions::issue_43_car_without_speed())
+}
+
+pub fn steady_walk(seed: u64) -> GeneratedLog {
+    walk(seed, &WalkOptions::issue_43_walk())
+}
+
+pub fn hand_walk(seed: u64) -> GeneratedLog {
+    walk(seed, &WalkOptions::issue_43_hand())
+}
+
+pub fn swing_walk(seed: u64) -> GeneratedLog {
+    walk(seed, &WalkOptions::issue_43_swing())
+}
+
 /// A scenario: a log per seed.
 pub type Scenario = fn(u64) -> GeneratedLog;
 
@@ -225,6 +249,9 @@ pub struct MagnetometerOptions {
     pub soft_diag_max: f64,
     /// Each off-diagonal entry of `S` is uniform in ± this, independently.
     pub soft_cross_max: f64,
+    /// `S` symmetric (each cross term drawn once, mirrored): a soft iron that turns no
+    /// field, as issue 43's generator asks; otherwise general.
+    pub symmetric: bool,
     pub hard_iron: HardIronOptions,
 }
 
@@ -274,12 +301,28 @@ pub struct WalkOptions {
     pub write_ref_heading: bool,
     /// `ref_e_m`, `ref_n_m` once a second.
     pub write_ref_position: bool,
+    /// The phone swings in the hand at the arm's end, by ± an amplitude drawn in this
+    /// range (degrees) at half the step frequency; `None`: held in front.
+    pub swing_deg: Option<(f64, f64)>,
 }
 
 const HAND_MAGNETOMETER: MagnetometerOptions = MagnetometerOptions {
     soft_diag_max: 0.1,
     soft_cross_max: 0.1,
+    symmetric: false,
     hard_iron: HardIronOptions::PerAxis { max_ut: 30.0 },
+};
+
+/// Issue 43's magnetometer: symmetric soft iron (diagonal 0.85-1.15, cross terms ±0.1),
+/// hard iron of 10-60 µT in a random direction.
+pub const ISSUE_43_MAGNETOMETER: MagnetometerOptions = MagnetometerOptions {
+    soft_diag_max: 0.15,
+    soft_cross_max: 0.1,
+    symmetric: true,
+    hard_iron: HardIronOptions::Magnitude {
+        min_ut: 10.0,
+        max_ut: 60.0,
+    },
 };
 
 impl WalkOptions {
@@ -295,6 +338,38 @@ impl WalkOptions {
             gnss_outage_s: None,
             write_ref_heading: true,
             write_ref_position: false,
+            swing_deg: None,
+        }
+    }
+
+    /// Issue 43's walker, phone held in front: bounce, hand sway, a hand tilt wandering
+    /// within ±3-8°; its magnetometer; the GNSS course the only reference.
+    pub fn issue_43_walk() -> WalkOptions {
+        WalkOptions {
+            name: "walk",
+            tilt_amplitude_deg: (3.0, 8.0),
+            magnetometer: ISSUE_43_MAGNETOMETER,
+            write_ref_heading: false,
+            ..WalkOptions::circle_walk()
+        }
+    }
+
+    /// [`WalkOptions::issue_43_walk`] with the hand moving the phone about: a tilt
+    /// wandering within ±15-30°.
+    pub fn issue_43_hand() -> WalkOptions {
+        WalkOptions {
+            name: "hand",
+            tilt_amplitude_deg: (15.0, 30.0),
+            ..WalkOptions::issue_43_walk()
+        }
+    }
+
+    /// [`WalkOptions::issue_43_walk`] with the phone swinging in the hand by ±30-60°.
+    pub fn issue_43_swing() -> WalkOptions {
+        WalkOptions {
+            name: "swing",
+            swing_deg: Some((30.0, 60.0)),
+            ..WalkOptions::issue_43_walk()
         }
     }
 
@@ -342,6 +417,18 @@ pub struct DriveOptions {
     pub moving_iron: Option<MovingIronOptions>,
     /// The road grade wanders within ± this.
     pub road_pitch_max_deg: f64,
+    pub route: DriveRoute,
+    /// Whether the fixes carry a speed (the course is written either way).
+    pub gnss_speed: bool,
+}
+
+/// The shape of a drive.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DriveRoute {
+    /// Cruising at 8-20 m/s, slow corners of 8-25 m radius at 3-6 m/s, stops.
+    City,
+    /// 5-20 m/s, turns of 10-200 m radius at up to 6 m/s² of centripetal acceleration.
+    Open,
 }
 
 impl DriveOptions {
@@ -353,6 +440,7 @@ impl DriveOptions {
             magnetometer: MagnetometerOptions {
                 soft_diag_max: 0.15,
                 soft_cross_max: 0.1,
+                symmetric: false,
                 hard_iron: HardIronOptions::Magnitude {
                     min_ut: 150.0,
                     max_ut: 250.0,
@@ -360,6 +448,28 @@ impl DriveOptions {
             },
             moving_iron: Some(MovingIronOptions::default()),
             road_pitch_max_deg: 3.0,
+            route: DriveRoute::City,
+            gnss_speed: true,
+        }
+    }
+
+    /// Issue 43's car: 10-20 min on open roads, an ordinary mount, its magnetometer.
+    pub fn issue_43_car() -> DriveOptions {
+        DriveOptions {
+            name: "car",
+            duration_s: (600.0, 1200.0),
+            magnetometer: ISSUE_43_MAGNETOMETER,
+            route: DriveRoute::Open,
+            ..DriveOptions::magnet_mount()
+        }
+    }
+
+    /// [`DriveOptions::issue_43_car`] whose fixes carry no speed.
+    pub fn issue_43_car_without_speed() -> DriveOptions {
+        DriveOptions {
+            name: "car_without_speed",
+            gnss_speed: false,
+            ..DriveOptions::issue_43_car()
         }
     }
 }
@@ -380,7 +490,10 @@ pub fn walk(seed: u64, options: &WalkOptions) -> GeneratedLog {
         WalkRoute::FewHeadings => few_headings_route(&mut route_rng, duration_s, speed_mps),
     };
     let samples = (plan.duration_s() * options.sample_rate_hz).floor() as usize;
-    let hand = HandPose::draw(&mut streams.rng("hand"), options.tilt_amplitude_deg);
+    let mut hand = HandPose::draw(&mut streams.rng("hand"), options.tilt_amplitude_deg);
+    hand.swing = options
+        .swing_deg
+        .map(|range| Swing::draw(&mut streams.rng("swing"), range));
     let track = walk_track(&plan, &gait, &hand, samples, dt_s, streams.rng("steps"));
     assemble(Parts {
         scenario: options.name,
@@ -391,6 +504,7 @@ pub fn walk(seed: u64, options: &WalkOptions) -> GeneratedLog {
         magnetometer: options.magnetometer,
         moving_iron: options.moving_iron,
         vibration: Vibration::NONE,
+        gnss_speed: true,
         gnss_outage_s: options.gnss_outage_s,
         write_ref_heading: options.write_ref_heading,
         write_ref_position: options.write_ref_position,
@@ -404,7 +518,10 @@ pub fn drive(seed: u64, options: &DriveOptions) -> GeneratedLog {
     let duration_s = streams
         .rng("duration")
         .range(options.duration_s.0, options.duration_s.1);
-    let plan = city_route(&mut streams.rng("route"), duration_s);
+    let plan = match options.route {
+        DriveRoute::City => city_route(&mut streams.rng("route"), duration_s),
+        DriveRoute::Open => open_route(&mut streams.rng("route"), duration_s),
+    };
     let samples = (plan.duration_s() * options.sample_rate_hz).floor() as usize;
     let car = Car::draw(&mut streams.rng("car"), options.road_pitch_max_deg);
     let track = drive_track(&plan, &car, samples, dt_s);
@@ -417,6 +534,7 @@ pub fn drive(seed: u64, options: &DriveOptions) -> GeneratedLog {
         magnetometer: options.magnetometer,
         moving_iron: options.moving_iron,
         vibration: Vibration::ROAD,
+        gnss_speed: options.gnss_speed,
         gnss_outage_s: None,
         write_ref_heading: false,
         write_ref_position: false,
@@ -1037,6 +1155,37 @@ fn city_route(rng: &mut Rng, total_s: f64) -> Plan {
     Plan::new(start_heading, phases)
 }
 
+/// Open roads: cruising at 5-20 m/s, then a turn of 30-180° with a radius of 10-200 m
+/// (log-uniform), taken at a speed whose peak centripetal acceleration (twice the mean
+/// under the raised-cosine rate) is at most 6 m/s².
+fn open_route(rng: &mut Rng, total_s: f64) -> Plan {
+    let start_heading = rng.range(0.0, TAU);
+    let mut phases = vec![Phase::straight(rng.range(3.0, 8.0))];
+    let elapsed_s = |phases: &[Phase]| phases.iter().map(|phase| phase.duration_s).sum::<f64>();
+    let mut speed_mps = 0.0;
+    while elapsed_s(&phases) < total_s - 60.0 {
+        let cruise_mps = rng.range(5.0, 20.0);
+        phases.push(speed_change(rng, speed_mps, cruise_mps));
+        phases.push(Phase::cruise(rng.range(5.0, 30.0), cruise_mps));
+        let radius_m = 10.0 * 20f64.powf(rng.uniform());
+        let turn_mps = cruise_mps.min((3.0 * radius_m).sqrt());
+        if turn_mps < cruise_mps {
+            phases.push(speed_change(rng, cruise_mps, turn_mps));
+        }
+        let turn_rad = rng.sign() * rng.range(30.0, 180.0).to_radians();
+        let turn_s = turn_rad.abs() * radius_m / turn_mps;
+        phases.push(Phase {
+            speed_from_mps: turn_mps,
+            speed_to_mps: turn_mps,
+            ..Phase::turn(turn_s, turn_rad, turn_s / 2.0)
+        });
+        speed_mps = turn_mps;
+    }
+    phases.push(speed_change(rng, speed_mps, 0.0));
+    phases.push(Phase::straight(rng.range(3.0, 6.0)));
+    Plan::new(start_heading, phases)
+}
+
 // ---------------------------------------------------------------------------------------
 // Motion: the walker and the car, on a half-sample grid
 // ---------------------------------------------------------------------------------------
@@ -1255,6 +1404,41 @@ struct HandPose {
     /// roll at the step frequency.
     sway_rad: [f64; 3],
     sway_phase_rad: [f64; 3],
+    swing: Option<Swing>,
+}
+
+/// A phone swinging in the hand at the end of the arm, pivoting at the shoulder in the
+/// walking plane: the arm's angle from the vertical is `θ = A·sin(π·steps + φ)` (half the
+/// step frequency), the phone pitches with it, and sits `L·(sin θ along + cos θ down)`
+/// from the shoulder, whose second derivative (the arm's tangential and centripetal
+/// accelerations) the accelerometer feels.
+#[derive(Debug, Clone, Copy)]
+struct Swing {
+    amplitude_rad: f64,
+    arm_m: f64,
+    phase_rad: f64,
+}
+
+impl Swing {
+    fn draw(rng: &mut Rng, amplitude_deg: (f64, f64)) -> Swing {
+        Swing {
+            amplitude_rad: rng.range(amplitude_deg.0, amplitude_deg.1).to_radians(),
+            arm_m: rng.range(0.55, 0.75),
+            phase_rad: rng.range(0.0, TAU),
+        }
+    }
+
+    /// The arm's angle from the vertical (rad), forward positive.
+    fn angle_rad(&self, steps: f64, envelope: f64) -> f64 {
+        envelope * self.amplitude_rad * (PI * steps + self.phase_rad).sin()
+    }
+
+    /// The phone from the shoulder (NED metres).
+    fn offset_ned_m(&self, steps: f64, envelope: f64, heading_rad: f64) -> Vector3<f64> {
+        let angle = self.angle_rad(steps, envelope);
+        let (along, _) = along_and_right(heading_rad);
+        self.arm_m * (angle.sin() * along + Vector3::new(0.0, 0.0, angle.cos()))
+    }
 }
 
 impl HandPose {
@@ -1274,6 +1458,7 @@ impl HandPose {
                 rng.range(0.0, TAU),
                 rng.range(0.0, TAU),
             ],
+            swing: None,
         }
     }
 
@@ -1290,7 +1475,11 @@ impl HandPose {
         let yaw = walk_heading_rad
             + self.misalignment_rad
             + envelope * yaw_sway * (angle / 2.0 + yaw_phase).sin();
-        let pitch = self.pitch_tilt.at(t_s) + envelope * pitch_sway * (angle + pitch_phase).sin();
+        let swing = self
+            .swing
+            .map_or(0.0, |swing| swing.angle_rad(steps, envelope));
+        let pitch =
+            self.pitch_tilt.at(t_s) + envelope * pitch_sway * (angle + pitch_phase).sin() + swing;
         let roll = self.roll_tilt.at(t_s) + envelope * roll_sway * (angle + roll_phase).sin();
         attitude_zyx(yaw, pitch, roll)
     }
@@ -1317,6 +1506,7 @@ fn walk_track(
     let mut attitude_fine = Vec::with_capacity(fine);
     let mut velocity_fine = Vec::with_capacity(fine);
     let mut oscillation = Vec::with_capacity(samples);
+    let mut swing_offset_fine = Vec::with_capacity(if hand.swing.is_some() { fine } else { 0 });
     for j in 0..fine {
         let t = fine_time_s(j, dt_s);
         let envelope = gait.envelope(t, total_s);
@@ -1326,10 +1516,23 @@ fn walk_track(
         let heading = plan.heading_rad(t);
         velocity_fine.push(along_and_right(heading).0 * speed_mps);
         attitude_fine.push(hand.attitude(t, heading, step_phase, envelope));
+        if let Some(swing) = &hand.swing {
+            swing_offset_fine.push(swing.offset_ned_m(step_phase, envelope, heading));
+        }
         if j % 2 == 1 {
             oscillation.push(gait.oscillation_ned_mps2(step_phase, envelope, heading, &step));
         }
         step_phase += envelope * cadence_hz * h;
+    }
+    // The swinging phone's acceleration about the shoulder, by second differences on the
+    // half-sample grid (the same angles that turn it).
+    if !swing_offset_fine.is_empty() {
+        for (k, extra) in oscillation.iter_mut().enumerate() {
+            let j = 2 * k + 1;
+            *extra += (swing_offset_fine[j + 1] - 2.0 * swing_offset_fine[j]
+                + swing_offset_fine[j - 1])
+                / (h * h);
+        }
     }
     Track::from_motion(attitude_fine, &velocity_fine, &oscillation, dt_s)
 }
@@ -1563,6 +1766,10 @@ impl Magnetometer {
         let mut soft_iron = Matrix3::identity();
         for row in 0..3 {
             for column in 0..3 {
+                if options.symmetric && column < row {
+                    soft_iron[(row, column)] = soft_iron[(column, row)];
+                    continue;
+                }
                 soft_iron[(row, column)] += if row == column {
                     rng.symmetric(options.soft_diag_max)
                 } else {
@@ -1853,6 +2060,8 @@ struct Parts {
     magnetometer: MagnetometerOptions,
     moving_iron: Option<MovingIronOptions>,
     vibration: Vibration,
+    /// Whether the fixes carry their speed.
+    gnss_speed: bool,
     gnss_outage_s: Option<(f64, f64)>,
     write_ref_heading: bool,
     write_ref_position: bool,
@@ -1965,7 +2174,7 @@ fn assemble(parts: Parts) -> GeneratedLog {
         if let Some(fix) = fix_iter.next_if(|fix| fix.sample == k) {
             row.lat_deg = Some(fix.lat_deg);
             row.lon_deg = Some(fix.lon_deg);
-            row.gps_speed_mps = Some(fix.speed_mps);
+            row.gps_speed_mps = parts.gnss_speed.then_some(fix.speed_mps);
             row.gps_course_deg = fix.course_deg;
             row.gps_hacc_m = Some(fix.hacc_m);
         }

@@ -15,6 +15,8 @@ use compass_pdr::heading::{compare, HeadingOptions};
 use compass_pdr::io::import::import;
 use compass_pdr::stats::HeadingErrorStats;
 
+use nalgebra::{Matrix3, Vector3};
+
 use super::GeneratedLog;
 
 /// What one log gave.
@@ -31,6 +33,11 @@ pub struct Scores {
     pub methods: Vec<(String, Option<f64>, Option<String>)>,
     /// The field calibration the crate chose, and its check RMS.
     pub best: Option<(String, f64)>,
+    /// The exported device calibration, applied as its JSON says and levelled with the
+    /// true attitude ([`export_true_tilt`]); `None` when nothing is exported.
+    pub export_true_tilt_deg: Option<f64>,
+    /// The true calibration scored the same way ([`true_calibration_floor`]).
+    pub true_calibration_floor_deg: Option<f64>,
     /// The heading method the crate chose over every row of the heading comparison
     /// (field calibrations, with the Fourier model on top, uncalibrated), and its check
     /// RMS: what a user gets.
@@ -50,6 +57,15 @@ impl Scores {
         self.best
             .as_ref()
             .map_or(f64::INFINITY, |(_, rms)| rms / self.floor_deg)
+    }
+
+    /// The exported calibration's check RMS over the true calibration's, both levelled
+    /// with the true attitude; infinite when nothing is exported.
+    pub fn export_over_true_tilt_floor(&self) -> f64 {
+        match (self.export_true_tilt_deg, self.true_calibration_floor_deg) {
+            (Some(export), Some(floor)) => export / floor,
+            _ => f64::INFINITY,
+        }
     }
 
     /// The chosen heading method's check RMS over the floor.
@@ -92,9 +108,78 @@ pub fn check_rms_of(analysis: &CalibrationAnalysis, calibration: &FieldCalibrati
 /// (and the true declination): what a perfect tilt would leave, the reference's own
 /// error and the hand's sway in heading.
 pub fn true_tilt_floor(log: &GeneratedLog, analysis: &CalibrationAnalysis) -> Option<f64> {
+    let (hard_iron_ut, correction) = log.true_correction();
+    true_tilt_rms(log, analysis, Against::Reference, |mag_ut| {
+        correction * (mag_ut - hard_iron_ut)
+    })
+}
+
+/// The check RMS (degrees) of the true calibration levelled with the true attitude,
+/// against the true heading: what the sensor's noise and the moving iron leave, the
+/// floor [`export_true_tilt`] is judged against.
+pub fn true_calibration_floor(log: &GeneratedLog, analysis: &CalibrationAnalysis) -> Option<f64> {
+    let (hard_iron_ut, correction) = log.true_correction();
+    true_tilt_rms(log, analysis, Against::TrueHeading, |mag_ut| {
+        correction * (mag_ut - hard_iron_ut)
+    })
+}
+
+/// The calibration the analysis exports for the device, written as its JSON and read
+/// back from that text alone, applied as the text says (`corrected = S · (raw − h)`, in
+/// the raw values' unit, times `ut_per_unit`) to the samples as the log writes them
+/// (the generator's CSV is in body axes and µT), and levelled with the *true* attitude:
+/// the calibration alone is judged, against the true heading, beside
+/// [`true_calibration_floor`]. `None` when nothing is exported.
+pub fn export_true_tilt(log: &GeneratedLog, analysis: &CalibrationAnalysis) -> Option<f64> {
+    let export = compass_pdr::report::device_export(analysis)?;
+    let text = serde_json::to_string(&export.sensor).expect("the export serialises");
+    let value: serde_json::Value = serde_json::from_str(&text).expect("its text is JSON");
+    let numbers = |key: &str| -> Vec<f64> {
+        let mut flat = Vec::new();
+        let mut stack = vec![&value[key]];
+        while let Some(item) = stack.pop() {
+            match item {
+                serde_json::Value::Array(items) => stack.extend(items.iter().rev()),
+                other => flat.push(other.as_f64().unwrap_or(f64::NAN)),
+            }
+        }
+        flat
+    };
+    let hard_iron = Vector3::from_column_slice(&numbers("hard_iron"));
+    let soft_iron = Matrix3::from_row_slice(&numbers("soft_iron"));
+    let ut_per_unit = numbers("ut_per_unit")[0];
+    // The generator writes body axes in µT: the sensor's own axes are the body's.
+    assert!(
+        value["axes"] == "body" || value["axes"] == "sensor",
+        "{text}"
+    );
+    true_tilt_rms(log, analysis, Against::TrueHeading, |mag_ut| {
+        soft_iron * (mag_ut / ut_per_unit - hard_iron) * ut_per_unit
+    })
+}
+
+/// `calibration` levelled with the true attitude, against the true heading, on the
+/// check part (as [`export_true_tilt`] judges the exported one).
+pub fn calibration_true_tilt(
+    log: &GeneratedLog,
+    analysis: &CalibrationAnalysis,
+    calibration: &FieldCalibration,
+) -> Option<f64> {
+    true_tilt_rms(log, analysis, Against::TrueHeading, |mag_ut| {
+        calibration.apply(mag_ut)
+    })
+}
+
+/// The check RMS (degrees) of the heading of `correct`ed samples levelled with the true
+/// attitude and turned by the true declination, against the analysis's reference.
+fn true_tilt_rms(
+    log: &GeneratedLog,
+    analysis: &CalibrationAnalysis,
+    against: Against,
+    correct: impl Fn(Vector3<f64>) -> Vector3<f64>,
+) -> Option<f64> {
     let train_until_s = analysis.report.train_until_s?;
     let start_s = analysis.t_s.first().copied()? - log.true_t_s.first().copied()?;
-    let (hard_iron_ut, correction) = log.true_correction();
     let errors = analysis
         .t_s
         .iter()
@@ -109,15 +194,27 @@ pub fn true_tilt_floor(log: &GeneratedLog, analysis: &CalibrationAnalysis) -> Op
             let (roll, pitch, _) = attitude.euler_angles();
             let tilt = compass_pdr::calib::tilt::Tilt::new(roll, pitch);
             let heading = heading_rad(
-                tilt.level(correction * (mag_ut - hard_iron_ut)),
+                tilt.level(correct(mag_ut)),
                 log.declination_deg.to_radians(),
             );
-            Some(heading_difference_rad(
-                heading,
-                (*reference_deg)?.to_radians(),
-            ))
+            let truth_deg = match against {
+                Against::Reference => (*reference_deg)?,
+                Against::TrueHeading => *log.true_heading_deg.get(idx)?,
+            };
+            Some(heading_difference_rad(heading, truth_deg.to_radians()))
         });
     HeadingErrorStats::from_errors_rad(errors).map(|stats| stats.rms_deg)
+}
+
+/// What a heading is scored against.
+#[derive(Debug, Clone, Copy)]
+enum Against {
+    /// The analysis's own reference (a GNSS course, a heading column): its errors are
+    /// in the floor.
+    Reference,
+    /// The generator's true heading of the body's x axis: only the sensor's noise and the
+    /// moving iron are in the floor.
+    TrueHeading,
 }
 
 /// Scores every method on one log against the true calibration's floor.
@@ -162,6 +259,8 @@ pub fn score(log: &GeneratedLog, options: &CalibrationOptions) -> Scores {
         name: log.name.clone(),
         floor_deg,
         true_tilt_floor_deg: true_tilt_floor(log, &analysis),
+        export_true_tilt_deg: export_true_tilt(log, &analysis),
+        true_calibration_floor_deg: true_calibration_floor(log, &analysis),
         raw_deg: report.raw_heading_error_check.map(|stats| stats.rms_deg),
         methods,
         best,

@@ -94,9 +94,11 @@ use starts::{principal_plane, ranked, starts};
 mod plausibility;
 mod report;
 mod residuals;
+mod samples;
 mod solve;
 use plausibility::*;
 use residuals::*;
+use samples::*;
 use solve::*;
 
 /// Fewer samples than this cannot determine the thirteen parameters with redundancy.
@@ -115,6 +117,14 @@ pub const SOFT_IRON_PRIOR_STD: f64 = 0.5;
 /// ±0.1 is already strong soft iron; a fit that needs ±1 is explaining something else
 /// (a changing field, a tilt error) with a distortion no material makes.
 pub const CROSS_AXIS_PRIOR_STD: f64 = 0.15;
+
+/// The mean trust in the tilt ([`TiltTrusted`]) below which it is mostly not trusted:
+/// each sample's dip then weighs its own trust and a dip far from the model's refuses
+/// nothing (the tilt is what is wrong). On the generator a swinging phone's is 0.01-0.11,
+/// a walker's 0.8-0.9, a car's 0.9; over the real logs, the TYREX running and swinging
+/// trials' 0.001-0.2, every other shared log's 0.35-1 (`calibrate --json`,
+/// `tilt_trust_mean`).
+pub const TRUSTED_TILT: f64 = 0.25;
 
 /// The prior's standard deviation of the magnetometer-to-accelerometer rotation (rad):
 /// a few degrees on a board or a phone, up to about six with cross-axis soft iron.
@@ -266,9 +276,14 @@ pub enum SoftIronModel {
 impl SoftIronModel {
     /// Why `state` is no solution of this model, if it is not: the full model's shape
     /// checks ([`implausibility`]); for either, a degenerate correction ([`degeneracy`]).
-    fn implausibility(self, state: &State, options: &InertialOptions) -> Option<String> {
+    fn implausibility(
+        self,
+        state: &State,
+        options: &InertialOptions,
+        tilt_trusted: bool,
+    ) -> Option<String> {
         match self {
-            SoftIronModel::Full => implausibility(state, options),
+            SoftIronModel::Full => implausibility(state, options, tilt_trusted),
             SoftIronModel::Isotropic => degeneracy(state, options),
         }
     }
@@ -358,11 +373,35 @@ pub fn down_in_body(tilt: &Tilt) -> Vector3<f64> {
     Vector3::new(-sin_pitch, sin_roll * cos_pitch, cos_roll * cos_pitch)
 }
 
+/// The tilt at each sample and how far each is trusted (0 to 1, `None`: all fully):
+/// a sample's dip residual weighs its trust times what the robust loss gives it, so
+/// that a tilt the accelerometer got wrong (a swinging arm's acceleration) bends the fit
+/// less and the field's shape decides there (issue 43).
+#[derive(Debug, Clone, Copy)]
+pub struct TiltTrusted<'a> {
+    pub tilt: &'a [Tilt],
+    pub trust: Option<&'a [f64]>,
+}
+
 /// Fits the calibration to magnetometer samples (µT, body axes) and, when the log has
-/// an accelerometer, the tilt at each of them (`tilt[i]` belongs to `mag_ut[i]`).
+/// an accelerometer, the tilt at each of them (`tilt[i]` belongs to `mag_ut[i]`), all
+/// trusted alike.
 pub fn fit_inertial(
     mag_ut: &[Vector3<f64>],
     tilt: Option<&[Tilt]>,
+    options: &InertialOptions,
+) -> Result<InertialFit, InertialError> {
+    fit_inertial_trusting(
+        mag_ut,
+        tilt.map(|tilt| TiltTrusted { tilt, trust: None }),
+        options,
+    )
+}
+
+/// [`fit_inertial`] with each sample's tilt trusted as [`TiltTrusted`] says.
+pub fn fit_inertial_trusting(
+    mag_ut: &[Vector3<f64>],
+    tilt: Option<TiltTrusted>,
     options: &InertialOptions,
 ) -> Result<InertialFit, InertialError> {
     if mag_ut.len() < MIN_SAMPLES {
@@ -389,12 +428,15 @@ pub fn fit_inertial(
             });
         }
     }
-    let down: Option<Vec<Vector3<f64>>> = tilt
-        .filter(|tilt| tilt.len() == mag_ut.len())
-        .map(|tilt| tilt.iter().map(down_in_body).collect());
+    let tilt = tilt.filter(|tilt| tilt.tilt.len() == mag_ut.len());
+    let down: Option<Vec<Vector3<f64>>> =
+        tilt.map(|tilt| tilt.tilt.iter().map(down_in_body).collect());
     let samples = Samples {
         mag_ut,
         down_in_body: down.as_deref(),
+        dip_trust: tilt
+            .and_then(|tilt| tilt.trust)
+            .filter(|trust| trust.len() == mag_ut.len()),
     };
     let spread_ut = spread_ut(mag_ut);
     if spread_ut.is_nan() || spread_ut < MIN_SPREAD_UT {
@@ -470,7 +512,8 @@ fn best_solution(
             let Some(solution) = solution else {
                 continue;
             };
-            if let Some(reason) = model.implausibility(&solution.state, options) {
+            let tilt_trusted = set.mean_dip_trust() >= TRUSTED_TILT;
+            if let Some(reason) = model.implausibility(&solution.state, options, tilt_trusted) {
                 first_reason.get_or_insert(reason);
                 continue;
             }
@@ -484,94 +527,6 @@ fn best_solution(
         }
     }
     best.map(|(_, solution)| solution)
-}
-
-/// Samples, with the down vectors when the dip is used.
-#[derive(Clone, Copy)]
-struct Samples<'a> {
-    mag_ut: &'a [Vector3<f64>],
-    down_in_body: Option<&'a [Vector3<f64>]>,
-}
-
-/// An owned, evenly thinned copy.
-struct SampleSet {
-    mag_ut: Vec<Vector3<f64>>,
-    down_in_body: Option<Vec<Vector3<f64>>>,
-}
-
-impl Samples<'_> {
-    fn evenly(&self, max_samples: usize) -> SampleSet {
-        let stride = self.mag_ut.len().div_ceil(max_samples).max(1);
-        SampleSet {
-            mag_ut: self.mag_ut.iter().step_by(stride).copied().collect(),
-            down_in_body: self
-                .down_in_body
-                .map(|down| down.iter().step_by(stride).copied().collect()),
-        }
-    }
-}
-
-impl SampleSet {
-    fn uses_dip(&self) -> bool {
-        self.down_in_body.is_some()
-    }
-
-    fn down(&self, idx: usize) -> Option<Vector3<f64>> {
-        self.down_in_body
-            .as_ref()
-            .and_then(|down| down.get(idx).copied())
-    }
-
-    /// The axis of a band of data, when the samples form one: with the accelerometer,
-    /// the mean down when the tilt stays within [`MIN_TILT_FOR_ROTATION_DEG`] (RMS) of
-    /// it (a car in its mount, a level turn); without, the samples' own axis when they
-    /// lie within [`MAX_LEVEL_BAND_DEG`] of a plane (a level turn assumed level). On a
-    /// band, what only tilt shows of a 3D distortion (the band's lean and height, a
-    /// rotation about its axis) is decided by the accelerometer's own errors (what is
-    /// left of a car's accelerations, vibration, passing vehicles) more than by the
-    /// magnetometer: the band model is fitted instead ([`FreeDirections::band`]). A
-    /// hand's tilt while walking (3-10°) does show them.
-    fn band_axis(&self) -> Option<Vector3<f64>> {
-        match &self.down_in_body {
-            Some(down) => {
-                let mean_down = self.mean_down()?;
-                let mean_square = down
-                    .iter()
-                    .map(|u| u.cross(&mean_down).norm_squared())
-                    .sum::<f64>()
-                    / down.len().max(1) as f64;
-                // The magnetometer must agree: a field that sweeps the sphere while the
-                // accelerometer stays put is no band (the two are not on one body).
-                let plane = principal_plane(&self.mag_ut)?;
-                let mag_span_deg = (3f64.sqrt() * plane.spread_ut[2])
-                    .atan2(plane.spread_ut[0].hypot(plane.spread_ut[1]))
-                    .to_degrees();
-                (mean_square.sqrt().asin().to_degrees() < MIN_TILT_FOR_ROTATION_DEG
-                    && mag_span_deg < MAX_MAG_BAND_DEG)
-                    .then_some(mean_down)
-            }
-            None => {
-                let plane = principal_plane(&self.mag_ut)?;
-                let span_deg = (3f64.sqrt() * plane.spread_ut[2])
-                    .atan2(plane.spread_ut[0].hypot(plane.spread_ut[1]))
-                    .to_degrees();
-                // The field points down north of the magnetic equator: +z of a level
-                // device.
-                let normal = if plane.normal.z < 0.0 {
-                    -plane.normal
-                } else {
-                    plane.normal
-                };
-                (span_deg < MAX_LEVEL_BAND_DEG).then_some(normal)
-            }
-        }
-    }
-
-    /// The mean down direction (unit), if the dip is used.
-    fn mean_down(&self) -> Option<Vector3<f64>> {
-        let sum: Vector3<f64> = self.down_in_body.as_ref()?.iter().sum();
-        (sum.norm() > 0.0).then(|| sum.normalize())
-    }
 }
 
 fn spread_ut(mag_ut: &[Vector3<f64>]) -> f64 {

@@ -28,10 +28,17 @@ pub(super) fn degeneracy(state: &State, options: &InertialOptions) -> Option<Str
 
 /// Why a full-model solution is not a magnetometer's distortion, if it is not: a shape
 /// no material gives (axis gains beyond 0.5-2× their mean, cross-axis terms beyond
-/// ±[`MAX_CROSS_AXIS`], a rotation beyond [`MAX_ROTATION_RAD`]), or a dip far from the
-/// model's. Such solutions come from fitting a changing field or a wrong tilt with the
-/// soft iron, typically on a band of data (a car's drive).
-pub(super) fn implausibility(state: &State, options: &InertialOptions) -> Option<String> {
+/// ±[`MAX_CROSS_AXIS`], a rotation beyond [`MAX_ROTATION_RAD`]), or, where the tilt is
+/// trusted (`tilt_trusted`: at least half on average), a dip far from the model's. Such
+/// solutions come from fitting a changing field or a wrong tilt with the soft iron,
+/// typically on a band of data (a car's drive). Where the tilt is mostly not trusted (a
+/// phone swinging at the arm's end) the fitted dip says only that, and the soft iron,
+/// held symmetric there, is decided by the field's shape.
+pub(super) fn implausibility(
+    state: &State,
+    options: &InertialOptions,
+    tilt_trusted: bool,
+) -> Option<String> {
     if let Some(reason) = degeneracy(state, options) {
         return Some(reason);
     }
@@ -60,7 +67,7 @@ pub(super) fn implausibility(state: &State, options: &InertialOptions) -> Option
             ));
         }
     }
-    if let Some(prior) = options.field {
+    if let Some(prior) = options.field.filter(|_| tilt_trusted) {
         let dip_deg = (state.vertical_ut / state.field_ut)
             .clamp(-1.0, 1.0)
             .asin()
