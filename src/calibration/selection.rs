@@ -276,12 +276,11 @@ pub fn field_calibration_of(report: &MethodReport) -> Option<FieldCalibration> {
 
 /// The calibration for the device: the best method's own when it has a 3D correction
 /// (the ellipse's or the ellipsoid's, also under a deviation model; the ellipsoid's
-/// rather than the ellipse's where the tilt is trusted less than half on average: the
-/// check scores headings levelled with that tilt, which the ellipse's correction, fitted
-/// on it, wins without being right: on issue 43's generator, levelled with the true
-/// attitude, it was 1.3-5 × the true calibration's heading error on a swinging arm
-/// where the 3D fit's was 1.0-1.4 ×);
-/// else, among the
+/// rather than the ellipse's where the tilt is mostly not trusted,
+/// [`crate::calib::inertial::TRUSTED_TILT`]: the check scores headings levelled with that
+/// tilt, which the ellipse's correction, fitted on it, wins without being right; issue
+/// 43's swinging phone, levelled with the true attitude, `tests/independent.rs`); else,
+/// among the
 /// methods with a 3D correction, the one the rule chooses (by check RMS with a
 /// reference, by the fits' own figures without).
 pub fn device_calibration(report: &CalibrationReport) -> Option<(Method, FieldCalibration)> {

@@ -311,7 +311,7 @@ pub(super) fn normal_equations(
         );
     }
     block.flush(&mut normal);
-    add_priors(&mut normal, state, options, start, set);
+    add_priors(&mut normal, state, options, start, uses_dip);
     normal
 }
 
@@ -347,7 +347,7 @@ pub(super) fn cost(
         normal.cost += term(magnitude, &weights.magnitude, inv_var_magnitude)
             + term(vertical, &weights.vertical, inv_var_vertical);
     }
-    add_priors(&mut normal, state, options, start, set);
+    add_priors(&mut normal, state, options, start, uses_dip);
     normal.cost
 }
 
@@ -494,9 +494,8 @@ pub(super) fn add_priors(
     state: &State,
     options: &InertialOptions,
     start: &State,
-    set: &SampleSet,
+    uses_dip: bool,
 ) {
-    let uses_dip = set.uses_dip();
     // Mirror the accumulated upper triangle first: the priors add full matrices.
     for row in 0..N_MAX {
         for col in 0..row {
