@@ -103,19 +103,6 @@ fn streams_found(recording: &Recording) -> String {
     }
 }
 
-/// What the user should know when much of the log's tilt was trusted less than half
-/// (a tilt σ over [`crate::calib::gravity::TRUST_HALF_DEG`]): how much.
-fn distrusted_tilt_note(trust: &[f64]) -> Option<String> {
-    let n_low = trust.iter().filter(|&&trust| trust < 0.5).count();
-    let share_pct = 100.0 * n_low as f64 / trust.len().max(1) as f64;
-    (share_pct >= 5.0).then(|| {
-        format!(
-            "{share_pct:.0} % of the samples' tilt is uncertain by more than {}° (the gyroscope and the accelerometer disagree there: a swinging arm, a running or jolted device); where most of the fitted part is, each sample's dip weighs in the 3D fit as far as its tilt is trusted, and the fitted dip refuses no solution",
-            crate::calib::gravity::TRUST_HALF_DEG
-        )
-    })
-}
-
 /// Magnetometer samples with the tilt at each, ready for any calibration.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TiltedSamples {
@@ -209,9 +196,6 @@ pub fn tilted_samples(
         return Err(AnalysisError::NoLevelledSamples { file_name });
     }
     samples.tilt_trust = gravity.tilt_trust_at(&samples.t_s);
-    if let Some(note) = distrusted_tilt_note(&samples.tilt_trust) {
-        samples.notes.push(note);
-    }
     if levelling == Levelling::AssumedLevel {
         samples.notes.push("The log has no accelerometer, so the device was assumed level; tilt adds heading error.".to_string());
     } else {

@@ -128,6 +128,17 @@ pub(super) fn fit_ellipse(inputs: &MethodInputs, outputs: &mut MethodOutputs) ->
     })
 }
 
+/// What the user should know when the 3D fit found its samples' tilt mostly not
+/// trusted: how much of it, why, and what the fit and the device's calibration did.
+fn untrusted_tilt_note(trust: &[f64]) -> String {
+    let n_low = trust.iter().filter(|&&trust| trust < 0.5).count();
+    let share_pct = 100.0 * n_low as f64 / trust.len().max(1) as f64;
+    format!(
+        "ellipsoid (3D): the gyroscope's and the accelerometer's down disagree by more than {}° on {share_pct:.0} % of the fitted samples (a swinging arm, a run), so each sample's dip weighed as far as its tilt is trusted, the fitted dip refused no solution, and a device calibration, where one is written, comes from this fit rather than from the ellipse fitted on that tilt",
+        2.0 * crate::calib::gravity::TRUST_HALF_DEG
+    )
+}
+
 /// The 3D fit (`calib::inertial`), with the accelerometer's tilt when the log has one.
 pub(super) fn fit_ellipsoid(inputs: &MethodInputs, outputs: &mut MethodOutputs) -> Fitted {
     let inertial_options = inertial_options(inputs.expected, inputs.mag_frame);
@@ -142,6 +153,11 @@ pub(super) fn fit_ellipsoid(inputs: &MethodInputs, outputs: &mut MethodOutputs) 
     fit_inertial_trusting(inputs.mag_train, tilt, &inertial_options)
         .map_err(|error| error.to_string())
         .map(|fit| {
+            if fit.tilt_untrusted {
+                outputs
+                    .notes
+                    .push(untrusted_tilt_note(inputs.tilt_trust_train));
+            }
             let calibration = fit.calibration;
             let headings = inputs.map_tilted(|mag, tilt| {
                 heading_rad(tilt.level(calibration.apply(mag)), inputs.declination_rad)

@@ -276,8 +276,8 @@ pub fn field_calibration_of(report: &MethodReport) -> Option<FieldCalibration> {
 
 /// The calibration for the device: the best method's own when it has a 3D correction
 /// (the ellipse's or the ellipsoid's, also under a deviation model; the ellipsoid's
-/// rather than the ellipse's where the tilt is mostly not trusted,
-/// [`crate::calib::inertial::TRUSTED_TILT`]: the check scores headings levelled with that
+/// rather than the ellipse's where the 3D fit found the tilt mostly not trusted
+/// (`InertialFit::tilt_untrusted`): the check scores headings levelled with that
 /// tilt, which the ellipse's correction, fitted on it, wins without being right; issue
 /// 43's swinging phone, levelled with the true attitude, `tests/independent.rs`); else,
 /// among the
@@ -295,11 +295,10 @@ pub fn device_calibration(report: &CalibrationReport) -> Option<(Method, FieldCa
     {
         let fitted_in_3d = three_d
             .iter()
-            .find(|method| method.method == Method::Ellipsoid)
-            .filter(|_| {
-                best.method == Method::Ellipse
-                    && report.tilt_trust_mean < crate::calib::inertial::TRUSTED_TILT
-            });
+            .find(|method| {
+                matches!(&method.parameters, Some(MethodParameters::Ellipsoid(fit)) if fit.tilt_untrusted)
+            })
+            .filter(|_| best.method == Method::Ellipse);
         let chosen = fitted_in_3d.unwrap_or(best);
         return Some((chosen.method, field_calibration_of(chosen)?));
     }

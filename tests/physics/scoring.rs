@@ -133,29 +133,25 @@ pub fn true_calibration_floor(log: &GeneratedLog, analysis: &CalibrationAnalysis
 pub fn export_true_tilt(log: &GeneratedLog, analysis: &CalibrationAnalysis) -> Option<f64> {
     let export = compass_pdr::report::device_export(analysis)?;
     let text = serde_json::to_string(&export.sensor).expect("the export serialises");
-    let value: serde_json::Value = serde_json::from_str(&text).expect("its text is JSON");
-    let numbers = |key: &str| -> Vec<f64> {
-        let mut flat = Vec::new();
-        let mut stack = vec![&value[key]];
-        while let Some(item) = stack.pop() {
-            match item {
-                serde_json::Value::Array(items) => stack.extend(items.iter().rev()),
-                other => flat.push(other.as_f64().unwrap_or(f64::NAN)),
-            }
-        }
-        flat
-    };
-    let hard_iron = Vector3::from_column_slice(&numbers("hard_iron"));
-    let soft_iron = Matrix3::from_row_slice(&numbers("soft_iron"));
-    let ut_per_unit = numbers("ut_per_unit")[0];
+    // Read back from the text alone, by its own keys, not by the crate's reader.
+    let read: ExportText = serde_json::from_str(&text).expect("its text is the export's");
     // The generator writes body axes in µT: the sensor's own axes are the body's.
-    assert!(
-        value["axes"] == "body" || value["axes"] == "sensor",
-        "{text}"
-    );
+    assert!(read.axes == "body" || read.axes == "sensor", "{text}");
+    let hard_iron = Vector3::from(read.hard_iron);
+    let soft_iron = Matrix3::from_fn(|row, column| read.soft_iron[row][column]);
+    let ut_per_unit = read.ut_per_unit.expect("the generator's unit is µT");
     true_tilt_rms(log, analysis, Against::TrueHeading, |mag_ut| {
         soft_iron * (mag_ut / ut_per_unit - hard_iron) * ut_per_unit
     })
+}
+
+/// The keys of an exported calibration's JSON that say how to apply it.
+#[derive(serde::Deserialize)]
+struct ExportText {
+    axes: String,
+    hard_iron: [f64; 3],
+    soft_iron: [[f64; 3]; 3],
+    ut_per_unit: Option<f64>,
 }
 
 /// `calibration` levelled with the true attitude, against the true heading, on the

@@ -300,6 +300,9 @@ pub struct InertialFit {
     pub calibration: FieldCalibration,
     /// Whether the dip-angle invariance was used (the log has an accelerometer).
     pub uses_dip: bool,
+    /// Whether the fitted samples' tilt was mostly not trusted ([`TRUSTED_TILT`]): each
+    /// sample's dip then weighed its trust and the fitted dip refused no solution.
+    pub tilt_untrusted: bool,
     /// Whether `field_ut` is the model's intensity (else the data's own scale).
     pub field_from_model: bool,
     /// The fitted dip (with the accelerometer), degrees below the horizontal, and its
@@ -512,7 +515,7 @@ fn best_solution(
             let Some(solution) = solution else {
                 continue;
             };
-            let tilt_trusted = set.mean_dip_trust() >= TRUSTED_TILT;
+            let tilt_trusted = !set.tilt_untrusted();
             if let Some(reason) = model.implausibility(&solution.state, options, tilt_trusted) {
                 first_reason.get_or_insert(reason);
                 continue;

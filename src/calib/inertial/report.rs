@@ -80,6 +80,7 @@ impl Solution {
                 field_ut: state.field_ut,
             },
             uses_dip,
+            tilt_untrusted: set.tilt_untrusted(),
             field_from_model: options.field.is_some(),
             inclination_deg: inclination.map(|(deg, _)| deg),
             inclination_std_deg: inclination.map(|(_, std)| std),

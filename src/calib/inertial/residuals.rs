@@ -233,7 +233,7 @@ pub(super) fn weights(set: &SampleSet, state: &State, loss: Loss) -> Weights {
     // swinging arm's tilt is good only at moments); elsewhere every dip weighs alike, as
     // the trust would otherwise reshuffle a walk's dip for nothing it shows (msft F1's
     // hard iron moved by 45 µT, its track's error from 4.8 to 6.7 %).
-    let untrusted = set.mean_dip_trust() < TRUSTED_TILT;
+    let untrusted = set.tilt_untrusted();
     let dip_weight = |idx: usize| if untrusted { set.dip_trust(idx) } else { 1.0 };
     for (idx, &m_ut) in set.mag_ut.iter().enumerate() {
         let (r_b, r_v) = raw_residuals(state, m_ut, set.down(idx), kappa);

@@ -46,13 +46,16 @@ impl SampleSet {
             .and_then(|down| down.get(idx).copied())
     }
 
-    /// The samples' mean trust in their tilt (1 when nothing says otherwise).
-    pub(super) fn mean_dip_trust(&self) -> f64 {
+    /// Whether the samples' tilt is mostly not trusted (their mean trust under
+    /// [`TRUSTED_TILT`]): the one decision the fit, its plausibility check and its report
+    /// share.
+    pub(super) fn tilt_untrusted(&self) -> bool {
         let n = self.mag_ut.len().max(1) as f64;
-        (0..self.mag_ut.len())
+        let mean = (0..self.mag_ut.len())
             .map(|idx| self.dip_trust(idx))
             .sum::<f64>()
-            / n
+            / n;
+        self.uses_dip() && mean < TRUSTED_TILT
     }
 
     /// How far sample `idx`'s tilt is trusted (1 when nothing says otherwise).
