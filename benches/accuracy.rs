@@ -29,10 +29,11 @@ mod report {
     use std::fmt::Write as _;
     use std::path::Path;
 
-    use compass_pdr::calibration::{
+    use compass_pdr::analysis::calibration::{
         CalibrationOptions, DeclinationChoice, Method, MethodParameters,
     };
-    use compass_pdr::heading::{HeadingAnalysis, HeadingOptions};
+    use compass_pdr::analysis::headings::{HeadingAnalysis, HeadingOptions};
+    use compass_pdr::base::stats::HeadingErrorStats;
     use compass_pdr::io::canonical_csv;
     use compass_pdr::io::import::import;
     use compass_pdr::pdr::fusion::{GnssPolicy, Outage};
@@ -41,7 +42,6 @@ mod report {
     use compass_pdr::pipeline::dead_reckoning;
     use compass_pdr::reference::{ReferenceChoice, ReferenceOptions};
     use compass_pdr::sim::walk::{simulate, simulate_with_truth, WalkConfig};
-    use compass_pdr::stats::HeadingErrorStats;
 
     use super::common;
 

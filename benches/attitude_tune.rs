@@ -23,12 +23,12 @@ mod common;
 mod native {
     use std::path::Path;
 
-    use compass_pdr::angle::wrap_to_pi;
-    use compass_pdr::attitude::track::attitude_of;
+    use compass_pdr::analysis::attitude_track::attitude_of;
+    use compass_pdr::analysis::headings::HeadingOptions;
     use compass_pdr::attitude::AttitudeOptions;
-    use compass_pdr::heading::HeadingOptions;
+    use compass_pdr::base::angle::wrap_to_pi;
+    use compass_pdr::io::recording::Stream;
     use compass_pdr::pipeline;
-    use compass_pdr::recording::Stream;
 
     use super::common;
 

@@ -1,4 +1,4 @@
-//! Ellipsoid-fit time: `compass_pdr::calib::ellipsoid::fit_ellipsoid` on
+//! Ellipsoid-fit time: `compass_pdr::fit::streaming_ellipsoid::fit_ellipsoid` on
 //! 10³, 10⁴, 10⁵ and 10⁶ full-sphere magnetometer samples from the crate's simulator
 //! (`sim::field`, fixed seed), algebraic only (`refine: false`, what Magneto 1.2 and
 //! `bench/ellipsoid_peer.py` do) and with the Levenberg-Marquardt refinement. Run by
@@ -20,9 +20,9 @@ mod native {
     use std::path::{Path, PathBuf};
     use std::time::Duration;
 
-    use compass_pdr::calib::ellipsoid::{fit_ellipsoid, EllipsoidOptions};
+    use compass_pdr::base::rng::SplitMix64;
+    use compass_pdr::fit::streaming_ellipsoid::{fit_ellipsoid, EllipsoidOptions};
     use compass_pdr::sim::field::{full_sphere, FieldTruth};
-    use compass_pdr::sim::rng::SplitMix64;
     use criterion::{BenchmarkId, Criterion, SamplingMode};
     use nalgebra::Vector3;
 

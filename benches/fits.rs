@@ -36,13 +36,13 @@ mod native {
     use std::path::{Path, PathBuf};
     use std::time::{Duration, Instant};
 
-    use compass_pdr::analysis::{tilted_samples, Levelling};
-    use compass_pdr::calib::inertial::{fit_inertial, InertialOptions};
-    use compass_pdr::calib::plane::{fit_plane, PlaneOptions};
-    use compass_pdr::calib::tilt::Tilt;
-    use compass_pdr::calibration::{
+    use compass_pdr::analysis::calibration::{
         expected_field_of, inertial_options, plane_options, CalibrationOptions,
     };
+    use compass_pdr::analysis::levelled::{tilted_samples, Levelling};
+    use compass_pdr::attitude::tilt::Tilt;
+    use compass_pdr::fit::ellipse::{fit_plane, PlaneOptions};
+    use compass_pdr::fit::ellipsoid::{fit_inertial, InertialOptions};
     use compass_pdr::io::canonical_csv;
     use compass_pdr::io::import::import_files;
     use compass_pdr::sim::walk::{simulate, WalkConfig};
@@ -154,7 +154,7 @@ mod native {
             report.header.as_ref(),
             &report.diagnostics,
             report.n_data_lines,
-            &compass_pdr::calib::gravity::gravity_of(&report.recording, options.gravity_window_s),
+            &compass_pdr::attitude::down::gravity_of(&report.recording, options.gravity_window_s),
         )
         .map_err(|error| error.to_string())?;
         let expected = expected_field_of(&report.recording, options.position_deg, &mut Vec::new());

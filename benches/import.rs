@@ -22,7 +22,7 @@ mod native {
     use std::time::{Duration, Instant};
 
     use compass_pdr::io::import::{import, Inspection};
-    use compass_pdr::recording::{Attitude, DeviceHeading, GnssFix};
+    use compass_pdr::io::recording::{Attitude, DeviceHeading, GnssFix};
     use criterion::{Criterion, SamplingMode, Throughput};
     use nalgebra::{Vector2, Vector3};
 

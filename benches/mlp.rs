@@ -1,4 +1,4 @@
-//! MLP training time: `compass_pdr::nn::train` with L-BFGS on 10,000 samples of
+//! MLP training time: `compass_pdr::deviation::network::train` with L-BFGS on 10,000 samples of
 //! 5 inputs, 15 logistic hidden neurons, one linear output, beside scikit-learn's
 //! `MLPRegressor(solver="lbfgs")` (`bench/mlp_peer.py`) and the same training in
 //! WebAssembly (`bench/wasm/mlp.html`); `bench/mlp.sh` runs all three and prints a table.
@@ -25,8 +25,8 @@ mod native {
     use std::path::{Path, PathBuf};
     use std::time::{Duration, Instant};
 
-    use compass_pdr::nn::{train, Dataset, TrainOptions};
-    use compass_pdr::sim::rng::SplitMix64;
+    use compass_pdr::base::rng::SplitMix64;
+    use compass_pdr::deviation::network::{train, Dataset, TrainOptions};
     use criterion::{Criterion, SamplingMode};
 
     const N_INPUTS: usize = 5;

@@ -30,9 +30,10 @@ mod native {
     use std::path::{Path, PathBuf};
     use std::time::{Duration, Instant};
 
-    use compass_pdr::angle::wrap_to_2pi;
-    use compass_pdr::calibration::calibrate;
-    use compass_pdr::heading::{compare, HeadingOptions};
+    use compass_pdr::analysis::calibration::calibrate;
+    use compass_pdr::analysis::headings::{compare, HeadingOptions};
+    use compass_pdr::base::angle::wrap_to_2pi;
+    use compass_pdr::base::rng::SplitMix64;
     use compass_pdr::io::canonical_csv;
     use compass_pdr::io::import::import;
     use compass_pdr::pdr::ekf::{EkfNoise, PdrEkf};
@@ -40,7 +41,6 @@ mod native {
     use compass_pdr::pdr::steps::detect_steps;
     use compass_pdr::pdr::PdrOptions;
     use compass_pdr::pipeline::dead_reckoning;
-    use compass_pdr::sim::rng::SplitMix64;
     use compass_pdr::sim::walk::{simulate, WalkConfig};
     use criterion::{Criterion, SamplingMode, Throughput};
     use serde_json::json;

@@ -14,11 +14,11 @@
 //!
 //! - **tilt**: unless the device is level, its x and y axes are not horizontal, so the
 //!   vertical field leaks into them. Roll and pitch from the accelerometer undo this
-//!   (Moafipoor et al. 2007, Eq. 4; [`calib::tilt`]).
+//!   (Moafipoor et al. 2007, Eq. 4; [`attitude::tilt`]).
 //! - **hard and soft iron**: magnets and iron carried with the sensor add a constant
 //!   offset and stretch the field, so that a full turn traces an off-centre ellipse
 //!   instead of a centred circle (Eq. 2-3, 5). Calibration estimates and removes them
-//!   ([`calib::minmax`]).
+//!   ([`fit::minmax`]).
 //! - **declination**: magnetic north is not true north; the angle depends on place and
 //!   date.
 //!
@@ -27,7 +27,7 @@
 //! - **Body frame**: x forward, y right, z down (the canonical CSV uses it; importers
 //!   convert other devices' axes to it at one place, and record how in an
 //!   [`io::SensorFrame`], so that a calibration fitted in body axes is exported in the
-//!   sensor's own axes and units: [`calib::export::SensorCalibration`]).
+//!   sensor's own axes and units: [`fit::export::SensorCalibration`]).
 //! - **Navigation frame**: north-east-down for vectors; positions in a local east-north
 //!   plane in metres.
 //! - **Headings** are clockwise from north. Angles are radians inside the core and
@@ -38,24 +38,28 @@
 //!
 //! ## Layers
 //!
-//! Everything in this crate except `web` is pure: it takes bytes, text or samples and
-//! returns values. It reads no clock, file, global or DOM; the one exception is
-//! [`par`], which asks how many threads there are and, in the threaded browser build,
-//! holds the Web Worker pool (the runtime's state, not the algorithms'; results never
-//! depend on it). The CLI (`src/main.rs`, `src/cli/`) owns files and argv; `web`
-//! (wasm32 only) owns the DOM. See `docs/ARCHITECTURE.md`.
+//! Folders by layer, each built only on those below it (`docs/ARCHITECTURE.md` has the
+//! table, which a test holds to the imports): [`base`], [`io`] (with the central
+//! [`io::recording::Recording`]), [`earth`], [`sim`], [`attitude`], [`fit`], [`reference`],
+//! [`deviation`], [`live`], [`analysis`], [`pdr`], [`pipeline`], [`present`]; then the
+//! edges, the CLI (`src/main.rs`, `src/cli/`: files and argv) and `web` (wasm32 only:
+//! the DOM). Everything but the edges is pure: it takes bytes, text or samples and
+//! returns values, and reads no clock, file, global or DOM; the one exception is
+//! [`base::par`], which asks how many threads there are and, in the threaded browser
+//! build, holds the Web Worker pool (the runtime's state, not the algorithms'; results
+//! never depend on it).
 //!
-//! ## Limits (today)
+//! ## What it does
 //!
-//! Field-domain calibration (min/max, a tilt-aware ellipse, a 3D ellipsoid,
-//! reference-heading least squares) is followed by heading models learned from a
-//! reference ([`heading`]: the PDR paper's Fourier model, online too, and the 2007
-//! paper's neural network). Tilt comes from the direction of specific force averaged over
-//! a second, so fast sway is not compensated (a gyro-aided attitude would). Dead
-//! reckoning ([`pdr`]) detects steps, fits a step-length model to GNSS or a known
-//! distance, and runs the paper's `[E, N, l, a]` EKF through GNSS outages; it has no
-//! map matching, so indoors its heading is only as good as the compass or the device's
-//! own yaw.
+//! Field-domain calibration ([`fit`]: min/max, a tilt-aware ellipse, a 3D ellipsoid with
+//! the dip and gravity, reference-heading least squares) is followed by heading models
+//! learned from a reference ([`deviation`]: the PDR paper's Fourier model, online too, and
+//! the 2007 paper's neural network). Tilt comes from a gyro-propagated estimate of down
+//! that knows when the accelerometer is not gravity ([`attitude::down`]). Dead reckoning
+//! ([`pdr`]) detects steps, takes a step-length model, and smooths the steps with every
+//! GNSS fix weighted (or runs the paper's `[E, N, l, a]` EKF), stating a σ for every
+//! point; it has no map matching, so indoors its heading is only as good as the compass
+//! or the attitude filter.
 
 // The threaded browser build (nightly, `-C target-feature=+atomics`) waits with
 // `memory.atomic.wait32` in its workers (`par::pool`).
@@ -65,28 +69,18 @@
 )]
 
 pub mod analysis;
-pub mod angle;
 pub mod attitude;
-pub mod calib;
-pub mod calibration;
-pub mod civil;
-pub mod english;
-pub mod geo;
-pub mod heading;
+pub mod base;
+pub mod deviation;
+pub mod earth;
+pub mod fit;
 pub mod io;
 pub mod live;
-pub mod nn;
-pub mod order;
-pub mod par;
 pub mod pdr;
 pub mod pipeline;
-pub mod plot;
-pub mod recording;
+pub mod present;
 pub mod reference;
-pub mod report;
 pub mod sim;
-pub mod stats;
-pub mod verdict;
 
 #[cfg(target_arch = "wasm32")]
 pub mod web;

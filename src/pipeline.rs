@@ -1,6 +1,6 @@
 //! The one analysis pipeline: an imported recording → the field calibrations
-//! ([`crate::calibration`]) → the heading models and the one choice of "best"
-//! ([`crate::heading`], [`crate::calibration::selection`]) → dead reckoning ([`crate::pdr`]). The
+//! ([`crate::analysis::calibration`]) → the heading models and the one choice of "best"
+//! ([`crate::analysis::headings`], [`crate::analysis::calibration::selection`]) → dead reckoning ([`crate::pdr`]). The
 //! CLI, the page and the report are thin callers of these functions, so they name the
 //! same best method and export the same device calibration.
 //!
@@ -10,13 +10,13 @@
 //! only the dead reckoning, which fits the chosen model again without the outages' fixes
 //! (so no fix inside an outage trains what bridges it) but does not choose again.
 
-use crate::analysis::AnalysisError;
-use crate::attitude::track::{attitude_of, FieldSource};
+use crate::analysis::attitude_track::{attitude_of, FieldSource};
+use crate::analysis::calibration::selection::Choice;
+use crate::analysis::calibration::CalibrationOptions;
+use crate::analysis::calibration::{calibrate, CalibrationAnalysis, Method};
+use crate::analysis::headings::{compare, HeadingAnalysis, HeadingOptions};
+use crate::analysis::levelled::AnalysisError;
 use crate::attitude::{AttitudeError, AttitudeOptions, AttitudeTrack};
-use crate::calibration::selection::Choice;
-use crate::calibration::CalibrationOptions;
-use crate::calibration::{calibrate, CalibrationAnalysis, Method};
-use crate::heading::{compare, HeadingAnalysis, HeadingOptions};
 use crate::io::import::import_files;
 use crate::io::ImportReport;
 use crate::pdr::{dead_reckon, PdrAnalysis, PdrError, PdrOptions};
@@ -220,7 +220,7 @@ pub fn attitude(
     )
 }
 
-/// [`attitude`] as CSV (see [`crate::attitude::track::attitude_csv`]): yaw from true
+/// [`attitude`] as CSV (see [`crate::analysis::attitude_track::attitude_csv`]): yaw from true
 /// north where the analysis knows the declination.
 pub fn attitude_csv(
     import: &ImportReport,
@@ -230,9 +230,9 @@ pub fn attitude_csv(
     let declination = &calibration.report.declination;
     let body_axes = calibration.report.mag_frame.as_ref().map_or_else(
         || "as logged (x forward, y right, z down)".to_string(),
-        super::io::frame::SensorFrame::describe,
+        crate::io::frame::SensorFrame::describe,
     );
-    Ok(crate::attitude::track::attitude_csv(
+    Ok(crate::analysis::attitude_track::attitude_csv(
         &track,
         declination
             .is_known()

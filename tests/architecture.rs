@@ -4,12 +4,16 @@
 //! - the core (everything outside `src/web/`, `src/cli/` and `src/main.rs`) reads no
 //!   clock, file, environment variable, argv or standard stream, and knows nothing of
 //!   the browser (wasm-bindgen, web-sys, js-sys, gloo, plotters-canvas);
-//! - `io` imports nothing above it: only the leaf modules it is built on.
+//! - the layer table of docs/ARCHITECTURE.md is the import graph: each top-level module
+//!   imports only the rows below its own, and `src/` holds folders and at most three
+//!   loose files;
+//! - no function is over 120 lines, no file over 800 without its tests.
 //!
 //! Only code is read: comments are skipped, and so is test code (a `tests.rs` file, a
 //! `#[cfg(test)] mod …;` declaration, and a file's lines from an inline `#[cfg(test)]`
 //! module on), which may use the simulator or read `../shared/data`.
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 /// What the core must not name.
@@ -31,19 +35,6 @@ const NOT_IN_THE_CORE: [&str; 17] = [
     "js_sys",
     "gloo",
     "plotters_canvas",
-];
-
-/// The modules `io` is built on (and `io` itself).
-const BELOW_IO: [&str; 9] = [
-    "io",
-    "english",
-    "recording",
-    "angle",
-    "civil",
-    "par",
-    "geo",
-    "stats",
-    "order",
 ];
 
 fn rust_files(dir: &Path, files: &mut Vec<PathBuf>) {
@@ -130,33 +121,6 @@ fn the_core_reads_no_clock_file_environment_or_stream_and_knows_no_browser() {
         "the source was not found ({} files)",
         files.len()
     );
-    assert!(violations.is_empty(), "{violations:#?}");
-}
-
-#[test]
-fn io_imports_nothing_above_it() {
-    let io = src().join("io");
-    let mut files = vec![src().join("io.rs")];
-    files.retain(|path| path.exists());
-    rust_files(&io, &mut files);
-    let mut violations = Vec::new();
-    for path in &files {
-        for (line_no, code) in code_lines(path) {
-            for (at, _) in code.match_indices("crate::") {
-                let module: String = code[at + "crate::".len()..]
-                    .chars()
-                    .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
-                    .collect();
-                if !BELOW_IO.contains(&module.as_str()) {
-                    violations.push(format!(
-                        "{}:{line_no}: crate::{module}",
-                        path.strip_prefix(src()).unwrap_or(path).display()
-                    ));
-                }
-            }
-        }
-    }
-    assert!(files.len() > 10, "io was not found ({} files)", files.len());
     assert!(violations.is_empty(), "{violations:#?}");
 }
 
@@ -305,15 +269,11 @@ fn no_file_is_over_1000_lines_or_800_without_its_tests() {
     assert!(violations.is_empty(), "{violations:#?}");
 }
 
-/// The crate's top-level modules import one another without a cycle (outside tests), so
-/// that each layer can be read, and changed, knowing only what is below it. A cycle is
-/// reported as the chain of modules with one import that makes each link.
-#[test]
-fn the_top_level_modules_import_one_another_without_a_cycle() {
-    use std::collections::BTreeMap;
+/// Each top-level module of `src/` and the modules it imports outside tests (`crate::…`
+/// paths), with the first place each import is made.
+fn imports_by_module() -> BTreeMap<String, BTreeMap<String, String>> {
     let mut files = Vec::new();
     rust_files(&src(), &mut files);
-    // module -> imported module -> the first place it is imported.
     let mut imports: BTreeMap<String, BTreeMap<String, String>> = BTreeMap::new();
     for path in &files {
         let relative = path.strip_prefix(src()).unwrap_or(path);
@@ -328,6 +288,7 @@ fn the_top_level_modules_import_one_another_without_a_cycle() {
         if top == "lib" || top == "main" {
             continue;
         }
+        let entry = imports.entry(top.clone()).or_default();
         for (line_no, code) in code_lines(path) {
             for (at, _) in code.match_indices("crate::") {
                 let module: String = code[at + "crate::".len()..]
@@ -335,51 +296,107 @@ fn the_top_level_modules_import_one_another_without_a_cycle() {
                     .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
                     .collect();
                 if module != top && !module.is_empty() {
-                    imports
-                        .entry(top.clone())
-                        .or_default()
+                    entry
                         .entry(module)
                         .or_insert_with(|| format!("{}:{line_no}", relative.display()));
                 }
             }
         }
     }
+    imports
+}
+
+/// docs/ARCHITECTURE.md's layer table, bottom first: each row's top-level modules (the
+/// back-quoted names in its second column, `name/` for a folder, `name.rs` for a file).
+fn layer_table() -> Vec<Vec<String>> {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/ARCHITECTURE.md");
+    let text = std::fs::read_to_string(path).expect("docs/ARCHITECTURE.md is readable");
+    let table = text
+        .split("## Layers")
+        .nth(1)
+        .expect("ARCHITECTURE has a \"## Layers\" section");
+    let mut rows = Vec::new();
+    for line in table.lines().skip_while(|line| !line.starts_with('|')) {
+        if !line.starts_with('|') {
+            break;
+        }
+        let cells: Vec<&str> = line.split('|').map(str::trim).collect();
+        let Some(cell) = cells.get(2) else { continue };
+        if !cells
+            .get(1)
+            .is_some_and(|first| first.parse::<u32>().is_ok())
+        {
+            continue;
+        }
+        let modules: Vec<String> = cell
+            .split('`')
+            .skip(1)
+            .step_by(2)
+            .map(|name| {
+                name.trim_end_matches('/')
+                    .trim_end_matches(".rs")
+                    .to_string()
+            })
+            .collect();
+        rows.push(modules);
+    }
+    rows
+}
+
+/// A newcomer finds each layer from the folder names and ARCHITECTURE's layer table, and
+/// the table is the import graph: every top-level module of `src/` is in exactly one row,
+/// and it imports (outside tests) only modules of the rows below its own. So the modules
+/// import one another without a cycle, and each layer can be read, and changed, knowing
+/// only what is below it. The web and CLI edges are the table's top row.
+#[test]
+fn the_layer_table_is_the_import_graph() {
+    let rows = layer_table();
+    assert!(rows.len() >= 8, "the layer table was not found: {rows:?}");
+    let row_of = |module: &str| rows.iter().position(|row| row.iter().any(|m| m == module));
+    let imports = imports_by_module();
     assert!(imports.len() > 10, "the modules were not found");
-    // Depth-first search with the path kept: a module met again on the path closes a
-    // cycle.
-    fn visit(
-        module: &str,
-        imports: &BTreeMap<String, BTreeMap<String, String>>,
-        path: &mut Vec<String>,
-        done: &mut Vec<String>,
-        cycles: &mut Vec<String>,
-    ) {
-        if let Some(at) = path.iter().position(|seen| seen == module) {
-            let chain: Vec<String> = path[at..]
-                .iter()
-                .zip(
-                    path[at + 1..]
-                        .iter()
-                        .chain(std::iter::once(&module.to_string())),
-                )
-                .map(|(from, to)| format!("{from} -> {to} ({})", imports[from][to]))
-                .collect();
-            cycles.push(chain.join(", "));
-            return;
+    let mut violations = Vec::new();
+    for name in rows.iter().flatten() {
+        if rows.iter().flatten().filter(|other| *other == name).count() > 1 {
+            violations.push(format!("{name} is in more than one row"));
         }
-        if done.iter().any(|finished| finished == module) {
-            return;
+        if !imports.contains_key(name) {
+            violations.push(format!("{name} is in the table but not in src/"));
         }
-        path.push(module.to_string());
-        for next in imports.get(module).into_iter().flat_map(BTreeMap::keys) {
-            visit(next, imports, path, done, cycles);
-        }
-        path.pop();
-        done.push(module.to_string());
     }
-    let (mut done, mut cycles) = (Vec::new(), Vec::new());
-    for module in imports.keys() {
-        visit(module, &imports, &mut Vec::new(), &mut done, &mut cycles);
+    for (module, imported) in &imports {
+        let Some(row) = row_of(module) else {
+            violations.push(format!("src/{module} is in no row of the layer table"));
+            continue;
+        };
+        for (other, place) in imported {
+            match row_of(other) {
+                Some(other_row) if other_row < row => {}
+                _ => violations.push(format!(
+                    "{module} (row {}) imports {other} at {place}, which is not below it",
+                    row + 1
+                )),
+            }
+        }
     }
-    assert!(cycles.is_empty(), "{cycles:#?}");
+    assert!(violations.is_empty(), "{violations:#?}");
+}
+
+/// `src/` holds folders by layer and at most three loose files: `lib.rs`, `main.rs` and
+/// the one pipeline every caller runs.
+#[test]
+fn src_holds_folders_and_three_loose_files_at_most() {
+    let loose: Vec<String> = std::fs::read_dir(src())
+        .expect("the source folder is readable")
+        .map(|entry| entry.expect("a directory entry").path())
+        .filter(|path| path.is_file())
+        .map(|path| {
+            path.file_name()
+                .unwrap_or_default()
+                .to_string_lossy()
+                .into_owned()
+        })
+        .collect();
+    assert!(loose.len() <= 3, "{loose:?}");
+    assert!(loose.iter().any(|name| name == "lib.rs"), "{loose:?}");
 }

@@ -12,7 +12,7 @@
 mod flights;
 mod physics;
 
-use compass_pdr::calibration::autopilot::{autopilot_calibration, EarthField, Truth};
+use compass_pdr::analysis::calibration::autopilot::{autopilot_calibration, EarthField, Truth};
 use compass_pdr::io::autopilot::ardupilot::{parse_param_file, ArduPilotCompass};
 use compass_pdr::io::autopilot::param_in;
 use flights::{fmt, message, parm};
@@ -260,7 +260,7 @@ fn random_vehicles_are_calibrated_from_their_own_flight_logs() {
 /// magnetometer sample's tilt is the true one.
 #[test]
 fn a_multirotor_log_is_levelled_with_the_autopilot_s_attitude_not_its_thrust() {
-    use compass_pdr::calibration::{calibrate, CalibrationOptions};
+    use compass_pdr::analysis::calibration::{calibrate, CalibrationOptions};
     let mut rng = Rng::stream(23, "thrust flights");
     let (mut analysis_deg, mut accelerometer_deg) = (Vec::new(), Vec::new());
     for case in 0..10 {
@@ -270,7 +270,7 @@ fn a_multirotor_log_is_levelled_with_the_autopilot_s_attitude_not_its_thrust() {
             !report.recording.acc_in_body_mps2.is_empty(),
             "case {case}: IMU read"
         );
-        let accelerometer = compass_pdr::calib::gravity::gravity_of(&report.recording, 2.0);
+        let accelerometer = compass_pdr::attitude::down::gravity_of(&report.recording, 2.0);
         let analysis = calibrate(report, &CalibrationOptions::default()).unwrap();
         let truth = |t_s: f64| {
             let idx = ((t_s - 10.0) / 0.1).round() as usize;
@@ -285,7 +285,7 @@ fn a_multirotor_log_is_levelled_with_the_autopilot_s_attitude_not_its_thrust() {
             analysis_deg.push(error.to_degrees());
             if let Some(force) = accelerometer.specific_force_mps2.interpolate_at(t_s, 0.5) {
                 let thrust_tilt =
-                    compass_pdr::calib::tilt::Tilt::from_specific_force(force).unwrap();
+                    compass_pdr::attitude::tilt::Tilt::from_specific_force(force).unwrap();
                 let error = (thrust_tilt.roll_rad() - roll)
                     .abs()
                     .max((thrust_tilt.pitch_rad() - pitch).abs());

@@ -13,8 +13,8 @@
 mod flights;
 mod physics;
 
-use compass_pdr::calib::wmm::{expected_field, CalendarDate};
-use compass_pdr::calibration::{calibrate, CalibrationOptions, Method};
+use compass_pdr::analysis::calibration::{calibrate, CalibrationOptions, Method};
+use compass_pdr::earth::wmm::{expected_field, CalendarDate};
 use flights::{ardupilot_correct, Coverage, Flight, InForceKind};
 use nalgebra::Vector3;
 use physics::Rng;
@@ -246,7 +246,7 @@ fn what_is_written_is_never_worse_than_in_force_nor_outside_the_autopilot_s_boun
 /// the written lines exactly where the JSON says the compass is written.
 #[test]
 fn the_file_the_console_the_json_and_the_page_agree_on_each_compass() {
-    use compass_pdr::heading::HeadingOptions;
+    use compass_pdr::analysis::headings::HeadingOptions;
     use std::process::Command;
     let mut rng = Rng::stream(7, "agreement");
     // The first full-turn flight with one compass written and one kept.
@@ -289,7 +289,7 @@ fn the_file_the_console_the_json_and_the_page_agree_on_each_compass() {
     let console = run(&["calibrate", log_arg]);
     let file = std::fs::read_to_string(&param_path).unwrap();
     let file_params = read_param_file(&file);
-    let verdict = compass_pdr::verdict::verdict(&analysis, &headings.report, None);
+    let verdict = compass_pdr::present::verdict::verdict(&analysis, &headings.report, None);
     let compasses = json["autopilot"]["compasses"].as_array().unwrap();
     assert_eq!(compasses.len(), 2);
     for compass in compasses {

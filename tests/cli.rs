@@ -253,7 +253,7 @@ fn calibrate_all_methods_and_export_the_device_calibration() {
     let packet = std::fs::read(&packet_path).expect("packet written");
     assert_eq!(packet.len(), 68);
     assert_eq!(&packet[..2], b"uT");
-    assert!(compass_pdr::calib::export::parse_motioncal_packet(&packet).is_ok());
+    assert!(compass_pdr::fit::export::parse_motioncal_packet(&packet).is_ok());
     let bad = compass_pdr(&[
         "calibrate",
         demo.to_str().unwrap_or_default(),

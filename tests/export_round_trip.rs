@@ -11,12 +11,14 @@
 //! the sensor's axes and the log's unit.
 #![cfg(not(target_arch = "wasm32"))]
 
-use compass_pdr::calib::export::{c_snippet, motioncal_packet};
-use compass_pdr::calibration::{CalibrationAnalysis, CalibrationOptions, MethodParameters};
+use compass_pdr::analysis::calibration::{
+    CalibrationAnalysis, CalibrationOptions, MethodParameters,
+};
+use compass_pdr::base::rng::SplitMix64;
+use compass_pdr::fit::export::{c_snippet, motioncal_packet};
 use compass_pdr::pipeline::calibrate_files;
-use compass_pdr::report::{device_export, DeviceExport};
+use compass_pdr::present::report::{device_export, DeviceExport};
 use compass_pdr::sim::dance::{motioncal_raw_lines, DanceConfig};
-use compass_pdr::sim::rng::SplitMix64;
 use nalgebra::{Matrix3, Vector3};
 
 mod common;

@@ -3,7 +3,7 @@
 //! so that it runs inside `./test`.
 #![cfg(not(target_arch = "wasm32"))]
 
-use compass_pdr::calibration::CalibrationOptions;
+use compass_pdr::analysis::calibration::CalibrationOptions;
 use compass_pdr::io::import::{import, import_files, merge, ChunkedImport, Inspection};
 use compass_pdr::io::lines::LineDecoder;
 use compass_pdr::pipeline::calibrate_file;

@@ -4,7 +4,7 @@
 
 mod physics;
 
-use compass_pdr::calibration::CalibrationOptions;
+use compass_pdr::analysis::calibration::CalibrationOptions;
 use physics::scoring::{quantile, score, Scores};
 
 fn run(

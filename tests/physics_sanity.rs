@@ -8,7 +8,7 @@ mod physics;
 use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
-use compass_pdr::geo::LocalFrame;
+use compass_pdr::base::geodesy::LocalFrame;
 use compass_pdr::io::canonical_csv::COLUMNS;
 use nalgebra::{Rotation3, Vector2, Vector3};
 use physics::{GeneratedLog, Rng, GRAVITY_MPS2, SCENARIOS};

@@ -6,7 +6,7 @@ mod common;
 mod flights;
 mod physics;
 
-use compass_pdr::calibration::{calibrate, CalibrationOptions};
+use compass_pdr::analysis::calibration::{calibrate, CalibrationOptions};
 use compass_pdr::io::autopilot::ardupilot::{parse_param_file, ArduPilotCompass};
 use compass_pdr::io::autopilot::param_in;
 use compass_pdr::io::autopilot::AutopilotLog;
@@ -104,7 +104,7 @@ fn vector_rms_mg(
     instance: usize,
     params: &dyn Fn(&str) -> Option<f64>,
 ) -> f64 {
-    use compass_pdr::calib::wmm::{date_of_unix_s, expected_field};
+    use compass_pdr::earth::wmm::{date_of_unix_s, expected_field};
     use nalgebra::Rotation3;
     let recording = &report.recording;
     let fix = &recording.gnss.values[0];
@@ -160,7 +160,7 @@ fn log171_s_param_file_writes_only_what_beats_the_parameters_in_force() {
     let written = parse_param_file(&calibration.param_file);
     let after = |name: &str| param_in(&written, name).or_else(|| log.param(name));
     let in_force = |name: &str| log.param(name);
-    let console = compass_pdr::report::autopilot_calibration_lines(calibration);
+    let console = compass_pdr::present::report::autopilot_calibration_lines(calibration);
     for compass in &calibration.compasses {
         let instance = compass.instance;
         let (before_mg, after_mg) = (
@@ -319,7 +319,7 @@ fn px4_logs_keep_their_parameters_where_the_flight_cannot_judge_them() {
 /// than the raw field, the calibration undone; on PX4's sample log it is within 2°.
 #[test]
 fn an_autopilot_log_s_heading_comparison_has_the_parameters_in_force() {
-    use compass_pdr::heading::HeadingOptions;
+    use compass_pdr::analysis::headings::HeadingOptions;
     let Some(data) = common::shared_data() else {
         return;
     };

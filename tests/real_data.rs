@@ -223,8 +223,8 @@ fn logs_with_absolute_times_are_dated() {
 /// The analysis of a set of files with every calibration method.
 fn calibrate_paths(
     paths: &[PathBuf],
-    options: &compass_pdr::calibration::CalibrationOptions,
-) -> compass_pdr::calibration::CalibrationAnalysis {
+    options: &compass_pdr::analysis::calibration::CalibrationOptions,
+) -> compass_pdr::analysis::calibration::CalibrationAnalysis {
     let contents = read_named(paths);
     let slices = as_slices(&contents);
     compass_pdr::pipeline::calibrate_files(&slices, options).expect("calibrates")
@@ -240,7 +240,7 @@ fn hmc_run(data: &Path, run: &str) -> Vec<PathBuf> {
 
 #[test]
 fn hmc5883l_full_sphere_field_is_constant_after_the_ellipsoid_fit() {
-    use compass_pdr::calibration::{CalibrationOptions, Method, MethodParameters};
+    use compass_pdr::analysis::calibration::{CalibrationOptions, Method, MethodParameters};
     let Some(data) = shared_data() else { return };
     let options = CalibrationOptions {
         methods: vec![Method::Ellipsoid],
@@ -263,13 +263,13 @@ fn hmc5883l_full_sphere_field_is_constant_after_the_ellipsoid_fit() {
         fit.field_spread_pct
     );
     // A full sphere carries the full soft iron, and every parameter is seen.
-    assert_eq!(fit.model, compass_pdr::calib::inertial::SoftIronModel::Full);
+    assert_eq!(fit.model, compass_pdr::fit::ellipsoid::SoftIronModel::Full);
     assert!(fit.unobserved.is_empty(), "{:?}", fit.unobserved);
 }
 
 #[test]
 fn hmc5883l_two_turns_give_720_degrees() {
-    use compass_pdr::calibration::{CalibrationOptions, Method};
+    use compass_pdr::analysis::calibration::{CalibrationOptions, Method};
     let Some(data) = shared_data() else { return };
     let options = CalibrationOptions {
         methods: vec![Method::Ellipse, Method::MinMax],
@@ -281,7 +281,7 @@ fn hmc5883l_two_turns_give_720_degrees() {
         let total_deg: f64 = headings_deg
             .windows(2)
             .map(|pair| {
-                compass_pdr::angle::wrap_to_pi((pair[1] - pair[0]).to_radians()).to_degrees()
+                compass_pdr::base::angle::wrap_to_pi((pair[1] - pair[0]).to_radians()).to_degrees()
             })
             .sum();
         eprintln!("{method:?}: total heading change {total_deg:.1}°");
@@ -294,7 +294,7 @@ fn hmc5883l_two_turns_give_720_degrees() {
 
 #[test]
 fn vehicle_heading_against_gps_course_on_a_check_period() {
-    use compass_pdr::calibration::CalibrationOptions;
+    use compass_pdr::analysis::calibration::CalibrationOptions;
     let Some(data) = shared_data() else { return };
     let analysis = calibrate_paths(
         &[data.join("vehicle-pixel6a/2023-08-09_12-47-42.csv")],
@@ -353,8 +353,8 @@ fn vehicle_heading_against_gps_course_on_a_check_period() {
 /// is exactly that departure, i.e. that nothing but the local field limits it.
 #[test]
 fn msft_indoor_hard_iron_against_the_os_estimate() {
-    use compass_pdr::calib::plane::SoftIronModel;
-    use compass_pdr::calibration::{CalibrationOptions, Method, MethodParameters};
+    use compass_pdr::analysis::calibration::{CalibrationOptions, Method, MethodParameters};
+    use compass_pdr::fit::ellipse::SoftIronModel;
     let Some(data) = shared_data() else { return };
     // (walk, largest |error| allowed on x, y (µT), on z (µT)): what the fit achieves,
     // rounded up to the next 0.5 µT.
@@ -413,13 +413,13 @@ fn msft_indoor_hard_iron_against_the_os_estimate() {
         // same tilt, against the one the fit assumed (H·tan(model dip)).
         let contents = read_named(&paths);
         let import = compass_pdr::io::import::import_files(&as_slices(&contents)).expect("imports");
-        let samples = compass_pdr::analysis::tilted_samples(
+        let samples = compass_pdr::analysis::levelled::tilted_samples(
             "log",
             &import.recording,
             import.header.as_ref(),
             &import.diagnostics,
             import.n_data_lines,
-            &compass_pdr::calib::gravity::gravity_of(&import.recording, options.gravity_window_s),
+            &compass_pdr::attitude::down::gravity_of(&import.recording, options.gravity_window_s),
         )
         .expect("levelled");
         let os_vertical_ut: Vec<f64> = samples
@@ -450,12 +450,13 @@ fn msft_indoor_hard_iron_against_the_os_estimate() {
 
 #[test]
 fn hmc5883l_full_sphere_export_applied_to_the_raw_gauss_values_gives_the_fit_s_spread() {
-    use compass_pdr::calibration::{CalibrationOptions, MethodParameters};
+    use compass_pdr::analysis::calibration::{CalibrationOptions, MethodParameters};
     let Some(data) = shared_data() else { return };
     let paths = hmc_run(&data, "full-sphere");
     let analysis = calibrate_paths(&paths, &CalibrationOptions::default());
-    let export = compass_pdr::report::device_export(&analysis).expect("a device calibration");
-    let snippet = compass_pdr::calib::export::c_snippet(&export.calibration);
+    let export =
+        compass_pdr::present::report::device_export(&analysis).expect("a device calibration");
+    let snippet = compass_pdr::fit::export::c_snippet(&export.calibration);
     assert!(snippet.contains("// Unit: gauss (100 uT)"), "{snippet}");
     let parsed = common::parse_c_snippet(&snippet);
     assert_eq!(parsed.ut_per_unit, 100.0);
@@ -580,7 +581,7 @@ fn sensor_logger_folder_reads_each_file_as_the_app_means_it() {
         .all(|fix| fix.lat_deg.is_some() && fix.lon_deg.is_some()));
     let start_unix_s = recording.start_unix_s.expect("dated");
     assert_eq!(
-        compass_pdr::calib::wmm::date_of_unix_s(start_unix_s).map(|date| date.to_string()),
+        compass_pdr::earth::wmm::date_of_unix_s(start_unix_s).map(|date| date.to_string()),
         Some("2023-03-17".to_string())
     );
     assert_eq!(stream(&inspection, "pressure").n_samples, 3853);
@@ -604,7 +605,7 @@ fn sensor_logger_folder_reads_each_file_as_the_app_means_it() {
 
 #[test]
 fn sensor_logger_walk_has_the_world_magnetic_model_s_field_near_zurich() {
-    use compass_pdr::calibration::CalibrationOptions;
+    use compass_pdr::analysis::calibration::CalibrationOptions;
     let Some(data) = shared_data() else { return };
     let analysis = calibrate_paths(&sensor_logger_files(&data), &CalibrationOptions::default());
     let expected = analysis
@@ -678,7 +679,7 @@ fn tyrex_trial_folders_import_acc_gyro_mag_and_the_os_bias() {
         // StartTime dates the trial (2016, before the bundled magnetic models).
         let start = recording.start_unix_s.expect("dated by record.properties");
         assert!(
-            compass_pdr::calib::wmm::date_of_unix_s(start).is_some_and(|date| date.year == 2016),
+            compass_pdr::earth::wmm::date_of_unix_s(start).is_some_and(|date| date.year == 2016),
             "{name:?}: {start}"
         );
     }
@@ -686,7 +687,7 @@ fn tyrex_trial_folders_import_acc_gyro_mag_and_the_os_bias() {
 
 #[test]
 fn qmc5883l_files_are_50_hz_raw_counts_with_their_settings_lines_read() {
-    use compass_pdr::calibration::CalibrationOptions;
+    use compass_pdr::analysis::calibration::CalibrationOptions;
     let Some(data) = shared_data() else { return };
     for file in ["filtered_raw_data.csv", "noisy_raw_data.csv"] {
         let path = data.join("qmc5883l-calibration").join(file);
@@ -711,10 +712,11 @@ fn qmc5883l_files_are_50_hz_raw_counts_with_their_settings_lines_read() {
         // The exported calibration is in counts, and finds the author's hard iron
         // (−A⁻¹B ≈ (6159, 253, 3446) counts) within 1 %.
         let analysis = calibrate_paths(&[path], &CalibrationOptions::default());
-        let export = compass_pdr::report::device_export(&analysis).expect("a device calibration");
+        let export =
+            compass_pdr::present::report::device_export(&analysis).expect("a device calibration");
         assert_eq!(export.sensor.unit, "counts");
         assert_eq!(export.sensor.ut_per_unit, None);
-        assert!(compass_pdr::calib::export::c_snippet(&export.calibration)
+        assert!(compass_pdr::fit::export::c_snippet(&export.calibration)
             .contains("hard_iron and mag_field are in counts"));
         let hard_iron = nalgebra::Vector3::from(export.sensor.hard_iron);
         eprintln!("{file}: hard iron {hard_iron:?} counts");
@@ -733,7 +735,7 @@ fn qmc5883l_files_are_50_hz_raw_counts_with_their_settings_lines_read() {
 /// a tenth of a percentage point of theirs.
 #[test]
 fn qmc5883l_calibration_agrees_with_its_author_s() {
-    use compass_pdr::calibration::{CalibrationOptions, Method};
+    use compass_pdr::analysis::calibration::{CalibrationOptions, Method};
     use nalgebra::{Matrix3, Vector3};
     let Some(data) = shared_data() else { return };
     let dir = data.join("qmc5883l-calibration");
@@ -756,7 +758,7 @@ fn qmc5883l_calibration_agrees_with_its_author_s() {
     let ours = analysis
         .report
         .method(Method::Ellipsoid)
-        .and_then(compass_pdr::calibration::selection::field_calibration_of)
+        .and_then(compass_pdr::analysis::calibration::selection::field_calibration_of)
         .expect("the 3D fit");
     let spread = |correct: &dyn Fn(Vector3<f64>) -> f64| {
         let norms: Vec<f64> = analysis.mag_ut.iter().map(|&m| correct(m)).collect();
@@ -907,14 +909,15 @@ fn the_live_filter_needle_follows_a_real_board_s_two_turns() {
         headings_deg
             .windows(2)
             .map(|pair| {
-                compass_pdr::angle::wrap_to_pi((pair[1] - pair[0]).to_radians()).to_degrees()
+                compass_pdr::base::angle::wrap_to_pi((pair[1] - pair[0]).to_radians()).to_degrees()
             })
             .sum()
     };
     let (filter_turned_deg, compass_turned_deg) = (turned(&turns_deg), turned(&compass_deg));
-    let rms_deg =
-        compass_pdr::stats::HeadingErrorStats::from_errors_rad(differences_rad.iter().copied())
-            .map_or(0.0, |stats| stats.rms_deg);
+    let rms_deg = compass_pdr::base::stats::HeadingErrorStats::from_errors_rad(
+        differences_rad.iter().copied(),
+    )
+    .map_or(0.0, |stats| stats.rms_deg);
     eprintln!(
         "live replay, the two turns after the tumble: {} readings; the filter's needle turned {filter_turned_deg:.1}°, the compass's {compass_turned_deg:.1}°; filter − compass {rms_deg:.2}° RMS",
         turns_deg.len()

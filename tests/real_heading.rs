@@ -6,8 +6,8 @@
 
 mod common;
 
-use compass_pdr::calibration::CalibrationOptions;
-use compass_pdr::heading::{HeadingAnalysis, HeadingOptions, HeadingRow};
+use compass_pdr::analysis::calibration::CalibrationOptions;
+use compass_pdr::analysis::headings::{HeadingAnalysis, HeadingOptions, HeadingRow};
 use compass_pdr::io::import::import_files;
 use compass_pdr::reference::gyro::GyroAlignment;
 use compass_pdr::reference::{ReferenceChoice, ReferenceOptions, ReferenceSource};

@@ -7,9 +7,9 @@
 mod common;
 
 use common::shared_data;
-use compass_pdr::calib::acceptance::{acceptance_reasons, MAX_SOFT_IRON_AXIS_RATIO};
-use compass_pdr::calib::export::parse_motioncal_packet;
-use compass_pdr::calib::model::FieldCalibration;
+use compass_pdr::fit::export::parse_motioncal_packet;
+use compass_pdr::fit::model::FieldCalibration;
+use compass_pdr::fit::quality::{acceptance_reasons, MAX_SOFT_IRON_AXIS_RATIO};
 use compass_pdr::live::{InForceSource, LiveSession};
 use nalgebra::{Matrix3, SymmetricEigen, Vector3};
 

@@ -6,12 +6,12 @@
 
 mod common;
 
-use compass_pdr::calibration::DeclinationChoice;
+use compass_pdr::analysis::calibration::DeclinationChoice;
 use compass_pdr::io::import::import_files;
+use compass_pdr::io::recording::GyroBias;
 use compass_pdr::pdr::step_length::StepLengthModel;
 use compass_pdr::pdr::{PdrAnalysis, PdrOptions};
 use compass_pdr::pipeline::dead_reckoning;
-use compass_pdr::recording::GyroBias;
 use std::path::PathBuf;
 
 fn dead_reckon(paths: &[PathBuf], options: &PdrOptions) -> PdrAnalysis {

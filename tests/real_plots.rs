@@ -1,4 +1,4 @@
-//! The plots' zoom ([`compass_pdr::plot::zoom`]) on real recordings, not only on the
+//! The plots' zoom ([`compass_pdr::present::plot::zoom`]) on real recordings, not only on the
 //! simulator's walks: a car's 87-minute drive at 1 Hz and a phone's indoor loop, each
 //! folder's files imported together. Zoomed tenfold about the middle, the time plots show
 //! a tenth of the log and read the time under the pointer; the trajectory keeps equal
@@ -10,9 +10,9 @@ mod common;
 use common::shared_data;
 use compass_pdr::pdr::PdrOptions;
 use compass_pdr::pipeline;
-use compass_pdr::plot::pdr::draw_trajectory;
-use compass_pdr::plot::zoom::{PlotFrame, Zoom};
-use compass_pdr::plot::{draw_field_magnitude_of, draw_heading_error};
+use compass_pdr::present::plot::pdr::draw_trajectory;
+use compass_pdr::present::plot::zoom::{PlotFrame, Zoom};
+use compass_pdr::present::plot::{draw_field_magnitude_of, draw_heading_error};
 use plotters::prelude::{IntoDrawingArea, SVGBackend};
 
 #[test]
@@ -84,7 +84,7 @@ fn zoomed_plots_of_real_logs_show_the_window_asked_for() {
 #[test]
 fn the_3d_view_of_real_boards_shades_what_they_never_pointed_at() {
     use compass_pdr::live::LiveSession;
-    use compass_pdr::plot::sphere_view::{draw_sphere_view, SphereView};
+    use compass_pdr::present::plot::sphere_view::{draw_sphere_view, SphereView};
     let Some(data) = shared_data() else { return };
     let mut shaded = Vec::new();
     for folder in ["full-sphere", "rotate-ccw-around-z-pointing-up"] {

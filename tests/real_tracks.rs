@@ -6,7 +6,7 @@
 
 mod common;
 
-use compass_pdr::calibration::{calibrate, CalibrationOptions};
+use compass_pdr::analysis::calibration::{calibrate, CalibrationOptions};
 use compass_pdr::reference::ReferenceSource;
 
 /// `Location.csv` (time ns, seconds_elapsed, accuracy, speed, bearing, altitude, lon,
@@ -28,7 +28,7 @@ fn gpx_of(location_csv: &str) -> (String, usize) {
         };
         let unix_s = time_ns / 1e9;
         let days = (unix_s / 86_400.0).floor();
-        let (year, month, day) = compass_pdr::civil::civil_from_days(days as i64);
+        let (year, month, day) = compass_pdr::base::calendar::civil_from_days(days as i64);
         let seconds = unix_s - days * 86_400.0;
         let (h, m, s) = (
             (seconds / 3600.0).floor(),

@@ -1,4 +1,4 @@
-//! The verdict ([`compass_pdr::verdict`]) on every real recording in `../shared/data`,
+//! The verdict ([`compass_pdr::present::verdict`]) on every real recording in `../shared/data`,
 //! each folder's files imported together as a person drops them: the answer has the kind
 //! the log allows (a heading error where there is a reference, the field's spread and
 //! coverage for a board turned in the hand, the compasses of an autopilot log), its
@@ -13,7 +13,7 @@ mod common;
 use common::shared_data;
 use compass_pdr::pdr::PdrOptions;
 use compass_pdr::pipeline;
-use compass_pdr::verdict::{
+use compass_pdr::present::verdict::{
     verdict, Grade, Verdict, VerdictKind, FAIR_HEADING_RMS_DEG, GOOD_HEADING_RMS_DEG,
 };
 

@@ -7,8 +7,8 @@
 
 mod physics;
 
-use compass_pdr::angle::wrap_to_pi;
-use compass_pdr::calib::wmm::{expected_field, CalendarDate, WmmWarning};
+use compass_pdr::base::angle::wrap_to_pi;
+use compass_pdr::earth::wmm::{expected_field, CalendarDate, WmmWarning};
 use physics::scoring::quantile;
 
 struct Point {

@@ -4,7 +4,7 @@
 
 use std::fmt::Write as _;
 
-use compass_pdr::calibration::CalibrationOptions;
+use compass_pdr::analysis::calibration::CalibrationOptions;
 use compass_pdr::pdr::PdrOptions;
 use compass_pdr::pipeline::dead_reckoning;
 

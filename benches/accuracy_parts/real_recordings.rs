@@ -4,10 +4,12 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use compass_pdr::angle::wrap_to_pi;
-use compass_pdr::calibration::selection::field_calibration_of;
-use compass_pdr::calibration::{CalibrationAnalysis, CalibrationOptions, Method, MethodParameters};
-use compass_pdr::heading::{compare, HeadingOptions};
+use compass_pdr::analysis::calibration::selection::field_calibration_of;
+use compass_pdr::analysis::calibration::{
+    CalibrationAnalysis, CalibrationOptions, Method, MethodParameters,
+};
+use compass_pdr::analysis::headings::{compare, HeadingOptions};
+use compass_pdr::base::angle::wrap_to_pi;
 use compass_pdr::reference::{ReferenceChoice, ReferenceOptions};
 use nalgebra::{Matrix3, Vector3};
 

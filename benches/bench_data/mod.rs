@@ -7,9 +7,9 @@ use std::fs;
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
+use compass_pdr::base::rng::SplitMix64;
 use compass_pdr::io::canonical_csv;
 use compass_pdr::sim::nmea::{ddmm, push_sentence};
-use compass_pdr::sim::rng::SplitMix64;
 use compass_pdr::sim::walk::{simulate, WalkConfig};
 
 /// Bumped whenever a generator's output changes, so that stale files are rebuilt.
@@ -50,7 +50,7 @@ pub fn write_walk_csv(duration_s: f64, out: &mut impl std::io::Write) -> std::io
 pub fn write_nmea(n_epochs: usize, out: &mut impl std::io::Write) -> std::io::Result<()> {
     const METRES_PER_DEG_LAT: f64 = 111_320.0;
     const KNOTS_PER_MPS: f64 = 3600.0 / 1852.0;
-    let start_days = compass_pdr::civil::days_from_civil(2026, 6, 1);
+    let start_days = compass_pdr::base::calendar::days_from_civil(2026, 6, 1);
     let start_ds: u64 = 20 * 3600 * 10;
     let mut rng = SplitMix64::new(2007);
     let mut lat_deg = 48.137_154;
@@ -65,7 +65,7 @@ pub fn write_nmea(n_epochs: usize, out: &mut impl std::io::Write) -> std::io::Re
         let total_ds = start_ds + epoch_idx as u64;
         let days = start_days + (total_ds / 864_000) as i64;
         let ds_of_day = total_ds % 864_000;
-        let (year, month, day) = compass_pdr::civil::civil_from_days(days);
+        let (year, month, day) = compass_pdr::base::calendar::civil_from_days(days);
         let time = format!(
             "{:02}{:02}{:02}.{:02}",
             ds_of_day / 36_000,

@@ -378,9 +378,9 @@ fn seed_yaw_sigma_rad(reference: &FieldReference, force: Vector3<f64>, field: Ve
 mod tests {
     use super::*;
     use crate::attitude::{estimate_attitude, AttitudeOptions};
-    use crate::recording::Stream;
+    use crate::base::stats::HeadingErrorStats;
+    use crate::io::recording::Stream;
     use crate::sim::walk::{simulate, WalkConfig};
-    use crate::stats::HeadingErrorStats;
 
     /// A simulated walk's streams, its field calibrated exactly, and its true heading
     /// (degrees; the walk's declination is 0).

@@ -22,8 +22,8 @@
 use nalgebra::Vector3;
 use serde::Serialize;
 
-use crate::recording::Stream;
-use crate::stats::median;
+use crate::base::stats::median;
+use crate::io::recording::Stream;
 
 /// The field's magnitude may differ from the reference by this fraction before it
 /// counts as disturbed: a calibration (the phone's own running one too) leaves a few
@@ -214,7 +214,7 @@ impl QuasiStaticField {
             }
             self.steady = self.closed.len() == QUASI_STATIC_BLOCKS
                 && self.closed.iter().all(|&(_, block_rad)| {
-                    crate::angle::wrap_to_pi(block_rad - mean_rad).abs()
+                    crate::base::angle::wrap_to_pi(block_rad - mean_rad).abs()
                         <= QUASI_STATIC_TOLERANCE_RAD
                 });
         }

@@ -35,15 +35,17 @@
 //! From a file, only the field's sample interval and the gyroscope's gap limit are read
 //! off the whole log ([`StreamTiming::of`]); a live caller states them.
 
+pub mod compass_heading;
+pub mod down;
 pub mod eskf;
 pub mod filter;
 pub mod gates;
-pub mod track;
+pub mod tilt;
 
 use nalgebra::Vector3;
 use serde::Serialize;
 
-use crate::recording::{GyroBias, Stream};
+use crate::io::recording::{GyroBias, Stream};
 use eskf::NoiseModel;
 pub use filter::{AttitudeFilter, StreamTiming};
 use gates::FieldReference;

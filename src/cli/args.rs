@@ -5,12 +5,12 @@
 use std::path::PathBuf;
 
 use clap::ValueEnum;
-use compass_pdr::calibration::{CalibrationOptions, DeclinationChoice, Method};
-use compass_pdr::heading::HeadingOptions;
+use compass_pdr::analysis::calibration::{CalibrationOptions, DeclinationChoice, Method};
+use compass_pdr::analysis::headings::HeadingOptions;
+use compass_pdr::io::recording::GyroBias;
 use compass_pdr::pdr::fusion::{GnssPolicy, Outage};
 use compass_pdr::pdr::step_length::StepModelKind;
 use compass_pdr::pdr::{FilterKind, HeadingChoice, PdrOptions};
-use compass_pdr::recording::GyroBias;
 use compass_pdr::reference::{ReferenceChoice, ReferenceOptions};
 
 /// The files to read, and how to read their columns.

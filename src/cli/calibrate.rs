@@ -6,14 +6,14 @@ use std::path::Path;
 use super::args::ImportArgs;
 use super::inspect::{import_paths, print_import_diagnostics};
 use super::{print_out, print_report};
-use compass_pdr::calib::export::{c_snippet, motioncal_packet};
-use compass_pdr::calib::plane::SoftIronModel;
-use compass_pdr::calibration::{CalibrationOptions, CalibrationReport, MethodParameters};
-use compass_pdr::heading::HeadingOptions;
+use compass_pdr::analysis::calibration::{CalibrationOptions, CalibrationReport, MethodParameters};
+use compass_pdr::analysis::headings::HeadingOptions;
+use compass_pdr::base::stats::HeadingErrorStats;
+use compass_pdr::fit::ellipse::SoftIronModel;
+use compass_pdr::fit::export::{c_snippet, motioncal_packet};
 use compass_pdr::pipeline;
-use compass_pdr::plot::draw_calibration_figure;
-use compass_pdr::report::{device_calibration_lines, device_export_or_why, DeviceExport};
-use compass_pdr::stats::HeadingErrorStats;
+use compass_pdr::present::plot::draw_calibration_figure;
+use compass_pdr::present::report::{device_calibration_lines, device_export_or_why, DeviceExport};
 use plotters::prelude::{IntoDrawingArea, SVGBackend};
 
 /// What `calibrate` writes besides its summary.

@@ -5,10 +5,10 @@ use std::path::Path;
 use super::args::ImportArgs;
 use super::inspect::{import_paths, print_import_diagnostics};
 use super::print_report;
-use compass_pdr::heading::{HeadingOptions, HeadingReport};
+use compass_pdr::analysis::headings::{HeadingOptions, HeadingReport};
+use compass_pdr::base::stats::HeadingErrorStats;
 use compass_pdr::pipeline;
-use compass_pdr::plot::draw_deviation_figure;
-use compass_pdr::stats::HeadingErrorStats;
+use compass_pdr::present::plot::draw_deviation_figure;
 use plotters::prelude::{IntoDrawingArea, SVGBackend};
 
 /// Where `heading` writes, besides its report.

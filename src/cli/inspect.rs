@@ -154,7 +154,7 @@ pub(super) fn run_inspect(input: &ImportArgs, json: bool) -> Result<(), String> 
         if inspection.compass_params.is_some() {
             ""
         } else {
-            compass_pdr::english::plural(inspection.diagnostics.total(), "line ", "lines ")
+            compass_pdr::base::words::plural(inspection.diagnostics.total(), "line ", "lines ")
         }
     );
     let _ = writeln!(

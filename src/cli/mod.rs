@@ -10,8 +10,8 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
-use compass_pdr::calibration::Method;
-use compass_pdr::heading::HeadingOptions;
+use compass_pdr::analysis::calibration::Method;
+use compass_pdr::analysis::headings::HeadingOptions;
 
 /// Large blocks (a file's streams) are mapped in huge pages where the system allows it.
 #[global_allocator]

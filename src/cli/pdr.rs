@@ -9,8 +9,8 @@ use super::{print_out, print_report};
 use compass_pdr::pdr::export::{track_text, TrackFormat};
 use compass_pdr::pdr::{PdrOptions, PdrReport};
 use compass_pdr::pipeline;
-use compass_pdr::plot::draw_pdr_figure;
-use compass_pdr::report::{html_report, svg_figures};
+use compass_pdr::present::plot::draw_pdr_figure;
+use compass_pdr::present::report::{html_report, svg_figures};
 use plotters::prelude::{IntoDrawingArea, SVGBackend};
 
 pub(super) fn run_report(
@@ -85,7 +85,7 @@ pub(super) fn pdr_text(report: &PdrReport) -> String {
             .map_or(String::new(), |hz| format!(" ({hz:.2} steps/s)")),
         report.pdr_distance_m
     );
-    if let Some(not_a_walk) = compass_pdr::verdict::not_a_walk(report) {
+    if let Some(not_a_walk) = compass_pdr::present::verdict::not_a_walk(report) {
         let _ = writeln!(text, "  note: {not_a_walk}");
     }
     let _ = writeln!(text, "  step model: {}", report.step_model.describe());
@@ -165,7 +165,11 @@ pub(super) fn pdr_text(report: &PdrReport) -> String {
         .iter()
         .filter(|gap| gap.position_error.is_none())
     {
-        let _ = writeln!(text, "  {}", compass_pdr::report::gap_sentence(gap));
+        let _ = writeln!(
+            text,
+            "  {}",
+            compass_pdr::present::report::gap_sentence(gap)
+        );
     }
     if let Some(error) = &report.step_length_error_m {
         let _ = writeln!(

@@ -9,7 +9,7 @@
 //! field strength is then in counts), `body_from_sensor` a rotation
 //! from the raw values' axes to body axes (x forward, y right, z down). A
 //! [`SensorFrame`] records the three, next to where each importer does that
-//! conversion; [`crate::calib::export::SensorCalibration`] uses it to turn a body-axes
+//! conversion; [`crate::fit::export::SensorCalibration`] uses it to turn a body-axes
 //! calibration back into the one a device applies to its raw readings.
 //!
 //! Only the frames below can be made, and each `body_from_sensor` is a proper rotation

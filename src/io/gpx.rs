@@ -11,7 +11,7 @@
 
 use super::delimited::parse_datetime_s;
 use super::{ensure_text, shorten, thousands, Diagnostics, ImportError, ImportReport};
-use crate::recording::{GnssFix, Recording};
+use crate::io::recording::{GnssFix, Recording};
 
 pub const GPX: &str = "GPX track";
 pub const KML: &str = "KML track";
@@ -160,7 +160,7 @@ pub fn read(file_name: &str, bytes: &[u8]) -> Result<ImportReport, ImportError> 
     } else {
         gpx_points(&text, &mut untimed)
     };
-    crate::order::sort_by_key(&mut points, |point| point.unix_s);
+    crate::base::sort::sort_by_key(&mut points, |point| point.unix_s);
     let Some(first) = points.first().map(|point| point.unix_s) else {
         return Err(ImportError::NothingRecognised {
             file_name: file_name.to_string(),
@@ -186,7 +186,7 @@ pub fn read(file_name: &str, bytes: &[u8]) -> Result<ImportReport, ImportError> 
          the reference heading where the track has no course of its own",
         thousands(points.len()),
         recording.gnss.duration_s(),
-        crate::civil::utc_text(first),
+        crate::base::calendar::utc_text(first),
         if n_with_course > 0 {
             format!(", with speed and course at {}", thousands(n_with_course))
         } else {

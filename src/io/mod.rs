@@ -15,6 +15,7 @@ pub mod import;
 pub mod lines;
 pub mod nmea;
 pub mod number;
+pub mod recording;
 pub mod sensor_files;
 pub mod serial_lines;
 pub mod summary;
@@ -26,7 +27,7 @@ use thiserror::Error;
 
 pub use frame::{MagUnit, SensorFrame, UnitOrigin};
 
-use crate::recording::Recording;
+use crate::io::recording::Recording;
 
 /// How many diagnostics an import keeps in full; past this only their count is kept,
 /// so that a huge file of bad lines cannot exhaust memory.

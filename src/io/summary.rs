@@ -4,7 +4,7 @@
 use nalgebra::Vector3;
 use serde::Serialize;
 
-use crate::recording::{Recording, Stream};
+use crate::io::recording::{Recording, Stream};
 
 /// One stream of a recording, summarised.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -26,7 +26,7 @@ pub struct StreamSummary {
 }
 
 /// Summaries of the streams of a recording that hold any samples. A long recording is
-/// summarised on two threads ([`crate::par`]): each stream is a pass over memory the
+/// summarised on two threads ([`crate::base::par`]): each stream is a pass over memory the
 /// import has just written (a 100 MB CSV's 135 MB of samples: 14 ms on one core).
 pub fn summarize(recording: &Recording) -> Vec<StreamSummary> {
     let vectors: [(&'static str, &'static str, &Stream<Vector3<f64>>); 4] = [
@@ -74,13 +74,13 @@ pub fn summarize(recording: &Recording) -> Vec<StreamSummary> {
         .filter(|job| !job.t_s.is_empty())
         .collect();
     let n_samples: usize = jobs.iter().map(|job| job.t_s.len()).sum();
-    if n_samples >= MIN_PARALLEL_SAMPLES && crate::par::n_threads() > 1 {
+    if n_samples >= MIN_PARALLEL_SAMPLES && crate::base::par::n_threads() > 1 {
         // Two halves of about the same work: every stream's timing (a pass over its
         // times), and the vector streams' magnitudes (a square root per sample). Whole
         // streams per thread left one thread with the three vector streams of a
         // canonical CSV, the other waiting.
         if let Some(halves) =
-            crate::par::on_each_small_part([false, true].into_iter(), |magnitudes| {
+            crate::base::par::on_each_small_part([false, true].into_iter(), |magnitudes| {
                 if magnitudes {
                     (Vec::new(), jobs.iter().map(Job::mean_magnitude).collect())
                 } else {

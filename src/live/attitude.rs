@@ -18,9 +18,9 @@ use crate::attitude::gates::{dip_of, FieldReference};
 use crate::attitude::{
     AttitudeEstimate, AttitudeFilter, AttitudeOptions, StreamTiming, MAX_GYRO_GAP_S,
 };
-use crate::calib::model::FieldCalibration;
+use crate::fit::model::FieldCalibration;
+use crate::io::recording::{Recording, Stream};
 use crate::io::serial_lines::sensor_to_body;
-use crate::recording::{Recording, Stream};
 
 /// The filter and how far it has read the session's streams.
 #[derive(Debug, Clone)]
@@ -220,7 +220,7 @@ fn reference(recording: &Recording, calibration: &FieldCalibration) -> Option<Fi
 #[cfg(test)]
 mod tests {
     use super::super::LiveSession;
-    use crate::stats::HeadingErrorStats;
+    use crate::base::stats::HeadingErrorStats;
 
     #[test]
     fn a_board_that_prints_zeros_for_its_gyroscope_gets_no_filter() {

@@ -27,11 +27,11 @@
 use nalgebra::{Matrix3, Vector3};
 use serde::Serialize;
 
-use crate::calib::ellipsoid::EllipsoidAccumulator;
-use crate::calib::model::FieldCalibration;
+use crate::fit::model::FieldCalibration;
+use crate::fit::streaming_ellipsoid::EllipsoidAccumulator;
 
 use super::Verdict;
-use crate::calib::acceptance::acceptance_reasons;
+use crate::fit::quality::acceptance_reasons;
 
 /// Consecutive samples per block of the train/check split. At the 10-1,000 lines/s of
 /// serial boards a block is 0.06-6 s of turning: long enough that the check samples are
@@ -369,7 +369,8 @@ impl<'a> Check<'a> {
     fn on_check(&self, calibration: &FieldCalibration) -> OnCheck {
         let magnitudes = self.magnitudes(calibration);
         OnCheck {
-            spread_pct: crate::stats::spread_pct(magnitudes.iter().copied()).unwrap_or(f64::NAN),
+            spread_pct: crate::base::stats::spread_pct(magnitudes.iter().copied())
+                .unwrap_or(f64::NAN),
             rms_to_expected_ut: self.expected_field_ut.and_then(|expected_ut| {
                 let squares: Vec<f64> = magnitudes
                     .iter()

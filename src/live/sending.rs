@@ -8,8 +8,8 @@ use serde::Serialize;
 
 use super::send_check::{HeldBack, InForce, InForceSource, SendDecision};
 use super::LiveSession;
-use crate::calib::export::{motioncal_packet, MOTIONCAL_PACKET_LEN};
-use crate::calib::model::FieldCalibration;
+use crate::fit::export::{motioncal_packet, MOTIONCAL_PACKET_LEN};
+use crate::fit::model::FieldCalibration;
 use crate::io::serial_lines::{EchoKind, EchoSeen};
 
 /// An echoed value matches the one sent within this (the sketch prints `Cal1:` with 3

@@ -1,8 +1,8 @@
 //! The live session's tests: streaming, fitting, the packet and its echo, bounds on memory.
 
 use super::*;
-use crate::calib::export::parse_motioncal_packet;
-use crate::sim::rng::SplitMix64;
+use crate::base::rng::SplitMix64;
+use crate::fit::export::parse_motioncal_packet;
 use nalgebra::Matrix3;
 
 /// A distorted sensor (sensor axes, µT) and MotionCal `Raw:` lines of it turned

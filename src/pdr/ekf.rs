@@ -24,7 +24,7 @@
 
 use serde::Serialize;
 
-use crate::angle::{wrap_to_2pi, wrap_to_pi};
+use crate::base::angle::{wrap_to_2pi, wrap_to_pi};
 
 /// Noise of the model and the measurements (1 σ).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]

@@ -8,7 +8,7 @@
 use std::fmt::Write as _;
 
 use super::PdrAnalysis;
-use crate::geo::LocalFrame;
+use crate::base::geodesy::LocalFrame;
 use nalgebra::Vector3;
 
 /// The track's formats.

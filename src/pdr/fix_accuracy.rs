@@ -41,7 +41,7 @@ pub fn with_neighbourhood_accuracy(fixes: &[FixInput]) -> Vec<FixInput> {
                 .iter()
                 .map(|&(_, hacc_m)| hacc_m)
                 .collect();
-            let median = crate::stats::median(&mut around);
+            let median = crate::base::stats::median(&mut around);
             FixInput {
                 hacc_m: match (fix.hacc_m, median) {
                     (Some(hacc_m), Some(median_m)) if hacc_m.is_finite() => {

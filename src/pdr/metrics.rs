@@ -11,7 +11,7 @@
 use serde::Serialize;
 
 use super::fusion::TrackPoint;
-use crate::angle::wrap_to_pi;
+use crate::base::angle::wrap_to_pi;
 
 /// Position errors over a span.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -179,8 +179,8 @@ pub fn position_errors(
     let mut sorted = errors.clone();
     sorted.sort_by(f64::total_cmp);
     Some(PositionErrors {
-        median_m: crate::stats::quantile_sorted(&sorted, 0.5),
-        p75_m: crate::stats::quantile_sorted(&sorted, 0.75),
+        median_m: crate::base::stats::quantile_sorted(&sorted, 0.5),
+        p75_m: crate::base::stats::quantile_sorted(&sorted, 0.75),
         within_1_sigma_pct: within(1.0),
         within_2_sigma_pct: within(2.0),
         start_s: first_s,

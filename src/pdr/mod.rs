@@ -28,7 +28,7 @@
 //!
 //! ## The stage
 //!
-//! 1. The heading model is the comparison's choice ([`crate::calibration::selection`]); it is fitted
+//! 1. The heading model is the comparison's choice ([`crate::analysis::calibration::selection`]); it is fitted
 //!    again on the GNSS course left after the outages' fixes are set aside (Fig. 2:
 //!    "the speed and heading from GPS are utilized to train the step length model and
 //!    calibrate the compass"), never on a reference-heading column, which in a test log
@@ -49,36 +49,36 @@ pub mod ekf;
 pub mod export;
 mod fix_accuracy;
 pub mod fusion;
-pub mod heading;
 pub mod metrics;
 mod references;
-mod report;
+mod results;
 mod small_matrix;
 pub mod smoother;
+pub mod step_heading;
 pub mod step_length;
 pub mod steps;
 pub mod turning_over;
 
-pub use report::{FixCounts, GnssGap, PdrAnalysis, PdrError, PdrReport, StepModelReport};
+pub use results::{FixCounts, GnssGap, PdrAnalysis, PdrError, PdrReport, StepModelReport};
 
 use serde::Serialize;
 
-use crate::calibration::CalibrationAnalysis;
-use crate::geo::LocalFrame;
-use crate::heading::{HeadingAnalysis, HeadingOptions};
+use crate::analysis::calibration::CalibrationAnalysis;
+use crate::analysis::headings::{HeadingAnalysis, HeadingOptions};
+use crate::base::geodesy::LocalFrame;
+use crate::io::recording::{Recording, Stream};
 use crate::io::ImportReport;
-use crate::recording::{Recording, Stream};
 
 use ekf::EkfNoise;
 use fusion::{fuse, FixInput, FixUse, Fused, GnssPolicy, StepInput, TrackPoint};
-use heading::{fill_forward, mean_heading, step_heading, StepHeading};
 use metrics::{LoopClosure, MeanStd, PositionErrors};
 use references::{
     first_good_fix, gnss_step_references, reference_positions, start_position,
     step_reference_lengths, train_step_model, ReferenceSets,
 };
-use report::gnss_gaps;
+use results::gnss_gaps;
 use smoother::{fuse_walk, WalkNoise, WalkPrior};
+use step_heading::{fill_forward, mean_heading, step_heading, StepHeading};
 use step_length::StepModelKind;
 use steps::{detect_steps, Step, StepOptions};
 use turning_over::walking_steps;

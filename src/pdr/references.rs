@@ -4,8 +4,8 @@
 //! on the first set that has any (Chen et al., Section III: the step length model is
 //! trained while GNSS is good).
 
-use crate::geo::{Geodetic, LocalFrame};
-use crate::recording::{Recording, Stream};
+use crate::base::geodesy::{Geodetic, LocalFrame};
+use crate::io::recording::{Recording, Stream};
 
 use super::fusion::{FixInput, GnssPolicy};
 use super::step_length::{self, SegmentReference, StepLengthModel, StepModelKind, StepReference};
@@ -86,7 +86,7 @@ pub(super) fn reference_positions(
             .zip(&metric.values)
             .map(|(&t_s, value)| (t_s, [value.x + shift[0], value.y + shift[1]])),
     );
-    crate::order::sort_by_key(&mut out, |point| point.0);
+    crate::base::sort::sort_by_key(&mut out, |point| point.0);
     out
 }
 

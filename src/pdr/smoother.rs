@@ -50,7 +50,7 @@
 use serde::Serialize;
 
 use super::fusion::{FixInput, FixUse, GnssPolicy, StepInput, TrackPoint};
-use crate::angle::{wrap_to_2pi, wrap_to_pi};
+use crate::base::angle::{wrap_to_2pi, wrap_to_pi};
 
 use super::small_matrix::{Cov, State};
 
@@ -209,7 +209,7 @@ pub fn fuse_walk(
         if pass.nis.len() < 5 {
             break;
         }
-        let median = crate::stats::median(&mut pass.nis.clone()).unwrap_or(CHI2_2_MEDIAN);
+        let median = crate::base::stats::median(&mut pass.nis.clone()).unwrap_or(CHI2_2_MEDIAN);
         trust = (trust * (median / CHI2_2_MEDIAN).sqrt())
             .clamp(noise.trust_bounds[0], noise.trust_bounds[1]);
     }

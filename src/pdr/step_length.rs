@@ -6,7 +6,7 @@
 //! - linear (Eq. 2): `SL = A + B·SF + C·SV`, by least squares;
 //! - nonlinear, Weinberg's (Eq. 3): `SL = K·(Amax − Amin)^¼`, one parameter;
 //! - a neural network with 16 `tansig` (tanh) hidden neurons fed by SF, SV, Amax and
-//!   Amin (the network code is [`crate::nn`], shared with the heading correction).
+//!   Amin (the network code is [`crate::deviation::network`], shared with the heading correction).
 //!
 //! References are per step (GNSS speed over the step) or a distance for a run of steps
 //! (GNSS fixes or reference positions at its ends on a straight stretch, a loop of known
@@ -19,7 +19,7 @@ use serde::Serialize;
 use thiserror::Error;
 
 use super::steps::Step;
-use crate::nn::{self, Activation, Dataset, Mlp, TrainOptions};
+use crate::deviation::network::{self, Activation, Dataset, Mlp, TrainOptions};
 
 /// Weinberg's K when nothing trains it (m per (m/s²)^¼): a typical adult walking with a
 /// phone in hand. The paper trains K on GPS; use a known distance or GNSS to do better.
@@ -283,7 +283,7 @@ pub fn fit_segments(
                 seed,
                 ..TrainOptions::default()
             };
-            let (model, _report): (Mlp, nn::TrainingReport) = nn::train(&data, &options)
+            let (model, _report): (Mlp, network::TrainingReport) = network::train(&data, &options)
                 .map_err(|error| StepModelError::Training(error.to_string()))?;
             Ok(StepLengthModel::Neural {
                 network: Box::new(model),
@@ -311,8 +311,8 @@ pub fn fit_weinberg_to_distance(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::base::rng::SplitMix64;
     use crate::io::STANDARD_GRAVITY_MPS2;
-    use crate::sim::rng::SplitMix64;
 
     fn step_with(frequency_hz: f64, variance: f64, peak_to_peak: f64) -> Step {
         Step {

@@ -28,7 +28,7 @@
 use nalgebra::Vector3;
 use serde::Serialize;
 
-use crate::recording::Stream;
+use crate::io::recording::Stream;
 
 /// Choices of the detector. The defaults hold for a phone in hand or flat, walking at
 /// 1.2-2.5 steps per second, sampled at 25-200 Hz.
@@ -354,7 +354,7 @@ mod tests {
     #[test]
     fn a_phone_at_rest_counts_no_steps() {
         let mut stream = Stream::default();
-        let mut rng = crate::sim::rng::SplitMix64::new(3);
+        let mut rng = crate::base::rng::SplitMix64::new(3);
         for idx in 0..3000 {
             let noise = Vector3::new(rng.gaussian(), rng.gaussian(), rng.gaussian()) * 0.05;
             stream.push(

@@ -205,12 +205,16 @@ fn a_heading_fitted_on_the_track_s_own_truth_does_not_steer_it() {
     // A reference that even the best model is 45° RMS from chooses nothing: the track
     // takes the attitude filter.
     let chosen_basis = headings.report.choice.basis.clone();
-    headings.report.choice.basis = crate::calibration::selection::Basis::ReferenceTooFar {
-        rms_deg: 45.0,
-        closest: "reference LS (Eq. 8)".to_string(),
-    };
+    headings.report.choice.basis =
+        crate::analysis::calibration::selection::Basis::ReferenceTooFar {
+            rms_deg: 45.0,
+            closest: "reference LS (Eq. 8)".to_string(),
+        };
     let analysis = dead_reckon(&report, (&calibration, &headings), &options).expect("runs");
-    assert_eq!(analysis.report.heading_key, crate::heading::ATTITUDE_KEY);
+    assert_eq!(
+        analysis.report.heading_key,
+        crate::analysis::headings::ATTITUDE_KEY
+    );
     assert!(
         has_note(&analysis, "too far to choose one"),
         "{:?}",

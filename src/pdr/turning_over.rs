@@ -34,7 +34,7 @@
 
 use nalgebra::Vector3;
 
-use crate::recording::Stream;
+use crate::io::recording::Stream;
 
 use super::steps::Step;
 
@@ -110,7 +110,7 @@ pub fn walking_steps(
         }
         let n_turned = bout.clone().filter(|&idx| turned_over[idx]).count();
         let mut durations_s: Vec<f64> = steps[bout.clone()].iter().map(Step::duration_s).collect();
-        let running = crate::stats::median(&mut durations_s)
+        let running = crate::base::stats::median(&mut durations_s)
             .is_some_and(|median_s| median_s < MIN_FIGURE_EIGHT_STEP_S);
         turned_over[bout.clone()].fill(2 * n_turned >= bout.len() && !running);
     }

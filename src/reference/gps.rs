@@ -17,8 +17,8 @@
 use nalgebra::Vector2;
 use serde::Serialize;
 
-use crate::geo::{Geodetic, LocalFrame};
-use crate::recording::{GnssFix, Stream};
+use crate::base::geodesy::{Geodetic, LocalFrame};
+use crate::io::recording::{GnssFix, Stream};
 
 /// The gates.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -178,7 +178,7 @@ pub fn course_reference(
                     let delta = en1 - en0;
                     course.push(
                         (t0_s + t1_s) / 2.0,
-                        crate::angle::wrap_to_2pi(delta.x.atan2(delta.y)),
+                        crate::base::angle::wrap_to_2pi(delta.x.atan2(delta.y)),
                     );
                     used.n_from_fixes += 1;
                 }
@@ -208,7 +208,7 @@ fn steady_only(course: &Stream<f64>, speeds_mps: &[f64], max_turn_rate_dps: f64)
             let (&other_t_s, &other_value) = (course.t_s.get(other)?, course.values.get(other)?);
             let dt_s = (other_t_s - t_s).abs();
             (dt_s > 0.0 && dt_s <= STEADY_WINDOW_S)
-                .then(|| crate::angle::wrap_to_pi(other_value - value).abs() / dt_s)
+                .then(|| crate::base::angle::wrap_to_pi(other_value - value).abs() / dt_s)
         };
         let before = idx.checked_sub(1).and_then(turn_rate_to);
         let after = turn_rate_to(idx + 1);

@@ -27,10 +27,10 @@
 
 use serde::Serialize;
 
-use crate::angle::wrap_to_pi;
-use crate::calib::gravity::GravityEstimate;
-use crate::calib::tilt::Tilt;
-use crate::recording::{Recording, Stream};
+use crate::attitude::down::GravityEstimate;
+use crate::attitude::tilt::Tilt;
+use crate::base::angle::wrap_to_pi;
+use crate::io::recording::{Recording, Stream};
 
 /// Gyro samples further apart than this (s), or than three of the log's typical
 /// intervals where that is longer (a log of per-second means), are a gap: the turn
@@ -77,7 +77,7 @@ pub struct GyroHeading {
 }
 
 /// Integrates the gyro of `recording`, levelled with `gravity` (the recording's own,
-/// [`crate::calib::gravity::gravity_of`]); `None` without gyro samples.
+/// [`crate::attitude::down::gravity_of`]); `None` without gyro samples.
 pub fn gyro_heading(
     recording: &Recording,
     gravity: &GravityEstimate,
@@ -157,7 +157,10 @@ pub fn gyro_heading(
             .to_degrees();
         let mut heading = Stream::default();
         for (&t_s, &gyro_rad) in relative.t_s.iter().zip(&relative.values) {
-            heading.push(t_s, crate::angle::wrap_to_2pi(gyro_rad + correction(t_s)));
+            heading.push(
+                t_s,
+                crate::base::angle::wrap_to_2pi(gyro_rad + correction(t_s)),
+            );
         }
         Some(GyroHeading {
             heading_rad: heading,
@@ -197,7 +200,7 @@ pub fn gyro_heading(
     for (&t_s, &gyro_rad) in relative.t_s.iter().zip(&relative.values) {
         heading.push(
             t_s,
-            crate::angle::wrap_to_2pi(gyro_rad - drift_radps * (t_s - first_t_s)),
+            crate::base::angle::wrap_to_2pi(gyro_rad - drift_radps * (t_s - first_t_s)),
         );
     }
     Some(GyroHeading {
@@ -306,7 +309,7 @@ mod tests {
     use super::*;
     use nalgebra::Vector3;
 
-    use crate::calib::gravity::gravity_of;
+    use crate::attitude::down::gravity_of;
     use crate::io::STANDARD_GRAVITY_MPS2;
 
     /// A level device turning at `rate_radps` about the vertical, with a gyro bias.
@@ -332,7 +335,7 @@ mod tests {
         let mut anchor = Stream::default();
         for idx in 0..30 {
             let t_s = idx as f64 * 10.0;
-            anchor.push(t_s, crate::angle::wrap_to_2pi(1.0 + 0.05 * t_s));
+            anchor.push(t_s, crate::base::angle::wrap_to_2pi(1.0 + 0.05 * t_s));
         }
         let gyro = gyro_heading(
             &recording,

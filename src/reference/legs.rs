@@ -12,7 +12,7 @@
 use nalgebra::Vector2;
 use serde::Serialize;
 
-use crate::recording::Stream;
+use crate::io::recording::Stream;
 
 /// The choices.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -74,7 +74,7 @@ pub fn leg_reference(
                 start_s,
                 end_s: t_s,
                 length_m,
-                bearing_deg: crate::angle::wrap_to_2pi(delta.x.atan2(delta.y)).to_degrees(),
+                bearing_deg: crate::base::angle::wrap_to_2pi(delta.x.atan2(delta.y)).to_degrees(),
             });
             start = Some((t_s, en));
         }

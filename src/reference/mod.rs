@@ -22,9 +22,9 @@ pub mod legs;
 
 use serde::Serialize;
 
-use crate::calib::gravity::GravityEstimate;
-use crate::geo::{Geodetic, LocalFrame};
-use crate::recording::{Recording, Stream};
+use crate::attitude::down::GravityEstimate;
+use crate::base::geodesy::{Geodetic, LocalFrame};
+use crate::io::recording::{Recording, Stream};
 use gps::{course_reference, GpsCourseGates, GpsCourseUse};
 use gyro::{gyro_heading, GyroAlignment};
 use legs::{leg_reference, LegOptions};
@@ -342,8 +342,8 @@ fn gyro_reference(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::calib::gravity::gravity_of;
-    use crate::recording::GnssFix;
+    use crate::attitude::down::gravity_of;
+    use crate::io::recording::GnssFix;
 
     fn options(choice: ReferenceChoice, min_speed: Option<f64>) -> ReferenceOptions {
         ReferenceOptions {

@@ -16,7 +16,7 @@ use nalgebra::{Matrix3, Rotation3, Vector3};
 use serde::Serialize;
 
 use super::field::FieldTruth;
-use super::rng::SplitMix64;
+use crate::base::rng::SplitMix64;
 // Standard gravity, as the importer reads MotionCal counts.
 use crate::io::STANDARD_GRAVITY_MPS2;
 
@@ -154,7 +154,7 @@ impl DanceTruth {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::calibration::{calibrate, CalibrationOptions, Method, MethodParameters};
+    use crate::analysis::calibration::{calibrate, CalibrationOptions, Method, MethodParameters};
     use crate::io::import::import;
     use crate::io::serial_lines::sensor_to_body;
     use crate::live::LiveSession;

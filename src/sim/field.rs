@@ -8,7 +8,7 @@
 
 use nalgebra::{Matrix3, Rotation3, Vector3};
 
-use super::rng::SplitMix64;
+use crate::base::rng::SplitMix64;
 
 /// The distortion and the field, all known.
 #[derive(Debug, Clone, Copy, PartialEq)]

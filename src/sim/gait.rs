@@ -44,8 +44,8 @@ use std::f64::consts::{PI, TAU};
 
 use serde::Serialize;
 
-use super::rng::SplitMix64;
-use crate::angle::wrap_to_2pi;
+use crate::base::angle::wrap_to_2pi;
+use crate::base::rng::SplitMix64;
 
 /// How the simulated pedestrian walks.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -342,7 +342,7 @@ impl GaitPlan {
                 is_start: false,
             });
         }
-        crate::order::sort_by_key(&mut boundaries, |boundary| boundary.t_s);
+        crate::base::sort::sort_by_key(&mut boundaries, |boundary| boundary.t_s);
         boundaries
     }
 

@@ -19,5 +19,4 @@ pub mod dance;
 pub mod field;
 pub mod gait;
 pub mod nmea;
-pub mod rng;
 pub mod walk;

@@ -15,7 +15,7 @@
 
 use std::fmt::Write as _;
 
-use crate::civil::civil_from_days;
+use crate::base::calendar::civil_from_days;
 use crate::io::canonical_csv::CanonicalRow;
 
 /// The day a log without a start time is written on: 2026-01-01 00:00 UTC.
@@ -122,7 +122,7 @@ pub fn push_sentence(text: &mut String, body: &str) {
 mod tests {
     use super::*;
     use crate::io::import::import;
-    use crate::recording::North;
+    use crate::io::recording::North;
     use crate::sim::walk::{simulate, WalkConfig};
 
     #[test]
@@ -142,7 +142,7 @@ mod tests {
         // The importer merges RMC and GGA of one time into a fix with a position; the
         // untimed VTG after them is a sample of its own (course and speed only).
         let gnss = &report.recording.gnss;
-        let from_rmc: Vec<(f64, crate::recording::GnssFix)> = gnss
+        let from_rmc: Vec<(f64, crate::io::recording::GnssFix)> = gnss
             .t_s
             .iter()
             .zip(&gnss.values)

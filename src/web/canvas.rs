@@ -8,15 +8,17 @@ use plotters_canvas::CanvasBackend;
 use wasm_bindgen::JsCast;
 use web_sys::HtmlCanvasElement;
 
-use crate::calibration::CalibrationAnalysis;
-use crate::heading::HeadingAnalysis;
+use crate::analysis::calibration::CalibrationAnalysis;
+use crate::analysis::headings::HeadingAnalysis;
 use crate::pdr::PdrAnalysis;
-use crate::plot::deviation::{
+use crate::present::plot::deviation::{
     draw_deviation_curve, draw_online_convergence, draw_residual_histogram,
 };
-use crate::plot::pdr::{draw_position_error, draw_step_lengths, draw_trajectory};
-use crate::plot::zoom::{PlotFrame, Zoom};
-use crate::plot::{draw_circle_fit, draw_field_magnitude_of, draw_heading_error, PlotError};
+use crate::present::plot::pdr::{draw_position_error, draw_step_lengths, draw_trajectory};
+use crate::present::plot::zoom::{PlotFrame, Zoom};
+use crate::present::plot::{
+    draw_circle_fit, draw_field_magnitude_of, draw_heading_error, PlotError,
+};
 
 /// Which plot goes on a canvas.
 #[derive(Debug, Clone, Copy)]
@@ -101,7 +103,7 @@ pub fn draw_live_clouds(
     quality: Option<&crate::live::LiveQuality>,
 ) -> Result<(), String> {
     draw_with(canvas, |area| {
-        crate::plot::live_panel::draw_live_clouds(area, samples_ut, quality)
+        crate::present::plot::live_panel::draw_live_clouds(area, samples_ut, quality)
     })
 }
 
@@ -110,30 +112,30 @@ pub fn draw_sphere(
     canvas: &HtmlCanvasElement,
     samples_ut: &[nalgebra::Vector3<f64>],
     quality: Option<&crate::live::LiveQuality>,
-    view: crate::plot::sphere_view::SphereView,
+    view: crate::present::plot::sphere_view::SphereView,
 ) -> Result<(), String> {
     draw_with(canvas, |area| {
-        crate::plot::sphere_view::draw_sphere_view(area, samples_ut, quality, view)
+        crate::present::plot::sphere_view::draw_sphere_view(area, samples_ut, quality, view)
     })
 }
 
 /// The live panel's coverage map.
 pub fn draw_coverage(
     canvas: &HtmlCanvasElement,
-    coverage: Option<&crate::calib::sphere_coverage::SphereCoverage>,
+    coverage: Option<&crate::fit::coverage::SphereCoverage>,
 ) -> Result<(), String> {
     draw_with(canvas, |area| {
-        crate::plot::live_panel::draw_coverage_map(area, coverage)
+        crate::present::plot::live_panel::draw_coverage_map(area, coverage)
     })
 }
 
 /// The controls' timeline.
 pub fn draw_timeline(
     canvas: &HtmlCanvasElement,
-    timeline: &crate::plot::timeline::Timeline,
+    timeline: &crate::present::plot::timeline::Timeline,
 ) -> Result<(), String> {
     draw_with(canvas, |area| {
-        crate::plot::timeline::draw_timeline(area, timeline)
+        crate::present::plot::timeline::draw_timeline(area, timeline)
     })
 }
 
@@ -144,7 +146,7 @@ pub fn draw_dial(
     filter_heading_rad: Option<(f64, f64)>,
 ) -> Result<(), String> {
     draw_with(canvas, |area| {
-        crate::plot::live_panel::draw_heading_dial(area, heading_rad, filter_heading_rad)
+        crate::present::plot::live_panel::draw_heading_dial(area, heading_rad, filter_heading_rad)
     })
 }
 

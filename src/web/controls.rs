@@ -14,11 +14,11 @@ use wasm_bindgen::JsCast;
 use web_sys::{Document, HtmlCanvasElement, HtmlInputElement, HtmlSelectElement, MouseEvent};
 
 use super::page::Page;
-use crate::calibration::{CalibrationOptions, DeclinationChoice, Method};
+use crate::analysis::calibration::{CalibrationOptions, DeclinationChoice, Method};
 use crate::pdr::fusion::{parse_outages, Outage};
 use crate::pdr::step_length::StepModelKind;
 use crate::pdr::PdrOptions;
-use crate::plot::timeline::Timeline;
+use crate::present::plot::timeline::Timeline;
 
 const DECLINATION_ID: &str = "control-declination";
 const SPLIT_ID: &str = "control-split";

@@ -13,11 +13,11 @@ use web_sys::{Document, HtmlButtonElement, HtmlCanvasElement};
 
 use super::dom::set_text;
 use super::page::{Page, Results};
-use crate::calib::export::{c_snippet, CalibrationExport};
+use crate::fit::export::{c_snippet, CalibrationExport};
+use crate::io::recording::Recording;
 use crate::pdr::export::{track_text, TrackFormat};
 use crate::pipeline;
-use crate::recording::Recording;
-use crate::report::{
+use crate::present::report::{
     corrected_csv, device_export, device_export_or_why, escape_html, html_report, ReportFigure,
     ReportSection,
 };

@@ -63,9 +63,11 @@ pub fn run_page(analysis_worker: Option<web_sys::Worker>) -> Result<(), JsError>
 pub fn analyse_file(file_name: &str, bytes: &[u8]) -> Result<JsValue, JsError> {
     let import = crate::io::import::import(file_name, bytes)
         .map_err(|error| JsError::new(&error.to_string()))?;
-    let (analysis, _) =
-        crate::pipeline::headings(&import, &crate::heading::HeadingOptions::default())
-            .map_err(|error| JsError::new(&error.to_string()))?;
+    let (analysis, _) = crate::pipeline::headings(
+        &import,
+        &crate::analysis::headings::HeadingOptions::default(),
+    )
+    .map_err(|error| JsError::new(&error.to_string()))?;
     let serializer = serde_wasm_bindgen::Serializer::json_compatible();
     serde::Serialize::serialize(&analysis.report, &serializer)
         .map_err(|error| JsError::new(&error.to_string()))
@@ -125,11 +127,11 @@ pub fn fit_ellipsoid_xyz(xyz: &[f64], refine: bool) -> Result<JsValue, JsError> 
         .chunks_exact(3)
         .map(|triple| nalgebra::Vector3::new(triple[0], triple[1], triple[2]))
         .collect();
-    let options = crate::calib::ellipsoid::EllipsoidOptions {
+    let options = crate::fit::streaming_ellipsoid::EllipsoidOptions {
         refine,
         ..Default::default()
     };
-    let fit = crate::calib::ellipsoid::fit_ellipsoid(&samples, &options)
+    let fit = crate::fit::streaming_ellipsoid::fit_ellipsoid(&samples, &options)
         .map_err(|error| JsError::new(&error.to_string()))?;
     let serializer = serde_wasm_bindgen::Serializer::json_compatible();
     serde::Serialize::serialize(&fit, &serializer).map_err(|error| JsError::new(&error.to_string()))

@@ -3,14 +3,14 @@
 
 use wasm_bindgen::prelude::*;
 
-use crate::nn::{train, Dataset, TrainOptions};
+use crate::deviation::network::{train, Dataset, TrainOptions};
 
 /// What one training did, for the page.
 #[derive(serde::Serialize)]
 struct BenchTraining {
     iterations: usize,
     evaluations: usize,
-    stop: crate::nn::StopReason,
+    stop: crate::deviation::network::StopReason,
     train_mse: f64,
     test_mse: f64,
 }
@@ -47,7 +47,7 @@ pub fn train_mlp_rows(
         Dataset::new(&inputs, n_inputs, &targets, 1)
     };
     let (train_rows, test_rows) = rows.split_at(n_train * width);
-    let error = |error: crate::nn::NnError| JsError::new(&error.to_string());
+    let error = |error: crate::deviation::network::NnError| JsError::new(&error.to_string());
     let train_data = split(train_rows).map_err(error)?;
     let test_data = split(test_rows).map_err(error)?;
     let options = TrainOptions {

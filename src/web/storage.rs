@@ -7,7 +7,7 @@
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 
-use crate::calib::export::CalibrationExport;
+use crate::fit::export::CalibrationExport;
 
 pub const SETTINGS_KEY: &str = "compass-pdr.settings.v1";
 pub const CALIBRATIONS_KEY: &str = "compass-pdr.calibrations.v1";

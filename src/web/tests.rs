@@ -5,7 +5,7 @@ use wasm_bindgen_test::*;
 use web_sys::{CanvasRenderingContext2d, HtmlCanvasElement};
 
 use super::canvas::{self, Plot};
-use crate::calibration::{CalibrationOptions, Method};
+use crate::analysis::calibration::{CalibrationOptions, Method};
 use crate::io::canonical_csv;
 use crate::pipeline::calibrate_file as analyse_log;
 use crate::sim::walk::{simulate, WalkConfig};
@@ -93,7 +93,13 @@ fn both_plots_draw_on_a_canvas() {
         .expect("analysable");
     for plot in [Plot::CircleFit, Plot::HeadingError, Plot::FieldMagnitude] {
         let canvas = new_canvas(480, 360);
-        canvas::draw(&canvas, plot, &analysis, crate::plot::zoom::Zoom::WHOLE).expect("drawn");
+        canvas::draw(
+            &canvas,
+            plot,
+            &analysis,
+            crate::present::plot::zoom::Zoom::WHOLE,
+        )
+        .expect("drawn");
         let n_drawn = n_drawn_pixels(&canvas);
         assert!(n_drawn > 5_000, "{plot:?}: only {n_drawn} pixels drawn");
     }
@@ -288,7 +294,7 @@ fn plots_are_drawn_at_the_device_pixel_ratio_and_laid_out_in_css_pixels() {
 
 #[wasm_bindgen_test]
 fn the_attitude_download_says_which_sensors_a_log_lacks() {
-    use crate::recording::{Recording, Stream};
+    use crate::io::recording::{Recording, Stream};
     let walk = crate::io::import::import("walk.csv", &simulated_csv()).expect("readable");
     assert_eq!(super::exports::attitude_missing(&walk.recording), None);
     let compass_only = Recording {

@@ -1,11 +1,11 @@
-//! The threaded module's Web Workers ([`crate::par::pool`]): what `www/bootstrap.js`
+//! The threaded module's Web Workers ([`crate::base::par::pool`]): what `www/bootstrap.js`
 //! and `www/pool-worker.js` call to start them. Only in the threaded build
 //! (`target_feature = "atomics"`), which the page loads when it is cross-origin
 //! isolated.
 
 use wasm_bindgen::prelude::*;
 
-use crate::par::pool;
+use crate::base::par::pool;
 
 /// This module, for a worker to instantiate on the same memory.
 #[wasm_bindgen]
@@ -28,7 +28,7 @@ pub fn pool_max_workers() -> usize {
 /// Threads an import can use now: this one and the workers waiting for work.
 #[wasm_bindgen]
 pub fn pool_threads() -> usize {
-    crate::par::n_threads()
+    crate::base::par::n_threads()
 }
 
 /// A worker's life (never returns): waits for parts of the work and runs them.

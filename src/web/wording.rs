@@ -51,7 +51,7 @@ mod tests {
     /// none.
     #[wasm_bindgen_test::wasm_bindgen_test]
     fn the_core_s_messages_name_no_flag_on_the_page() {
-        use crate::calib::wmm::{WmmError, WmmWarning, FIRST_MODEL_DATE, LAST_MODEL_DATE};
+        use crate::earth::wmm::{WmmError, WmmWarning, FIRST_MODEL_DATE, LAST_MODEL_DATE};
         let messages = [
             WmmError::LatitudeOutOfRange { lat_deg: 95.0 }.to_string(),
             WmmError::LongitudeOutOfRange { lon_deg: 200.0 }.to_string(),

@@ -30,7 +30,7 @@ use wasm_bindgen_futures::JsFuture;
 
 use super::page::analysis::{status, Request, Steps};
 use super::page::Outcome;
-use crate::calibration::CalibrationAnalysis;
+use crate::analysis::calibration::CalibrationAnalysis;
 use crate::io::delimited::ColumnMapping;
 use crate::io::import::{import_file, merge, ChunkedImport, FileImport};
 use crate::io::{ImportError, ImportReport};

@@ -101,10 +101,10 @@ pub fn indoor_walk(
     floor: &str,
     heading: &str,
     k: Option<f64>,
-    declination: compass_pdr::calibration::DeclinationChoice,
+    declination: compass_pdr::analysis::calibration::DeclinationChoice,
 ) -> compass_pdr::pdr::PdrAnalysis {
-    use compass_pdr::calibration::CalibrationOptions;
-    use compass_pdr::heading::HeadingOptions;
+    use compass_pdr::analysis::calibration::CalibrationOptions;
+    use compass_pdr::analysis::headings::HeadingOptions;
     use compass_pdr::pdr::{HeadingChoice, PdrOptions};
     let paths = files_in(&data.join("msft-indoor-2020/site1").join(floor), "txt");
     compass_pdr::pipeline::dead_reckoning(
@@ -135,7 +135,7 @@ pub fn fitted_k(data: &Path, floor: &str) -> f64 {
         floor,
         "device",
         None,
-        compass_pdr::calibration::DeclinationChoice::Auto,
+        compass_pdr::analysis::calibration::DeclinationChoice::Auto,
     );
     let errors = analysis
         .report
@@ -216,13 +216,13 @@ pub fn spread_pct(values: impl Iterator<Item = Vector3<f64>>) -> f64 {
 /// A recording's field corrected by the device's own hard-iron estimate (a TYREX trial's
 /// uncalibrated and calibrated magnetometers), and the attitude gate's reference for it.
 pub fn field_by_device_estimate(
-    recording: &compass_pdr::recording::Recording,
+    recording: &compass_pdr::io::recording::Recording,
 ) -> (
-    compass_pdr::recording::Stream<Vector3<f64>>,
+    compass_pdr::io::recording::Stream<Vector3<f64>>,
     Option<compass_pdr::attitude::gates::FieldReference>,
 ) {
     let bias = &recording.mag_bias_in_body_ut;
-    let mut field = compass_pdr::recording::Stream::default();
+    let mut field = compass_pdr::io::recording::Stream::default();
     for (&t_s, &raw) in recording
         .mag_in_body_ut
         .t_s
@@ -234,7 +234,7 @@ pub fn field_by_device_estimate(
             .unwrap_or_else(Vector3::zeros);
         field.push(t_s, raw - correction);
     }
-    let mut down = compass_pdr::recording::Stream::default();
+    let mut down = compass_pdr::io::recording::Stream::default();
     for (&t_s, force) in recording
         .acc_in_body_mps2
         .t_s

@@ -79,8 +79,8 @@ pub mod scoring;
 
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
 
-use compass_pdr::calib::wmm;
-use compass_pdr::geo::{Geodetic, LocalFrame};
+use compass_pdr::base::geodesy::{Geodetic, LocalFrame};
+use compass_pdr::earth::wmm;
 use compass_pdr::io::canonical_csv::{self, CanonicalRow};
 use nalgebra::{Matrix3, Rotation3, Vector2, Vector3};
 

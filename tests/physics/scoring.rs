@@ -7,13 +7,13 @@
 //! Shared by the property tests (`tests/independent.rs`) and the accuracy report
 //! (`benches/accuracy.rs`).
 
-use compass_pdr::angle::heading_difference_rad;
-use compass_pdr::calib::heading::heading_rad;
-use compass_pdr::calib::model::FieldCalibration;
-use compass_pdr::calibration::{calibrate, CalibrationAnalysis, CalibrationOptions};
-use compass_pdr::heading::{compare, HeadingOptions};
+use compass_pdr::analysis::calibration::{calibrate, CalibrationAnalysis, CalibrationOptions};
+use compass_pdr::analysis::headings::{compare, HeadingOptions};
+use compass_pdr::attitude::compass_heading::heading_rad;
+use compass_pdr::base::angle::heading_difference_rad;
+use compass_pdr::base::stats::HeadingErrorStats;
+use compass_pdr::fit::model::FieldCalibration;
 use compass_pdr::io::import::import;
-use compass_pdr::stats::HeadingErrorStats;
 
 use nalgebra::{Matrix3, Vector3};
 
@@ -131,7 +131,7 @@ pub fn true_calibration_floor(log: &GeneratedLog, analysis: &CalibrationAnalysis
 /// the calibration alone is judged, against the true heading, beside
 /// [`true_calibration_floor`]. `None` when nothing is exported.
 pub fn export_true_tilt(log: &GeneratedLog, analysis: &CalibrationAnalysis) -> Option<f64> {
-    let export = compass_pdr::report::device_export(analysis)?;
+    let export = compass_pdr::present::report::device_export(analysis)?;
     let text = serde_json::to_string(&export.sensor).expect("the export serialises");
     // Read back from the text alone, by its own keys, not by the crate's reader.
     let read: ExportText = serde_json::from_str(&text).expect("its text is the export's");
@@ -188,7 +188,7 @@ fn true_tilt_rms(
                 .partition_point(|&true_t_s| true_t_s + start_s < t_s - 1e-6);
             let attitude = log.true_attitude.get(idx)?;
             let (roll, pitch, _) = attitude.euler_angles();
-            let tilt = compass_pdr::calib::tilt::Tilt::new(roll, pitch);
+            let tilt = compass_pdr::attitude::tilt::Tilt::new(roll, pitch);
             let heading = heading_rad(
                 tilt.level(correct(mag_ut)),
                 log.declination_deg.to_radians(),

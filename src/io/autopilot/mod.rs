@@ -1,5 +1,5 @@
 //! Autopilot logs: what ArduPilot's DataFlash logs and PX4's ULog files hold beyond the
-//! streams of a [`Recording`](crate::recording::Recording): the autopilot's parameters
+//! streams of a [`Recording`](crate::io::recording::Recording): the autopilot's parameters
 //! in force, and every compass it logged, both as logged (after the autopilot's own
 //! calibration) and raw (that calibration undone), so that a new calibration can be
 //! fitted on the raw field and compared with the one in force.
@@ -12,7 +12,7 @@ pub mod px4;
 
 use nalgebra::Vector3;
 
-use crate::recording::Stream;
+use crate::io::recording::Stream;
 
 /// Which autopilot wrote the log: it decides how a calibration is applied and written.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -8,7 +8,7 @@
 use nalgebra::Vector3;
 
 use super::format::{FieldType, MessageFormat, NumberKind};
-use crate::recording::{Attitude, GnssFix, Recording, Stream};
+use crate::io::recording::{Attitude, GnssFix, Recording, Stream};
 
 /// Reads a field of one message, binary or text.
 pub trait Fields {

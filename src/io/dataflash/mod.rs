@@ -36,7 +36,7 @@ use super::autopilot::ardupilot::ArduPilotCompass;
 use super::autopilot::{Autopilot, AutopilotLog, CompassLog};
 use super::frame::{MagUnit, SensorFrame};
 use super::{thousands, Diagnostics, ImportError, ImportReport};
-use crate::recording::{GyroBias, Stream};
+use crate::io::recording::{GyroBias, Stream};
 
 pub const BINARY: &str = "ArduPilot DataFlash log";
 pub const TEXT: &str = "ArduPilot DataFlash text log";
@@ -143,7 +143,7 @@ fn set_compasses(autopilot: &mut AutopilotLog, mags: &[MagTrack]) -> usize {
             compass
                 .raw_in_body_ut
                 .as_mut()
-                .map_or(0, super::super::recording::Stream::sort_by_time)
+                .map_or(0, crate::io::recording::Stream::sort_by_time)
         })
         .collect();
     let primary = autopilot
@@ -331,7 +331,7 @@ fn finish(
                  compass reads nothing",
                 track.source,
                 thousands(track.n_zero_readings),
-                crate::english::plural(track.n_zero_readings, "reading", "readings")
+                crate::base::words::plural(track.n_zero_readings, "reading", "readings")
             )
         })
         .collect();
@@ -411,7 +411,7 @@ fn finish(
     if let Some(start) = utc_minus_boot_s {
         notes.push(format!(
             "times are seconds since boot; the GPS week and time of week date the boot at {}",
-            crate::civil::utc_text(start)
+            crate::base::calendar::utc_text(start)
         ));
     }
     // The magnetometer was sorted with its compass.
@@ -421,7 +421,7 @@ fn finish(
             None,
             format!(
                 "time goes backwards {}; the samples were sorted by time",
-                crate::english::times(n_out_of_order)
+                crate::base::words::times(n_out_of_order)
             ),
         );
     }
@@ -445,7 +445,7 @@ fn finish(
 /// pitch), so the board's is `R_vehicle · R_trim`. A note says so where the trim is not
 /// zero.
 fn board_attitude(
-    attitude: &mut Stream<crate::recording::Attitude>,
+    attitude: &mut Stream<crate::io::recording::Attitude>,
     autopilot: &AutopilotLog,
 ) -> Option<String> {
     use nalgebra::Rotation3;

@@ -9,8 +9,8 @@ use nalgebra::Vector3;
 use super::header::{Header, Quantity, Setting, DEG_TO_RAD, WHITESPACE};
 use super::{DelimitedReader, RawImport, SensorAxes, FORMAT_NAME};
 use crate::io::frame::RAW_COUNT_MAGNITUDES;
+use crate::io::recording::{GyroBias, Recording, Stream};
 use crate::io::{shorten, HeaderInfo, ImportError, ImportReport, MagUnit, STANDARD_GRAVITY_MPS2};
-use crate::recording::{GyroBias, Recording, Stream};
 
 /// How many settings lines the notes list.
 const MAX_SETTINGS_NOTED: usize = 8;
@@ -75,7 +75,7 @@ impl DelimitedReader {
                 Some(header.line),
                 format!(
                     "time goes backwards {}; the samples were sorted by time",
-                    crate::english::times(n_out_of_order)
+                    crate::base::words::times(n_out_of_order)
                 ),
             );
         }
@@ -554,8 +554,8 @@ mod tests {
     use super::super::tests::read_text;
     use super::super::{header_columns, looks_like};
     use super::*;
+    use crate::io::recording::GnssFix;
     use crate::io::SensorFrame;
-    use crate::recording::GnssFix;
 
     #[test]
     fn the_first_time_of_sorted_streams_is_the_earliest_first_sample() {

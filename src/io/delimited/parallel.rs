@@ -1,5 +1,5 @@
 //! Large delimited files ([`super`]) on native builds and the browser's threaded build
-//! ([`crate::par`]): the data lines are cut into one part per thread at line boundaries,
+//! ([`crate::base::par`]): the data lines are cut into one part per thread at line boundaries,
 //! parsed side by side, and joined in order, with line numbers counted on across the
 //! parts. The result is the same as reading line by line (a test checks it); only the
 //! time differs. The browser's default build reads on one thread.
@@ -18,8 +18,8 @@ use super::header::Header;
 use super::reader::{Plan, RowTimes};
 use super::sinks::{FilledStreams, SampleSink, SampleSinks, Targets};
 use super::{read_up_to_header, ColumnMapping, DelimitedReader, RawImport};
+use crate::io::recording::{Attitude, GnssFix, Recording, Stream};
 use crate::io::{Diagnostics, ImportError};
-use crate::recording::{Attitude, GnssFix, Recording, Stream};
 
 /// Below this size one thread is as fast.
 const MIN_PARALLEL_BYTES: usize = 4 << 20;
@@ -34,7 +34,7 @@ pub(super) fn read_raw(
     bytes: &[u8],
     mapping: Option<&ColumnMapping>,
 ) -> Option<Result<RawImport, ImportError>> {
-    let n_threads = crate::par::n_threads();
+    let n_threads = crate::base::par::n_threads();
     if bytes.len() < MIN_PARALLEL_BYTES || n_threads < 2 {
         return None;
     }
@@ -46,7 +46,7 @@ pub(super) fn read_raw(
     }
     let header = reader.header.clone()?;
     let parts = cut_into_parts(bytes.get(data_offset..)?, n_threads);
-    let max_rows = crate::par::on_each_part(parts.iter(), |part| count_lines(part))?;
+    let max_rows = crate::base::par::on_each_part(parts.iter(), |part| count_lines(part))?;
     let filled = reader.plan.filled_streams();
     // Two rows of spare room, given back by `finish`. (Measured with glibc's malloc
     // in the import benchmark's loop: with exact capacities the columns' memory went
@@ -54,7 +54,7 @@ pub(super) fn read_raw(
     // again, 34,000 page faults per import instead of 14,000. The shrink's small
     // remainders keep the heap in place. An allocator's detail, not a guarantee.)
     let mut columns = Columns::new(filled, max_rows.iter().sum::<usize>() + 2);
-    let results = crate::par::on_each_part(
+    let results = crate::base::par::on_each_part(
         columns.shares(&max_rows).into_iter().zip(&parts),
         |(share, part)| {
             let mut part_reader = part_reader(&header, share);
@@ -94,13 +94,13 @@ pub(super) fn read_lines_block(
     bytes: &[u8],
     n_lines_before: usize,
 ) -> Option<usize> {
-    let n_threads = crate::par::n_threads();
+    let n_threads = crate::base::par::n_threads();
     if bytes.len() < MIN_PARALLEL_BLOCK_BYTES || n_threads < 2 || reader.plan.time.is_none() {
         return None;
     }
     let header = reader.header.clone()?;
     let parts = cut_into_parts(bytes, n_threads);
-    let results = crate::par::on_each_part(parts.iter(), |part| {
+    let results = crate::base::par::on_each_part(parts.iter(), |part| {
         let mut part_reader = part_reader(&header, Recording::default());
         // Numbered from 2, as in `read_raw`.
         let n_lines = part_reader.read_data_bytes(part, 1);

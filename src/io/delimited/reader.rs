@@ -12,8 +12,8 @@ use super::sinks::{FilledStreams, SampleSink, SampleSinks};
 use super::{ColumnMapping, XyzColumns, MAX_LINE_BYTES};
 use crate::io::lines::{Line, LineDecoder};
 use crate::io::number::{parse_f64, parse_prefix, parse_prefix_at};
+use crate::io::recording::{Attitude, GnssFix, Recording};
 use crate::io::{shorten, Diagnostics};
-use crate::recording::{Attitude, GnssFix, Recording};
 
 /// The delimited reader, line by line, for files read in chunks (see
 /// [`crate::io::lines::LineDecoder`]). Values go straight into the recording in the file's
@@ -688,7 +688,7 @@ pub fn parse_datetime_s(text: &str) -> Option<f64> {
     let minutes: f64 = clock_parts.next()?.parse().ok()?;
     let seconds: f64 = clock_parts.next().map_or(Some(0.0), |s| s.parse().ok())?;
     // The range checks above make the casts exact.
-    let days = crate::civil::days_from_civil(year, month as u32, day as u32);
+    let days = crate::base::calendar::days_from_civil(year, month as u32, day as u32);
     Some(days as f64 * 86_400.0 + hours * 3600.0 + minutes * 60.0 + seconds - offset_s)
 }
 

@@ -4,7 +4,7 @@
 use nalgebra::{Vector2, Vector3};
 
 use super::reader::Plan;
-use crate::recording::{Attitude, GnssFix, Recording, Stream};
+use crate::io::recording::{Attitude, GnssFix, Recording, Stream};
 
 /// Where one stream's samples go.
 pub(super) trait SampleSink<T> {

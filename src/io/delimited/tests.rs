@@ -45,7 +45,7 @@ fn phyphox_headers_say_the_sensor_by_their_unit() {
 
 #[test]
 fn phyphox_gyroscopes_are_bias_removed_and_other_rate_columns_are_not_said_to_be() {
-    use crate::recording::GyroBias;
+    use crate::io::recording::GyroBias;
     for (text, expected) in [
         // phyphox, one sensor's experiment and several sensors'.
         (

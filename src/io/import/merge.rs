@@ -6,9 +6,9 @@
 
 use super::FileImport;
 use crate::io::delimited::{self, RawImport, SensorAxes};
+use crate::io::recording::Recording;
 use crate::io::sensor_files::{self, SensorImport};
 use crate::io::{gpx, Diagnostics, ImportError, ImportReport, SensorFrame};
-use crate::recording::Recording;
 
 /// Merges files read one by one (with [`import_files`](super::import_files)'s rules): a file that failed
 /// becomes a diagnostic, unless every file failed.

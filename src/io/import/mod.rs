@@ -123,7 +123,7 @@ pub enum FileImport {
 
 /// One whole file in memory (a file mapped by the CLI), read as [`import_files_mapped`]
 /// reads each, for [`merge`]: the importers' whole-file paths, which size the streams
-/// once and read a large delimited file on every core ([`crate::par`]).
+/// once and read a large delimited file on every core ([`crate::base::par`]).
 pub fn import_file(
     file_name: &str,
     bytes: &[u8],

@@ -1,7 +1,7 @@
 //! Time in NMEA sentences ([`super`]): the `hhmmss.ss` UTC time of day of RMC and GGA,
 //! RMC's `ddmmyy` date, and the [`Clock`] that turns times of day into seconds since the
 //! first timed sentence, counting days across midnight (from the dates where there are
-//! any). Days since 1970 follow Howard Hinnant's `days_from_civil` ([`crate::civil`]).
+//! any). Days since 1970 follow Howard Hinnant's `days_from_civil` ([`crate::base::calendar`]).
 //!
 //! Source: Eric S. Raymond, "NMEA Revealed" (gpsd project,
 //! <https://gpsd.gitlab.io/gpsd/NMEA.html>), for the time and date fields.
@@ -23,7 +23,7 @@ impl NmeaDate {
     /// Days since 1970-01-01 (proleptic Gregorian calendar), after Howard Hinnant's
     /// `days_from_civil`.
     pub fn days_since_1970(&self) -> i64 {
-        crate::civil::days_from_civil(
+        crate::base::calendar::days_from_civil(
             i64::from(self.year),
             u32::from(self.month),
             u32::from(self.day),
@@ -183,7 +183,7 @@ mod tests {
             .days_since_1970(),
             11_017
         );
-        assert_eq!(crate::civil::civil_from_days(11_017), (2000, 3, 1));
+        assert_eq!(crate::base::calendar::civil_from_days(11_017), (2000, 3, 1));
         assert_eq!(
             parse_date("T", b"010180"),
             Ok(Some(NmeaDate {

@@ -85,7 +85,7 @@ impl NmeaReader {
                 None,
                 format!(
                     "time goes backwards {}; the samples were sorted by time",
-                    crate::english::times(n_out_of_order)
+                    crate::base::words::times(n_out_of_order)
                 ),
             );
         }
@@ -219,7 +219,8 @@ impl NmeaReader {
                 first.line
             );
             if let Some((first_days, first_day)) = self.clock.first_date {
-                let (year, month, day) = crate::civil::civil_from_days(first_days - first_day);
+                let (year, month, day) =
+                    crate::base::calendar::civil_from_days(first_days - first_day);
                 time_note.push_str(&format!(" on {year:04}-{month:02}-{day:02}"));
             }
             notes.push(time_note);

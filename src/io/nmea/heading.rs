@@ -19,7 +19,7 @@
 
 use super::values::{east_positive_rad, heading_rad};
 use super::SentenceError;
-use crate::angle::wrap_to_2pi;
+use crate::base::angle::wrap_to_2pi;
 
 /// HDG, a magnetic sensor's heading with the deviation and variation it knows.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -138,7 +138,7 @@ pub fn looks_like(sample_lines: &[&str]) -> bool {
 /// placing of untimed sentences, the counts): on native builds a large file is parsed
 /// on every core and applied in order on one thread (`parallel`), with the same
 /// result as reading it line by line; so is it in the browser's threaded build
-/// ([`crate::par`]), and the default browser build reads on one thread.
+/// ([`crate::base::par`]), and the default browser build reads on one thread.
 pub fn read(file_name: &str, bytes: &[u8]) -> Result<ImportReport, ImportError> {
     ensure_text(file_name, bytes)?;
     #[cfg(any(not(target_arch = "wasm32"), target_feature = "atomics"))]

@@ -1,4 +1,4 @@
-//! Large NMEA files on native builds and in the browser's threaded build ([`crate::par`]):
+//! Large NMEA files on native builds and in the browser's threaded build ([`crate::base::par`]):
 //! parsed on every thread, applied in order on one.
 //!
 //! Parsing a line (framing, checksum, fields, numbers) needs no state and is nearly all
@@ -36,7 +36,7 @@ const MAX_BATCHES_WAITING: usize = 4;
 
 /// `None` when the file is better read on one thread: small, or on one core.
 pub(super) fn read(file_name: &str, bytes: &[u8]) -> Option<Result<ImportReport, ImportError>> {
-    let n_threads = crate::par::n_threads();
+    let n_threads = crate::base::par::n_threads();
     if bytes.len() < MIN_PARALLEL_BYTES || n_threads < 2 {
         return None;
     }
@@ -109,7 +109,7 @@ pub(super) fn read_lines_block(
     bytes: &[u8],
     n_lines_before: usize,
 ) -> Option<usize> {
-    let n_threads = crate::par::n_threads();
+    let n_threads = crate::base::par::n_threads();
     if bytes.len() < MIN_PARALLEL_BLOCK_BYTES || n_threads < 2 {
         return None;
     }
@@ -128,7 +128,7 @@ pub(super) fn read_lines_block(
 /// `n_lines_before`; returns how many lines there were. `reserve`: the streams are
 /// given room for all of `bytes` once the first batch shows how dense it is.
 ///
-/// This thread applies the batches in order; the others ([`crate::par::on_each_part`])
+/// This thread applies the batches in order; the others ([`crate::base::par::on_each_part`])
 /// parse them. Nothing here makes this thread block on another: in the browser it is
 /// the page's main thread, which may not, so it spins where it must wait (only when it
 /// has caught up with the parsers and has nothing left to parse itself), and takes
@@ -182,10 +182,10 @@ fn apply_in_batches(
     };
 
     let mut lines_before = n_lines_before;
-    let failures_before = crate::par::n_failures();
+    let failures_before = crate::base::par::n_failures();
     // `None` when a parser panicked (natively): the applier has parsed what it left, so
     // the reading is whole all the same.
-    let _ = crate::par::on_each_part(
+    let _ = crate::base::par::on_each_part(
         std::iter::once(Role::Apply(reader, &mut lines_before))
             .chain((1..n_threads.min(n_batches)).map(|_| Role::Parse)),
         |role| {
@@ -214,7 +214,7 @@ fn apply_in_batches(
                         // its worker is counted failed): parse it here.
                         Claim::NotNow(_)
                             if n_parsers_running.load(Ordering::Acquire) == 0
-                                || crate::par::n_failures() != failures_before =>
+                                || crate::base::par::n_failures() != failures_before =>
                         {
                             break parse_batch(
                                 batches.get(next_idx).copied().unwrap_or_default(),

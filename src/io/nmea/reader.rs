@@ -10,8 +10,8 @@ use super::framing::{for_each_line, LineEvent};
 use super::parallel;
 use super::{Hpr, HprStatus, SentenceData, SentenceError, KIND_NAMES, MAX_LINE_BYTES};
 use crate::io::lines::Line;
+use crate::io::recording::{Attitude, DeviceHeading, GnssFix, North, Recording};
 use crate::io::{shorten, Diagnostics};
-use crate::recording::{Attitude, DeviceHeading, GnssFix, North, Recording};
 
 /// How many distinct unknown sentence addresses are named in the notes; the rest are
 /// only counted, so that a stream of garbage addresses cannot grow memory.

@@ -4,8 +4,8 @@
 
 use super::*;
 use crate::io::lines::LineDecoder;
+use crate::io::recording::{North, Recording};
 use crate::io::Diagnostics;
-use crate::recording::{North, Recording};
 
 /// Appends the checksum a sentence body needs, `$` included.
 pub(super) fn sentence(body: &str) -> String {

@@ -25,11 +25,11 @@
 use nalgebra::Vector3;
 
 use super::{notes_only, Role, SensorFileReader, SensorImport, HEADERLESS_TEXT};
-use crate::civil::utc_text;
+use crate::base::calendar::utc_text;
 use crate::io::delimited::{RawImport, SensorAxes};
 use crate::io::number::parse_f64;
+use crate::io::recording::{GyroBias, Recording, Stream};
 use crate::io::{shorten, Diagnostics, ImportError, ImportReport, MagUnit};
-use crate::recording::{GyroBias, Recording, Stream};
 
 /// The headerless per-sensor files.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -250,7 +250,7 @@ pub(super) fn headerless_import(
             None,
             format!(
                 "time goes backwards {}; the samples were sorted by time",
-                crate::english::times(n_out_of_order)
+                crate::base::words::times(n_out_of_order)
             ),
         );
     }

@@ -7,9 +7,9 @@
 use nalgebra::Vector3;
 
 use super::{base_name, Role, SensorImport, HEADERLESS_TEXT, SENSOR_LOGGER};
-use crate::civil::utc_text;
+use crate::base::calendar::utc_text;
 use crate::io::delimited::RawImport;
-use crate::recording::{GyroBias, Recording, Stream};
+use crate::io::recording::{GyroBias, Recording, Stream};
 
 /// The merge's choices among per-sensor files, in file order: an alternative
 /// accelerometer or gyroscope is used only without the other; a raw magnetometer is the

@@ -15,7 +15,7 @@ use self::sensor_logger::{metadata_notes, recognise_logger};
 use super::delimited::{RawImport, SensorAxes};
 use super::lines::Line;
 use super::{Diagnostics, ImportError, ImportReport};
-use crate::recording::Recording;
+use crate::io::recording::Recording;
 
 mod headerless;
 mod merge;

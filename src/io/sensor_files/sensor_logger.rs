@@ -36,8 +36,8 @@
 use super::{Role, SensorFile, SensorImport, SENSOR_LOGGER};
 use crate::io::delimited::{self, RawImport, SensorAxes, XyzColumns};
 use crate::io::number::parse_f64;
+use crate::io::recording::GyroBias;
 use crate::io::shorten;
-use crate::recording::GyroBias;
 
 /// Sensor Logger's per-sensor files.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

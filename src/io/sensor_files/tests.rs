@@ -6,8 +6,8 @@ use nalgebra::Vector3;
 
 use super::*;
 use crate::io::import::import_files;
+use crate::io::recording::GyroBias;
 use crate::io::MagUnit;
-use crate::recording::GyroBias;
 
 fn lines(text: &str) -> Vec<&str> {
     text.lines()

@@ -128,7 +128,7 @@ impl SerialReader {
                     None,
                     format!(
                         "arrival times go backwards {}; the samples were sorted by time",
-                        crate::english::times(n_out_of_order)
+                        crate::base::words::times(n_out_of_order)
                     ),
                 );
             }
@@ -342,5 +342,5 @@ impl SerialReader {
 
 fn median(mut values: Vec<f64>) -> Option<f64> {
     values.retain(|value| value.is_finite());
-    crate::stats::median(&mut values)
+    crate::base::stats::median(&mut values)
 }

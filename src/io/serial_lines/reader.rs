@@ -10,8 +10,8 @@ use super::{
     parse_line_with, sensor_to_body, EchoSeen, LineError, LineFormat, SensorSample, SerialLine,
     ASSUMED_FILE_RATE_HZ, MAX_LINE_BYTES,
 };
+use crate::io::recording::Recording;
 use crate::io::{shorten, Diagnostics, MagUnit};
-use crate::recording::Recording;
 
 /// How many ignored label names the notes list.
 const MAX_IGNORED_LABELS_LISTED: usize = 20;

@@ -227,7 +227,7 @@ mod tests {
         assert_eq!(report.n_data_lines, 13);
         let r = &report.recording;
         // TYPE_GYROSCOPE is the rate with the OS's drift estimate removed.
-        assert_eq!(r.gyro_bias, crate::recording::GyroBias::RemovedByDevice);
+        assert_eq!(r.gyro_bias, crate::io::recording::GyroBias::RemovedByDevice);
         assert!(
             report
                 .notes

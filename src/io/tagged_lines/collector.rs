@@ -8,10 +8,10 @@ use std::collections::BTreeMap;
 
 use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector2, Vector3};
 
-use crate::angle::wrap_to_2pi;
+use crate::base::angle::wrap_to_2pi;
 use crate::io::axes::PhoneMount;
+use crate::io::recording::{Attitude, GnssFix, GyroBias, Recording, Stream};
 use crate::io::{shorten, Diagnostics, ImportError, ImportReport, MagUnit, SensorFrame};
-use crate::recording::{Attitude, GnssFix, GyroBias, Recording, Stream};
 
 /// Distinct ignored tags listed by name; past this they are only counted, so that a
 /// file of garbage cannot grow the list without bound.

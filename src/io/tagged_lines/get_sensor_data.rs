@@ -56,9 +56,9 @@ use nalgebra::Vector2;
 use super::collector::{Clock, Collector, Slot};
 use super::fields::{check_count, finite, quaternion_from_rotation_vector, split_fields, vector3};
 use super::{LineReader, GET_SENSOR_DATA, MAX_LINE_BYTES};
-use crate::angle::wrap_to_2pi;
+use crate::base::angle::wrap_to_2pi;
+use crate::io::recording::GnssFix;
 use crate::io::{shorten, ImportError, ImportReport};
-use crate::recording::GnssFix;
 
 #[derive(Default)]
 pub struct GetSensorDataReader {
@@ -429,7 +429,7 @@ fn java_date_unix_s(text: &str) -> Option<(f64, bool)> {
         }
         None => None,
     };
-    let days = crate::civil::days_from_civil(year, month, day) as f64;
+    let days = crate::base::calendar::days_from_civil(year, month, day) as f64;
     let local_s = days * 86_400.0 + hours * 3600.0 + minutes * 60.0 + seconds;
     Some((local_s - offset_s.unwrap_or(0.0), offset_s.is_some()))
 }
@@ -461,7 +461,7 @@ mod tests {
         assert_eq!(report.n_data_lines, 17);
         let r = &report.recording;
         // GYRO is Android's TYPE_GYROSCOPE.
-        assert_eq!(r.gyro_bias, crate::recording::GyroBias::RemovedByDevice);
+        assert_eq!(r.gyro_bias, crate::io::recording::GyroBias::RemovedByDevice);
 
         // AppTimestamp is the time, unchanged.
         assert_eq!(r.acc_in_body_mps2.t_s, vec![0.012, 0.032]);

@@ -7,7 +7,7 @@ use nalgebra::{Rotation3, Vector3};
 
 use super::*;
 use crate::io::lines::LineDecoder;
-use crate::recording::{Attitude, Recording};
+use crate::io::recording::{Attitude, Recording};
 
 pub(super) const ANDROID_SAMPLE: &str = "#\tstartTime:1574562661929\n\
 #\tSiteID:5dd3d7732a57a34356595932\tFloorName:F1\n\

@@ -9,8 +9,8 @@ use super::topics::{Collected, MagSeries};
 use super::{looks_like, UlogReader, MAGIC, ULOG};
 use crate::io::autopilot::{Autopilot, AutopilotLog, CompassLog};
 use crate::io::frame::{BODY_AXES, PX4_SENSOR_MAG_AXES};
+use crate::io::recording::{Attitude, GnssFix, Recording, Stream};
 use crate::io::{thousands, ImportError, ImportReport, MagUnit, SensorFrame};
-use crate::recording::{Attitude, GnssFix, Recording, Stream};
 
 /// µT per gauss.
 const UT_PER_GAUSS: f64 = 100.0;
@@ -358,7 +358,7 @@ impl Motion {
         recording.attitude = self.attitude;
         n_out_of_order += recording.attitude.sort_by_time();
         // The autopilot's own heading: the reference of a vehicle that flies sideways.
-        recording.autopilot_heading_rad = crate::recording::Stream {
+        recording.autopilot_heading_rad = crate::io::recording::Stream {
             t_s: recording.attitude.t_s.clone(),
             values: recording
                 .attitude

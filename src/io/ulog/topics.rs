@@ -11,7 +11,7 @@ use nalgebra::{UnitQuaternion, Vector3};
 
 use super::parse::{layout, FieldAt, Layout};
 use super::UlogReader;
-use crate::recording::{Attitude, GnssFix, Stream};
+use crate::io::recording::{Attitude, GnssFix, Stream};
 
 /// `sensor_combined.msg`: a relative timestamp with no sample behind it.
 const RELATIVE_TIMESTAMP_INVALID: f64 = i32::MAX as f64;

@@ -6,8 +6,8 @@
 use nalgebra::Vector3;
 use serde::Serialize;
 
+use crate::base::rng::SplitMix64;
 use crate::sim::gait::{Gait, GaitVariation};
-use crate::sim::rng::SplitMix64;
 
 /// Everything that defines a simulated walk. [`WalkConfig::from_seed`] draws the
 /// distortions from the seed, so the truth travels with the log.
@@ -258,13 +258,13 @@ impl WalkConfig {
         lat_deg: f64,
         lon_deg: f64,
         start_unix_s: f64,
-    ) -> Result<WalkConfig, crate::calib::wmm::WmmError> {
-        let date = crate::calib::wmm::date_of_unix_s(start_unix_s).ok_or_else(|| {
-            crate::calib::wmm::WmmError::UnreadableDate {
+    ) -> Result<WalkConfig, crate::earth::wmm::WmmError> {
+        let date = crate::earth::wmm::date_of_unix_s(start_unix_s).ok_or_else(|| {
+            crate::earth::wmm::WmmError::UnreadableDate {
                 text: format!("{start_unix_s} s after 1970"),
             }
         })?;
-        let field = crate::calib::wmm::expected_field(lat_deg, lon_deg, 0.0, date)?;
+        let field = crate::earth::wmm::expected_field(lat_deg, lon_deg, 0.0, date)?;
         Ok(WalkConfig {
             field_total_ut: field.total_ut,
             inclination_deg: field.inclination_deg,

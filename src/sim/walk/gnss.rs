@@ -6,10 +6,10 @@ use nalgebra::{Vector2, Vector3};
 
 use super::trajectory::Sample;
 use super::{GnssSim, WalkConfig};
-use crate::angle::wrap_to_2pi;
-use crate::geo::{Geodetic, LocalFrame};
+use crate::base::angle::wrap_to_2pi;
+use crate::base::geodesy::{Geodetic, LocalFrame};
+use crate::base::rng::SplitMix64;
 use crate::io::canonical_csv::CanonicalRow;
-use crate::sim::rng::SplitMix64;
 
 /// A walk's receiver, with the multipath error it carries from fix to fix.
 pub(super) struct Receiver {

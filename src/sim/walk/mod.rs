@@ -32,8 +32,8 @@ use serde::Serialize;
 
 pub use self::config::{Disturbance, GnssSim, Multipath, Route, WalkConfig};
 use super::gait::StepTruth;
-use super::rng::SplitMix64;
-use crate::angle::wrap_to_2pi;
+use crate::base::angle::wrap_to_2pi;
+use crate::base::rng::SplitMix64;
 use crate::io::canonical_csv::CanonicalRow;
 
 /// The truth of a walk beyond its reference columns.

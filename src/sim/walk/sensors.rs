@@ -7,8 +7,8 @@ use nalgebra::{Matrix3, Rotation3, Vector3};
 
 use super::trajectory::Sample;
 use super::WalkConfig;
+use crate::base::rng::SplitMix64;
 use crate::io::STANDARD_GRAVITY_MPS2;
-use crate::sim::rng::SplitMix64;
 
 /// The sensors of one sample.
 pub(super) struct Reading {

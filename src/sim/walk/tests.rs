@@ -5,8 +5,8 @@
 use nalgebra::Vector2;
 
 use super::*;
-use crate::calibration::{CalibrationOptions, Method, MethodParameters};
-use crate::geo::{Geodetic, LocalFrame};
+use crate::analysis::calibration::{CalibrationOptions, Method, MethodParameters};
+use crate::base::geodesy::{Geodetic, LocalFrame};
 use crate::io::{canonical_csv, STANDARD_GRAVITY_MPS2};
 use crate::pipeline::calibrate_file;
 use crate::sim::gait::Gait;
@@ -45,11 +45,11 @@ fn the_compass_points_to_magnetic_north_the_declination_east_of_true_north() {
     let config = ideal(&WalkConfig::from_seed(5, 60.0))
         .at_place(47.6062, -122.3321, 1_778_776_200.0)
         .expect("inside the model");
-    let expected = crate::calib::wmm::expected_field(
+    let expected = crate::earth::wmm::expected_field(
         47.6062,
         -122.3321,
         0.0,
-        crate::calib::wmm::CalendarDate::new(2026, 5, 14).expect("a date"),
+        crate::earth::wmm::CalendarDate::new(2026, 5, 14).expect("a date"),
     )
     .expect("inside the model");
     assert_eq!(config.declination_deg, expected.declination_deg);
@@ -61,7 +61,7 @@ fn the_compass_points_to_magnetic_north_the_declination_east_of_true_north() {
         };
         // Level: the magnetic heading is atan2(−m_y, m_x); true = magnetic + D.
         let magnetic_deg = (-mag.y).atan2(mag.x).to_degrees();
-        let error_deg = crate::angle::wrap_to_pi(
+        let error_deg = crate::base::angle::wrap_to_pi(
             (magnetic_deg + config.declination_deg - true_heading_deg).to_radians(),
         )
         .to_degrees();

@@ -5,8 +5,8 @@
 use nalgebra::Vector2;
 
 use super::{Route, WalkConfig, WalkTruth};
+use crate::base::rng::SplitMix64;
 use crate::sim::gait::{Gait, GaitMotion, GaitPlan, StepBoundary, StepPositions};
-use crate::sim::rng::SplitMix64;
 
 /// One phase of the walk: how long, whether walking, and the turn rate.
 #[derive(Debug, Clone, Copy)]

@@ -2,7 +2,7 @@
 //! latest fit as calibration JSON or as a C header.
 
 use super::LivePanel;
-use crate::calib::export::{c_snippet, calibration_export};
+use crate::fit::export::{c_snippet, calibration_export};
 use crate::web::exports::{calibration_json, download_bytes};
 
 impl LivePanel {

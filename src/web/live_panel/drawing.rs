@@ -60,10 +60,11 @@ impl LivePanel {
         }
         if !self.user_turned.get() {
             let view = self.sphere_view.get();
-            self.sphere_view.set(crate::plot::sphere_view::SphereView {
-                yaw_rad: (view.yaw_rad + SPHERE_TURN_PER_DRAW_RAD) % std::f64::consts::TAU,
-                ..view
-            });
+            self.sphere_view
+                .set(crate::present::plot::sphere_view::SphereView {
+                    yaw_rad: (view.yaw_rad + SPHERE_TURN_PER_DRAW_RAD) % std::f64::consts::TAU,
+                    ..view
+                });
         }
         self.draw();
     }

@@ -40,9 +40,9 @@ use web_sys::{
 
 use super::dom;
 use super::storage::RecentCalibration;
-use crate::calib::wmm::{date_of_unix_s, expected_field};
+use crate::earth::wmm::{date_of_unix_s, expected_field};
 use crate::live::LiveSession;
-use crate::plot::sphere_view::SphereView;
+use crate::present::plot::sphere_view::SphereView;
 use simulation::Simulation;
 
 /// An interval timer's handle and the callback it calls (dropped when it is cleared).

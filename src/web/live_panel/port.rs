@@ -10,7 +10,7 @@ use wasm_bindgen_futures::JsFuture;
 use web_sys::{ReadableStreamDefaultReader, SerialOptions, SerialPort};
 
 use super::{now_ms, refusal_text, serial, LivePanel, Refusal};
-use crate::calib::model::FieldCalibration;
+use crate::fit::model::FieldCalibration;
 use crate::web::page::describe_js_error;
 
 impl LivePanel {

@@ -10,7 +10,7 @@ use wasm_bindgen_futures::spawn_local;
 use web_sys::{Element, HtmlInputElement};
 
 use super::LivePanel;
-use crate::calib::export::{calibration_export, CalibrationExport};
+use crate::fit::export::{calibration_export, CalibrationExport};
 use crate::web::exports::{calibration_json, download_bytes};
 use crate::web::storage::{
     self, RecentCalibration, Settings, CALIBRATIONS_KEY, MAX_RECENT_CALIBRATIONS, SETTINGS_KEY,
@@ -225,7 +225,8 @@ impl LivePanel {
                 .get(..16)
                 .unwrap_or(&entry.saved_at)
                 .replace('T', " ");
-            let decimals = crate::report::decimals_for_unit(saved.ut_per_unit.unwrap_or(1.0));
+            let decimals =
+                crate::present::report::decimals_for_unit(saved.ut_per_unit.unwrap_or(1.0));
             let unit = &saved.unit;
             let description = format!(
                 "{when} UTC, {}: hard iron ({:.decimals$}, {:.decimals$}, {:.decimals$}) {unit}, field \

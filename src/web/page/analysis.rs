@@ -8,8 +8,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
 use super::{yield_to_browser, Page, Results};
-use crate::analysis::AnalysisError;
-use crate::calibration::CalibrationAnalysis;
+use crate::analysis::calibration::CalibrationAnalysis;
+use crate::analysis::levelled::AnalysisError;
 use crate::io::ImportReport;
 use crate::pdr::{PdrError, PdrOptions};
 use crate::pipeline::{self, Stage, Step};

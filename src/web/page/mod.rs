@@ -25,12 +25,12 @@ use web_sys::{Document, DragEvent, Element, HtmlCanvasElement, HtmlElement, Html
 
 use super::controls::{self, Stage};
 use super::dom;
-use crate::analysis::AnalysisError;
-use crate::calibration::CalibrationAnalysis;
-use crate::heading::HeadingAnalysis;
+use crate::analysis::calibration::CalibrationAnalysis;
+use crate::analysis::headings::HeadingAnalysis;
+use crate::analysis::levelled::AnalysisError;
 use crate::io::ImportReport;
 use crate::pdr::PdrAnalysis;
-use crate::plot::timeline::Timeline;
+use crate::present::plot::timeline::Timeline;
 
 /// The ids of the elements the page must have (see `www/index.html`).
 const STATUS_ID: &str = "status";

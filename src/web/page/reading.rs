@@ -12,7 +12,7 @@ use wasm_bindgen_futures::spawn_local;
 
 use super::analysis::Request;
 use super::{now_ms, yield_to_browser, Outcome, Page, CHUNK_BYTES};
-use crate::analysis::AnalysisError;
+use crate::analysis::levelled::AnalysisError;
 use crate::io::delimited::{preview, ColumnMapping, Preview};
 use crate::io::import::{header_signature, merge, ChunkedImport, FileImport};
 use crate::io::ImportError;

@@ -11,13 +11,13 @@ use wasm_bindgen::JsCast;
 use web_sys::HtmlCanvasElement;
 
 use super::{yield_to_browser, Page, Results};
-use crate::analysis::AnalysisError;
-use crate::calibration::{CalibrationAnalysis, CalibrationReport};
-use crate::heading::{HeadingAnalysis, HeadingReport};
+use crate::analysis::calibration::{CalibrationAnalysis, CalibrationReport};
+use crate::analysis::headings::{HeadingAnalysis, HeadingReport};
+use crate::analysis::levelled::AnalysisError;
 use crate::io::ImportReport;
 use crate::pdr::PdrAnalysis;
 use crate::pipeline::Stage;
-use crate::report;
+use crate::present::report;
 use crate::web::canvas::{self, HeadingPlot, PdrPlot, Plot};
 use crate::web::controls;
 
@@ -122,7 +122,7 @@ impl Page {
 
     /// The summary and every list of `results`; returns the status line.
     fn show_lists(&self, results: &Results, import: Option<&ImportReport>) -> String {
-        let verdict = crate::verdict::verdict(
+        let verdict = crate::present::verdict::verdict(
             &results.calibration,
             &results.heading.report,
             results.pdr.as_ref().ok().map(|pdr| &pdr.report),

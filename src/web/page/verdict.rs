@@ -1,11 +1,11 @@
-//! The answer first ([`crate::verdict`]): the grade, the headline, the method, the key
+//! The answer first ([`crate::present::verdict`]): the grade, the headline, the method, the key
 //! figures and what to do, in the summary at the top of the page (`#summary`), above
 //! the downloads' details.
 
 use wasm_bindgen::JsCast;
 
 use super::Page;
-use crate::verdict::Verdict;
+use crate::present::verdict::Verdict;
 
 /// The summary's element ids (see `www/index.html`).
 const SUMMARY_ID: &str = "summary";
@@ -41,7 +41,7 @@ impl Page {
     }
 
     /// A calibration-only log's coverage map under the summary; hidden for the others.
-    fn show_coverage(&self, coverage: Option<&crate::calib::sphere_coverage::SphereCoverage>) {
+    fn show_coverage(&self, coverage: Option<&crate::fit::coverage::SphereCoverage>) {
         let Some(figure) = self.document.get_element_by_id(COVERAGE_FIGURE_ID) else {
             return;
         };
@@ -66,7 +66,7 @@ impl Page {
     }
 
     /// The key figures as a description list: label, then value.
-    fn fill_figures(&self, figures: &[crate::verdict::Figure]) {
+    fn fill_figures(&self, figures: &[crate::present::verdict::Figure]) {
         let Some(list) = self.document.get_element_by_id(FIGURES_ID) else {
             return;
         };

@@ -15,7 +15,7 @@ use web_sys::{Event, KeyboardEvent, MouseEvent, WheelEvent};
 
 use super::show::{Canvas, FIGURES};
 use super::Page;
-use crate::plot::zoom::{PlotFrame, Zoom};
+use crate::present::plot::zoom::{PlotFrame, Zoom};
 use crate::web::dom;
 
 /// The canvases that zoom.

@@ -1,0 +1,3 @@
+//! The Earth's field where and when a log was recorded: the World Magnetic Model.
+
+pub mod wmm;
