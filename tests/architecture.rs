@@ -322,9 +322,9 @@ fn layer_table() -> Vec<Vec<String>> {
         }
         let cells: Vec<&str> = line.split('|').map(str::trim).collect();
         let Some(cell) = cells.get(2) else { continue };
-        if !cells
+        if cells
             .get(1)
-            .is_some_and(|first| first.parse::<u32>().is_ok())
+            .is_none_or(|first| first.parse::<u32>().is_err())
         {
             continue;
         }

@@ -134,7 +134,7 @@ fn the_hmc5883l_sphere_is_judged_by_its_spread_against_the_live_panel_s_bar() {
     let spread = figure(&verdict, "|B| varies (std / mean)");
     let after = number(spread.split_once('→').expect("before → after").1);
     // The grade follows the live panel's conditions: a spread of 3 % or more is poor.
-    if after >= compass_pdr::live::GOOD_MAX_SPREAD_PCT {
+    if after >= compass_pdr::fit::quality::GOOD_MAX_SPREAD_PCT {
         assert_eq!(verdict.grade, Grade::Poor, "{spread}");
     }
 }

@@ -48,6 +48,39 @@ pub fn quantile_sorted(sorted: &[f64], q: f64) -> f64 {
     }
 }
 
+/// Mean and sample standard deviation (n − 1; 0 for one value), the papers' "mean ±
+/// std". The one owner of both for the crate: [`HeadingErrorStats`] takes its mean and
+/// std from here too.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct MeanStd {
+    pub n: usize,
+    pub mean: f64,
+    pub std: f64,
+}
+
+impl MeanStd {
+    /// Of the finite values; `None` when there is none.
+    pub fn of(values: impl IntoIterator<Item = f64>) -> Option<MeanStd> {
+        let values: Vec<f64> = values.into_iter().filter(|v| v.is_finite()).collect();
+        MeanStd::of_finite(&values)
+    }
+
+    /// Of values known to be finite; `None` when empty.
+    fn of_finite(values: &[f64]) -> Option<MeanStd> {
+        let n = values.len();
+        if n == 0 {
+            return None;
+        }
+        let mean = values.iter().sum::<f64>() / n as f64;
+        let std = if n > 1 {
+            (values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1) as f64).sqrt()
+        } else {
+            0.0
+        };
+        Some(MeanStd { n, mean, std })
+    }
+}
+
 /// Statistics of a set of heading errors (estimate minus reference), in degrees.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct HeadingErrorStats {
@@ -115,26 +148,20 @@ impl HeadingErrorStats {
                 .filter(|error_rad| error_rad.is_finite())
                 .map(|error_rad| wrap_to_pi(error_rad).to_degrees()),
         );
-        let n_samples = errors_deg.len();
-        if n_samples == 0 {
-            return None;
-        }
+        let MeanStd {
+            n: n_samples,
+            mean: mean_deg,
+            std: std_deg,
+        } = MeanStd::of_finite(&errors_deg)?;
         let n = n_samples as f64;
-        let mean_deg = errors_deg.iter().sum::<f64>() / n;
-        let (mut sum_sq_dev, mut sum_sq, mut within_5, mut max_abs_deg) = (0.0, 0.0, 0, 0.0f64);
+        let (mut sum_sq, mut within_5, mut max_abs_deg) = (0.0, 0, 0.0f64);
         for error_deg in &mut errors_deg {
-            sum_sq_dev += (*error_deg - mean_deg).powi(2);
             sum_sq += *error_deg * *error_deg;
             let abs_deg = error_deg.abs();
             within_5 += usize::from(abs_deg <= 5.0);
             max_abs_deg = max_abs_deg.max(abs_deg);
             *error_deg = abs_deg;
         }
-        let std_deg = if n_samples > 1 {
-            (sum_sq_dev / (n - 1.0)).sqrt()
-        } else {
-            0.0
-        };
         let rms_deg = (sum_sq / n).sqrt();
         // Nearest-rank percentile: a selection, not a sort (the heading comparison
         // scores hundreds of thousands of samples per method).

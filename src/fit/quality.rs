@@ -3,10 +3,17 @@
 //! of it: numbers a sensor's correction cannot have (not finite, a mirror, an axis
 //! stretched beyond any real sensor's) and a field strength that is not the Earth's.
 //! Each constant says where it comes from. An autopilot's own bounds are
-//! `calibration::autopilot::acceptance`.
+//! `analysis::calibration::autopilot::acceptance`.
+//!
+//! And the one field verdict ([`field_verdict`]): whether a fit of a board turned in the
+//! hand (live, or a dropped file without a reference heading) is good enough, by its
+//! samples, MotionCal's gap rule, the corrected field's spread and the World Magnetic
+//! Model's field.
 
 use nalgebra::SymmetricEigen;
+use serde::Serialize;
 
+use crate::fit::coverage::{SphereCoverage, MAX_GOOD_GAP_PCT};
 use crate::fit::model::FieldCalibration;
 
 /// The largest ratio of the soft iron's largest to smallest eigenvalue accepted. Real
@@ -104,6 +111,77 @@ fn field_reasons(field_ut: f64, expected_field_ut: Option<f64>) -> Vec<String> {
         }
     }
     reasons
+}
+
+/// Good enough to send: fewer samples than this are not.
+pub const GOOD_MIN_SAMPLES: usize = 300;
+/// Good enough: the corrected field's magnitude varies by less than this (standard
+/// deviation over mean, percent). A good fit of a MEMS magnetometer leaves about 1 %.
+pub const GOOD_MAX_SPREAD_PCT: f64 = 3.0;
+/// Good enough: the fitted field within this of the World Magnetic Model's, when the
+/// position is known (percent). Further off, the sensor's scale is wrong or something
+/// magnetic is near.
+pub const GOOD_MAX_FIELD_DIFFERENCE_PCT: f64 = 15.0;
+
+/// A field fit judged: good enough to send (or to trust without a reference heading), or
+/// the reasons it is not, each saying what to do.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FieldVerdict {
+    pub good_enough: bool,
+    /// The corrected field still varies by [`GOOD_MAX_SPREAD_PCT`] or more, or the fitted
+    /// field is [`GOOD_MAX_FIELD_DIFFERENCE_PCT`] or more from the World Magnetic Model's:
+    /// the calibration itself is off, not only the data short.
+    pub far_off: bool,
+    pub reasons: Vec<String>,
+}
+
+/// The verdict on a fit: each unmet condition is a reason that says what to do. A
+/// dropped file without a reference heading is judged by it too ([`crate::present::verdict`]).
+pub fn field_verdict(
+    n_samples: usize,
+    coverage: &SphereCoverage,
+    field_spread_pct: f64,
+    expected_field_ut: Option<f64>,
+    field_ut: f64,
+) -> FieldVerdict {
+    let mut reasons = Vec::new();
+    if n_samples < GOOD_MIN_SAMPLES {
+        reasons.push(format!(
+            "only {n_samples} samples; at least {GOOD_MIN_SAMPLES} are needed. Keep turning the device."
+        ));
+    }
+    if coverage.gaps_too_large() {
+        let advice = coverage
+            .largest_gap
+            .map_or(String::new(), |gap| format!(": {}", gap.advice()));
+        reasons.push(format!(
+            "{:.0} % of the sphere of directions is still missing (under {MAX_GOOD_GAP_PCT:.0} % is needed){advice}",
+            coverage.gap_pct
+        ));
+    }
+    // NaN (no spread measured) is not good enough either.
+    if field_spread_pct.is_nan() || field_spread_pct >= GOOD_MAX_SPREAD_PCT {
+        reasons.push(format!(
+            "the corrected field still varies by {field_spread_pct:.1} % (under {GOOD_MAX_SPREAD_PCT:.0} % is needed): \
+             move away from metal and magnets, and turn the device slowly"
+        ));
+    }
+    let mut far_off = field_spread_pct >= GOOD_MAX_SPREAD_PCT;
+    if let Some(expected_ut) = expected_field_ut {
+        let difference_pct = 100.0 * (field_ut - expected_ut) / expected_ut;
+        far_off |= difference_pct.abs() >= GOOD_MAX_FIELD_DIFFERENCE_PCT;
+        if difference_pct.is_nan() || difference_pct.abs() >= GOOD_MAX_FIELD_DIFFERENCE_PCT {
+            reasons.push(format!(
+                "the fitted field is {field_ut:.1} µT, {difference_pct:+.0} % from the {expected_ut:.1} µT the World \
+                 Magnetic Model gives here: check the sensor's range and units, and move away from magnetic objects"
+            ));
+        }
+    }
+    FieldVerdict {
+        good_enough: reasons.is_empty(),
+        far_off,
+        reasons,
+    }
 }
 
 #[cfg(test)]

@@ -45,9 +45,10 @@ use nalgebra::Vector3;
 use serde::Serialize;
 
 use crate::attitude::tilt::Tilt;
-use crate::fit::coverage::{sphere_coverage, SphereCoverage, MAX_GOOD_GAP_PCT};
+use crate::fit::coverage::{sphere_coverage, SphereCoverage};
 use crate::fit::export::SensorCalibration;
 use crate::fit::model::FieldCalibration;
+use crate::fit::quality::{field_verdict, FieldVerdict};
 use crate::fit::streaming_ellipsoid::{EllipsoidAccumulator, EllipsoidError, EllipsoidModel};
 use crate::io::lines::LineDecoder;
 use crate::io::serial_lines::{sensor_to_body, LineFormat, SerialReader};
@@ -65,16 +66,6 @@ pub const MAX_KEPT_SAMPLES: usize = 16_384;
 
 /// The fewest magnetometer samples a refit is tried on.
 pub const MIN_FIT_SAMPLES: usize = 50;
-
-/// Good enough to send: fewer samples than this are not.
-pub const GOOD_MIN_SAMPLES: usize = 300;
-/// Good enough: the corrected field's magnitude varies by less than this (standard
-/// deviation over mean, percent). A good fit of a MEMS magnetometer leaves about 1 %.
-pub const GOOD_MAX_SPREAD_PCT: f64 = 3.0;
-/// Good enough: the fitted field within this of the World Magnetic Model's, when the
-/// position is known (percent). Further off, the sensor's scale is wrong or something
-/// magnetic is near.
-pub const GOOD_MAX_FIELD_DIFFERENCE_PCT: f64 = 15.0;
 
 /// A live calibration session: everything received, what it was read as, and the fit.
 #[derive(Debug, Clone)]
@@ -98,7 +89,7 @@ pub struct LiveSession {
     /// `sent` and `confirmed_before` before the last packet, for a write that failed.
     before_send: Option<(Option<sending::Sent>, Option<FieldCalibration>)>,
     /// The samples split into train and check blocks, for the held-back check.
-    split: send_check::Split,
+    blocks: send_check::Blocks,
     /// The attitude filter, from the first fit on, for a stream with a gyroscope.
     attitude: Option<attitude::LiveAttitude>,
 }
@@ -119,7 +110,7 @@ pub struct LiveQuality {
     pub expected_field_ut: Option<f64>,
     /// `(fitted − expected) / expected`, percent.
     pub field_difference_pct: Option<f64>,
-    pub verdict: Verdict,
+    pub verdict: FieldVerdict,
     /// The fit against the calibration in force on the held-back samples.
     pub held_back: HeldBack,
     /// Whether it may be sent: good enough, better than the calibration in force on the
@@ -136,13 +127,6 @@ impl LiveQuality {
             &SensorFrame::serial_board(MagUnit::MICROTESLA),
         )
     }
-}
-
-/// Good enough to send, or the reasons it is not (each says what to do).
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Verdict {
-    pub good_enough: bool,
-    pub reasons: Vec<String>,
 }
 
 /// Counts for the page: what came in and what it was read as.
@@ -183,7 +167,7 @@ impl LiveSession {
             sent: None,
             confirmed_before: None,
             before_send: None,
-            split: send_check::Split::new(),
+            blocks: send_check::Blocks::new(),
             attitude: None,
         }
     }
@@ -320,7 +304,7 @@ impl LiveSession {
             .map_err(|error| describe_fit_error(&error))?;
         // The train blocks alone, with the full fit's model, for the held-back check.
         let train = self
-            .split
+            .blocks
             .train()
             .solve(fit.model, None)
             .map(|train| train.calibration)
@@ -346,7 +330,7 @@ impl LiveSession {
         for &v_in_body in new {
             let v_in_sensor = sensor_to_body(v_in_body);
             self.accumulator.add(v_in_sensor);
-            self.split.add(v_in_sensor);
+            self.blocks.add(v_in_sensor);
             if self.n_mag_used.is_multiple_of(self.kept_stride) {
                 self.kept_ut.push(v_in_sensor);
                 if self.kept_ut.len() >= MAX_KEPT_SAMPLES {
@@ -376,7 +360,7 @@ impl LiveSession {
     ) -> LiveQuality {
         let measured = self.measure_only(&calibration);
         let held_back = HeldBack::assess(
-            &self.split,
+            &self.blocks,
             &calibration,
             Some(train),
             self.in_force(),
@@ -451,58 +435,12 @@ struct Measured {
     field_spread_pct: f64,
     coverage: SphereCoverage,
     field_difference_pct: Option<f64>,
-    verdict: Verdict,
+    verdict: FieldVerdict,
 }
 
 const NMEA_LABEL: &str = "NMEA 0183 sentences (headings and fixes, no magnetometer vector to \
                           calibrate: the stream is recorded; download it and drop it on the \
                           page to analyse it)";
-
-/// The verdict on a fit: each unmet condition is a reason that says what to do. A
-/// dropped file without a reference heading is judged by it too ([`crate::present::verdict`]).
-pub fn field_verdict(
-    n_samples: usize,
-    coverage: &SphereCoverage,
-    field_spread_pct: f64,
-    expected_field_ut: Option<f64>,
-    field_ut: f64,
-) -> Verdict {
-    let mut reasons = Vec::new();
-    if n_samples < GOOD_MIN_SAMPLES {
-        reasons.push(format!(
-            "only {n_samples} samples; at least {GOOD_MIN_SAMPLES} are needed. Keep turning the device."
-        ));
-    }
-    if coverage.gaps_too_large() {
-        let advice = coverage
-            .largest_gap
-            .map_or(String::new(), |gap| format!(": {}", gap.advice()));
-        reasons.push(format!(
-            "{:.0} % of the sphere of directions is still missing (under {MAX_GOOD_GAP_PCT:.0} % is needed){advice}",
-            coverage.gap_pct
-        ));
-    }
-    // NaN (no spread measured) is not good enough either.
-    if field_spread_pct.is_nan() || field_spread_pct >= GOOD_MAX_SPREAD_PCT {
-        reasons.push(format!(
-            "the corrected field still varies by {field_spread_pct:.1} % (under {GOOD_MAX_SPREAD_PCT:.0} % is needed): \
-             move away from metal and magnets, and turn the device slowly"
-        ));
-    }
-    if let Some(expected_ut) = expected_field_ut {
-        let difference_pct = 100.0 * (field_ut - expected_ut) / expected_ut;
-        if difference_pct.is_nan() || difference_pct.abs() >= GOOD_MAX_FIELD_DIFFERENCE_PCT {
-            reasons.push(format!(
-                "the fitted field is {field_ut:.1} µT, {difference_pct:+.0} % from the {expected_ut:.1} µT the World \
-                 Magnetic Model gives here: check the sensor's range and units, and move away from magnetic objects"
-            ));
-        }
-    }
-    Verdict {
-        good_enough: reasons.is_empty(),
-        reasons,
-    }
-}
 
 fn describe_fit_error(error: &EllipsoidError) -> String {
     format!("No fit yet: {error}")

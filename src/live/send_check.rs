@@ -6,7 +6,7 @@
 //! **Held back.** The session's magnetometer samples are cut into blocks of
 //! [`BLOCK_LEN`] consecutive samples: even blocks train, odd blocks check (blocks rather
 //! than every other sample, because neighbouring samples see nearly the same direction
-//! and noise, and a check on them would flatter the fit). `Split` keeps a second
+//! and noise, and a check on them would flatter the fit). `Blocks` keeps a second
 //! ellipsoid accumulator fed with the train blocks only, and an evenly thinned copy of
 //! the check blocks' samples. At each refit the train-only accumulator is solved with
 //! the model of the full fit, and the train-only fit, the full fit and the calibration
@@ -30,8 +30,8 @@ use serde::Serialize;
 use crate::fit::model::FieldCalibration;
 use crate::fit::streaming_ellipsoid::EllipsoidAccumulator;
 
-use super::Verdict;
 use crate::fit::quality::acceptance_reasons;
+use crate::fit::quality::FieldVerdict;
 
 /// Consecutive samples per block of the train/check split. At the 10-1,000 lines/s of
 /// serial boards a block is 0.06-6 s of turning: long enough that the check samples are
@@ -61,7 +61,7 @@ pub const NOISE_STANDARD_ERRORS: f64 = 2.0;
 
 /// The session's samples split into train and check blocks.
 #[derive(Debug, Clone)]
-pub(super) struct Split {
+pub(super) struct Blocks {
     /// The power sums of the train blocks' samples.
     train: EllipsoidAccumulator,
     /// The check blocks' samples (sensor axes, µT), evenly thinned, each with its block.
@@ -72,9 +72,9 @@ pub(super) struct Split {
     n_seen: usize,
 }
 
-impl Split {
+impl Blocks {
     pub(super) fn new() -> Self {
-        Split {
+        Blocks {
             train: EllipsoidAccumulator::new(),
             check_ut: Vec::new(),
             check_block: Vec::new(),
@@ -217,13 +217,13 @@ impl HeldBack {
     /// The check of `candidate` (and of `train`, the train-only fit or why it failed)
     /// against `in_force` on the split's check samples.
     pub(super) fn assess(
-        split: &Split,
+        blocks: &Blocks,
         candidate: &FieldCalibration,
         train: Option<Result<FieldCalibration, String>>,
         in_force: InForce,
         expected_field_ut: Option<f64>,
     ) -> HeldBack {
-        let check = Check::of(split, expected_field_ut);
+        let check = Check::of(blocks, expected_field_ut);
         let in_force_on_check = check.on_check(&in_force.calibration);
         let (train_calibration, train_error) = match train {
             Some(Ok(calibration)) => (Some(calibration), None),
@@ -231,9 +231,9 @@ impl HeldBack {
             None => (None, None),
         };
         HeldBack {
-            n_train_samples: split.train.n_samples(),
-            n_check_samples: split.n_check_seen,
-            n_check_blocks: split.n_check_blocks(),
+            n_train_samples: blocks.train.n_samples(),
+            n_check_samples: blocks.n_check_seen,
+            n_check_blocks: blocks.n_check_blocks(),
             train: train_calibration.map(|train| check.compare(&train, &in_force.calibration)),
             train_calibration,
             train_error,
@@ -324,7 +324,7 @@ impl SendDecision {
     /// Good enough, better than the calibration in force on the held-back samples, and
     /// inside the bounds.
     pub fn of(
-        verdict: &Verdict,
+        verdict: &FieldVerdict,
         held_back: &HeldBack,
         calibration: &FieldCalibration,
         expected_field_ut: Option<f64>,
@@ -351,10 +351,10 @@ struct Check<'a> {
 }
 
 impl<'a> Check<'a> {
-    fn of(split: &'a Split, expected_field_ut: Option<f64>) -> Self {
+    fn of(blocks: &'a Blocks, expected_field_ut: Option<f64>) -> Self {
         Check {
-            samples_ut: &split.check_ut,
-            blocks: &split.check_block,
+            samples_ut: &blocks.check_ut,
+            blocks: &blocks.check_block,
             expected_field_ut,
         }
     }

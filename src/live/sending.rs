@@ -74,7 +74,7 @@ impl LiveSession {
     pub fn decision_for(&self, calibration: &FieldCalibration) -> SendDecision {
         let measured = self.measure_only(calibration);
         let held_back = HeldBack::assess(
-            &self.split,
+            &self.blocks,
             calibration,
             None,
             self.in_force(),
@@ -144,7 +144,7 @@ impl LiveSession {
             .train_calibration
             .ok_or_else(|| quality.held_back.train_error.clone().unwrap_or_default());
         quality.held_back = HeldBack::assess(
-            &self.split,
+            &self.blocks,
             &quality.calibration,
             Some(train),
             in_force,

@@ -12,6 +12,7 @@ use serde::Serialize;
 
 use super::fusion::TrackPoint;
 use crate::base::angle::wrap_to_pi;
+use crate::base::stats::MeanStd;
 
 /// Position errors over a span.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -36,31 +37,6 @@ pub struct PositionErrors {
     /// normal).
     pub within_1_sigma_pct: f64,
     pub within_2_sigma_pct: f64,
-}
-
-/// Mean and sample standard deviation.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct MeanStd {
-    pub n: usize,
-    pub mean: f64,
-    pub std: f64,
-}
-
-impl MeanStd {
-    pub fn of(values: impl IntoIterator<Item = f64>) -> Option<MeanStd> {
-        let values: Vec<f64> = values.into_iter().filter(|v| v.is_finite()).collect();
-        let n = values.len();
-        if n == 0 {
-            return None;
-        }
-        let mean = values.iter().sum::<f64>() / n as f64;
-        let std = if n > 1 {
-            (values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1) as f64).sqrt()
-        } else {
-            0.0
-        };
-        Some(MeanStd { n, mean, std })
-    }
 }
 
 /// The loop-closure error of a walk that ends where it started.

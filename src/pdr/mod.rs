@@ -69,9 +69,10 @@ use crate::base::geodesy::LocalFrame;
 use crate::io::recording::{Recording, Stream};
 use crate::io::ImportReport;
 
+use crate::base::stats::MeanStd;
 use ekf::EkfNoise;
 use fusion::{fuse, FixInput, FixUse, Fused, GnssPolicy, StepInput, TrackPoint};
-use metrics::{LoopClosure, MeanStd, PositionErrors};
+use metrics::{LoopClosure, PositionErrors};
 use references::{
     first_good_fix, gnss_step_references, reference_positions, start_position,
     step_reference_lengths, train_step_model, ReferenceSets,

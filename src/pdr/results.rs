@@ -8,9 +8,10 @@ use crate::analysis::levelled::AnalysisError;
 use crate::base::geodesy::LocalFrame;
 
 use super::fusion::{FixInput, FixUse, Outage, TrackPoint};
-use super::metrics::{self, LoopClosure, MeanStd, PositionErrors};
+use super::metrics::{self, LoopClosure, PositionErrors};
 use super::step_length::{StepLengthModel, StepModelKind};
 use super::steps::Step;
+use crate::base::stats::MeanStd;
 
 /// How the step model was trained.
 #[derive(Debug, Clone, PartialEq, Serialize)]

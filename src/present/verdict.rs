@@ -9,7 +9,7 @@
 //! - **no reference** (a board turned in the hand): how much the field's magnitude varies
 //!   before and after the correction, the coverage of the sphere of directions and the
 //!   fitted field against the World Magnetic Model, graded by the live panel's own
-//!   conditions ([`crate::live::field_verdict`]), so a file and a live session are judged
+//!   conditions ([`crate::fit::quality::field_verdict`]), so a file and a live session are judged
 //!   alike;
 //! - **an autopilot log** with compasses fitted and written back: each compass's heading
 //!   against the autopilot's and its spread, in force and as written.
@@ -26,6 +26,7 @@ use crate::analysis::headings::HeadingReport;
 use crate::base::stats::{spread_pct, HeadingErrorStats};
 use crate::base::words::{duration_text, plural};
 use crate::fit::coverage::{sphere_coverage, SphereCoverage};
+use crate::fit::quality::field_verdict;
 use crate::io::thousands;
 use crate::pdr::PdrReport;
 
@@ -165,7 +166,7 @@ pub fn verdict(
             &field,
             (read, method),
         ),
-        (_, basis) => field_verdict(analysis, &field, (read, method), basis),
+        (_, basis) => field_only_verdict(analysis, &field, (read, method), basis),
     };
     // A vehicle does not walk: its log gets no step count.
     if let Some(pdr) = pdr.filter(|_| verdict.kind != VerdictKind::Autopilot) {
@@ -474,7 +475,7 @@ fn heading_verdict(
     }
 }
 
-fn field_verdict(
+fn field_only_verdict(
     analysis: &CalibrationAnalysis,
     field: &FieldFigures,
     (read, method): (String, String),
@@ -512,24 +513,16 @@ fn field_verdict(
             field.coverage.n_covered
         ),
     };
-    let live = crate::live::field_verdict(
+    let judged = field_verdict(
         field.n_samples,
         &field.coverage,
         corrected_spread,
         field.expected_ut,
         field.field_ut.unwrap_or(f64::NAN),
     );
-    let spread_poor = corrected_spread >= crate::live::GOOD_MAX_SPREAD_PCT;
-    let field_poor = match (field.field_ut, field.expected_ut) {
-        (Some(field_ut), Some(expected_ut)) => {
-            (100.0 * (field_ut - expected_ut) / expected_ut).abs()
-                >= crate::live::GOOD_MAX_FIELD_DIFFERENCE_PCT
-        }
-        _ => false,
-    };
-    let grade = if live.good_enough {
+    let grade = if judged.good_enough {
         Grade::Good
-    } else if spread_poor || field_poor {
+    } else if judged.far_off {
         Grade::Poor
     } else {
         Grade::Fair
@@ -541,7 +534,7 @@ fn field_verdict(
             format!("±{std_deg:.1}° (1σ)"),
         ));
     }
-    let mut to_do = live.reasons;
+    let mut to_do = judged.reasons;
     to_do.push(if matches!(basis, Basis::ReferenceTooFar { .. }) {
         "To measure the heading error itself, record with a reference heading that can judge it: \
          GPS while walking or driving straight outdoors (this log's course is too far from every \

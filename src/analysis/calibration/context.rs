@@ -143,13 +143,20 @@ pub(super) fn declination_used(
     }
 }
 
-/// The train/check split and the train samples the fits see.
-pub(super) struct Split {
-    pub(super) train_until_s: Option<f64>,
-    pub(super) is_train: Vec<bool>,
-    pub(super) is_fit: Vec<bool>,
-    pub(super) n_train: usize,
-    pub(super) n_check: usize,
+/// The one train/check split by time of an analysis, and the train samples the fits
+/// see: every method, field-domain or learnt, sees only train samples and is scored on
+/// check samples it never saw.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Split {
+    /// The last train time (s); `None` when every sample trains (no check part).
+    pub train_until_s: Option<f64>,
+    /// Per sample: on the train part.
+    pub is_train: Vec<bool>,
+    /// Per sample: one of the train samples the fits are given (at most
+    /// [`MAX_FIT_SAMPLES`], evenly spread).
+    pub is_fit: Vec<bool>,
+    pub n_train: usize,
+    pub n_check: usize,
 }
 
 /// Train up to `train_until_s` (given, else the middle of the referenced samples), check

@@ -47,9 +47,9 @@ pub mod selection;
 
 pub use attitude::AttitudeHeading;
 use context::{
-    conditions, declination_used, field_and_reference_notes, split, turn_onto_raw_heading, Split,
+    conditions, declination_used, field_and_reference_notes, split, turn_onto_raw_heading,
 };
-pub use context::{expected_field_of, inertial_options, plane_options};
+pub use context::{expected_field_of, inertial_options, plane_options, Split};
 use methods::{fit_ellipse, fit_ellipsoid, fit_min_max, fit_ref_ls, MethodInputs, MethodOutputs};
 
 /// A calibration method.
@@ -297,6 +297,8 @@ pub struct CalibrationAnalysis {
     /// Down at each accelerometer sample, which levelled the samples and the gyro:
     /// estimated once, shared by the stages after (shared, not copied, by a clone).
     pub gravity: Arc<GravityEstimate>,
+    /// The train/check split every heading figure of the analysis is on.
+    pub split: Split,
 }
 
 impl CalibrationReport {
@@ -724,6 +726,7 @@ fn calibrate_levelled(
         attitude_heading: None,
         field_raw_ut,
         gravity,
+        split,
     };
     settle_choice(&mut analysis.report);
     analysis.attitude_heading = attitude_heading

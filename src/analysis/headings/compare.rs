@@ -29,27 +29,22 @@ struct Base<'a> {
 /// A row's statistics on the train part and on the check part.
 type Scores = (Option<HeadingErrorStats>, Option<HeadingErrorStats>);
 
-/// The split every row is scored on: the reference at each sample and which part the
-/// sample is in.
-struct Split {
+/// What every row is scored on: the reference at each sample, and the analysis's one
+/// train/check split ([`Split`](crate::analysis::calibration::Split)).
+struct Scoring<'a> {
     reference_rad: Vec<Option<f64>>,
-    is_train: Vec<bool>,
+    is_train: &'a [bool],
 }
 
-impl Split {
-    fn of(calibration: &CalibrationAnalysis) -> Split {
-        let train_until_s = calibration.report.train_until_s;
-        Split {
+impl<'a> Scoring<'a> {
+    fn of(calibration: &'a CalibrationAnalysis) -> Scoring<'a> {
+        Scoring {
             reference_rad: calibration
                 .ref_heading_deg
                 .iter()
                 .map(|reference| reference.map(f64::to_radians))
                 .collect(),
-            is_train: calibration
-                .t_s
-                .iter()
-                .map(|&t_s| train_until_s.is_none_or(|until_s| t_s <= until_s))
-                .collect(),
+            is_train: &calibration.split.is_train,
         }
     }
 
@@ -57,7 +52,7 @@ impl Split {
     fn n_referenced(&self, want_train: bool) -> usize {
         self.reference_rad
             .iter()
-            .zip(&self.is_train)
+            .zip(self.is_train)
             .filter(|(reference, &train)| reference.is_some() && train == want_train)
             .count()
     }
@@ -67,7 +62,7 @@ impl Split {
         &self,
         headings_rad: &[f64],
     ) -> (Option<HeadingErrorStats>, Option<HeadingErrorStats>) {
-        HeadingErrorStats::on_both_parts(headings_rad, &self.reference_rad, &self.is_train)
+        HeadingErrorStats::on_both_parts(headings_rad, &self.reference_rad, self.is_train)
     }
 }
 
@@ -80,11 +75,11 @@ struct Table {
 }
 
 impl Table {
-    fn push_scored(&mut self, key: String, label: String, headings_rad: &[f64], split: &Split) {
+    fn push_scored(&mut self, key: String, label: String, headings_rad: &[f64], scoring: &Scoring) {
         self.push_row(
             key,
             label,
-            split.both_stats(headings_rad),
+            scoring.both_stats(headings_rad),
             to_degrees(headings_rad),
         );
     }
@@ -122,8 +117,8 @@ impl Table {
 /// then this, and writes the choice back into the calibration's report).
 pub fn compare(calibration: &CalibrationAnalysis, options: &HeadingOptions) -> HeadingAnalysis {
     let calibration_report = calibration.report.clone();
-    let split = Split::of(calibration);
-    let bases = bases_of(calibration, &split);
+    let scoring = Scoring::of(calibration);
+    let bases = bases_of(calibration, &scoring);
     let mut table = Table::default();
     // The bases as the calibration scored them (its split is this one).
     for base in &bases {
@@ -143,17 +138,23 @@ pub fn compare(calibration: &CalibrationAnalysis, options: &HeadingOptions) -> H
     }
     let bins = train_bins(
         &calibration.t_s,
-        &split.is_train,
-        &split.reference_rad,
+        scoring.is_train,
+        &scoring.reference_rad,
         &calibration.gyro_heading_deg,
     );
-    let fourier_reports = fourier_stacks(&bases, &bins, &split, &mut table);
+    let fourier_reports = fourier_stacks(&bases, &bins, &scoring, &mut table);
     let neural_reports = if options.neural {
-        neural_stacks(calibration, &bases, &bins, &split, &mut table)
+        neural_stacks(calibration, &bases, &bins, &scoring, &mut table)
     } else {
         Vec::new()
     };
-    let online = online_adaptation(&calibration.t_s, &bases, &fourier_reports, &split, options);
+    let online = online_adaptation(
+        &calibration.t_s,
+        &bases,
+        &fourier_reports,
+        &scoring,
+        options,
+    );
     let choice = choose(&table.rows, &calibration_report);
     if calibration_report.reference.is_none() {
         table.notes.push(
@@ -168,8 +169,8 @@ pub fn compare(calibration: &CalibrationAnalysis, options: &HeadingOptions) -> H
             reference: calibration_report.reference,
             reference_description: calibration_report.reference.map(|source| source.describe()),
             train_until_s: calibration_report.train_until_s,
-            n_train_referenced: split.n_referenced(true),
-            n_check_referenced: split.n_referenced(false),
+            n_train_referenced: scoring.n_referenced(true),
+            n_check_referenced: scoring.n_referenced(false),
             rows: table.rows,
             fourier: fourier_reports,
             neural: neural_reports,
@@ -180,7 +181,7 @@ pub fn compare(calibration: &CalibrationAnalysis, options: &HeadingOptions) -> H
             calibration: calibration_report,
         },
         t_s: calibration.t_s.clone(),
-        is_train: split.is_train,
+        is_train: scoring.is_train.to_vec(),
         reference_deg: calibration.ref_heading_deg.clone(),
         headings_deg: table.series,
     }
@@ -195,7 +196,7 @@ pub const IN_FORCE_KEY: &str = "in_force";
 /// The uncalibrated heading, an autopilot's with its calibration in force, each fitted
 /// field-domain method's, then the attitude filter's (the last two scored here: the
 /// calibration does not score them).
-fn bases_of<'a>(calibration: &'a CalibrationAnalysis, split: &Split) -> Vec<Base<'a>> {
+fn bases_of<'a>(calibration: &'a CalibrationAnalysis, scoring: &Scoring) -> Vec<Base<'a>> {
     let radians = |headings_deg: &[f64]| headings_deg.iter().map(|deg| deg.to_radians()).collect();
     let report = &calibration.report;
     let mut bases = vec![Base {
@@ -211,7 +212,7 @@ fn bases_of<'a>(calibration: &'a CalibrationAnalysis, split: &Split) -> Vec<Base
     // A base the calibration does not score, scored here on the same split.
     let scored_here = |key: &str, label: String, heading_deg: &'a [f64]| {
         let heading_rad: Vec<f64> = radians(heading_deg);
-        let scores = split.both_stats(&heading_rad);
+        let scores = scoring.both_stats(&heading_rad);
         Base {
             key: key.to_string(),
             label,
@@ -247,10 +248,10 @@ fn bases_of<'a>(calibration: &'a CalibrationAnalysis, split: &Split) -> Vec<Base
 fn fourier_stacks(
     bases: &[Base],
     bins: &[Vec<usize>],
-    split: &Split,
+    scoring: &Scoring,
     table: &mut Table,
 ) -> Vec<FourierReport> {
-    let reference_values: Vec<f64> = split
+    let reference_values: Vec<f64> = scoring
         .reference_rad
         .iter()
         .map(|reference| reference.unwrap_or(f64::NAN))
@@ -285,7 +286,7 @@ fn fourier_stacks(
                 let corrected = crate::base::par::map(&base.heading_rad, |_, &heading| {
                     fit.model.correct_rad(heading)
                 });
-                table.push_scored(key, label, &corrected, split);
+                table.push_scored(key, label, &corrected, scoring);
                 if fit.terms != fourier::FourierTerms::Full {
                     table.notes.push(format!(
                         "{}: the train headings cover too little of the circle for all five terms, so only {} were \
@@ -323,7 +324,7 @@ fn neural_stacks(
     calibration: &CalibrationAnalysis,
     bases: &[Base],
     bins: &[Vec<usize>],
-    split: &Split,
+    scoring: &Scoring,
     table: &mut Table,
 ) -> Vec<neural::NeuralReport> {
     let horizontal_ut: Vec<f64> = calibration
@@ -390,7 +391,7 @@ fn neural_stacks(
             &base.key,
             &base.label,
             &base.heading_rad,
-            &split.reference_rad,
+            &scoring.reference_rad,
             &conditions,
             bins,
             1,
@@ -398,7 +399,7 @@ fn neural_stacks(
         match trained {
             Ok(correction) => {
                 let corrected = correction.correct_all_rad(&base.heading_rad, &conditions);
-                table.push_scored(key, label, &corrected, split);
+                table.push_scored(key, label, &corrected, scoring);
                 if !correction.report.missing_inputs.is_empty() {
                     table.notes.push(format!(
                         "{}: the log has no {}, so the network learned from {}",
@@ -421,7 +422,7 @@ fn online_adaptation(
     t_s: &[f64],
     bases: &[Base],
     fourier_reports: &[FourierReport],
-    split: &Split,
+    scoring: &Scoring,
     options: &HeadingOptions,
 ) -> Option<OnlineReport> {
     let base = featured(fourier_reports)
@@ -432,7 +433,7 @@ fn online_adaptation(
     let samples: Vec<(f64, f64, f64)> = t_s
         .iter()
         .zip(&base.heading_rad)
-        .zip(&split.reference_rad)
+        .zip(&scoring.reference_rad)
         .filter_map(|((&t_s, &raw_rad), &reference_rad)| {
             let reference_rad = reference_rad?;
             (t_s - last_t_s >= ONLINE_UPDATE_SPACING_S).then(|| {
