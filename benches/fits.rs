@@ -1,15 +1,15 @@
-//! Fit time on real logs: `calib::plane::fit_plane` (the "ellipse" method, tilt-aware
-//! level-plane fit) and `calib::inertial::fit_inertial` (the "ellipsoid" method) on 10⁴
+//! Fit time on real logs: `fit::ellipse::fit_plane` (the "ellipse" method, tilt-aware
+//! level-plane fit) and `fit::ellipsoid::fit_inertial` (the "ellipsoid" method) on 10⁴
 //! samples of each recording in `../shared/data` that the tool reads, of the simulator's
 //! demo walk (`WalkConfig::demo(1, 240 s, 50 Hz)`, the committed demo) and of the
 //! independent generator's circle walk (`tests/physics`, seed 1).
 //!
-//! The samples are made as `calibration::calibrate` makes them: the import,
-//! `analysis::tilted_samples` (tilt from the accelerometer and gyroscope, 1 s), then
-//! evenly thinned or repeated to exactly 10⁴ (sample `i·n/10⁴` of `n`), with the priors
-//! `calibrate` gives the fits (the WMM's inclination and intensity at the log's place and
-//! date, when it has them; the tilt for the 3D fit only when it came from an
-//! accelerometer). A recording that is absent is skipped with a message.
+//! The samples are made as `analysis::calibration::calibrate` makes them: the import,
+//! `analysis::levelled::tilted_samples` (tilt from the accelerometer and gyroscope,
+//! 1 s), then evenly thinned or repeated to exactly 10⁴ (sample `i·n/10⁴` of `n`), with
+//! the priors `calibrate` gives the fits (the WMM's inclination and intensity at the
+//! log's place and date, when it has them; the tilt for the 3D fit only when it came
+//! from an accelerometer). A recording that is absent is skipped with a message.
 //!
 //!   cargo bench --bench fits --profile bench-import
 //!

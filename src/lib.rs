@@ -40,14 +40,14 @@
 //!
 //! Folders by layer, each built only on those below it (`docs/ARCHITECTURE.md` has the
 //! table, which a test holds to the imports): [`base`], [`io`] (with the central
-//! [`io::recording::Recording`]), [`earth`], [`sim`], [`attitude`], [`fit`], [`reference`],
-//! [`deviation`], [`live`], [`analysis`], [`pdr`], [`pipeline`], [`present`]; then the
-//! edges, the CLI (`src/main.rs`, `src/cli/`: files and argv) and `web` (wasm32 only:
-//! the DOM). Everything but the edges is pure: it takes bytes, text or samples and
-//! returns values, and reads no clock, file, global or DOM; the one exception is
-//! [`base::par`], which asks how many threads there are and, in the threaded browser
-//! build, holds the Web Worker pool (the runtime's state, not the algorithms'; results
-//! never depend on it).
+//! [`io::recording::Recording`]), [`earth`], [`sim`], [`attitude`], [`fit`],
+//! [`reference`](mod@crate::reference), [`deviation`], [`live`], [`analysis`], [`pdr`],
+//! [`pipeline`], [`present`]; then the edges, the CLI (`src/main.rs`, `src/cli/`: files
+//! and argv) and `web` (wasm32 only: the DOM). Everything but the edges is pure: it
+//! takes bytes, text or samples and returns values, and reads no clock, file, global or
+//! DOM; the one exception is [`base::par`], which asks how many threads there are and,
+//! in the threaded browser build, holds the Web Worker pool (the runtime's state, not
+//! the algorithms'; results never depend on it).
 //!
 //! ## What it does
 //!
@@ -62,7 +62,7 @@
 //! or the attitude filter.
 
 // The threaded browser build (nightly, `-C target-feature=+atomics`) waits with
-// `memory.atomic.wait32` in its workers (`par::pool`).
+// `memory.atomic.wait32` in its workers (`base::par::pool`).
 #![cfg_attr(
     all(target_arch = "wasm32", target_feature = "atomics"),
     feature(stdarch_wasm_atomic_wait)

@@ -1,14 +1,24 @@
 //! The one analysis pipeline: an imported recording → the field calibrations
 //! ([`crate::analysis::calibration`]) → the heading models and the one choice of "best"
-//! ([`crate::analysis::headings`], [`crate::analysis::calibration::selection`]) → dead reckoning ([`crate::pdr`]). The
-//! CLI, the page and the report are thin callers of these functions, so they name the
-//! same best method and export the same device calibration.
+//! ([`crate::analysis::headings`], [`crate::analysis::calibration::selection`], written
+//! back into the calibration's report so that its device calibration follows it) →
+//! dead reckoning ([`crate::pdr`]). The CLI, the page and the report are thin callers of
+//! these functions, so they name the same best method and export the same device
+//! calibration.
 //!
 //! Each stage is a function of its inputs and the options. A change re-runs the stage it
 //! touches and those after it ([`Stage`]): a new declination, split or method list
 //! re-runs everything; a new step model, outage, known distance or filter noise re-runs
 //! only the dead reckoning, which fits the chosen model again without the outages' fixes
-//! (so no fix inside an outage trains what bridges it) but does not choose again.
+//! (so no fix inside an outage trains what bridges it, on the calibration's levelled
+//! samples unless their down used fixes the outages hide) but does not choose again.
+//!
+//! [`analyse`] runs every stage; [`Steps`] is the same order one step at a time
+//! (`next`, `advance`, `finish`; `after_headings` for the dead reckoning alone), for a
+//! caller with other work between steps (the page's worker); [`dead_reckoning`] is the
+//! whole for callers that want only the track; [`calibrate_file`] and
+//! [`calibrate_files`] the calibration stage on bytes (tests and scripts); [`attitude`]
+//! and [`attitude_csv`] the attitude filter with the analysis's device calibration.
 
 use crate::analysis::attitude_track::{attitude_of, FieldSource};
 use crate::analysis::calibration::selection::Choice;

@@ -88,7 +88,7 @@ fn parse_json(text: &str) -> (Parsed, String, String) {
     (parsed, text_of("axes"), text_of("unit"))
 }
 
-/// MotionCal's packet read here from its bytes (layout in `calib::export`): µT.
+/// MotionCal's packet read here from its bytes (layout in `fit::export`): µT.
 fn parse_packet(packet: &[u8]) -> Parsed {
     assert_eq!(packet.len(), 68);
     assert_eq!(&packet[..2], b"uT");

@@ -176,7 +176,7 @@ fn issue_43_car_s_exported_calibration_is_near_the_true_one() {
 }
 
 /// The same drives whose fixes carry no speed: the speed between the fixes' positions
-/// takes the turns' centripetal acceleration out of the tilt (`calib::gravity`); without
+/// takes the turns' centripetal acceleration out of the tilt (`attitude::down`); without
 /// it the exported calibration was 1.36 × at the median and 4.3 × at worst.
 #[test]
 fn issue_43_car_without_a_speed_is_as_near_as_with_one() {
@@ -195,7 +195,7 @@ fn issue_43_hand_s_exported_calibration_is_near_the_true_one() {
 
 /// The phone swinging at the arm's end by ±30-60°: its tilt is trusted little, so each
 /// sample's dip weighs its trust, a dip far from the model's refuses nothing
-/// (`calib::inertial`), and the device takes the 3D fit rather than the ellipse fitted on
+/// (`fit::ellipsoid`), and the device takes the 3D fit rather than the ellipse fitted on
 /// that tilt. Before: 2.2 × the true calibration at the median, 16.6 × at worst; now
 /// 1.6 × and 2.6 ×, short of the issue's bar. Holding the soft iron's rotation at zero
 /// there met it (18 of 20 within 1.3 ×, worst 1.7 ×), but this generator's soft iron

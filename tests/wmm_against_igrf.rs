@@ -1,7 +1,7 @@
 //! The World Magnetic Model's answers against an independent model: IGRF-14 (as the
 //! `ppigrf` package evaluates it, `tests/data/igrf14_field.py`) at 600 random places and
 //! dates. 500 dates lie in 1990-2019, before the bundled WMM2020 epoch, where
-//! `calib::wmm` extrapolates along the model's secular variation and states a wider
+//! `earth::wmm` extrapolates along the model's secular variation and states a wider
 //! declination uncertainty; 100 lie in 2020-2024, where both models hold, for the
 //! baseline. Distributions, not one place.
 

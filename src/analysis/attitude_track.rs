@@ -1,5 +1,13 @@
 //! The filter on a whole recording: its streams calibrated and referenced, and its
-//! output as the CSV any tool can read.
+//! output as the CSV any tool can read (`heading --attitude-out`).
+//!
+//! The field is corrected by the analysis's calibration or by the device's own
+//! hard-iron estimate, whichever lets the gates pass more field ([`attitude_of`]). The
+//! same track is a base of the heading comparison (row `ahrs`,
+//! `analysis/calibration/attitude.rs`), the network's gyro-heading input, and a heading
+//! dead reckoning can take (`--heading-model ahrs`, `gyro+ahrs`, with the yaw's σ as the
+//! heading noise); the live panel runs the same filter for its dial's second needle
+//! (`live/attitude.rs`).
 
 use nalgebra::Vector3;
 

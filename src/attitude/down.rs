@@ -31,10 +31,24 @@
 //! ## When the gyroscope is not used
 //!
 //! Without a gyroscope, or when its rate does not carry the accelerometer's direction
-//! along (a sign or a unit wrong in the log: the fused down then strays from the
-//! averaged one by more than [`MAX_RMS_DISAGREEMENT_DEG`] RMS, where a right gyroscope
-//! differs by the sway it tracks), the averaged accelerometer is used, and
-//! [`GravityEstimate::source`] says which and why.
+//! along (a sign or a unit wrong in the log: its prediction of down then strays from
+//! the accelerometer's by more than [`MAX_INNOVATION_DEG`] RMS over one-second blocks,
+//! where a right gyroscope differs by the slow accelerations, a degree or two), the
+//! averaged accelerometer is used, and [`GravityEstimate::source`] says which and why.
+//!
+//! ## GNSS, time scale, trust and autopilots
+//!
+//! Several settings are tried, each by a forward pass, and the one whose gyroscope
+//! predicts the accelerometer's down best wins (another than the plain one only when
+//! clearly better): with GNSS speeds, the motion's own accelerations (the change of
+//! speed, a turn's centripetal acceleration) taken out of the accelerometer first (fixes
+//! that state no speed take it from their positions); and the gyroscope's rates as
+//! logged, twice or half as fast (a log without timestamps read at a wrongly assumed
+//! rate). Each sample's tilt carries a σ ([`GravityEstimate::tilt_sigma_rad`]: half
+//! the angle between the two passes, which agree where the accelerometer read gravity),
+//! from which the fits tell how far to trust it. An autopilot's log is levelled with the
+//! autopilot's own roll and pitch instead ([`gravity_from_attitude`]): in flight a
+//! multirotor's accelerometer reads its thrust, not gravity.
 
 use nalgebra::{Rotation3, Vector2, Vector3};
 use serde::Serialize;
@@ -55,7 +69,7 @@ const MAX_GYRO_GAP_S: f64 = 0.5;
 const MIN_SPECIFIC_FORCE_MPS2: f64 = 2.0;
 
 /// A gyroscope whose prediction of down differs from the accelerometer's by more than
-/// this on average over blocks of [`INNOVATION_BLOCK_S`] (RMS over the blocks) is not
+/// this on average over blocks of `INNOVATION_BLOCK_S` (RMS over the blocks) is not
 /// trusted: a right one differs by the slow accelerations left in the accelerometer,
 /// a degree or two; a wrong sign or unit by tens as soon as the device turns.
 pub const MAX_INNOVATION_DEG: f64 = 10.0;

@@ -31,8 +31,11 @@
 //!   so a dipping field cannot tilt the attitude.
 //! - **Zero rate**: at rest the gyroscope reads its bias: `ω − b = δb + noise`.
 //!
-//! Each correction is injected (`q ← exp(δθ) ⊗ q`, `b ← b + δb`) and the error reset to
-//! zero; the covariance is kept (the reset's Jacobian is the identity to first order).
+//! Every measurement is a few rows, each reading one error component, fused one row
+//! after the other (exact for independent noises); gravity is fused with the bias as a
+//! considered state, so that it never moves the bias. Each correction is injected
+//! (`q ← exp(δθ) ⊗ q`, `b ← b + δb`) and the error reset to zero; the covariance is kept
+//! (the reset's Jacobian is the identity to first order).
 
 use nalgebra::{Matrix3, Matrix6, UnitQuaternion, Vector3, Vector6};
 

@@ -2,6 +2,14 @@
 //! accelerometer and field sample does to the error-state filter ([`super::eskf`]),
 //! behind the gates ([`super::gates`]). [`super::estimate_attitude`] feeds it a log's
 //! streams in time order; a live stream can feed it as the samples come.
+//!
+//! Besides the fusion itself it holds what a real log needs: accelerometer samples
+//! within [`super::GRAVITY_BLOCK_S`] fused as one, gaps in the gyroscope, the detection
+//! of rest (for the zero-rate update), a yaw left unknown until the gates pass a field,
+//! the heading re-aimed at a field that has contradicted it for [`super::RECOVERY_S`],
+//! and the tilt re-levelled on gravity after gravity has contradicted it for as long: a
+//! gyroscope saturated while a board tumbles can leave the filter upside down, where
+//! gravity's gate would otherwise refuse it forever.
 
 use nalgebra::Vector3;
 

@@ -1,6 +1,10 @@
 //! SplitMix64 (Steele, Lea and Flood 2014, "Fast splittable pseudorandom number
 //! generators", OOPSLA; the constants are those of `java.util.SplittableRandom`) and
 //! Gaussian samples by the Box-Muller transform.
+//!
+//! Written out here rather than taken from a crate, so that a seed gives the same
+//! numbers on every platform and whatever a dependency's version: the simulator's logs,
+//! the committed demo among them, and the network's initial weights depend on it.
 
 /// A small deterministic generator: the same seed gives the same sequence everywhere.
 #[derive(Debug, Clone)]

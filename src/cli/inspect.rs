@@ -1,5 +1,6 @@
-//! Reading the files a command names (`import_paths`, in chunks, with a remembered
-//! column mapping) and `compass-pdr inspect`: what a log holds.
+//! Reading the files a command names (`import_paths`: each mapped into memory and read
+//! whole, or in chunks where it cannot be mapped, with a remembered column mapping) and
+//! `compass-pdr inspect`: what a log holds.
 
 use super::args::ImportArgs;
 use super::{mapping_store, print_out, print_report};
@@ -7,8 +8,11 @@ use compass_pdr::io::delimited::ColumnMapping;
 use compass_pdr::io::import::{header_signature, import_file, merge, ChunkedImport, Inspection};
 use compass_pdr::io::{Diagnostics, ImportReport};
 
-/// Reads the files of one recording in chunks (memory holds the samples, not the
-/// text) and merges them. A file that cannot be opened ends the command with its name;
+/// Reads the files of one recording and merges them: each file mapped into memory and
+/// read whole ([`import_file`]), or, where it cannot be mapped (a pipe), in chunks
+/// through [`ChunkedImport`] (memory then holds the samples, not the text); the maps are
+/// dropped on a thread of their own. A file that cannot be opened ends the command with
+/// its name;
 /// one that cannot be parsed is left out with a diagnostic unless all fail. A column
 /// mapping given with `--map` is remembered for the file's header; without one, a
 /// remembered mapping is used and said so.

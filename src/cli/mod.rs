@@ -3,8 +3,13 @@
 //! files, writes files and prints.
 //!
 //! One file per command (`simulate.rs`, `inspect.rs`, `calibrate.rs`, `heading.rs`,
-//! `pdr.rs` with `report`), the arguments they share in `args.rs`, the remembered column
-//! mappings in `mapping_store.rs`, the allocator's huge-page hint in `huge_pages.rs`; this file holds the command line and its dispatch.
+//! `pdr.rs` with `report`), the arguments they share in `args.rs`, the remembered
+//! column mappings (`--map`) in `mapping_store.rs`, the allocator's huge-page hint in
+//! `huge_pages.rs`; this file holds the command line and its dispatch. Several files are
+//! one recording, read and merged by `inspect.rs`'s `import_paths`. Diagnostics go to
+//! stderr as `file:line: message`; the exit code is 1 on a refused file (and, for
+//! `calibrate`, on a log where no method could be fitted; the other commands then
+//! answer uncalibrated).
 
 use std::path::PathBuf;
 use std::process::ExitCode;

@@ -10,11 +10,11 @@
 //!
 //! where ξ' is the raw (or already field-calibrated) heading, ξ the reference and ω the
 //! noise, mostly the body's oscillation. The first harmonic (B, C) is hard iron, the
-//! second (D, E) soft iron; the constant A absorbs the misalignment β between the device
-//! and the walking direction, the declination λ, and any constant offset of the
+//! second (D, E) soft iron; the constant A absorbs the misalignment β between the
+//! device and the walking direction, the declination λ, and any constant offset of the
 //! reference. The deviation is an angle: it is unwrapped about its circular mean and,
-//! after a first fit, re-wrapped about the fitted curve, so that a deviation near ±180° is fitted on the
-//! right branch.
+//! after a first fit, re-wrapped about the fitted curve, so that a deviation near ±180°
+//! is fitted on the right branch.
 //!
 //! The sine and cosine terms can be told apart only when the headings cover enough of
 //! the circle. The fit measures this by the smallest eigenvalue of the normalised normal

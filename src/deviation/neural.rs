@@ -10,12 +10,14 @@
 //!   neighbours (the paper's raw angle has a jump at north);
 //! - |H| is the horizontal magnitude of the levelled raw field, the dip
 //!   `acos(|H| / |B|)` from the same field;
+//! - the gyro heading is the attitude filter's where the log has one
+//!   ([`crate::attitude`]), else the integrated gyroscope;
 //! - an input the log does not have (no gyro, no temperature) is left out, and the
 //!   report names the inputs used;
 //! - the target is the deviation (reference − heading) in degrees, unwrapped about its
 //!   circular mean, as for the Fourier model; samples are 1 s circular means;
-//! - training is [`crate::deviation::network::train`]: L-BFGS with early stopping on a validation share,
-//!   from a fixed seed (the same data give the same weights).
+//! - training is [`crate::deviation::network::train`]: L-BFGS with early stopping on a
+//!   validation share, from a fixed seed (the same data give the same weights).
 
 use serde::Serialize;
 

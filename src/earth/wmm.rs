@@ -32,7 +32,7 @@
 //! [`WmmWarning::Extrapolated`] with a declination uncertainty that grows by
 //! [`EXTRAPOLATED_DECLINATION_SIGMA_DEG_PER_YEAR`] a year. Both figures were set
 //! against IGRF-14, an independent model whose coefficients are definitive for those
-//! years (`tests/data/igrf14_field.py`, checked in `tests/independent.rs`). Further
+//! years (`tests/data/igrf14_field.py`, checked in `tests/wmm_against_igrf.rs`). Further
 //! away the date is refused, and the message says to give the declination by hand.
 
 use std::fmt;

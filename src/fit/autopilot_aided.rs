@@ -31,7 +31,9 @@
 //! 1σ says so).
 //!
 //! The 1σ of each parameter is the formal one, `σ² · (AᵀA)⁻¹`, with the samples taken
-//! as independent (successive samples of a log are not, so it is a lower bound).
+//! as independent (successive samples of a log are not, so it is a lower bound). A model
+//! whose scaled normal matrix is singular to rounding (its smallest eigenvalue under
+//! 10⁻⁹ of its largest) is refused rather than solved.
 
 use nalgebra::{DMatrix, DVector, Matrix3, Rotation3, Vector3};
 

@@ -42,7 +42,7 @@
 //! the local field departs from the model by several µT, so `h_z` then carries that
 //! departure. The horizontal hard iron does not: it is set by the turn.
 //!
-//! The fit is Levenberg-Marquardt on the normal equations ([`crate::fit::normal_lm`]) with
+//! The fit is Levenberg-Marquardt on the normal equations (`fit::normal_lm`) with
 //! the analytic Jacobian `∂l/∂h = −T`; the model is nearly linear in `h`, so a start from the
 //! conic centre of the levelled raw field converges.
 
@@ -155,7 +155,7 @@ const V_OR_UNUSED: usize = 4;
 const N_PARAMS: usize = 5;
 
 /// Levenberg-Marquardt steps before the fit keeps the best parameters it found (see
-/// `plane::MAX_LM_STEPS`).
+/// `fit::ellipse`'s `MAX_LM_STEPS`).
 const MAX_LM_STEPS: usize = 30;
 
 /// `V` for the parameters.

@@ -6,8 +6,11 @@
 //! [`SensorCalibration`]: the body-axes fit turned back through the importer's
 //! [`SensorFrame`] into the axes and unit the log's raw values are written in, and each
 //! form says which, with the formula `corrected = soft_iron · (raw − hard_iron)` for raw
-//! values as the log writes them. The MotionCal packet carries µT (its floats are µT by
-//! definition) in the raw values' axes.
+//! values as the log writes them: with `B` the frame's rotation and `u` its µT per raw
+//! unit, hard iron `Bᵀ·h_b/u` and soft iron `Bᵀ·S_b·B`. The MotionCal packet carries µT
+//! (its floats are µT by definition) in the raw values' axes. Raw counts of unknown
+//! sensitivity are exported in counts (`u` = 1): the JSON's `ut_per_unit` is null, the
+//! snippet declares no `mag_ut_per_unit`, and there is no packet.
 //!
 //! The MotionCal packet is the one PJRC's MotionCal sends to a board over the serial
 //! port, and which Adafruit's `Adafruit_Sensor_Calibration` examples and PJRC's

@@ -9,7 +9,13 @@
 //! panel's power-sum fit, refitted at any time. [`model`] holds what they produce,
 //! [`quality`] the bounds a calibration must meet to be written to a device, [`coverage`]
 //! MotionCal's 100 regions of the sphere of directions, and [`export`] the formats a
-//! device takes.
+//! device takes. `normal_lm` is the Levenberg-Marquardt on the normal equations that
+//! the ellipse fits share.
+//!
+//! Each fit cites its paper and equation in its header and has its own error type,
+//! whose messages say what the user can do. A folder's `mod.rs` holds its public types
+//! and entry point and re-exports what other modules import, so that paths stay
+//! `fit::<fit>::<item>`; its other files are `pub(super)` rooms.
 //!
 //! [`Method`]: crate::analysis::calibration::Method
 

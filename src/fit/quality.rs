@@ -2,7 +2,9 @@
 //! live, or exported as JSON, a C snippet or MotionCal's packet), whatever the data say
 //! of it: numbers a sensor's correction cannot have (not finite, a mirror, an axis
 //! stretched beyond any real sensor's) and a field strength that is not the Earth's.
-//! Each constant says where it comes from. An autopilot's own bounds are
+//! In figures: finite, the soft iron positive definite with its axes within 3:1, the
+//! field 0.35-1.65 × the World Magnetic Model's (10-150 µT without a position); each
+//! constant says where its figure comes from. An autopilot's own bounds are
 //! `analysis::calibration::autopilot::acceptance`.
 //!
 //! And the one field verdict ([`field_verdict`]): whether a fit of a board turned in the

@@ -1,4 +1,4 @@
-//! The incremental line decoder shared by files and (later) the serial port.
+//! The incremental line decoder shared by files and the serial port ([`crate::live`]).
 //!
 //! It accepts CR, LF and CRLF line endings, and chunk boundaries anywhere, including
 //! between the CR and LF of one CRLF: the same bytes split into any chunks give the

@@ -4,6 +4,12 @@
 //! the algorithms never convert: vectors are in the body frame (x forward, y right,
 //! z down), magnetic field in µT, specific force in m/s², rates in rad/s, angles in
 //! radians clockwise from north, positions in metres east and north of a local origin.
+//!
+//! Each sensor is one [`Stream`] (times and values). Interpolating one never
+//! extrapolates beyond its ends and never bridges a gap longer than the caller allows.
+//! Beside the streams, the recording keeps what the log says of them where it matters
+//! to a fit: [`GyroBias`], whether the OS removed the gyroscope's bias (as Android's
+//! `TYPE_GYROSCOPE` does), which sets the attitude filter's prior.
 
 use nalgebra::{Vector2, Vector3};
 use serde::Serialize;

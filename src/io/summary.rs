@@ -1,5 +1,7 @@
 //! Stream summaries: what an import found, per stream, for the user to check against
-//! what they recorded (count, rate, duration, gaps, repeated times, magnitude).
+//! what they recorded (count, rate, duration, gaps, repeated times, magnitude). Each
+//! pass over a stream runs in four independent lanes merged at the end, not one chain
+//! of dependent additions (a test holds them to one pass's figures).
 
 use nalgebra::Vector3;
 use serde::Serialize;

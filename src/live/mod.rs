@@ -13,13 +13,14 @@
 //! Each magnetometer sample goes, in the **sensor's own axes** (as printed, µT: what
 //! the device will apply the calibration to), into the power sums of the streaming
 //! ellipsoid fit ([`EllipsoidAccumulator`], the algebraic fit of Moafipoor et al. 2007
-//! Eq. 5 after Li and Griffiths 2004), so a refit costs the same after ten samples or
-//! a million. [`LiveSession::refit`] solves it and measures the fit on an evenly thinned
-//! copy of the samples: residual RMS of `|corrected| − B`, the spread of `|corrected|`,
-//! the sphere coverage as MotionCal counts it ([`sphere_coverage`], 100 equal-area
-//! regions, "gaps" under 15 %), and, when the page knows where the user is, the fitted
-//! field against the World Magnetic Model's. [`LiveQuality::verdict`] says whether the
-//! calibration is good enough to send, or why not.
+//! Eq. 5 after Li and Griffiths 2004), so a refit costs the same after ten samples or a
+//! million. [`LiveSession::refit`] solves it and measures the fit on an evenly thinned
+//! copy of the samples (at most [`MAX_KEPT_SAMPLES`]): the residual RMS of
+//! `|corrected| − B`, the spread of `|corrected|`, the sphere coverage as MotionCal
+//! counts it ([`sphere_coverage`], 100 equal-area regions, "gaps" under 15 %), and,
+//! when the page knows where the user is, the fitted field against the World Magnetic
+//! Model's. [`LiveQuality::verdict`] says whether the calibration is good enough to
+//! send, or why not.
 //!
 //! Before anything is sent, [`send_check`] applies the project's rule for every
 //! write-back: the samples are split into train and check blocks, and the fit (and a
@@ -34,6 +35,11 @@
 //! confirm it (or say which value differs). A saved calibration
 //! ([`LiveSession::packet_for`]) goes through the same check on the session's samples.
 //! Both live in `live/sending.rs`.
+//!
+//! [`LiveSession::port_closed`] ends a line cut by an unplug, so that the next port's
+//! first line is its own, and takes the reading that was waiting for a possible `Uni:`
+//! line. A board that also prints a gyroscope and an accelerometer gets the attitude
+//! filter's heading as the dial's second needle (`live/attitude.rs`).
 //!
 //! No clock here: the page passes each chunk's arrival time.
 

@@ -20,9 +20,9 @@
 //! train-only fit (which has never seen the check samples) and the full fit (the one
 //! sent) must be better.
 //!
-//! **Bounds** ([`acceptance_reasons`], in `calib::acceptance`): every number finite, the soft
-//! iron positive definite and not stretched beyond what real sensors show, the field
-//! strength the Earth's.
+//! **Bounds** ([`acceptance_reasons`], in [`crate::fit::quality`]): every number finite,
+//! the soft iron positive definite with its axes within 3:1, the field strength the
+//! Earth's (0.35-1.65 × the World Magnetic Model's, else 10-150 µT).
 
 use nalgebra::{Matrix3, Vector3};
 use serde::Serialize;

@@ -42,9 +42,9 @@ pub enum Confirmation {
 const NO_FIT_YET: &str = "no calibration yet: keep turning the device";
 
 impl LiveSession {
-    /// MotionCal's calibration packet for the latest fit, remembered as sent so that the
-    /// device's echoes can confirm it, when [`LiveQuality::send`] allows it; otherwise
-    /// the reasons (nothing is sent, the calibration in force is kept).
+    /// MotionCal's calibration packet for the latest fit, remembered as sent so that
+    /// the device's echoes can confirm it, when [`super::LiveQuality::send`] allows it;
+    /// otherwise the reasons (nothing is sent, the calibration in force is kept).
     pub fn packet_for_device(&mut self) -> Result<[u8; MOTIONCAL_PACKET_LEN], Vec<String>> {
         let Some(quality) = self.quality.as_ref() else {
             return Err(vec![NO_FIT_YET.to_string()]);

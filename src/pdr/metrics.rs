@@ -7,6 +7,9 @@
 //!   (Tables I and IV).
 //! - Step-length error and heading error: mean and standard deviation (Table IV).
 //! - For closed loops: the gap between end and start in % of the loop's length.
+//! - Beyond the paper: the median and 75th percentile of the position errors (the IPIN
+//!   competitions' P75), and the share of errors within 1 and 2 × the track's stated σ,
+//!   which says whether the σ can be believed.
 
 use serde::Serialize;
 

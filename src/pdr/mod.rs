@@ -9,32 +9,41 @@
 //! - `turning_over.rs`: the "steps" of a phone turned over in the hand (a compass
 //!   calibration's figure eight) left out.
 //! - `step_length.rs`: the linear (Eq. 2), Weinberg (Eq. 3) and neural step-length
-//!   models, fitted to per-step references or to a known distance.
+//!   models, fitted to per-step references or to a known distance; `references.rs`
+//!   where those references (and the track's local frame and reference positions) come
+//!   from.
+//! - `step_heading.rs`: the heading each step takes: the analysis's one best model,
+//!   fitted again on the GNSS course outside the outages, optionally carried by the
+//!   gyro, with the attitude filter's yaw σ where the heading is the filter's.
 //! - `ekf.rs`: the `[E, N, l, a]` filter of Eq. 13 with GNSS position updates ("how to
-//!   fuse").
+//!   fuse"; the heading's 1σ the step's own where it states one, else the noise
+//!   model's).
 //! - `fusion.rs`: GNSS/PDR switching: outages, accuracy and χ² gates, recovery ("when
 //!   to fuse"), the paper's causal filter (`--filter paper`).
 //! - `fix_accuracy.rs`: the accuracy a fix is taken at (no better than its
 //!   neighbours' by more than a share).
 //! - `smoother.rs`: the default for logs: every fix weighted by its accuracy and
-//!   innovation, the step scale (never learnt from the fixes), the heading error and the GNSS's slow error as states,
-//!   forward and then backward (Rauch-Tung-Striebel); `--filter causal` is its forward
-//!   pass alone.
-//! - `metrics.rs`: the paper's accuracy figures (Tables I, III, IV) and loop closure.
-//! - `heading.rs`: the heading each step takes: the analysis's one best model, fitted
-//!   again on the GNSS course outside the outages, optionally carried by the gyro.
+//!   innovation, the step scale (never learnt from the fixes), the heading error and
+//!   the GNSS's slow error as states, forward and then backward (Rauch-Tung-Striebel);
+//!   `--filter causal` is its forward pass alone; `small_matrix.rs` its 7 × 7 algebra.
+//! - `metrics.rs`: the paper's accuracy figures (Tables I, III, IV), the competitions'
+//!   P75, the share of errors within 1 and 2 × the stated σ, and loop closure.
+//! - `results.rs`: what it reports, with each gap without any fix in the log
+//!   ([`GnssGap`], which the plots shade as they do the user's outages); `export.rs`
+//!   the track as CSV, GeoJSON and GPX.
 //! - this file: [`dead_reckon`], from an imported recording and its heading comparison
 //!   to a [`PdrAnalysis`] ([`crate::pipeline`] runs the stages in order).
 //!
 //! ## The stage
 //!
-//! 1. The heading model is the comparison's choice ([`crate::analysis::calibration::selection`]); it is fitted
-//!    again on the GNSS course left after the outages' fixes are set aside (Fig. 2:
-//!    "the speed and heading from GPS are utilized to train the step length model and
-//!    calibrate the compass"), never on a reference-heading column, which in a test log
-//!    is the truth.
-//! 2. Steps are detected, those of a phone turned over left out; each gets the heading of the chosen model (circular mean over
-//!    the step) and a length from the step model.
+//! 1. The heading model is the comparison's choice
+//!    ([`crate::analysis::calibration::selection`]); it is fitted again on the GNSS
+//!    course left after the outages' fixes are set aside (Fig. 2: "the speed and
+//!    heading from GPS are utilized to train the step length model and calibrate the
+//!    compass"), never on a reference-heading column, which in a test log is the truth.
+//! 2. Steps are detected, those of a phone turned over left out; each gets the heading
+//!    of the chosen model (circular mean over the step) and a length from the step
+//!    model.
 //! 3. The step model trains on, in this order: a known distance (a loop of known
 //!    length); the reference positions, when asked to; the GNSS speed over each step
 //!    while GNSS is good; the distance between GNSS fixes on straight stretches (logs

@@ -1,8 +1,10 @@
 //! Where the track and the step model get their references: the local frame's anchor
-//! (the first admissible fix), reference positions in that frame, per-step references
-//! from the GNSS speed, straight stretches between fixes, and the step model trained
-//! on the first set that has any (Chen et al., Section III: the step length model is
-//! trained while GNSS is good).
+//! (the first admissible fix), reference positions in that frame (tied to the GNSS
+//! frame by their mean offset from the fixes), per-step references from the GNSS speed
+//! where straight stretches between fixes confirm it, straight stretches long against
+//! their fixes' accuracy, and the step model trained on the first set that has any
+//! (Chen et al., Section III: the step length model is trained while GNSS is good),
+//! else on a K from an earlier walk, else on a default.
 
 use crate::base::geodesy::{Geodetic, LocalFrame};
 use crate::io::recording::{Recording, Stream};

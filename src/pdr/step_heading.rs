@@ -4,15 +4,16 @@
 //! from GPS are utilized to … calibrate the compass" while GNSS is good).
 //!
 //! The choice of model is not made here: it is the heading comparison's
-//! ([`crate::analysis::calibration::selection`], through [`crate::pipeline`]), so the dead reckoning, the page,
-//! the CLI and the report name the same method. What is done here is to fit that one
-//! model again for the track: on every GNSS-referenced sample outside the outages, never
-//! on a reference-heading column (in a test log that column is the truth), so that no
-//! fix inside an outage trains what bridges it. Where the comparison itself was scored
-//! against the track's truth (that column, or the legs between reference positions) and
-//! GNSS cannot fit its choice again, or where a GPS course was too far from every model
-//! to choose ([`Basis::ReferenceTooFar`]), the track takes a heading that needs no
-//! reference (`reference_free_choice`), unless the user asks for one.
+//! ([`crate::analysis::calibration::selection`], through [`crate::pipeline`]), so the
+//! dead reckoning, the page, the CLI and the report name the same method. What is done
+//! here is to fit that one model again for the track: on every GNSS-referenced sample
+//! outside the outages, never on a reference-heading column (in a test log that column
+//! is the truth), so that no fix inside an outage trains what bridges it. Where the
+//! comparison itself was scored against the track's truth (that column, or the legs
+//! between reference positions) and GNSS cannot fit its choice again, or where a GPS
+//! course was too far from every model to choose ([`Basis::ReferenceTooFar`]), the
+//! track takes a heading that needs no reference (`reference_free_choice`), unless the
+//! user asks for one.
 
 use crate::analysis::calibration::selection::{
     choose_without_reference, learns_from_reference, Basis, RAW_KEY,

@@ -6,7 +6,8 @@
 //! - linear (Eq. 2): `SL = A + B·SF + C·SV`, by least squares;
 //! - nonlinear, Weinberg's (Eq. 3): `SL = K·(Amax − Amin)^¼`, one parameter;
 //! - a neural network with 16 `tansig` (tanh) hidden neurons fed by SF, SV, Amax and
-//!   Amin (the network code is [`crate::deviation::network`], shared with the heading correction).
+//!   Amin (the network code is [`crate::deviation::network`], shared with the heading
+//!   correction).
 //!
 //! References are per step (GNSS speed over the step) or a distance for a run of steps
 //! (GNSS fixes or reference positions at its ends on a straight stretch, a loop of known

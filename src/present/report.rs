@@ -1,9 +1,14 @@
-//! An analysis in words and files: the sentences the page shows (and the HTML report
-//! repeats), the corrected data as CSV, and a self-contained HTML report with the same
-//! figures as SVG.
+//! An analysis in words and files, shared by the page and the CLI: the device
+//! calibration to export ([`device_export`]: in the sensor's own axes and units, and in
+//! body axes and µT), the sentences the page shows and the HTML report repeats (the
+//! context, the device calibration with its axes, unit and formula, the heading models,
+//! the dead reckoning), the corrected data as CSV, and a self-contained HTML report
+//! (no script, no remote resource) with the figures the caller gives it: SVG from
+//! [`svg_figures`] in the CLI, the page's canvases as PNG.
 //!
 //! Pure: each function takes the analyses and returns text. Every piece of text that
-//! comes from a log (file names, messages) is escaped before it goes into HTML.
+//! comes from a log (file names, messages) is escaped before it goes into HTML
+//! ([`escape_html`]).
 
 use std::fmt::Write as _;
 

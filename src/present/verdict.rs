@@ -11,8 +11,13 @@
 //!   fitted field against the World Magnetic Model, graded by the live panel's own
 //!   conditions ([`crate::fit::quality::field_verdict`]), so a file and a live session are judged
 //!   alike;
-//! - **an autopilot log** with compasses fitted and written back: each compass's heading
-//!   against the autopilot's and its spread, in force and as written.
+//! - **an autopilot log** with compasses fitted and written back: its first compass,
+//!   written or kept, by the vector error against the Earth's field and the heading
+//!   against the autopilot's, in force and as written (never the raw field, whose
+//!   calibration was undone), and every compass's sentence as a figure.
+//!
+//! It warns when the calibration to be exported makes |B| vary more than the raw field
+//! does, and does not count a vehicle's "steps" as steps ([`is_walk`]).
 //!
 //! Pure: it takes the analyses and returns values.
 
@@ -232,7 +237,7 @@ fn dead_reckoning_figure(pdr: &PdrReport) -> Figure {
 }
 
 /// Whether the dead-reckoned log is a walk: its detected steps are at most
-/// [`MAX_WALKING_STEP_M`] apart along the track.
+/// 2.5 m (`MAX_WALKING_STEP_M`) apart along the track.
 pub fn is_walk(pdr: &PdrReport) -> bool {
     pdr.pdr_distance_m / pdr.n_steps.max(1) as f64 <= MAX_WALKING_STEP_M
 }

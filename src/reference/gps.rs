@@ -7,7 +7,9 @@
 //! and with a fix accurate enough. Two ways to get it:
 //!
 //! - the receiver's own course field (NMEA RMC/VTG, a phone's `bearing`), gated by the
-//!   reported speed and horizontal accuracy;
+//!   reported speed (5 m/s for a vehicle's log, 0.8 m/s for a pedestrian's, told apart
+//!   by the log's sustained speed), the horizontal accuracy and the course's
+//!   steadiness (a turn's course lags the heading);
 //! - the bearing between two fixes, for logs without a course field: the pair must be at
 //!   least `min_baseline_m` and at least four times their accuracies apart, and no more
 //!   than `max_baseline_s` apart in time; the bearing is assigned to the midpoint time.

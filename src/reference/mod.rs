@@ -15,6 +15,8 @@
 //!
 //! A relative reference has no absolute offset: a heading model fitted against it
 //! learns the shape of the deviation, not its constant term, and the result says so.
+//! The analysis turns such a reference onto the compass's mean heading
+//! (`analysis/calibration/context.rs`), and its report says so.
 
 pub mod gps;
 pub mod gyro;

@@ -1,4 +1,6 @@
-//! Drawing the core's plots on canvas elements.
+//! Drawing the core's plots on canvas elements, through [`HiDpi`], a backend adapter
+//! that lays the plots out in CSS pixels on a backing store of `devicePixelRatio` times
+//! as many; a plot that cannot be drawn is replaced by a message ([`draw_message`]).
 
 use plotters::prelude::*;
 use plotters_backend::{

@@ -220,7 +220,8 @@ pub(super) fn split(
     }
 }
 
-/// What [`calibrate`] tells the tilt-aware ellipse fit: the model's dip at the log's place.
+/// What [`super::calibrate`] tells the tilt-aware ellipse fit: the model's dip at the
+/// log's place.
 pub fn plane_options(expected: Option<&ExpectedField>) -> PlaneOptions {
     PlaneOptions {
         inclination_deg: expected.map(|expected| expected.inclination_deg),
@@ -228,9 +229,9 @@ pub fn plane_options(expected: Option<&ExpectedField>) -> PlaneOptions {
     }
 }
 
-/// What [`calibrate`] tells the 3D fit: the model's intensity and dip as priors, and
-/// whether the sensor's gain is known (values in µT, or converted to µT, come with the
-/// sensor's factory gains; raw counts do not).
+/// What [`super::calibrate`] tells the 3D fit: the model's intensity and dip as priors,
+/// and whether the sensor's gain is known (values in µT, or converted to µT, come with
+/// the sensor's factory gains; raw counts do not).
 pub fn inertial_options(
     expected: Option<&ExpectedField>,
     mag_frame: Option<&SensorFrame>,
@@ -256,8 +257,8 @@ const MODEL_EPOCH_WITHOUT_DATE: CalendarDate = CalendarDate {
 /// The expected field at the log's first position (the user's, else the first GNSS fix,
 /// else the first reference position given as latitude and longitude) and date (the
 /// model's epoch when the log has none, with a note), with a note when the model warns:
-/// what [`calibrate`] gives the fits as priors (public for the fit benchmark, which feeds
-/// the fits as `calibrate` does).
+/// what [`super::calibrate`] gives the fits as priors (public for the fit benchmark,
+/// which feeds the fits as `calibrate` does).
 pub fn expected_field_of(
     recording: &Recording,
     position_deg: Option<(f64, f64)>,

@@ -1,7 +1,9 @@
 //! The four calibration methods as [`super::calibrate`] runs them on one log: each fits
 //! its train samples and gives its heading at every sample (min/max, Eq. 6-7; the
-//! tilt-aware ellipse, `calib::plane`; the 3D fit, `calib::inertial`; reference least
-//! squares, Eq. 8, `calib::refls`), or says why it was not fitted.
+//! tilt-aware ellipse, `fit::ellipse`; the 3D fit, `fit::ellipsoid`; reference least
+//! squares, Eq. 8, `fit::ref_ls`), or says why it was not fitted. The 3D fit's sphere
+//! coverage adds advice on where to turn; reference least squares over references that
+//! cover little of the circle is fitted on top of the best 3D calibration so far.
 
 use nalgebra::{Vector2, Vector3};
 
@@ -85,7 +87,7 @@ pub(super) fn fit_min_max(inputs: &MethodInputs, outputs: &mut MethodOutputs) ->
         })
 }
 
-/// The tilt-aware level-plane ellipse (`calib::plane`).
+/// The tilt-aware level-plane ellipse (`fit::ellipse`).
 pub(super) fn fit_ellipse(inputs: &MethodInputs, outputs: &mut MethodOutputs) -> Fitted {
     fit_plane(
         inputs.mag_train,
@@ -139,7 +141,7 @@ fn untrusted_tilt_note(trust: &[f64]) -> String {
     )
 }
 
-/// The 3D fit (`calib::inertial`), with the accelerometer's tilt when the log has one.
+/// The 3D fit (`fit::ellipsoid`), with the accelerometer's tilt when the log has one.
 pub(super) fn fit_ellipsoid(inputs: &MethodInputs, outputs: &mut MethodOutputs) -> Fitted {
     let inertial_options = inertial_options(inputs.expected, inputs.mag_frame);
     // The dip-angle invariance needs the accelerometer's tilt; a log without

@@ -1,21 +1,25 @@
 //! Every calibration method on one log, side by side, on a train/check split by time.
 //!
 //! The 2007 paper calibrates on one run and checks on another; so does this: samples up
-//! to `train_until_s` train each method, the rest check it against the reference
-//! heading. The methods:
+//! to `train_until_s` (by default, half of the referenced samples on each side) train
+//! each method, at most 20,000 of them evenly thinned; the rest check it against the
+//! reference heading. The methods (`methods.rs`):
 //!
 //! - **min/max** (Eq. 6-7, [`crate::fit::minmax`]): centre and axis scales of the
 //!   levelled raw field;
 //! - **ellipse** ([`crate::fit::ellipse`]): the tilt-aware level-plane fit, a general
 //!   conic with cross-axis soft iron, the method for flat, circle-only data;
-//! - **ellipsoid** ([`crate::fit::streaming_ellipsoid`]): the full 3D model of Eq. 5, which
-//!   needs the device turned through many orientations;
+//! - **ellipsoid** ([`crate::fit::ellipsoid`]): the 3D model of Eq. 5 with the dip and
+//!   gravity, with MotionCal's sphere coverage and where to turn to fill it;
 //! - **reference LS** (Eq. 8, [`crate::fit::ref_ls`]): min/max's parameters fitted to
-//!   the reference heading itself.
+//!   the reference heading (over the best 3D fit where it covers little of the circle).
 //!
-//! Every heading gets the declination: the user's, or the World Magnetic Model's at the
-//! log's first position and date ([`crate::earth::wmm`]), which also gives the expected
-//! field that a wrong unit or a nearby magnet stands out against.
+//! Every heading gets the declination (`context.rs`): the user's, the World Magnetic
+//! Model's at the log's first position and date ([`crate::earth::wmm`]), else an
+//! autopilot's own; the model also gives the field a wrong unit or a magnet stands out
+//! against. Down and the tilted samples are computed once (`Levelled`) and reused by
+//! [`calibrate_again`], the dead reckoning's refit; the report carries the import's
+//! `SensorFrame`, so the device calibration is exported in the sensor's axes and units.
 
 use std::sync::Arc;
 
@@ -292,7 +296,7 @@ pub struct CalibrationAnalysis {
     pub gyro_heading_deg: Vec<Option<f64>>,
     /// The attitude filter's heading and its 1σ at each sample, `None` without a
     /// gyroscope and an accelerometer: a base of the heading comparison, the network's
-    /// gyro heading and the dead reckoning's heading noise ([`attitude`]).
+    /// gyro heading and the dead reckoning's heading noise (`attitude.rs`).
     pub attitude_heading: Option<AttitudeHeading>,
     /// Down at each accelerometer sample, which levelled the samples and the gyro:
     /// estimated once, shared by the stages after (shared, not copied, by a clone).

@@ -18,9 +18,15 @@
 //!   uncertainty is within [`MAX_UNREFERENCED_HEADING_STD_DEG`], else the tilt-aware
 //!   ellipse, else min/max, else the uncalibrated heading.
 //!
-//! The device calibration is the field calibration chosen by the same rule among the
-//! methods that give a full 3D correction (the ellipse's and the ellipsoid's), so that
-//! what is exported is never a calibration the analysis found worse than another.
+//! The device calibration ([`device_calibration`]) is the chosen method's own 3D
+//! correction where it has one ([`field_calibration_of`]: the ellipse's full model or
+//! the ellipsoid's), else the one the same rule chooses among the methods that have one,
+//! so that what is exported is never a calibration the analysis found worse than
+//! another. [`device_write_back`] is the rule every device export (JSON, C snippet,
+//! MotionCal packet) follows: that correction only where it beats the readings as logged
+//! (the check part's heading error with a reference, the |B| spread without) and lies
+//! inside [`crate::fit::quality`]'s bounds, and never for an autopilot log, whose
+//! write-back is its parameter file.
 
 use serde::Serialize;
 

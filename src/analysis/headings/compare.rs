@@ -1,8 +1,10 @@
 //! The comparison of every heading method on one train/check split: each base heading
-//! (uncalibrated and each field-domain calibration) alone, with the PDR paper's Fourier
-//! model (Eq. 12) on top, with the 2007 paper's network on top (on the raw heading and on
-//! the best-fitting calibration), the online adaptation of the featured Fourier model,
-//! and the one choice of "best" by [`crate::analysis::calibration::selection`]'s rule.
+//! (uncalibrated, an autopilot's with its parameters in force, each field-domain
+//! calibration, and the attitude filter's, row `ahrs`) alone, with the PDR paper's
+//! Fourier model (Eq. 12) on top, with the 2007 paper's network on top (on the raw
+//! heading and on the best-fitting calibration), the online adaptation of the featured
+//! Fourier model, and the one choice of "best" by
+//! [`crate::analysis::calibration::selection`]'s rule.
 
 use crate::analysis::calibration::selection::{choose_by_reference, settle, Choice, Scored};
 use crate::analysis::calibration::{CalibrationAnalysis, CalibrationReport};

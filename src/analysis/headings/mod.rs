@@ -1,22 +1,26 @@
 //! Heading error models learned from a reference, and every heading method side by
 //! side on one train/check split.
 //!
-//! Field-domain calibration ([`crate::analysis::calibration`]) cannot remove everything: the
-//! misalignment between device and walking direction, tilt the accelerometer missed,
+//! Field-domain calibration ([`crate::analysis::calibration`]) cannot remove everything:
+//! the misalignment between device and walking direction, tilt the accelerometer missed,
 //! declination, soft iron that moves with the body and temperature all leave a heading
-//! error that depends on the heading and on conditions. This module learns it from the
-//! reference heading ([`crate::reference`]):
+//! error that depends on the heading and on conditions. The models of
+//! [`crate::deviation`] learn it from the reference heading ([`crate::reference`]):
 //!
-//! - [`fourier`]: the PDR paper's unified model `δ = A + B sin ξ' + C cos ξ' + D sin 2ξ'
-//!   + E cos 2ξ'` (Eq. 12), fitted by least squares on the train part;
-//! - [`rls`]: the same model adapted online while the reference is good;
-//! - [`neural`]: the 2007 paper's neural network (heading, |H|, gyro heading, dip,
-//!   temperature in; the deviation out), on the raw heading and on the field-domain
-//!   method that fits its train part best;
+//! - [`crate::deviation::fourier`]: the PDR paper's unified model
+//!   `δ = A + B sin ξ' + C cos ξ' + D sin 2ξ' + E cos 2ξ'` (Eq. 12), fitted by least
+//!   squares on the train part;
+//! - [`crate::deviation::rls`]: the same model adapted online while the reference is
+//!   good;
+//! - [`crate::deviation::neural`]: the 2007 paper's neural network (heading, |H|, gyro
+//!   heading, dip, temperature in; the deviation out), on the raw heading and on the
+//!   field-domain method that fits its train part best;
 //!
-//! the Fourier model on the raw heading and on top of each field-domain calibration
-//! ("ellipse + Fourier"). The comparison reports mean, std, RMS, 95th percentile and the share
-//! within ±5° on train and on check, as the papers' tables do.
+//! the Fourier model on the raw heading and on top of each base ("ellipse + Fourier").
+//! The models are fitted to the train part's 1 s bins, not to single samples: they see
+//! circular means, which keeps the body's sway out of the regressor, and bins in a turn
+//! are left out. The comparison (`compare.rs`) reports mean, std, RMS, 95th percentile
+//! and the share within ±5° on train and on check, as the papers' tables do.
 
 mod compare;
 

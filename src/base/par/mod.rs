@@ -22,7 +22,12 @@
 //!   and the worker gets no more. (Were it to trap while holding the allocator's
 //!   lock, the page would hang: the importers' tests, proptest included, find no
 //!   panic to make that happen.) This pool is the crate's one piece of global state outside `web`:
-//!   like the allocator, it is the runtime's, not the algorithms'.
+//!   like the allocator, it is the runtime's, not the algorithms'. (`pool`: a slot per
+//!   worker, the job handed over by its address, the workers waiting with
+//!   `memory.atomic.wait32`; its code is not generic, so it is compiled once.) The small
+//!   pieces ([`map`], a row's two statistics, the gravity filter's two passes) stay on
+//!   one thread in this module ([`SMALL_WORK_IN_PARALLEL`]): a copy of the pool for each
+//!   caller's types would cost more of the module's size budget than they save in time.
 
 mod helpers;
 

@@ -10,18 +10,19 @@
 //! register (four `f64` did), so an evaluation does half the instructions.
 //!
 //! The kernel is written once, generic over [`Lanes`] (eight `f32` lanes with the few
-//! operations it needs), and compiled twice: with [`Portable`] (`[f32; 8]`, plain
-//! scalar operations, the code wasm runs) and, on x86-64 when the processor has AVX2
-//! (checked at run time), with `Avx2` (one 256-bit register). Each lane does exactly the
-//! portable code's IEEE operations in the same order (no fused multiply-add, which wasm
-//! lacks), and the reduction of the lanes is the same scalar code, so both give the same
-//! bits: a network trained natively and in the browser is the same network. A test
-//! checks it.
+//! operations it needs), and compiled for three kinds of lanes: [`Portable`]
+//! (`[f32; 8]`, plain scalar operations, the reference), WebAssembly's 128-bit SIMD
+//! (`kernels/simd128.rs`, two `f32x4` registers: what both of the page's modules run)
+//! and, on x86-64 when the processor has AVX2 (checked at run time), `Avx2` (one
+//! 256-bit register). Each lane does exactly the portable code's IEEE operations in the
+//! same order (no fused multiply-add, which wasm lacks), and the reduction of the lanes
+//! is the same scalar code, so all give the same bits: a network trained natively and in
+//! the browser is the same network. A test checks it, natively and in the browser.
 //!
-//! The release profile optimises for size, under which the compiler neither vectorises
-//! nor unrolls loops by itself, so the lanes are explicit and the loops over a group of
-//! inputs, whose accumulators must stay in registers, are unrolled by a macro for each
-//! group size.
+//! The page's modules are built for size (`scripts/setup.sh`), under which the compiler
+//! neither vectorises nor unrolls loops by itself, so the lanes are explicit and the
+//! loops over a group of inputs, whose accumulators must stay in registers, are unrolled
+//! by a macro for each group size.
 //!
 //! Order of the sums (which fixes the bits): per chunk, each accumulated quantity has
 //! eight `f32` lane sums starting at zero; lane `l` adds the chunk's samples

@@ -18,7 +18,8 @@
 //! - `loss.rs`: the mean-squared error with its L2 penalty and its analytic gradient over
 //!   a whole batch (column-major, in parts of fixed size added in a fixed order).
 //! - `kernels.rs`: one part's forward pass and gradient, eight samples at a time in `f32`
-//!   (portable lanes, or AVX2 when the processor has it, with the same bits).
+//!   (portable lanes, WebAssembly's SIMD, or AVX2 when the processor has it, with the
+//!   same bits).
 //! - `workers.rs`: helper threads that evaluate a large batch's parts (native builds).
 //! - `lbfgs.rs`: L-BFGS with a strong-Wolfe line search, for any smooth objective.
 //! - `train.rs`: [`train`]: splitting, initialisation, the two optimisers (L-BFGS and

@@ -62,12 +62,13 @@
 //!    least square fitting of ellipses*, IEEE PAMI 21(5)), in the numerically stable
 //!    form of Halíř and Flusser (1998, *Numerically stable direct least squares fitting
 //!    of ellipses*, WSCG), on centred and scaled coordinates. This gives the in-plane
-//!    start and the gauge `H` (`ellipse.rs`; [`fit_ellipse`] on its own is the
+//!    start and the gauge `H` (`direct.rs`; [`fit_ellipse`] on its own is the
 //!    calibration for levelled 2D data).
 //! 2. Minimise the residuals above by Levenberg-Marquardt on the normal equations
-//!    ([`crate::fit::normal_lm`]: one pass over the samples per step, analytic Jacobian),
-//!    starting from the conic, `A_zz = 1`, no vertical
-//!    coupling, `h_z = 0` (or `h_z` from the dip, when given). The model is nearly
+//!    (`fit::normal_lm`: one pass over the samples per step, analytic Jacobian; first
+//!    on an evenly spaced subset of at most 2,000 samples, then on all of them),
+//!    starting from the conic, `A_zz = 1`, no vertical coupling, `h_z = 0` (or `h_z`
+//!    from the dip, when given). The model is nearly
 //!    linear in `h`, so this start converges. The residuals are geometric (distances in
 //!    µT in the corrected space), so this step is also the geometric refinement of the
 //!    algebraic conic; it removes the conic's small noise bias as well.
@@ -333,7 +334,7 @@ pub fn fit_plane(
         .all(|&value| value.is_finite() && value > 0.0);
     // Real soft iron changes the axes by tens of per cent; a correction that scales one
     // axis several times more than another has traded the vertical residual for field
-    // disturbances. The isotropic model (see `plane_isotropic`) is then the honest one.
+    // disturbances. The isotropic model (see `ellipse_isotropic`) is then the honest one.
     let full_axis_ratio =
         positive_definite.then(|| eigen.eigenvalues.max() / eigen.eigenvalues.min());
     if full_axis_ratio.is_none_or(|axis_ratio| axis_ratio > MAX_AXIS_RATIO) {
@@ -443,7 +444,7 @@ fn tilt_aware_start(
     (full, free)
 }
 
-/// The isotropic model's fit (see `plane_isotropic`), for when the full one scales one
+/// The isotropic model's fit (see `ellipse_isotropic`), for when the full one scales one
 /// axis far more than another.
 fn isotropic_fit(
     mag_ut: &[Vector3<f64>],

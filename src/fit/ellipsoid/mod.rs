@@ -52,9 +52,9 @@
 //!    a 3D spread), a band start for yaw-only data (the samples' principal plane, a
 //!    direct ellipse fit in it, the vertical hard iron from the prior's dip), and
 //!    Kåsa's sphere. They are ranked by their median residuals as they stand; the
-//!    first [`MAX_SOLVED_STARTS`] (more while none is plausible) are solved on one
-//!    evenly spaced subset of at most [`MAX_FIT_SAMPLES`], and the plausible solution
-//!    with the smallest median residuals is the fit.
+//!    first two (more while none is plausible) are solved, side by side on the
+//!    machine's threads, on one evenly spaced subset of at most [`MAX_FIT_SAMPLES`], and
+//!    the plausible solution with the smallest median residuals is the fit.
 //! 2. Levenberg-Marquardt on the normal equations (13 parameters at most: the `N×13`
 //!    Jacobian is never formed, so 10⁴ samples take milliseconds), inside iteratively
 //!    reweighted least squares: Huber weights, then Cauchy weights, on residuals scaled
@@ -71,6 +71,25 @@
 //!    parameter's standard deviation and the heading's: its gradient through levelling,
 //!    averaged over the samples.
 //!
+//! ## Bands, trust and fallbacks
+//!
+//! - **A band of data** (a car in its mount, a level turn: the tilt within 3° RMS of
+//!   its mean and the field within 20° of a plane, or without an accelerometer the
+//!   samples within 5° of a plane): what only tilt shows of a 3D distortion is then
+//!   decided by the accelerometer's own errors more than by the magnetometer, so the
+//!   band model is fitted instead, and what the band hardly sees stays at the priors
+//!   (`FreeDirections::band` in `solve.rs`).
+//! - **Trust in the tilt** ([`fit_inertial_trusting`], the trust from the estimate of
+//!   down, [`crate::attitude::down`]): where the samples' mean trust is below
+//!   [`TRUSTED_TILT`] (a swinging phone, a run), each sample's dip residual weighs its
+//!   own trust, a dip far from the model's refuses no solution (the tilt is what is
+//!   wrong), and the fit says so ([`InertialFit::tilt_untrusted`], decided once per
+//!   sample set); elsewhere every dip weighs alike.
+//! - **Plausibility**: a solution that mirrors the field, runs away in gain, takes a
+//!   shape no material gives or a dip far from the model's is set aside
+//!   (`plausibility.rs`); when no full soft iron is left, the fit falls back to hard
+//!   iron, one scale and the dip ([`SoftIronModel::Isotropic`]) and says why.
+//!
 //! ## Limits
 //!
 //! A field that changes along the recording (indoors, near iron) is not one field: the
@@ -80,6 +99,13 @@
 //! which only a reference heading (Eq. 8, the Fourier model) can remove. The tilt is the
 //! accelerometer's: sustained accelerations (a car braking) bend it, and the robust
 //! weights, not the model, deal with them.
+//!
+//! The files: here the options, result and errors, the entry points and the choice
+//! among starts and models; `samples.rs` the sample sets, `starts.rs` the starts,
+//! `residuals.rs` the residuals and normal equations (the samples' rank-two updates
+//! added to `JᵀWJ` in blocks of 16, the same sums in the same order as sample by
+//! sample), `solve.rs` the reweighted solver and the covariance, `plausibility.rs`
+//! whether a solution is a calibration, `uncertainty.rs` the report of a converged one.
 
 use nalgebra::{Matrix3, SMatrix, SVector, Vector2, Vector3};
 use serde::Serialize;
@@ -152,7 +178,7 @@ const MIN_SPREAD_UT: f64 = 2.0;
 const MAX_SOLVED_STARTS: usize = 2;
 
 /// The fit uses at most this many evenly spaced samples: neighbouring samples share
-/// their tilt error and disturbance (see [`autocorrelation_inflation`]), so a log
+/// their tilt error and disturbance (see `autocorrelation_inflation`), so a log
 /// thinned to 1,500 keeps most of its independent information, and the parameters'
 /// noise from it is far below what tilt errors leave. The starts are solved on the
 /// same samples, so the best of them is the fit (a second solve on another thinning

@@ -85,6 +85,11 @@
 //! over headings (a gap larger than [`RefLsOptions::max_heading_gap_deg`] is refused)
 //! and belong to the same instants as the field samples; reference noise averages out
 //! over many samples, a reference lag while turning does not.
+//!
+//! References over a few headings only can still be used on top of a calibration
+//! already made (the analysis takes the best 3D one): the fit then starts from the
+//! identity and priors ([`RefLsOptions::prior`], [`PartialPrior`]) hold what those
+//! headings cannot see, so that they fix only what they can.
 
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use nalgebra::{DMatrix, DVector, Dyn, Matrix2, Owned, SymmetricEigen, Vector2};

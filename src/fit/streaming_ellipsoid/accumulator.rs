@@ -1,8 +1,8 @@
 //! [`EllipsoidAccumulator`], the streaming half of the fit (step 1 of the method in
 //! [`super`]): samples added one at a time, in slices, or merged from other accumulators
 //! into the power sums of `moments.rs`; and its `solve`, the algebraic fit of Li and
-//! Griffiths (2004) without the refinement, which the live panel and the inertial fit's
-//! starts use.
+//! Griffiths (2004) without the refinement, which the live panel and the 3D fit's
+//! starts ([`crate::fit::ellipsoid`]) use.
 
 use nalgebra::Vector3;
 

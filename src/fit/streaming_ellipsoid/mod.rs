@@ -1,5 +1,9 @@
 //! 3D ellipsoid calibration: hard iron, soft iron and field magnitude from samples
-//! taken in many attitudes.
+//! taken in many attitudes, refusing or falling back on flat data.
+//!
+//! It is the live panel's fit (refitted from its power sums whenever asked), one of the
+//! starts of the 3D fit with the dip ([`crate::fit::ellipsoid`]), and the ellipsoid
+//! benchmark's (`benches/ellipsoid.rs`).
 //!
 //! ## Model
 //!

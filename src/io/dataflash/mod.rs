@@ -19,8 +19,11 @@
 //! within 0.85-1.4.) The offsets and motor compensation are logged beside each sample
 //! (`OfsX..`, `MOfsX..`/`MOX..`), the rest are `PARM`s. The raw field that a new
 //! calibration is fitted on is `raw = M⁻¹ · (corrected − motor) / scale − offsets`, which
-//! [`finish`] computes and says it did ([`ArduPilotCompass`] is the one place that
-//! knows how ArduPilot applies a calibration). Units: mG (0.1 µT).
+//! the end of the read (`finish`) computes and says it did ([`ArduPilotCompass`] is the
+//! one place that knows how ArduPilot applies a calibration). Units: mG (0.1 µT). The
+//! primary compass's raw field is the recording's magnetometer; `CURR`/`BAT` give the
+//! battery current for the motor term; and `ATT`, the vehicle's attitude, is turned back
+//! by `AHRS_TRIM` into the attitude of the board the compasses are logged in.
 
 mod binary;
 mod format;

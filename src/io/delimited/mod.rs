@@ -13,9 +13,16 @@
 //! ```
 //!
 //! Where a name carries no unit, the unit is guessed from the data (the field
-//! magnitude tells gauss, mG, nT, T and µT apart; the specific force at rest tells g
-//! from m/s²; rotation rates tell deg/s from rad/s), and the guess is stated in the
-//! report's notes. Values are converted once, when the file is finished.
+//! magnitude tells gauss, mG, nT, T and µT apart, and a magnetometer of 1,000 to 20,000
+//! is raw counts, kept as they are; the specific force at rest tells g from m/s²;
+//! rotation rates tell deg/s from rad/s), and the guess is stated in the report's notes.
+//! Values are stored in the file's units, one pass per line, and converted once, in
+//! place, when the file is finished.
+//!
+//! A first line of only numbers (split on the delimiter, else on white space) is read as
+//! columns `column 1`, `column 2`, …: an error ([`super::ImportError::NoHeaderLine`])
+//! until the user's [`ColumnMapping`] names them. A mapping renames a file's columns
+//! before they are resolved.
 //!
 //! **Axes.** Names with a unit suffix (`mag_x_ut`, `acc_x_g`) are taken to be in the
 //! body frame (x forward, y right, z down), as the canonical CSV defines. Phone apps

@@ -2,7 +2,8 @@
 //! per-sensor files chosen among first, delimited files in the phone's device axes
 //! merged before their axes are converted (so that the mount is judged from all of
 //! them), the first magnetometer's frame kept, a file that failed kept as a diagnostic,
-//! and the streams sorted by time.
+//! and the streams sorted by time. Files whose magnetometers cover the same time are
+//! not interleaved: the first is used and the others are named in a note.
 
 use super::FileImport;
 use crate::io::delimited::{self, RawImport, SensorAxes};

@@ -1,13 +1,20 @@
 //! Format detection and multi-file import: the one door every log comes through.
 //!
-//! The format is told from the content (the first lines), not from the file name:
-//! NMEA sentences, the Android sensor dump, GetSensorData logs, delimited text with a
-//! header, or serial sensor lines. Several files dropped together (phyphox writes one
-//! file per sensor) are read one by one and merged into one recording; a file that
-//! cannot be read becomes a diagnostic of the merge, and the rest is still used.
+//! The format is told from the content, not from the file name: the binary autopilot
+//! logs (DataFlash, ULog) by their first bytes, then, once the file is known to be text
+//! ([`super::ensure_text`]), by its first lines: DataFlash text, GPX or KML, NMEA
+//! sentences, the Android sensor dump, GetSensorData logs, delimited text with a header,
+//! or serial sensor lines. The file name counts only for a phone app's per-sensor files
+//! ([`super::sensor_files`]), and only together with their content. Lines of only
+//! numbers go to the delimited reader when the user has mapped their columns. Several
+//! files dropped together (phyphox writes one file per sensor) are read one by one and
+//! merged into one recording; a file that cannot be read becomes a diagnostic of the
+//! merge, and the rest is still used.
 //!
-//! The files: here the entry points, the detection and [`Inspection`]; `merge.rs` the
-//! merge of several files' imports; `chunked.rs` [`ChunkedImport`], a file fed in chunks.
+//! The files: here the entry points, the detection and [`Inspection`] (the report with
+//! each stream's summary; a magnetometer in raw counts is summarised in counts);
+//! `merge.rs` the merge of several files' imports; `chunked.rs` [`ChunkedImport`], a
+//! file fed in chunks.
 
 mod chunked;
 mod merge;

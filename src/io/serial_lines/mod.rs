@@ -77,8 +77,10 @@
 //! numbers), the Adafruit Unified Sensor and CircuitPython units are assumed: m/s²,
 //! rad/s, µT. When the file is finished, accelerometer values whose median magnitude
 //! is near 1 are taken as g (Arduino's own IMU libraries print g), gyroscope values
-//! beyond 35 rad/s (2000 °/s, the widest common range) as °/s, and a magnetometer far
-//! from the Earth's 25-65 µT is reported; each such decision is stated in the notes.
+//! beyond 35 rad/s (2000 °/s, the widest common range) as °/s, a magnetometer of 1,000
+//! to 20,000 as raw counts (kept as they are, its field strengths then in counts), and
+//! a magnetometer otherwise far from the Earth's 25-65 µT is reported; each such
+//! decision is stated in the notes.
 //!
 //! **Time.** Serial lines carry no timestamps: the sample number divided by a rate
 //! gives `t_s` (files: an assumed 100 Hz, MotionCal's own `SENSORFS` and the 10 ms loop

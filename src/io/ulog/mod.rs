@@ -16,10 +16,11 @@
 //! topic is subscribed. Corrupt message headers are reported with their byte offset
 //! and skipped by scanning for the next plausible header, as pyulog does.
 //!
-//! Topics read ([`topics`]): `sensor_combined` (gyro, accelerometer, and in old logs
+//! Topics read (`topics.rs`): `sensor_combined` (gyro, accelerometer, and in old logs
 //! the calibrated magnetometer), `sensor_mag` (raw, per instance), `vehicle_magnetometer`
 //! (calibrated), `vehicle_attitude`, `vehicle_gps_position` or `sensor_gps`. How the
-//! calibration in force is undone is in [`compass`].
+//! calibration in force is undone is in `compass.rs`; `parse.rs` frames the messages
+//! and `finish.rs` turns them into the report.
 
 mod compass;
 mod finish;

@@ -1,7 +1,7 @@
 //! The heading-model figure: the deviation curve (deviation against heading, with the
-//! fitted Eq. 12 curve and the residuals, for the base whose model fits best), the residual histogram (the PDR
-//! paper's Fig. 7), the heading error over time of the raw heading and the best
-//! method, and the online model's coefficients converging.
+//! fitted Eq. 12 curve and the residuals, for the base whose model fits best), the
+//! residual histogram (the PDR paper's Fig. 7), the heading error over time of the raw
+//! heading and the best method, and the online model's coefficients converging.
 
 use plotters::coord::Shift;
 use plotters::prelude::*;

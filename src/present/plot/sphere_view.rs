@@ -1,10 +1,9 @@
 //! The live panel's 3D view (what MotionCal shows): the field directions after the
 //! latest fit, on the fitted sphere, turned as the user drags it. MotionCal's 100
 //! equal-area regions of direction with no sample yet are shaded red on the side facing
-//! the viewer, and the board's axes are drawn from the centre, so that "turn the +x axis
-//! down" can be read off the picture; a ring marks the latest sample, where the board
-//! points now. Before a fit, the raw samples are shown about
-//! their mean.
+//! the viewer, and the board's axes are drawn from the centre, so that "turn the +x
+//! axis down" can be read off the picture; a ring marks the latest sample, where the
+//! board points now. Before a fit, the raw samples are shown about their mean.
 //!
 //! An orthographic projection: the sphere is turned about the board's vertical axis
 //! (yaw), then tipped toward the viewer (pitch); what lies behind is drawn first and

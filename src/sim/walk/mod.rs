@@ -7,11 +7,23 @@
 //! - attitude: the true heading ψ, plus the hand's mean tilt and a sway at the step
 //!   frequency (pitch) and half of it (roll);
 //! - magnetometer: `m = S·(R_bodyᵀ·F_ned) + b_hard + noise`, Eq. 2-3 of the 2007 paper
-//!   with a diagonal S (axis scale factors) and the Earth's field `F_ned` of a chosen
-//!   magnitude and inclination, declination zero (so magnetic north is true north);
+//!   with a symmetric S (axis scale factors on its diagonal, soft iron off it: Eq. 5),
+//!   the hard iron drifting with a temperature swing, and the Earth's field `F_ned` of a
+//!   chosen magnitude, inclination and declination (from the World Magnetic Model at a
+//!   place and date, which then also date the log: `WalkConfig::at_place`); optionally
+//!   iron near the path, or instead a compass whose deviation is exactly Eq. 12 of the
+//!   PDR paper;
 //! - accelerometer: specific force `f = a − g` with a vertical bounce and a fore-aft
 //!   surge at the step frequency while walking, rotated into the body frame;
-//! - gyroscope: the exact body rates of the Euler-angle motion, plus bias and noise.
+//! - gyroscope: the exact body rates of the Euler-angle motion, plus bias and noise;
+//! - GNSS (optional): fixes with noise, outages and multipath.
+//!
+//! The device's forward axis may be misaligned with the walking direction (the PDR
+//! paper's β, Eq. 9). The truth is written as the reference columns. Besides a walk the
+//! route may be a turntable's turns or a car's octagonal loop in a fixed mount
+//! (`vehicle_loop`, a compass deviating by Eq. 12); `demo` is the committed demo,
+//! `paper_raw_case` the 2007 paper's (12 ± 30)° raw error on a turntable and `pdr_walk`
+//! the PDR scenario (varied gait, an Eq. 12 compass, GNSS with 3 m noise; 50 or 100 Hz).
 //!
 //! The gait is [`Gait::Steady`](crate::sim::gait::Gait::Steady) (fixed steps, the
 //! committed demo's) or [`Gait::Varied`](crate::sim::gait::Gait::Varied) (steps that

@@ -2,6 +2,13 @@
 //! calibration, notes, diagnostics, its plots), the heading models (the comparison
 //! table, the deviation models, their plots), the dead reckoning (summary and plots),
 //! the timeline, and errors in the place of all of them.
+//!
+//! The summary goes first, then the lists, then the figures, one per task. Where the
+//! analysis worker runs a job, its calibration and figures can be shown before the job
+//! ends: the worker sends a copy when the calibration step is done, and the page shows
+//! it after `EARLY_FIGURES_AFTER_MS` unless the job has finished by then (so that a
+//! quick analysis's answer does not wait behind them); the finished analysis does not
+//! draw those figures again.
 
 use std::rc::Rc;
 use std::sync::atomic::{AtomicBool, Ordering};

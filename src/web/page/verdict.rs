@@ -1,6 +1,6 @@
-//! The answer first ([`crate::present::verdict`]): the grade, the headline, the method, the key
-//! figures and what to do, in the summary at the top of the page (`#summary`), above
-//! the downloads' details.
+//! The answer first ([`crate::present::verdict`]): the grade, the headline, the method,
+//! the key figures and what to do, in the summary at the top of the page (`#summary`),
+//! above the downloads' details.
 
 use wasm_bindgen::JsCast;
 

@@ -1,9 +1,9 @@
 //! Zoom, pan and the value under the pointer on the page's time plots (heading error,
 //! |B|) and the dead-reckoned trajectory: Ctrl + wheel (a trackpad's pinch) or the `+`
 //! and `-` keys zoom about the pointer, a drag pans, a double click or `0` shows the
-//! whole plot again, and the values under the pointer are written under the figure.
-//! The plots apply the zoom and say where they drew (`plot::zoom`); this room keeps
-//! each canvas's zoom and last frame, and redraws that one figure from the kept
+//! whole plot again, and the values under the pointer are written under the figure. The
+//! plots apply the zoom and say where they drew (`present::plot::zoom`); this room
+//! keeps each canvas's zoom and last frame, and redraws that one figure from the kept
 //! results. A new analysis starts unzoomed.
 
 use std::cell::{Cell, RefCell};

@@ -7,19 +7,21 @@
 //!    importer turns ArduPilot's `ATT` by `AHRS_TRIM`) and the battery current.
 //! 2. The Earth's field is the World Magnetic Model's at the log's position and date
 //!    ([`EarthField::Model`]); without one, each calibration's own mean field.
-//! 3. The models of the attitude-aided fit ([`crate::fit::autopilot_aided`]) are climbed
-//!    one [`Step`] at a time as the flight supports them: how many of the sphere's 100
-//!    regions the Earth's field crosses in the body decides which steps are tried (one
-//!    heading: the offsets or nothing), each with and without the motor term where the
-//!    current varies. Each is fitted on the first half of the log and scored on the
-//!    held-back second half by the vector error ([`score`]); a fit the autopilot would
-//!    refuse ([`acceptance`]) or whose offsets the flight does not determine is out.
+//! 3. The models of the attitude-aided fit ([`crate::fit::autopilot_aided`]) are
+//!    climbed one [`Step`](crate::fit::autopilot_aided::Step) at a time as the flight
+//!    supports them: how many of the sphere's 100 regions the Earth's field crosses in
+//!    the body decides which steps are tried (one heading: the offsets or nothing),
+//!    each with and without the motor term where the current varies. Each is fitted on
+//!    the first half of the log and scored on the held-back second half by the vector
+//!    error (`score.rs`); a fit the autopilot would refuse (`acceptance.rs`) or whose
+//!    offsets the flight does not determine is out.
 //! 4. The best (a richer model only where it is clearly better) is fitted on the whole
 //!    log, checked against the autopilot's acceptance again, written as the autopilot's
 //!    parameters, read back from that text and applied as the autopilot applies them.
 //! 5. **The rule every write-back follows:** the compass's lines are written only where
 //!    both the model fitted on the first half and the parameters as written beat the
-//!    parameters in force on the held-back second half, and the autopilot accepts them.
+//!    parameters in force on the held-back second half by more than a reference 5 % off
+//!    the truth could make them (`score::gain_is_real`), and the autopilot accepts them.
 //!    Otherwise the file keeps the parameters in force for that compass and says why in
 //!    a comment; the console, the JSON and the page show the same sentence
 //!    ([`CompassResult::sentence`]).

@@ -1,5 +1,6 @@
 //! Each compass sample paired with the attitude and the battery current at its time, and
-//! a compass's calibration (in force, or as a parameter file sets it) in one form.
+//! a compass's calibration (in force, or as a parameter file sets it) in one form; and
+//! `InForce`, the heading the vehicle flies with, for the heading comparison's row.
 
 use nalgebra::{Matrix3, Rotation3, Vector3};
 
