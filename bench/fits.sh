@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The fits on real logs in one go: the ellipse (tilt-aware level-plane) and
-# 3D (calib::inertial) fits on 10⁴ samples of each real recording in ../shared/data, of
+# 3D (fit::ellipsoid) fits on 10⁴ samples of each real recording in ../shared/data, of
 # the simulator's demo walk and of the independent generator's circle walk, natively
 # (criterion, benches/fits.rs, which also writes the samples and the outcomes), and
 # numpy's Li-Griffiths fit and an ArduPilot-style scipy LM on the same samples

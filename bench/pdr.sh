@@ -143,8 +143,8 @@ print("| stage | s | share |")
 print("|---|---|---|")
 for key, label in [
     ("import", "`io::import::import`"),
-    ("calibrate", "`calibration::calibrate` (field-domain fits, the log's reference)"),
-    ("compare", "`heading::compare` (Fourier, RLS and MLP heading models)"),
+    ("calibrate", "`analysis::calibration::calibrate` (field-domain fits, the log's reference)"),
+    ("compare", "`analysis::headings::compare` (Fourier, RLS and MLP heading models)"),
     ("steps", "`pdr::steps::detect_steps`"),
     ("ekf", "`pdr::fusion::fuse` (the EKF with GNSS gating)"),
     ("report_clone", "the `ImportReport` clone the calibration takes"),

@@ -145,7 +145,7 @@ pub fn section(text: &mut String, data: &Path) {
          README). Heading errors are RMS on the check part (the second half of the referenced samples);\n\
          \"chosen\" is the method the analysis recommends over the whole heading comparison (the lowest\n\
          check RMS, never worse than uncalibrated; without a reference, the fits' own figures). The 3D fit\n\
-         is the tilt-aided ellipsoid (`calib::inertial`).\n\n\
+         is the tilt-aided ellipsoid (`fit::ellipsoid`).\n\n\
          | recording | what | truth / reference | uncalibrated | chosen | calibration |\n\
          |---|---|---|---|---|---|\n",
     );
