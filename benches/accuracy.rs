@@ -76,12 +76,12 @@ mod report {
         analysis: &HeadingAnalysis,
         verdicts: &mut Vec<String>,
     ) -> String {
-        let row = |key: &str| analysis.report.row(key);
+        let row = |key: &str| analysis.report.row_written(key);
         let stats = |key: &str| row(key).map_or((None, None), |row| (row.train, row.check));
         let (raw_train, raw_check) = stats("raw");
         let (min_max_train, min_max_check) = stats("min_max");
         let (mlp_train, mlp_check) = stats("mlp");
-        let best_row = analysis.report.best.as_deref().and_then(row);
+        let best_row = analysis.report.row(analysis.report.choice.key);
         if let Some((label, stats)) =
             best_row.and_then(|row| row.check.map(|stats| (&row.label, stats)))
         {
@@ -262,7 +262,7 @@ mod report {
             let check_rms = |key: &str| {
                 vehicle_headings
                     .report
-                    .row(key)
+                    .row_written(key)
                     .and_then(|row| row.check)
                     .map(|stats| stats.rms_deg)
             };

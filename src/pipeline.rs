@@ -23,7 +23,7 @@
 use crate::analysis::attitude_track::{attitude_of, FieldSource};
 use crate::analysis::calibration::selection::Choice;
 use crate::analysis::calibration::CalibrationOptions;
-use crate::analysis::calibration::{calibrate, CalibrationAnalysis, Method};
+use crate::analysis::calibration::{calibrate, CalibrationAnalysis};
 use crate::analysis::headings::{compare, HeadingAnalysis, HeadingOptions};
 use crate::analysis::levelled::AnalysisError;
 use crate::attitude::{AttitudeError, AttitudeOptions, AttitudeTrack};
@@ -77,11 +77,7 @@ pub fn heading_models(
 ) -> HeadingAnalysis {
     let mut headings = compare(calibration, options);
     let choice = headings.report.choice.clone();
-    let base = Method::ALL
-        .into_iter()
-        .find(|method| choice.key.split('+').next() == Some(method.key()));
     for report in [&mut calibration.report, &mut headings.report.calibration] {
-        report.best = base;
         report.choice = Some(choice.clone());
     }
     headings

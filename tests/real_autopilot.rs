@@ -331,7 +331,7 @@ fn an_autopilot_log_s_heading_comparison_has_the_parameters_in_force() {
         let (calibration, headings) =
             compass_pdr::pipeline::headings(&report, &HeadingOptions::default()).unwrap();
         let check_rms = |key: &str| {
-            let row = headings.report.rows.iter().find(|row| row.key == key);
+            let row = headings.report.row_written(key);
             row.and_then(|row| row.check).map(|stats| stats.rms_deg)
         };
         let (in_force, raw) = (check_rms("in_force").unwrap(), check_rms("raw").unwrap());
@@ -345,7 +345,7 @@ fn an_autopilot_log_s_heading_comparison_has_the_parameters_in_force() {
             .report
             .rows
             .iter()
-            .find(|row| row.key == "in_force")
+            .find(|row| row.key.text() == "in_force")
             .unwrap()
             .label;
         assert!(label.ends_with("'s parameters in force"), "{label}");
@@ -361,7 +361,7 @@ fn an_autopilot_log_s_heading_comparison_has_the_parameters_in_force() {
         .report
         .rows
         .iter()
-        .find(|row| row.key == "ellipsoid")
+        .find(|row| row.key.text() == "ellipsoid")
         .unwrap();
     let ellipsoid_deg = row.check.unwrap().rms_deg;
     eprintln!("log171: ellipsoid (3D) check RMS {ellipsoid_deg:.2}°");

@@ -40,7 +40,7 @@ fn analyse(
 fn row<'a>(analysis: &'a HeadingAnalysis, key: &str) -> &'a HeadingRow {
     analysis
         .report
-        .row(key)
+        .row_written(key)
         .unwrap_or_else(|| panic!("no row {key}: {:?}", analysis.report.rows))
 }
 
@@ -94,7 +94,7 @@ fn vehicle_deviation_model_recovers_what_min_max_leaves_on_the_check_half() {
         "{ellipse_fourier} vs {ellipse}"
     );
     // The data README expects about 14° after a centre-only fit.
-    let best = report.best.as_deref().expect("a best method");
+    let best = &report.choice.key.text();
     assert!(
         check_rms(&analysis, best) < 14.0,
         "{best}: {}",
@@ -164,7 +164,7 @@ fn the_hallway_loop_gyro_reference_closes_and_the_compass_follows_it() {
     // A loop started at a corner turns three right angles, not four.
     assert!((turned_deg.abs() - 270.0).abs() < 20.0, "{turned_deg}");
     // Against the gyro's shape, the compass is within about 10° on the check half.
-    let best = analysis.report.best.as_deref().expect("a best method");
+    let best = &analysis.report.choice.key.text();
     assert!(
         check_rms(&analysis, best) < 10.0,
         "{best}: {}",
@@ -216,7 +216,7 @@ fn no_recording_gets_a_best_worse_than_uncalibrated_and_the_3d_fit_answers() {
     for (name, paths, reference, position_deg) in cases {
         let analysis = analyse(&paths, reference, position_deg);
         let report = &analysis.report;
-        let chosen = check_rms(&analysis, &report.choice.key);
+        let chosen = check_rms(&analysis, &report.choice.key.text());
         let raw = check_rms(&analysis, "raw");
         eprintln!(
             "{name}: chosen {} at {chosen:.1}°, uncalibrated {raw:.1}°, 3D fit {:.1}°",

@@ -311,7 +311,7 @@ fn nothing_to_fit_is_answered_uncalibrated_with_what_to_record() {
         let report = &analysis.calibration.report;
         let why = report.why_no_method_fitted().expect("nothing fitted");
         assert!(why.contains("hardly turned"), "{paths:?}: {why}");
-        assert_eq!(report.best, None, "{paths:?}");
+        assert_eq!(report.best(), None, "{paths:?}");
         assert!(
             report
                 .notes

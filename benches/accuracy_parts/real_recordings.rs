@@ -4,6 +4,7 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
+use compass_pdr::analysis::calibration::row_key::{OnTop, RowKey};
 use compass_pdr::analysis::calibration::selection::field_calibration_of;
 use compass_pdr::analysis::calibration::{
     CalibrationAnalysis, CalibrationOptions, Method, MethodParameters,
@@ -37,12 +38,12 @@ fn heading_cells(analysis: &CalibrationAnalysis) -> (String, String) {
     let report = &headings.report;
     let rms_of = |key: &str| {
         report
-            .row(key)
+            .row_written(key)
             .and_then(|row| row.check.or(row.train))
             .map(|stats| stats.rms_deg)
     };
     let raw = rms_of("raw").map_or("—".to_string(), |rms| format!("{rms:.1}°"));
-    let chosen = match (report.reference, rms_of(&report.choice.key)) {
+    let chosen = match (report.reference, rms_of(&report.choice.key.text())) {
         (Some(_), Some(rms)) => format!("{}: **{rms:.1}°**", report.choice.label),
         _ => format!("{} (no reference to score it)", report.choice.label),
     };
@@ -230,11 +231,13 @@ pub fn section(text: &mut String, data: &Path) {
             .report
             .choice
             .as_ref()
-            .map(|choice| choice.key.clone());
+            .map(|choice| choice.key)
+            .filter(|key| key.on_top == OnTop::Nothing)
+            .and_then(RowKey::field_method);
         let turned = analysis
             .headings_deg
             .iter()
-            .find(|(method, _)| Some(method.key().to_string()) == chosen)
+            .find(|(method, _)| Some(*method) == chosen)
             .map_or("—".to_string(), |(method, headings)| {
                 format!("{}: {:+.1}°", method.label(), turned_deg(headings))
             });

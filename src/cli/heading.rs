@@ -90,7 +90,7 @@ pub(super) fn heading_text(report: &HeadingReport) -> String {
             let _ = writeln!(text, "  {:<width$} not fitted: {error}", row.label);
             continue;
         }
-        let best = if report.best.as_deref() == Some(row.key.as_str()) {
+        let best = if report.choice.key == row.key {
             " ← best"
         } else {
             ""

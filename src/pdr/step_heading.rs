@@ -15,13 +15,11 @@
 //! track takes a heading that needs no reference (`reference_free_choice`), unless the
 //! user asks for one.
 
-use crate::analysis::calibration::selection::{
-    choose_without_reference, learns_from_reference, Basis, RAW_KEY,
-};
+use crate::analysis::calibration::row_key::{OnTop, RowKey};
+use crate::analysis::calibration::selection::{choose_without_reference, Basis};
 use crate::analysis::calibration::{
     calibrate_again, CalibrationAnalysis, CalibrationOptions, Method,
 };
-use crate::analysis::headings::ATTITUDE_KEY;
 use crate::analysis::headings::{HeadingAnalysis, HeadingOptions};
 use crate::io::recording::{GnssFix, Stream};
 use crate::io::ImportReport;
@@ -89,9 +87,11 @@ fn compass_heading(
     options: &PdrOptions,
     notes: &mut Vec<String>,
 ) -> Option<StepHeading> {
+    // A key the user names that is no row's is not there: the uncalibrated heading is
+    // used, and the note below says so.
     let mut wanted = match &options.heading.base {
-        HeadingBase::Model(key) => key.clone(),
-        _ => headings.report.choice.key.clone(),
+        HeadingBase::Model(text) => RowKey::parse(text).unwrap_or(RowKey::RAW),
+        _ => headings.report.choice.key,
     };
     let asked = matches!(options.heading.base, HeadingBase::Model(_));
     let mut refit = None;
@@ -99,10 +99,10 @@ fn compass_heading(
         // A reference no model comes near chose nothing, and fits nothing again.
         wanted = reference_free_choice(calibration, headings, options, notes);
     } else {
-        refit = refit_on_gnss(import, calibration, &wanted, options, notes);
+        refit = refit_on_gnss(import, calibration, wanted, options, notes);
         let refitted = refit
             .as_ref()
-            .is_some_and(|refit| series_of(refit, &wanted).is_some());
+            .is_some_and(|refit| series_of(refit, wanted).is_some());
         if !refitted && !asked && fitted_on_the_track_s_truth(headings, options) {
             wanted = reference_free_choice(calibration, headings, options, notes);
             refit = None;
@@ -110,16 +110,13 @@ fn compass_heading(
     }
     let from_refit = refit
         .as_ref()
-        .and_then(|refit| series_of(refit, &wanted).map(|series| (refit, series)));
+        .and_then(|refit| series_of(refit, wanted).map(|series| (refit, series)));
     let (source, series) = from_refit
-        .or_else(|| series_of(headings, &wanted).map(|series| (headings, series)))
-        .or_else(|| {
-            series_of(headings, crate::analysis::calibration::selection::RAW_KEY)
-                .map(|s| (headings, s))
-        })?;
-    let key = series.0.clone();
+        .or_else(|| series_of(headings, wanted).map(|series| (headings, series)))
+        .or_else(|| series_of(headings, RowKey::RAW).map(|s| (headings, s)))?;
+    let key = series.0;
     if let HeadingBase::Model(requested) = &options.heading.base {
-        if *requested != key {
+        if *requested != key.text() {
             notes.push(format!(
                 "There is no heading model '{requested}' for this log; the {key} heading was used. The models are: {}.",
                 model_keys(&headings.headings_deg)
@@ -136,7 +133,7 @@ fn compass_heading(
     }
     // The attitude filter states its yaw's 1σ: the dead reckoning's heading noise. (A
     // calibration fitted again keeps the first one's filter run, and so its σ.)
-    let sigma_rad = (key == ATTITUDE_KEY)
+    let sigma_rad = (key == RowKey::ATTITUDE)
         .then_some(calibration.attitude_heading.as_ref())
         .flatten()
         .map(|attitude| {
@@ -151,8 +148,8 @@ fn compass_heading(
     Some(StepHeading {
         heading_rad,
         sigma_rad,
-        label: label_of(source, &key),
-        key,
+        label: label_of(source, key),
+        key: key.text(),
     })
 }
 
@@ -164,7 +161,7 @@ fn compass_heading(
 fn refit_on_gnss(
     import: &ImportReport,
     calibration: &CalibrationAnalysis,
-    key: &str,
+    key: RowKey,
     options: &PdrOptions,
     notes: &mut Vec<String>,
 ) -> Option<HeadingAnalysis> {
@@ -172,10 +169,7 @@ fn refit_on_gnss(
     if given.calibration.train_until_s.is_some() {
         return None;
     }
-    let base_method = Method::ALL
-        .into_iter()
-        .find(|method| key.split('+').next() == Some(method.key()));
-    let methods = match base_method.unwrap_or(Method::MinMax) {
+    let methods = match key.field_method().unwrap_or(Method::MinMax) {
         Method::RefLs => vec![Method::Ellipse, Method::Ellipsoid, Method::RefLs],
         method => vec![method],
     };
@@ -190,7 +184,7 @@ fn refit_on_gnss(
             ..given.calibration.clone()
         },
         // A network trains only when it is the model: it would dominate the time.
-        neural: key.contains("mlp"),
+        neural: key.on_top == OnTop::Network,
         ..given.clone()
     };
     let gnss = without_outages(&import.recording.gnss, &options.gnss.outages);
@@ -229,7 +223,7 @@ fn reference_cannot_choose(headings: &HeadingAnalysis) -> Option<(f64, &str)> {
 /// (a reference-heading column, the legs between reference positions: in a test log the
 /// truth), which the user did not ask to train on (`--train-on-reference`).
 fn fitted_on_the_track_s_truth(headings: &HeadingAnalysis, options: &PdrOptions) -> bool {
-    learns_from_reference(&headings.report.choice.key)
+    headings.report.choice.key.learns_from_reference()
         && !options.train_on_reference_positions
         && headings
             .report
@@ -246,17 +240,17 @@ fn reference_free_choice(
     headings: &HeadingAnalysis,
     options: &PdrOptions,
     notes: &mut Vec<String>,
-) -> String {
+) -> RowKey {
     let chosen = &headings.report.choice;
-    let base = chosen.key.split('+').next().unwrap_or_default();
-    let (key, label) = if !learns_from_reference(base)
-        && base != RAW_KEY
+    let base = RowKey::of(chosen.key.base);
+    let (key, label) = if !base.learns_from_reference()
+        && base != RowKey::RAW
         && series_of(headings, base).is_some()
         && reference_cannot_choose(headings).is_none()
     {
-        (base.to_string(), label_of(headings, base))
-    } else if series_of(headings, ATTITUDE_KEY).is_some() {
-        (ATTITUDE_KEY.to_string(), label_of(headings, ATTITUDE_KEY))
+        (base, label_of(headings, base))
+    } else if series_of(headings, RowKey::ATTITUDE).is_some() {
+        (RowKey::ATTITUDE, label_of(headings, RowKey::ATTITUDE))
     } else {
         let choice = choose_without_reference(&calibration.report);
         (choice.key, choice.label)
@@ -318,8 +312,8 @@ fn device_heading(
     })
 }
 
-fn series_of<'a>(headings: &'a HeadingAnalysis, key: &str) -> Option<&'a (String, Vec<f64>)> {
-    headings.headings_deg.iter().find(|(row, _)| row == key)
+fn series_of(headings: &HeadingAnalysis, key: RowKey) -> Option<&(RowKey, Vec<f64>)> {
+    headings.headings_deg.iter().find(|(row, _)| *row == key)
 }
 
 /// The GNSS fixes outside the outages.
@@ -333,17 +327,17 @@ pub fn without_outages(gnss: &Stream<GnssFix>, outages: &[Outage]) -> Stream<Gns
     kept
 }
 
-fn label_of(headings: &HeadingAnalysis, key: &str) -> String {
+fn label_of(headings: &HeadingAnalysis, key: RowKey) -> String {
     headings
         .report
         .row(key)
-        .map_or_else(|| key.to_string(), |row| row.label.clone())
+        .map_or_else(|| key.text(), |row| row.label.clone())
 }
 
-fn model_keys(series: &[(String, Vec<f64>)]) -> String {
+fn model_keys(series: &[(RowKey, Vec<f64>)]) -> String {
     series
         .iter()
-        .map(|(key, _)| key.as_str())
+        .map(|(key, _)| key.text())
         .collect::<Vec<_>>()
         .join(", ")
 }

@@ -2,6 +2,8 @@ use super::fusion::Outage;
 use super::references::{straight_segments, unconfirmed_speed};
 use super::step_length::StepLengthModel;
 use super::*;
+use crate::analysis::calibration::row_key::{OnTop, RowKey};
+use crate::analysis::calibration::Method;
 use crate::io::canonical_csv;
 use crate::io::import::import;
 use crate::sim::walk::{simulate, GnssSim, WalkConfig};
@@ -184,24 +186,29 @@ fn a_heading_fitted_on_the_track_s_own_truth_does_not_steer_it() {
     let fitted = headings
         .headings_deg
         .iter()
-        .map(|(key, _)| key.clone())
-        .find(|key| key.ends_with("+fourier") && !key.starts_with("ref_ls"))
+        .map(|(key, _)| *key)
+        .find(|key| {
+            key.on_top == OnTop::Fourier
+                && key
+                    .field_method()
+                    .is_some_and(|method| method != Method::RefLs)
+        })
         .expect("a Fourier model on the reference");
-    let base = fitted.split('+').next().unwrap_or_default().to_string();
-    headings.report.choice.key = fitted.clone();
+    let base = RowKey::of(fitted.base);
+    headings.report.choice.key = fitted;
     let options = PdrOptions::default();
     let analysis = dead_reckon(&report, (&calibration, &headings), &options).expect("runs");
     // The track takes the calibration under it, which needs no reference, and says why.
-    assert_eq!(analysis.report.heading_key, base);
+    assert_eq!(analysis.report.heading_key, base.text());
     assert!(
         has_note(&analysis, "also scores the track"),
         "{:?}",
         analysis.report.notes
     );
     // A choice with nothing fitted on the reference stands.
-    headings.report.choice.key = base.clone();
+    headings.report.choice.key = base;
     let analysis = dead_reckon(&report, (&calibration, &headings), &options).expect("runs");
-    assert_eq!(analysis.report.heading_key, base);
+    assert_eq!(analysis.report.heading_key, base.text());
     // A reference that even the best model is 45° RMS from chooses nothing: the track
     // takes the attitude filter.
     let chosen_basis = headings.report.choice.basis.clone();
@@ -211,22 +218,19 @@ fn a_heading_fitted_on_the_track_s_own_truth_does_not_steer_it() {
             closest: "reference LS (Eq. 8)".to_string(),
         };
     let analysis = dead_reckon(&report, (&calibration, &headings), &options).expect("runs");
-    assert_eq!(
-        analysis.report.heading_key,
-        crate::analysis::headings::ATTITUDE_KEY
-    );
+    assert_eq!(analysis.report.heading_key, RowKey::ATTITUDE.text());
     assert!(
         has_note(&analysis, "too far to choose one"),
         "{:?}",
         analysis.report.notes
     );
     headings.report.choice.basis = chosen_basis;
-    headings.report.choice.key = fitted.clone();
+    headings.report.choice.key = fitted;
     // Asked to train on the reference, it takes the comparison's choice.
     let trained = PdrOptions {
         train_on_reference_positions: true,
         ..PdrOptions::default()
     };
     let analysis = dead_reckon(&report, (&calibration, &headings), &trained).expect("runs");
-    assert_eq!(analysis.report.heading_key, fitted);
+    assert_eq!(analysis.report.heading_key, fitted.text());
 }

@@ -25,6 +25,7 @@ use nalgebra::Vector3;
 use serde::Serialize;
 
 use crate::analysis::calibration::autopilot::{describe, AutopilotCalibration, CompassResult};
+use crate::analysis::calibration::row_key::RowKey;
 use crate::analysis::calibration::selection::Basis;
 use crate::analysis::calibration::CalibrationAnalysis;
 use crate::analysis::headings::HeadingReport;
@@ -426,7 +427,7 @@ fn heading_verdict(
         .as_ref()
         .map_or("the reference", |source| source.label());
     let headline = match raw_rms_deg {
-        Some(raw) if heading.choice.key != crate::analysis::calibration::selection::RAW_KEY => format!(
+        Some(raw) if heading.choice.key != RowKey::RAW => format!(
             "Heading error {raw:.1}° → {rms_deg:.1}° RMS with {}, against the {reference} {part}.",
             heading.choice.label
         ),
@@ -434,9 +435,10 @@ fn heading_verdict(
             "Heading error {rms_deg:.1}° RMS uncalibrated against the {reference} {part}; no calibration improved on it."
         ),
     };
-    let chosen = heading.row(&heading.choice.key);
+    let chosen = heading.row(heading.choice.key);
     let mut figures = vec![figure("Heading error after", format!("{rms_deg:.1}° RMS"))];
-    if let Some(raw) = raw_rms_deg.or_else(|| heading.row("raw").and_then(|row| row_rms(row.check)))
+    if let Some(raw) =
+        raw_rms_deg.or_else(|| heading.row(RowKey::RAW).and_then(|row| row_rms(row.check)))
     {
         figures.insert(0, figure("Heading error before", format!("{raw:.1}° RMS")));
     }

@@ -28,9 +28,9 @@ async function assertStatsMatch(page, expected) {
     assert.equal(await text(page, `stat-${key}-check-p95`), fixed(check?.p95_abs_deg));
     assert.equal(await text(page, `stat-${key}-check-within5`), fixed(check?.within_5_deg_pct, ' %'));
   }
-  // One choice of "best" (crate::calibration::selection), the same row and the same sentence.
+  // One choice of "best" (crate::analysis::calibration::selection), the same row and the same sentence.
   const bestRows = await page.$$eval('#methods-body tr.best', (rows) => rows.map((row) => row.id));
-  assert.deepEqual(bestRows, expected.best ? [`row-${expected.best.replaceAll('+', '-')}`] : [], 'the best row');
+  assert.deepEqual(bestRows, [`row-${expected.choice.key.replaceAll('+', '-')}`], 'the best row');
   assert.ok((await text(page, 'verdict-method')).includes(`Method: ${expected.choice.label}: `), await text(page, 'verdict-method'));
 }
 

@@ -235,7 +235,7 @@ pub fn score(log: &GeneratedLog, options: &CalibrationOptions) -> Scores {
             )
         })
         .collect();
-    let best = report.best.and_then(|best| {
+    let best = report.best().and_then(|best| {
         let rms = report.method(best)?.heading_error_check?.rms_deg;
         Some((best.key().to_string(), rms))
     });
@@ -247,10 +247,11 @@ pub fn score(log: &GeneratedLog, options: &CalibrationOptions) -> Scores {
             ..HeadingOptions::default()
         },
     );
-    let heading = headings.report.best.as_ref().and_then(|key| {
-        let row = headings.report.rows.iter().find(|row| &row.key == key)?;
-        Some((key.clone(), row.check?.rms_deg))
-    });
+    let key = headings.report.choice.key;
+    let heading = headings
+        .report
+        .row(key)
+        .and_then(|row| Some((key.text(), row.check?.rms_deg)));
     Scores {
         name: log.name.clone(),
         floor_deg,

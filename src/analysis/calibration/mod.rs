@@ -26,7 +26,8 @@ use std::sync::Arc;
 use nalgebra::{Vector2, Vector3};
 use serde::Serialize;
 
-use crate::analysis::calibration::selection::{choose_by_reference, Choice, Scored, RAW_KEY};
+use crate::analysis::calibration::row_key::RowKey;
+use crate::analysis::calibration::selection::{choose_by_reference, Choice, Scored};
 use crate::analysis::levelled::{AnalysisError, Levelling, TiltedSamples};
 use crate::attitude::compass_heading::heading_rad;
 use crate::attitude::down::{gravity_from_attitude, gravity_of, GravityEstimate};
@@ -47,6 +48,7 @@ mod attitude;
 pub mod autopilot;
 mod context;
 mod methods;
+pub mod row_key;
 pub mod selection;
 
 pub use attitude::AttitudeHeading;
@@ -239,14 +241,11 @@ pub struct CalibrationReport {
     /// the accelerometer mostly got wrong.
     pub tilt_trust_mean: f64,
     pub methods: Vec<MethodReport>,
-    /// The field-domain method of the analysis's one best heading ([`crate::analysis::calibration::selection`]):
+    /// The analysis's one best heading and why ([`crate::analysis::calibration::selection`]):
     /// [`calibrate`] sets the best of the field-domain methods alone (the lowest check
     /// RMS, never worse than uncalibrated; without a reference, by the fits' own
-    /// figures); the pipeline's heading stage ([`crate::pipeline::headings`]) replaces it
-    /// with the base of the best of every heading model. `None` when uncalibrated (or a
-    /// network on it) is the choice.
-    pub best: Option<Method>,
-    /// That choice (a row key such as `ellipsoid+fourier`), and why.
+    /// figures); the pipeline's heading stage ([`crate::pipeline::heading_models`])
+    /// replaces it with the best of every heading model.
     pub choice: Option<Choice>,
     pub notes: Vec<String>,
     pub diagnostics: Diagnostics,
@@ -306,6 +305,13 @@ pub struct CalibrationAnalysis {
 }
 
 impl CalibrationReport {
+    /// The field-domain method the analysis's one best heading stands on; `None` when
+    /// it stands on none (the uncalibrated heading, a network on it, the attitude filter,
+    /// an autopilot's calibration in force).
+    pub fn best(&self) -> Option<Method> {
+        self.choice.as_ref()?.key.field_method()
+    }
+
     /// The report of `method`, if it was run.
     pub fn method(&self, method: Method) -> Option<&MethodReport> {
         self.methods.iter().find(|report| report.method == method)
@@ -701,7 +707,6 @@ fn calibrate_levelled(
             tilt_trust_mean: samples.tilt_trust.iter().sum::<f64>()
                 / samples.tilt_trust.len().max(1) as f64,
             methods: method_reports,
-            best: None,
             choice: by_reference,
             notes,
             diagnostics,
@@ -744,9 +749,6 @@ fn calibrate_levelled(
 fn settle_choice(report: &mut CalibrationReport) {
     let by_reference = report.choice.take();
     let choice = selection::settle(by_reference, report);
-    report.best = Method::ALL
-        .into_iter()
-        .find(|method| method.key() == choice.key);
     report.choice = Some(choice);
     if report.why_no_method_fitted().is_some() {
         // Nothing to calibrate with: the analysis goes on uncalibrated (the headings, the
@@ -787,13 +789,13 @@ fn scored_methods(
     method_reports: &[MethodReport],
 ) -> Vec<Scored<'_>> {
     let mut scored = vec![Scored {
-        key: RAW_KEY,
+        key: RowKey::RAW,
         label: "uncalibrated",
         train_rms_deg: raw_train.map(|stats| stats.rms_deg),
         check_rms_deg: raw_check.map(|stats| stats.rms_deg),
     }];
     scored.extend(method_reports.iter().map(|report| Scored {
-        key: report.method.key(),
+        key: RowKey::method(report.method),
         label: report.label,
         train_rms_deg: report.heading_error_train.map(|stats| stats.rms_deg),
         check_rms_deg: report.heading_error_check.map(|stats| stats.rms_deg),

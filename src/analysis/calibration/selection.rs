@@ -32,6 +32,7 @@ use serde::Serialize;
 
 use nalgebra::Vector3;
 
+use super::row_key::RowKey;
 use super::{CalibrationAnalysis, CalibrationReport, Method, MethodParameters, MethodReport};
 use crate::fit::model::FieldCalibration;
 use crate::reference::ReferenceSource;
@@ -40,39 +41,10 @@ use crate::reference::ReferenceSource;
 /// its parameters' covariance, at the log's attitudes) is within this many degrees.
 pub const MAX_UNREFERENCED_HEADING_STD_DEG: f64 = 5.0;
 
-/// The key of the uncalibrated heading's row.
-pub const RAW_KEY: &str = "raw";
-
 /// Methods whose RMS is within this share of the lowest are tied (see the module
 /// header): about the sampling noise of an RMS over the few hundred independent seconds
 /// a check part holds.
 pub const PARSIMONY_SHARE: f64 = 0.05;
-
-/// How much a method learns from the reference, by its row key: the uncalibrated
-/// heading nothing, min/max two centres and scales, the ellipse and the 3D fit a field
-/// shape (from the magnetometer alone), reference least squares its parameters from the
-/// reference; a Fourier model on top adds its terms, a network more.
-pub fn complexity(key: &str) -> u32 {
-    let mut parts = key.split('+');
-    let base = match parts.next().unwrap_or(RAW_KEY) {
-        // An autopilot's calibration in force learnt nothing from this log.
-        "raw" | "in_force" => 0,
-        "min_max" | "fourier" => 1,
-        // The attitude filter learns nothing from the reference; its field is a 3D fit.
-        "ellipse" | "ellipsoid" | "mlp" | "ahrs" => 2,
-        _ => 3,
-    };
-    base + parts
-        .map(|model| if model == "mlp" { 2 } else { 1 })
-        .sum::<u32>()
-}
-
-/// Whether a heading model's parameters are fitted on the reference heading (Eq. 8's
-/// least squares, the Fourier deviation of Eq. 12, the network), not on the field alone.
-pub fn learns_from_reference(key: &str) -> bool {
-    key.split('+')
-        .any(|part| matches!(part, "ref_ls" | "fourier" | "mlp"))
-}
 
 /// What a choice was made on.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -127,10 +99,11 @@ pub fn settle(by_reference: Option<Choice>, report: &CalibrationReport) -> Choic
     }
 }
 
-/// The method chosen, by its row key (`raw`, `ellipsoid`, `ellipsoid+fourier`, ...).
+/// The method chosen, by its row's key (written `raw`, `ellipsoid`, `ellipsoid+fourier`,
+/// ...): the analysis's one choice of "best", stored once on each report.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Choice {
-    pub key: String,
+    pub key: RowKey,
     pub label: String,
     pub basis: Basis,
 }
@@ -145,7 +118,7 @@ impl Choice {
                 on_train,
             } => {
                 let part = if *on_train { "train" } else { "check" };
-                match (self.key == RAW_KEY, raw_rms_deg) {
+                match (self.key == RowKey::RAW, raw_rms_deg) {
                     (true, _) => format!(
                         "{}: {rms_deg:.1}° RMS on the {part} part; no calibration beat it",
                         self.label
@@ -171,14 +144,14 @@ impl Choice {
 /// One scored method.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Scored<'a> {
-    pub key: &'a str,
+    pub key: RowKey,
     pub label: &'a str,
     pub train_rms_deg: Option<f64>,
     pub check_rms_deg: Option<f64>,
 }
 
 /// The method with the lowest check RMS (train RMS when no method has a check part),
-/// never worse than the row keyed [`RAW_KEY`]; `None` when nothing was scored.
+/// never worse than the uncalibrated heading's row ([`RowKey::RAW`]); `None` when nothing was scored.
 pub fn choose_by_reference(scored: &[Scored]) -> Option<Choice> {
     let on_train = scored.iter().all(|row| row.check_rms_deg.is_none());
     let metric = |row: &Scored| {
@@ -188,7 +161,7 @@ pub fn choose_by_reference(scored: &[Scored]) -> Option<Choice> {
             row.check_rms_deg
         }
     };
-    let raw = scored.iter().find(|row| row.key == RAW_KEY);
+    let raw = scored.iter().find(|row| row.key == RowKey::RAW);
     let raw_rms_deg = raw.and_then(metric);
     let lowest = scored.iter().filter_map(metric).min_by(f64::total_cmp)?;
     let best = scored
@@ -196,8 +169,9 @@ pub fn choose_by_reference(scored: &[Scored]) -> Option<Choice> {
         .filter_map(|row| Some((row, metric(row)?)))
         .filter(|(_, rms)| *rms <= lowest * (1.0 + PARSIMONY_SHARE))
         .min_by(|a, b| {
-            complexity(a.0.key)
-                .cmp(&complexity(b.0.key))
+            a.0.key
+                .complexity()
+                .cmp(&b.0.key.complexity())
                 .then_with(|| a.1.total_cmp(&b.1))
         })?;
     let (row, rms_deg) = match (raw, raw_rms_deg) {
@@ -206,11 +180,11 @@ pub fn choose_by_reference(scored: &[Scored]) -> Option<Choice> {
         _ => best,
     };
     Some(Choice {
-        key: row.key.to_string(),
+        key: row.key,
         label: row.label.to_string(),
         basis: Basis::ReferenceRms {
             rms_deg,
-            raw_rms_deg: raw_rms_deg.filter(|_| row.key != RAW_KEY),
+            raw_rms_deg: raw_rms_deg.filter(|_| row.key != RowKey::RAW),
             on_train,
         },
     })
@@ -227,7 +201,7 @@ pub fn choose_without_reference(report: &CalibrationReport) -> Choice {
         if let Some(MethodParameters::Ellipsoid(fit)) = &ellipsoid.parameters {
             if fit.heading_std_deg <= MAX_UNREFERENCED_HEADING_STD_DEG {
                 return Choice {
-                    key: Method::Ellipsoid.key().to_string(),
+                    key: RowKey::method(Method::Ellipsoid),
                     label: Method::Ellipsoid.label().to_string(),
                     basis: Basis::WithoutReference {
                         reason: format!(
@@ -249,7 +223,7 @@ pub fn choose_without_reference(report: &CalibrationReport) -> Choice {
     for method in [Method::Ellipse, Method::MinMax] {
         if fitted(method).is_some() {
             return Choice {
-                key: method.key().to_string(),
+                key: RowKey::method(method),
                 label: method.label().to_string(),
                 basis: Basis::WithoutReference {
                     reason: format!("no reference heading{because}"),
@@ -258,7 +232,7 @@ pub fn choose_without_reference(report: &CalibrationReport) -> Choice {
         }
     }
     Choice {
-        key: RAW_KEY.to_string(),
+        key: RowKey::RAW,
         label: "uncalibrated".to_string(),
         basis: Basis::WithoutReference {
             reason: format!("no reference heading and no calibration fitted{because}"),
@@ -297,7 +271,7 @@ pub fn device_calibration(report: &CalibrationReport) -> Option<(Method, FieldCa
         .collect();
     if let Some(best) = three_d
         .iter()
-        .find(|method| Some(method.method) == report.best)
+        .find(|method| Some(method.method) == report.best())
     {
         let fitted_in_3d = three_d
             .iter()
@@ -311,7 +285,7 @@ pub fn device_calibration(report: &CalibrationReport) -> Option<(Method, FieldCa
     let scored: Vec<Scored> = three_d
         .iter()
         .map(|method| Scored {
-            key: method.method.key(),
+            key: RowKey::method(method.method),
             label: method.label,
             train_rms_deg: method.heading_error_train.map(|stats| stats.rms_deg),
             check_rms_deg: method.heading_error_check.map(|stats| stats.rms_deg),
@@ -320,7 +294,7 @@ pub fn device_calibration(report: &CalibrationReport) -> Option<(Method, FieldCa
     let key = settle(choose_by_reference(&scored), report).key;
     let chosen = three_d
         .iter()
-        .find(|method| method.method.key() == key)
+        .find(|method| RowKey::method(method.method) == key)
         // Without a reference and with no trusted 3D fit, min/max (2D) may be the
         // choice: the device still gets the best 3D correction there is.
         .or_else(|| {
@@ -409,9 +383,9 @@ pub fn device_write_back(
 mod tests {
     use super::*;
 
-    fn scored(key: &str, train: Option<f64>, check: Option<f64>) -> Scored<'_> {
+    fn scored(key: &'static str, train: Option<f64>, check: Option<f64>) -> Scored<'static> {
         Scored {
-            key,
+            key: RowKey::parse(key).expect("a row key"),
             label: key,
             train_rms_deg: train,
             check_rms_deg: check,
@@ -427,10 +401,13 @@ mod tests {
             "ref_ls+mlp",
             "mlp",
         ] {
-            assert!(learns_from_reference(key), "{key}");
+            assert!(RowKey::parse(key).unwrap().learns_from_reference(), "{key}");
         }
         for key in ["raw", "min_max", "ellipse", "ellipsoid", "ahrs", "in_force"] {
-            assert!(!learns_from_reference(key), "{key}");
+            assert!(
+                !RowKey::parse(key).unwrap().learns_from_reference(),
+                "{key}"
+            );
         }
     }
 
@@ -442,7 +419,7 @@ mod tests {
             scored("ellipsoid", Some(4.0), Some(2.0)),
         ])
         .expect("a choice");
-        assert_eq!(choice.key, "ellipsoid");
+        assert_eq!(choice.key.text(), "ellipsoid");
         assert_eq!(
             choice.basis,
             Basis::ReferenceRms {
@@ -463,11 +440,20 @@ mod tests {
             scored("min_max", Some(7.0), Some(7.5)),
         ])
         .expect("a choice");
-        assert_eq!(choice.key, "ellipsoid");
-        assert_eq!(complexity("raw"), 0);
-        assert!(complexity("ellipsoid") < complexity("ellipsoid+fourier"));
-        assert!(complexity("ellipsoid+fourier") < complexity("ref_ls+fourier"));
-        assert!(complexity("min_max+fourier") < complexity("min_max+mlp"));
+        assert_eq!(choice.key.text(), "ellipsoid");
+        assert_eq!(RowKey::parse("raw").unwrap().complexity(), 0);
+        assert!(
+            RowKey::parse("ellipsoid").unwrap().complexity()
+                < RowKey::parse("ellipsoid+fourier").unwrap().complexity()
+        );
+        assert!(
+            RowKey::parse("ellipsoid+fourier").unwrap().complexity()
+                < RowKey::parse("ref_ls+fourier").unwrap().complexity()
+        );
+        assert!(
+            RowKey::parse("min_max+fourier").unwrap().complexity()
+                < RowKey::parse("min_max+mlp").unwrap().complexity()
+        );
     }
 
     #[test]
@@ -478,7 +464,7 @@ mod tests {
             scored("ellipse", None, None),
         ])
         .expect("a choice");
-        assert_eq!(choice.key, "raw");
+        assert_eq!(choice.key.text(), "raw");
         assert!(
             choice.sentence().contains("no calibration beat it"),
             "{}",
@@ -493,7 +479,7 @@ mod tests {
             scored("min_max", Some(3.0), None),
         ])
         .expect("a choice");
-        assert_eq!(choice.key, "min_max");
+        assert_eq!(choice.key.text(), "min_max");
         assert!(matches!(
             choice.basis,
             Basis::ReferenceRms { on_train: true, .. }

@@ -6,6 +6,7 @@
 //! Fourier model, and the one choice of "best" by
 //! [`crate::analysis::calibration::selection`]'s rule.
 
+use crate::analysis::calibration::row_key::{OnTop, RowKey};
 use crate::analysis::calibration::selection::{choose_by_reference, settle, Choice, Scored};
 use crate::analysis::calibration::{CalibrationAnalysis, CalibrationReport};
 use crate::base::stats::HeadingErrorStats;
@@ -21,7 +22,7 @@ use crate::deviation::rls::adapt_online;
 /// A base heading: raw or one field-domain method, in radians per sample, with its
 /// degrees and its scores as the calibration gave them (on the same split).
 struct Base<'a> {
-    key: String,
+    key: RowKey,
     label: String,
     heading_rad: Vec<f64>,
     heading_deg: &'a [f64],
@@ -72,12 +73,12 @@ impl<'a> Scoring<'a> {
 #[derive(Default)]
 struct Table {
     rows: Vec<HeadingRow>,
-    series: Vec<(String, Vec<f64>)>,
+    series: Vec<(RowKey, Vec<f64>)>,
     notes: Vec<String>,
 }
 
 impl Table {
-    fn push_scored(&mut self, key: String, label: String, headings_rad: &[f64], scoring: &Scoring) {
+    fn push_scored(&mut self, key: RowKey, label: String, headings_rad: &[f64], scoring: &Scoring) {
         self.push_row(
             key,
             label,
@@ -88,13 +89,13 @@ impl Table {
 
     fn push_row(
         &mut self,
-        key: String,
+        key: RowKey,
         label: String,
         (train, check): Scores,
         series_deg: Vec<f64>,
     ) {
         self.rows.push(HeadingRow {
-            key: key.clone(),
+            key,
             label,
             train,
             check,
@@ -103,7 +104,7 @@ impl Table {
         self.series.push((key, series_deg));
     }
 
-    fn push_error(&mut self, key: String, label: String, error: String) {
+    fn push_error(&mut self, key: RowKey, label: String, error: String) {
         self.rows.push(HeadingRow {
             key,
             label,
@@ -125,7 +126,7 @@ pub fn compare(calibration: &CalibrationAnalysis, options: &HeadingOptions) -> H
     // The bases as the calibration scored them (its split is this one).
     for base in &bases {
         table.push_row(
-            base.key.clone(),
+            base.key,
             base.label.clone(),
             base.scores,
             base.heading_deg.to_vec(),
@@ -134,8 +135,8 @@ pub fn compare(calibration: &CalibrationAnalysis, options: &HeadingOptions) -> H
     // Field-domain methods that could not be fitted are listed with their reason.
     for method_report in &calibration_report.methods {
         if let Some(error) = &method_report.error {
-            let (key, label) = (method_report.method.key(), method_report.label);
-            table.push_error(key.to_string(), label.to_string(), error.clone());
+            let (key, label) = (RowKey::method(method_report.method), method_report.label);
+            table.push_error(key, label.to_string(), error.clone());
         }
     }
     let bins = train_bins(
@@ -177,7 +178,6 @@ pub fn compare(calibration: &CalibrationAnalysis, options: &HeadingOptions) -> H
             fourier: fourier_reports,
             neural: neural_reports,
             online,
-            best: Some(choice.key.clone()),
             choice,
             notes: table.notes,
             calibration: calibration_report,
@@ -189,12 +189,6 @@ pub fn compare(calibration: &CalibrationAnalysis, options: &HeadingOptions) -> H
     }
 }
 
-/// The row key of the attitude filter's heading.
-pub const ATTITUDE_KEY: &str = "ahrs";
-
-/// The row key of an autopilot's heading with its calibration in force.
-pub const IN_FORCE_KEY: &str = "in_force";
-
 /// The uncalibrated heading, an autopilot's with its calibration in force, each fitted
 /// field-domain method's, then the attitude filter's (the last two scored here: the
 /// calibration does not score them).
@@ -202,7 +196,7 @@ fn bases_of<'a>(calibration: &'a CalibrationAnalysis, scoring: &Scoring) -> Vec<
     let radians = |headings_deg: &[f64]| headings_deg.iter().map(|deg| deg.to_radians()).collect();
     let report = &calibration.report;
     let mut bases = vec![Base {
-        key: "raw".to_string(),
+        key: RowKey::RAW,
         label: "uncalibrated".to_string(),
         heading_rad: radians(&calibration.raw_heading_deg),
         heading_deg: &calibration.raw_heading_deg,
@@ -212,11 +206,11 @@ fn bases_of<'a>(calibration: &'a CalibrationAnalysis, scoring: &Scoring) -> Vec<
         ),
     }];
     // A base the calibration does not score, scored here on the same split.
-    let scored_here = |key: &str, label: String, heading_deg: &'a [f64]| {
+    let scored_here = |key: RowKey, label: String, heading_deg: &'a [f64]| {
         let heading_rad: Vec<f64> = radians(heading_deg);
         let scores = scoring.both_stats(&heading_rad);
         Base {
-            key: key.to_string(),
+            key,
             label,
             heading_rad,
             heading_deg,
@@ -225,14 +219,14 @@ fn bases_of<'a>(calibration: &'a CalibrationAnalysis, scoring: &Scoring) -> Vec<
     };
     if let Some((autopilot, headings_deg)) = &calibration.in_force_heading_deg {
         let label = format!("{autopilot}'s parameters in force");
-        bases.push(scored_here(IN_FORCE_KEY, label, headings_deg));
+        bases.push(scored_here(RowKey::IN_FORCE, label, headings_deg));
     }
     for (method, headings_deg) in &calibration.headings_deg {
         let scores = report.method(*method).map_or((None, None), |method| {
             (method.heading_error_train, method.heading_error_check)
         });
         bases.push(Base {
-            key: method.key().to_string(),
+            key: RowKey::method(*method),
             label: method.label().to_string(),
             heading_rad: radians(headings_deg),
             heading_deg: headings_deg,
@@ -241,7 +235,7 @@ fn bases_of<'a>(calibration: &'a CalibrationAnalysis, scoring: &Scoring) -> Vec<
     }
     if let Some(attitude) = &calibration.attitude_heading {
         let label = "attitude filter (gyro + acc + field)".to_string();
-        bases.push(scored_here(ATTITUDE_KEY, label, &attitude.heading_deg));
+        bases.push(scored_here(RowKey::ATTITUDE, label, &attitude.heading_deg));
     }
     bases
 }
@@ -265,16 +259,11 @@ fn fourier_stacks(
         .collect();
     let mut reports = Vec::new();
     for base in bases {
-        let (key, label) = if base.key == "raw" {
-            (
-                "fourier".to_string(),
-                "Fourier deviation model (Eq. 12)".to_string(),
-            )
+        let key = base.key.with(OnTop::Fourier);
+        let label = if base.key == RowKey::RAW {
+            "Fourier deviation model (Eq. 12)".to_string()
         } else {
-            (
-                format!("{}+fourier", base.key),
-                format!("{} + Fourier", base.label),
-            )
+            format!("{} + Fourier", base.label)
         };
         let (raw, reference): (Vec<f64>, Vec<f64>) = bins
             .iter()
@@ -301,7 +290,7 @@ fn fourier_stacks(
                     ));
                 }
                 reports.push(FourierReport {
-                    base_key: base.key.clone(),
+                    base_key: base.key,
                     base_label: base.label.clone(),
                     fit,
                 });
@@ -375,22 +364,20 @@ fn neural_stacks(
     let best_field_base = bases
         .iter()
         .skip(1)
-        .filter(|base| base.key != ATTITUDE_KEY)
+        .filter(|base| base.key != RowKey::ATTITUDE)
         .filter_map(|base| Some((base, base.scores.0?.rms_deg)))
         .min_by(|a, b| a.1.total_cmp(&b.1))
         .map(|(base, _)| base);
     let mut reports = Vec::new();
     for base in bases.iter().take(1).chain(best_field_base) {
-        let (key, label) = if base.key == "raw" {
-            (
-                "mlp".to_string(),
-                "MLP (the 2007 paper's inputs)".to_string(),
-            )
+        let key = base.key.with(OnTop::Network);
+        let label = if base.key == RowKey::RAW {
+            "MLP (the 2007 paper's inputs)".to_string()
         } else {
-            (format!("{}+mlp", base.key), format!("{} + MLP", base.label))
+            format!("{} + MLP", base.label)
         };
         let trained = neural::train_correction(
-            &base.key,
+            &base.key.text(),
             &base.label,
             &base.heading_rad,
             &scoring.reference_rad,
@@ -450,7 +437,7 @@ fn online_adaptation(
     let n_updates = samples.len();
     let (model, snapshots) = adapt_online(samples, forgetting, ONLINE_SNAPSHOT_SPACING_S);
     Some(OnlineReport {
-        base_key: base.key.clone(),
+        base_key: base.key,
         base_label: base.label.clone(),
         memory_s: options.online_memory_s,
         forgetting_per_update: forgetting,
@@ -466,7 +453,7 @@ fn choose(rows: &[HeadingRow], calibration_report: &CalibrationReport) -> Choice
     let scored: Vec<Scored> = rows
         .iter()
         .map(|row| Scored {
-            key: &row.key,
+            key: row.key,
             label: &row.label,
             train_rms_deg: row.train.map(|stats| stats.rms_deg),
             check_rms_deg: row.check.map(|stats| stats.rms_deg),

@@ -24,10 +24,11 @@
 
 mod compare;
 
-pub use compare::{compare, ATTITUDE_KEY};
+pub use compare::compare;
 
 use serde::Serialize;
 
+use crate::analysis::calibration::row_key::RowKey;
 use crate::analysis::calibration::selection::Choice;
 use crate::analysis::calibration::{CalibrationOptions, CalibrationReport};
 use crate::base::stats::HeadingErrorStats;
@@ -77,8 +78,8 @@ impl Default for HeadingOptions {
 /// One heading method's errors on train and check.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct HeadingRow {
-    /// A stable identifier (`raw`, `ellipse`, `ellipse+fourier`, ...).
-    pub key: String,
+    /// What the row is (written `raw`, `ellipse`, `ellipse+fourier`, ...).
+    pub key: RowKey,
     pub label: String,
     pub train: Option<HeadingErrorStats>,
     pub check: Option<HeadingErrorStats>,
@@ -89,7 +90,7 @@ pub struct HeadingRow {
 /// A Fourier deviation model fitted on top of one base heading.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct FourierReport {
-    pub base_key: String,
+    pub base_key: RowKey,
     pub base_label: String,
     /// The fit on the train part, with its own residual statistics and histogram.
     pub fit: FourierFit,
@@ -98,7 +99,7 @@ pub struct FourierReport {
 /// The online adaptation on one base heading.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct OnlineReport {
-    pub base_key: String,
+    pub base_key: RowKey,
     pub base_label: String,
     pub memory_s: f64,
     pub forgetting_per_update: f64,
@@ -123,11 +124,10 @@ pub struct HeadingReport {
     /// method), with their inputs and training.
     pub neural: Vec<crate::deviation::neural::NeuralReport>,
     pub online: Option<OnlineReport>,
-    /// The row the analysis recommends ([`crate::analysis::calibration::selection`]): the lowest check RMS
-    /// (train RMS without a check part), never worse than the uncalibrated heading;
-    /// without a reference, the field calibration the fits' own figures recommend.
-    pub best: Option<String>,
-    /// That choice and why.
+    /// The row the analysis recommends, and why ([`crate::analysis::calibration::selection`]):
+    /// the lowest check RMS (train RMS without a check part), never worse than the
+    /// uncalibrated heading; without a reference, the field calibration the fits' own
+    /// figures recommend. Its key is the JSON's `choice.key`.
     pub choice: Choice,
     pub notes: Vec<String>,
     /// The field-domain comparison it stands on.
@@ -135,9 +135,15 @@ pub struct HeadingReport {
 }
 
 impl HeadingReport {
-    /// The row keyed `key` (`raw`, `ellipse+fourier`, …), if the comparison has one.
-    pub fn row(&self, key: &str) -> Option<&HeadingRow> {
+    /// The row keyed `key`, if the comparison has one.
+    pub fn row(&self, key: RowKey) -> Option<&HeadingRow> {
         self.rows.iter().find(|row| row.key == key)
+    }
+
+    /// The row whose key is written `text` (`raw`, `ellipse+fourier`, …): for callers
+    /// that hold the text (a user's choice, a table of figures).
+    pub fn row_written(&self, text: &str) -> Option<&HeadingRow> {
+        self.row(RowKey::parse(text)?)
     }
 
     /// The Fourier model the plots feature: of those with all five terms, the one that
@@ -171,7 +177,7 @@ pub struct HeadingAnalysis {
     pub is_train: Vec<bool>,
     pub reference_deg: Vec<Option<f64>>,
     /// Each row's heading per sample, by key.
-    pub headings_deg: Vec<(String, Vec<f64>)>,
+    pub headings_deg: Vec<(RowKey, Vec<f64>)>,
 }
 
 /// The models see the train part in bins of PAIR_WINDOW_S: the circular mean of the
@@ -291,7 +297,7 @@ mod tests {
             .report
             .fourier
             .into_iter()
-            .find(|report| report.base_key == "raw")
+            .find(|report| report.base_key == RowKey::RAW)
             .expect("fitted")
             .fit
     }
@@ -388,7 +394,7 @@ mod tests {
         let check_rms = |key: &str| {
             analysis
                 .report
-                .row(key)
+                .row(RowKey::parse(key).expect("a row key"))
                 .and_then(|row| row.check)
                 .map_or(f64::INFINITY, |stats| stats.rms_deg)
         };
@@ -455,14 +461,14 @@ mod tests {
         let analysis = crate::pipeline::headings(&report, &HeadingOptions::default())
             .map(|(_, headings)| headings)
             .expect("analyses");
-        let keys: Vec<&str> = analysis
+        let keys: Vec<String> = analysis
             .report
             .rows
             .iter()
-            .map(|row| row.key.as_str())
+            .map(|row| row.key.text())
             .collect();
         assert!(
-            keys.contains(&"raw") && keys.contains(&"fourier"),
+            keys.iter().any(|key| key == "raw") && keys.iter().any(|key| key == "fourier"),
             "{keys:?}"
         );
         assert!(analysis.report.online.is_some());

@@ -8,6 +8,7 @@ use plotters::prelude::*;
 
 use super::circle_fit::{CORRECTED_COLOR, RAW_COLOR};
 use super::{thinned_indices, PlotError, MAX_POINTS_PER_SERIES};
+use crate::analysis::calibration::row_key::RowKey;
 use crate::analysis::headings::HeadingAnalysis;
 use crate::base::angle::heading_difference_rad;
 
@@ -37,14 +38,14 @@ pub fn draw_deviation_figure<DB: DrawingBackend>(
 /// The featured base heading's series (raw when no model was fitted), its key and label.
 fn base_series(analysis: &HeadingAnalysis) -> (&[f64], String) {
     let featured = analysis.report.featured_fourier();
-    let key = featured.map_or("raw", |report| report.base_key.as_str());
+    let key = featured.map_or(RowKey::RAW, |report| report.base_key);
     let label = featured.map_or("uncalibrated".to_string(), |report| {
         report.base_label.clone()
     });
     let series = analysis
         .headings_deg
         .iter()
-        .find(|(series_key, _)| series_key == key)
+        .find(|(series_key, _)| *series_key == key)
         .map_or(&[][..], |(_, headings)| headings.as_slice());
     (series, label)
 }
@@ -183,11 +184,11 @@ pub fn draw_heading_errors<DB: DrawingBackend>(
 ) -> Result<(), PlotError> {
     let error = PlotError::from_backend::<DrawingAreaErrorKind<DB::ErrorType>>("heading error");
     let t_s = &analysis.t_s;
-    let series = |key: &str| -> Vec<(f64, f64)> {
+    let series = |key: RowKey| -> Vec<(f64, f64)> {
         let Some((_, headings_deg)) = analysis
             .headings_deg
             .iter()
-            .find(|(series_key, _)| series_key == key)
+            .find(|(series_key, _)| *series_key == key)
         else {
             return Vec::new();
         };
@@ -203,16 +204,12 @@ pub fn draw_heading_errors<DB: DrawingBackend>(
             })
             .collect()
     };
-    let best_key = analysis
-        .report
-        .best
-        .clone()
-        .unwrap_or_else(|| "raw".to_string());
+    let best_key = analysis.report.choice.key;
     let best_label = analysis
         .report
-        .row(&best_key)
-        .map_or(best_key.clone(), |row| row.label.clone());
-    let (raw, best) = (series("raw"), series(&best_key));
+        .row(best_key)
+        .map_or_else(|| best_key.text(), |row| row.label.clone());
+    let (raw, best) = (series(RowKey::RAW), series(best_key));
     let limit_deg = raw
         .iter()
         .chain(&best)

@@ -20,7 +20,7 @@ pub fn draw_heading_error<DB: DrawingBackend>(
     let error = PlotError::from_backend::<DrawingAreaErrorKind<DB::ErrorType>>("heading");
     let best = analysis
         .report
-        .best
+        .best()
         .or_else(|| analysis.headings_deg.first().map(|(method, _)| *method));
     let best_headings_deg: &[f64] = analysis
         .headings_deg

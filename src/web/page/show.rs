@@ -341,7 +341,7 @@ impl Page {
         body.set_text_content(None);
         let rows = report.rows.iter().map(|row| {
             (
-                row.key.replace('+', "-"),
+                row.key.text().replace('+', "-"),
                 row.label.clone(),
                 row.train,
                 row.check,
@@ -353,11 +353,7 @@ impl Page {
                 continue;
             };
             row.set_id(&format!("row-{key}"));
-            if report
-                .best
-                .as_deref()
-                .is_some_and(|best| best.replace('+', "-") == key)
-            {
+            if report.choice.key.text().replace('+', "-") == key {
                 let _ = row.class_list().add_1("best");
             }
             let Ok(header) = self.document.create_element("th") else {
