@@ -8,7 +8,7 @@ use thiserror::Error;
 
 use crate::attitude::down::{GravityEstimate, GravitySource};
 use crate::attitude::tilt::Tilt;
-use crate::io::recording::Recording;
+use crate::io::recording::{Recording, Stream};
 use crate::io::{Diagnostics, HeaderInfo, ImportError};
 
 /// The longest gap (s) across which the accelerometer or the reference heading is
@@ -129,47 +129,91 @@ pub fn tilted_samples(
     n_data_lines: usize,
     gravity: &GravityEstimate,
 ) -> Result<TiltedSamples, AnalysisError> {
+    let mag = &recording.mag_in_body_ut;
+    if mag.is_empty() {
+        return Err(no_magnetometer_error(
+            file_name,
+            recording,
+            header,
+            diagnostics,
+            n_data_lines,
+        ));
+    }
+    let levelling = Levelling::of(gravity);
+    let mut samples = tilt_each_sample(mag, levelling, gravity);
+    if samples.t_s.is_empty() {
+        return Err(AnalysisError::NoLevelledSamples {
+            file_name: file_name.to_string(),
+        });
+    }
+    samples.tilt_trust = gravity.tilt_trust_at(&samples.t_s);
+    samples
+        .notes
+        .extend(levelling_note(levelling, gravity, recording));
+    let n_not_levelled = mag.len() - samples.t_s.len();
+    if n_not_levelled > 0 {
+        samples
+            .notes
+            .push(left_out_note(n_not_levelled, &gravity.source));
+    }
+    Ok(samples)
+}
+
+/// Why a recording without magnetometer samples cannot be calibrated: it holds other
+/// streams only, its header has no magnetometer columns, or none of its lines was usable.
+fn no_magnetometer_error(
+    file_name: &str,
+    recording: &Recording,
+    header: Option<&HeaderInfo>,
+    diagnostics: &Diagnostics,
+    n_data_lines: usize,
+) -> AnalysisError {
     let file_name = file_name.to_string();
     let (header_line, header_columns) = header.map_or((1, Vec::new()), |header| {
         (header.line, header.columns.clone())
     });
-    let mag = &recording.mag_in_body_ut;
-    if mag.is_empty() {
-        let has_mag_columns = header_columns
-            .iter()
-            .any(|name| name.to_ascii_lowercase().starts_with("mag_"));
-        if header.is_none() {
-            return Err(AnalysisError::NoMagnetometerStream {
-                file_name,
-                found: streams_found(recording),
-            });
-        }
-        return Err(if has_mag_columns {
-            let first_problem = diagnostics
-                .kept
-                .first()
-                .map(|diagnostic| {
-                    format!(
-                        " (line {}: {})",
-                        diagnostic.line.unwrap_or(header_line),
-                        diagnostic.message
-                    )
-                })
-                .unwrap_or_default();
-            AnalysisError::NoMagnetometerSamples {
-                file_name,
-                n_data_lines,
-                first_problem,
-            }
-        } else {
-            AnalysisError::NoMagnetometerColumns {
-                file_name,
-                header_line,
-                found: header_columns.join(", "),
-            }
-        });
+    let has_mag_columns = header_columns
+        .iter()
+        .any(|name| name.to_ascii_lowercase().starts_with("mag_"));
+    if header.is_none() {
+        return AnalysisError::NoMagnetometerStream {
+            file_name,
+            found: streams_found(recording),
+        };
     }
-    let levelling = Levelling::of(gravity);
+    if has_mag_columns {
+        let first_problem = diagnostics
+            .kept
+            .first()
+            .map(|diagnostic| {
+                format!(
+                    " (line {}: {})",
+                    diagnostic.line.unwrap_or(header_line),
+                    diagnostic.message
+                )
+            })
+            .unwrap_or_default();
+        AnalysisError::NoMagnetometerSamples {
+            file_name,
+            n_data_lines,
+            first_problem,
+        }
+    } else {
+        AnalysisError::NoMagnetometerColumns {
+            file_name,
+            header_line,
+            found: header_columns.join(", "),
+        }
+    }
+}
+
+/// The magnetometer samples with a tilt (level, or from the specific force interpolated
+/// to the sample's time); samples without one are left out. No trust and no notes yet.
+fn tilt_each_sample(
+    mag: &Stream<Vector3<f64>>,
+    levelling: Levelling,
+    gravity: &GravityEstimate,
+) -> TiltedSamples {
     let mut samples = TiltedSamples {
         t_s: Vec::with_capacity(mag.len()),
         mag_ut: Vec::with_capacity(mag.len()),
@@ -192,56 +236,57 @@ pub fn tilted_samples(
             samples.tilt.push(tilt);
         }
     }
-    if samples.t_s.is_empty() {
-        return Err(AnalysisError::NoLevelledSamples { file_name });
-    }
-    samples.tilt_trust = gravity.tilt_trust_at(&samples.t_s);
+    samples
+}
+
+/// What the user should know about where the tilt came from, if anything: a device
+/// assumed level, a gyroscope left unused, the autopilot's attitude, a corrected time scale.
+fn levelling_note(
+    levelling: Levelling,
+    gravity: &GravityEstimate,
+    recording: &Recording,
+) -> Option<String> {
     if levelling == Levelling::AssumedLevel {
-        samples.notes.push("The log has no accelerometer, so the device was assumed level; tilt adds heading error.".to_string());
-    } else {
-        match &gravity.source {
-            GravitySource::Accelerometer { reason, window_s }
-                if !recording.gyro_in_body_radps.is_empty() =>
-            {
-                samples.notes.push(format!(
-                    "tilt from the accelerometer alone (averaged over {window_s} s), not with the gyroscope: {reason}"
-                ));
-            }
-            GravitySource::Autopilot { .. } => {
-                samples.notes.push(
-                    "tilt from the autopilot's own attitude (its roll and pitch): a multirotor's accelerometer \
-                     reads its thrust, not gravity, in flight"
-                        .to_string(),
-                );
-            }
-            GravitySource::GyroAided {
-                gyro_time_scale, ..
-            } if *gyro_time_scale != 1.0 => {
-                samples.notes.push(format!(
-                    "the gyroscope's turns match the accelerometer's only at {gyro_time_scale}× the log's time scale: \
-                     the samples' times are probably wrong by that factor (a sample rate assumed, not read); \
-                     the tilt used the corrected rate"
-                ));
-            }
-            _ => {}
+        return Some("The log has no accelerometer, so the device was assumed level; tilt adds heading error.".to_string());
+    }
+    match &gravity.source {
+        GravitySource::Accelerometer { reason, window_s }
+            if !recording.gyro_in_body_radps.is_empty() =>
+        {
+            Some(format!(
+                "tilt from the accelerometer alone (averaged over {window_s} s), not with the gyroscope: {reason}"
+            ))
         }
+        GravitySource::Autopilot { .. } => Some(
+            "tilt from the autopilot's own attitude (its roll and pitch): a multirotor's accelerometer \
+             reads its thrust, not gravity, in flight"
+                .to_string(),
+        ),
+        GravitySource::GyroAided {
+            gyro_time_scale, ..
+        } if *gyro_time_scale != 1.0 => Some(format!(
+            "the gyroscope's turns match the accelerometer's only at {gyro_time_scale}× the log's time scale: \
+             the samples' times are probably wrong by that factor (a sample rate assumed, not read); \
+             the tilt used the corrected rate"
+        )),
+        _ => None,
     }
-    let n_not_levelled = mag.len() - samples.t_s.len();
-    if n_not_levelled > 0 {
-        let (sample_had, was) = if n_not_levelled == 1 {
-            ("sample had", "was")
-        } else {
-            ("samples had", "were")
-        };
-        let levelled_by = match gravity.source {
-            GravitySource::Autopilot { .. } => "attitude",
-            _ => "accelerometer",
-        };
-        samples.notes.push(format!(
-            "{n_not_levelled} magnetometer {sample_had} no {levelled_by} sample within {MAX_INTERPOLATION_GAP_S} s and {was} left out."
-        ));
-    }
-    Ok(samples)
+}
+
+/// The note that `n_not_levelled` magnetometer samples had no tilt and were left out.
+fn left_out_note(n_not_levelled: usize, source: &GravitySource) -> String {
+    let (sample_had, was) = if n_not_levelled == 1 {
+        ("sample had", "was")
+    } else {
+        ("samples had", "were")
+    };
+    let levelled_by = match source {
+        GravitySource::Autopilot { .. } => "attitude",
+        _ => "accelerometer",
+    };
+    format!(
+        "{n_not_levelled} magnetometer {sample_had} no {levelled_by} sample within {MAX_INTERPOLATION_GAP_S} s and {was} left out."
+    )
 }
 
 #[cfg(test)]

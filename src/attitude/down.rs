@@ -217,27 +217,7 @@ pub fn estimate_gravity(
     gnss: &Stream<GnssFix>,
     tau_s: f64,
 ) -> GravityEstimate {
-    let fallback = |reason: String| {
-        let smoothed = smooth_specific_force(acc_in_body_mps2, tau_s);
-        let mut tilt_sigma_rad = Stream::default();
-        for (&t_s, &f) in acc_in_body_mps2.t_s.iter().zip(&acc_in_body_mps2.values) {
-            if let Some(gravity) = smoothed.interpolate_at(t_s, MAX_GYRO_GAP_S) {
-                let sigma_rad = ((f - gravity).norm() / STANDARD_GRAVITY_MPS2).atan();
-                if sigma_rad.is_finite() {
-                    tilt_sigma_rad.push(t_s, sigma_rad);
-                }
-            }
-        }
-        GravityEstimate {
-            specific_force_mps2: smoothed,
-            source: GravitySource::Accelerometer {
-                window_s: tau_s,
-                reason,
-            },
-            gnss_used: Stream::default(),
-            tilt_sigma_rad,
-        }
-    };
+    let fallback = |reason: String| accelerometer_only(acc_in_body_mps2, tau_s, reason);
     if gyro_in_body_radps.len() < 2 {
         return fallback("the log has no gyroscope".to_string());
     }
@@ -258,40 +238,7 @@ pub fn estimate_gravity(
     if speed_mps.len() >= 2 {
         motions.push(moving);
     }
-    // Each motion at the log's own time scale first, side by side (nothing to compare
-    // them with yet, so each is a whole pass), then the other time scales, each given
-    // up once it cannot win. The winner is the lowest score, ties going to the earlier
-    // trial in the order motion by motion, scale by scale.
-    let run = |motion: &Motion, gyro_scale: f64, losing_rad: f64| {
-        pass(
-            acc_in_body_mps2,
-            gyro_in_body_radps,
-            (gyro_scale, tau_s),
-            Direction::Forward,
-            motion,
-            losing_rad,
-        )
-    };
-    let own_scale = |(_, motion): (usize, &Motion)| run(motion, 1.0, f64::INFINITY);
-    let first = crate::base::par::on_each_small_part(motions.iter().enumerate(), own_scale)
-        .unwrap_or_else(|| motions.iter().enumerate().map(own_scale).collect());
-    let mut best: Option<Setting> = None;
-    for (motion_idx, result) in first.into_iter().enumerate() {
-        let trial = (motion_idx * GYRO_TIME_SCALES.len(), motion_idx, 1.0);
-        Setting::keep_better(&mut best, trial, result);
-    }
-    for (motion_idx, motion) in motions.iter().enumerate() {
-        for (scale_idx, gyro_scale) in GYRO_TIME_SCALES.into_iter().enumerate().skip(1) {
-            let losing_rad = best.as_ref().map_or(f64::INFINITY, |best| best.score / 2.0);
-            let result = run(motion, gyro_scale, losing_rad);
-            let trial = (
-                motion_idx * GYRO_TIME_SCALES.len() + scale_idx,
-                motion_idx,
-                gyro_scale,
-            );
-            Setting::keep_better(&mut best, trial, result);
-        }
-    }
+    let best = best_setting(acc_in_body_mps2, gyro_in_body_radps, tau_s, &motions);
     let Some(Setting {
         forward,
         motion_idx,
@@ -337,6 +284,79 @@ pub fn estimate_gravity(
         },
         tilt_sigma_rad,
     }
+}
+
+/// Down from the accelerometer alone, averaged over `tau_s`
+/// ([`GravitySource::Accelerometer`], for `reason`), its σ what the average left out.
+fn accelerometer_only(
+    acc_in_body_mps2: &Stream<Vector3<f64>>,
+    tau_s: f64,
+    reason: String,
+) -> GravityEstimate {
+    let smoothed = smooth_specific_force(acc_in_body_mps2, tau_s);
+    let mut tilt_sigma_rad = Stream::default();
+    for (&t_s, &f) in acc_in_body_mps2.t_s.iter().zip(&acc_in_body_mps2.values) {
+        if let Some(gravity) = smoothed.interpolate_at(t_s, MAX_GYRO_GAP_S) {
+            let sigma_rad = ((f - gravity).norm() / STANDARD_GRAVITY_MPS2).atan();
+            if sigma_rad.is_finite() {
+                tilt_sigma_rad.push(t_s, sigma_rad);
+            }
+        }
+    }
+    GravityEstimate {
+        specific_force_mps2: smoothed,
+        source: GravitySource::Accelerometer {
+            window_s: tau_s,
+            reason,
+        },
+        gnss_used: Stream::default(),
+        tilt_sigma_rad,
+    }
+}
+
+/// The setting (motion and gyroscope time scale) whose forward pass predicts the
+/// accelerometer's down best, with that pass; `None` when no pass overlapped.
+fn best_setting(
+    acc_in_body_mps2: &Stream<Vector3<f64>>,
+    gyro_in_body_radps: &Stream<Vector3<f64>>,
+    tau_s: f64,
+    motions: &[Motion],
+) -> Option<Setting> {
+    // Each motion at the log's own time scale first, side by side (nothing to compare
+    // them with yet, so each is a whole pass), then the other time scales, each given
+    // up once it cannot win. The winner is the lowest score, ties going to the earlier
+    // trial in the order motion by motion, scale by scale.
+    let run = |motion: &Motion, gyro_scale: f64, losing_rad: f64| {
+        pass(
+            acc_in_body_mps2,
+            gyro_in_body_radps,
+            (gyro_scale, tau_s),
+            Direction::Forward,
+            motion,
+            losing_rad,
+        )
+    };
+    let own_scale = |(_, motion): (usize, &Motion)| run(motion, 1.0, f64::INFINITY);
+    let first = crate::base::par::on_each_small_part(motions.iter().enumerate(), own_scale)
+        .unwrap_or_else(|| motions.iter().enumerate().map(own_scale).collect());
+    let mut best: Option<Setting> = None;
+    for (motion_idx, result) in first.into_iter().enumerate() {
+        let trial = (motion_idx * GYRO_TIME_SCALES.len(), motion_idx, 1.0);
+        Setting::keep_better(&mut best, trial, result);
+    }
+    for (motion_idx, motion) in motions.iter().enumerate() {
+        for (scale_idx, gyro_scale) in GYRO_TIME_SCALES.into_iter().enumerate().skip(1) {
+            let losing_rad = best.as_ref().map_or(f64::INFINITY, |best| best.score / 2.0);
+            let result = run(motion, gyro_scale, losing_rad);
+            let trial = (
+                motion_idx * GYRO_TIME_SCALES.len() + scale_idx,
+                motion_idx,
+                gyro_scale,
+            );
+            Setting::keep_better(&mut best, trial, result);
+        }
+    }
+    best
 }
 
 /// One pass's down at an accelerometer sample (a unit vector in body axes), if any.

@@ -1,12 +1,15 @@
 //! `compass-pdr calibrate`: every field-domain method, the one best, the device
 //! calibration and its exports (C snippet, MotionCal packet).
 
+use std::fmt::Write as _;
 use std::path::Path;
 
 use super::args::ImportArgs;
 use super::inspect::{import_paths, print_import_diagnostics};
 use super::{print_out, print_report};
-use compass_pdr::analysis::calibration::{CalibrationOptions, CalibrationReport, MethodParameters};
+use compass_pdr::analysis::calibration::{
+    CalibrationOptions, CalibrationReport, DeviceHardIron, MethodParameters,
+};
 use compass_pdr::analysis::headings::HeadingOptions;
 use compass_pdr::base::stats::HeadingErrorStats;
 use compass_pdr::fit::ellipse::SoftIronModel;
@@ -157,9 +160,25 @@ pub(super) struct CalibrateOutput<'a> {
     pub(super) written: &'a [String],
 }
 
+/// The calibration as text: the samples and the field, the hard irons beside the device's
+/// own, each method's heading errors and the best.
 pub(super) fn calibration_text(report: &CalibrationReport) -> String {
-    use std::fmt::Write as _;
     let mut text = String::new();
+    write_samples_and_field(&mut text, report);
+    // Where the device estimated its own hard iron, the fitted ones go beside it.
+    if let Some(device) = &report.device_hard_iron {
+        write_hard_irons(&mut text, report, device);
+    }
+    write_heading_errors(&mut text, report);
+    for note in &report.notes {
+        let _ = writeln!(text, "  note: {note}");
+    }
+    text
+}
+
+/// The report's first lines: the samples and their split, the reference heading, the
+/// declination, and the field measured beside the model's.
+fn write_samples_and_field(text: &mut String, report: &CalibrationReport) {
     let _ = writeln!(
         text,
         "{}: {} magnetometer samples ({} train, {} check{})",
@@ -205,71 +224,60 @@ pub(super) fn calibration_text(report: &CalibrationReport) -> String {
             );
         }
     }
-    // Where the device estimated its own hard iron, the fitted ones go beside it.
-    if let Some(device) = &report.device_hard_iron {
-        let vector = |v_ut: &nalgebra::Vector3<f64>| {
-            format!("({:.1}, {:.1}, {:.1})", v_ut.x, v_ut.y, v_ut.z)
-        };
-        let _ = writeln!(
-            text,
-            "  hard iron (µT, body x forward, y right, z down): device's own {} (moved {:.1} µT during the log)",
-            vector(&device.mean_ut),
-            device.max_change_ut
-        );
-        for method in &report.methods {
-            let fitted = match &method.parameters {
-                Some(MethodParameters::Ellipse(fit)) => Some((
-                    fit.hard_iron_ut,
-                    match fit.soft_iron_model {
-                        SoftIronModel::Full => "full soft iron",
-                        SoftIronModel::Isotropic { .. } => "isotropic soft iron",
-                    },
-                )),
-                Some(MethodParameters::Ellipsoid(fit)) => {
-                    Some((fit.calibration.hard_iron_ut, "ellipsoid"))
-                }
-                _ => None,
-            };
-            if let Some((hard_iron_ut, model)) = fitted {
-                let _ = writeln!(
-                    text,
-                    "    {}: {} ({model}), minus the device's {}",
-                    method.label,
-                    vector(&hard_iron_ut),
-                    vector(&(hard_iron_ut - device.mean_ut))
-                );
+}
+
+/// The device's own hard iron, then each fitted one and its difference from the device's.
+fn write_hard_irons(text: &mut String, report: &CalibrationReport, device: &DeviceHardIron) {
+    let vector =
+        |v_ut: &nalgebra::Vector3<f64>| format!("({:.1}, {:.1}, {:.1})", v_ut.x, v_ut.y, v_ut.z);
+    let _ = writeln!(
+        text,
+        "  hard iron (µT, body x forward, y right, z down): device's own {} (moved {:.1} µT during the log)",
+        vector(&device.mean_ut),
+        device.max_change_ut
+    );
+    for method in &report.methods {
+        let fitted = match &method.parameters {
+            Some(MethodParameters::Ellipse(fit)) => Some((
+                fit.hard_iron_ut,
+                match fit.soft_iron_model {
+                    SoftIronModel::Full => "full soft iron",
+                    SoftIronModel::Isotropic { .. } => "isotropic soft iron",
+                },
+            )),
+            Some(MethodParameters::Ellipsoid(fit)) => {
+                Some((fit.calibration.hard_iron_ut, "ellipsoid"))
             }
+            _ => None,
+        };
+        if let Some((hard_iron_ut, model)) = fitted {
+            let _ = writeln!(
+                text,
+                "    {}: {} ({model}), minus the device's {}",
+                method.label,
+                vector(&hard_iron_ut),
+                vector(&(hard_iron_ut - device.mean_ut))
+            );
         }
     }
+}
+
+/// The heading error table: uncalibrated, then each method (or why it was not fitted),
+/// then the best.
+fn write_heading_errors(text: &mut String, report: &CalibrationReport) {
     let _ = writeln!(
         text,
         "  {:<26} {:>17} {:>17} {:>10}",
         "heading error (RMS)", "train", "check", "check p95"
     );
-    let row = |label: &str, train: Option<HeadingErrorStats>, check: Option<HeadingErrorStats>| {
-        let cell = |stats: Option<HeadingErrorStats>| {
-            stats.map_or("—".to_string(), |stats| {
-                format!("{:.2}° ({:+.2}°)", stats.rms_deg, stats.mean_deg)
-            })
-        };
-        format!(
-            "  {label:<26} {:>17} {:>17} {:>10}\n",
-            cell(train),
-            cell(check),
-            check.map_or("—".to_string(), |stats| format!(
-                "{:.2}°",
-                stats.p95_abs_deg
-            ))
-        )
-    };
-    text.push_str(&row(
+    text.push_str(&heading_error_row(
         "uncalibrated",
         report.raw_heading_error_train,
         report.raw_heading_error_check,
     ));
     for method in &report.methods {
         match &method.error {
-            None => text.push_str(&row(
+            None => text.push_str(&heading_error_row(
                 method.label,
                 method.heading_error_train,
                 method.heading_error_check,
@@ -282,10 +290,28 @@ pub(super) fn calibration_text(report: &CalibrationReport) -> String {
     if let Some(choice) = &report.choice {
         let _ = writeln!(text, "  best: {}", choice.sentence());
     }
-    for note in &report.notes {
-        let _ = writeln!(text, "  note: {note}");
-    }
-    text
+}
+
+/// One row of the heading error table: RMS (mean) on train and check, and the check's P95.
+fn heading_error_row(
+    label: &str,
+    train: Option<HeadingErrorStats>,
+    check: Option<HeadingErrorStats>,
+) -> String {
+    let cell = |stats: Option<HeadingErrorStats>| {
+        stats.map_or("—".to_string(), |stats| {
+            format!("{:.2}° ({:+.2}°)", stats.rms_deg, stats.mean_deg)
+        })
+    };
+    format!(
+        "  {label:<26} {:>17} {:>17} {:>10}\n",
+        cell(train),
+        cell(check),
+        check.map_or("—".to_string(), |stats| format!(
+            "{:.2}°",
+            stats.p95_abs_deg
+        ))
+    )
 }
 
 /// An autopilot log's compasses whose parameters in force are kept, as a sentence for

@@ -1,5 +1,6 @@
 //! `compass-pdr heading`: every heading method and model on one split, and the best.
 
+use std::fmt::Write as _;
 use std::path::Path;
 
 use super::args::ImportArgs;
@@ -45,8 +46,20 @@ pub(super) fn run_heading(
 
 /// The heading comparison as a table, then each Fourier model as the paper's Table II.
 pub(super) fn heading_text(report: &HeadingReport) -> String {
-    use std::fmt::Write as _;
     let mut text = String::new();
+    write_split_and_references(&mut text, report);
+    write_method_table(&mut text, report);
+    write_fourier_table(&mut text, report);
+    write_learned_models(&mut text, report);
+    for note in report.notes.iter().chain(&report.calibration.notes) {
+        let _ = writeln!(text, "  note: {note}");
+    }
+    text
+}
+
+/// The report's first lines: the samples on each side of the split, the reference
+/// heading and the declination.
+fn write_split_and_references(text: &mut String, report: &HeadingReport) {
     let _ = writeln!(
         text,
         "{}: {} samples with a reference on train, {} on check{}",
@@ -69,6 +82,10 @@ pub(super) fn heading_text(report: &HeadingReport) -> String {
         "  declination: {:.2}° ({})",
         report.calibration.declination.declination_deg, report.calibration.declination.source
     );
+}
+
+/// Each heading method's errors on train and check, a row each, and the best.
+fn write_method_table(text: &mut String, report: &HeadingReport) {
     // The label column as wide as its longest label, so that the numbers line up.
     let width = report
         .rows
@@ -113,31 +130,40 @@ pub(super) fn heading_text(report: &HeadingReport) -> String {
         );
     }
     let _ = writeln!(text, "  best: {}", report.choice.sentence());
-    if !report.fourier.is_empty() {
+}
+
+/// The Fourier model fitted on each base, as the PDR paper's Table II (nothing without one).
+fn write_fourier_table(text: &mut String, report: &HeadingReport) {
+    if report.fourier.is_empty() {
+        return;
+    }
+    let _ = writeln!(
+        text,
+        "  Fourier model on each base (train), as the PDR paper's Table II:\n  {:<36} {:>7} {:>7} {:>7} {:>7} {:>7} {:>14} {:>6}",
+        "base", "A °", "B °", "C °", "D °", "E °", "resid mean±std", "±5°"
+    );
+    for fourier in &report.fourier {
+        let model = fourier.fit.model;
         let _ = writeln!(
             text,
-            "  Fourier model on each base (train), as the PDR paper's Table II:\n  {:<36} {:>7} {:>7} {:>7} {:>7} {:>7} {:>14} {:>6}",
-            "base", "A °", "B °", "C °", "D °", "E °", "resid mean±std", "±5°"
+            "  {:<36} {:>7.2} {:>7.2} {:>7.2} {:>7.2} {:>7.2} {:>14} {:>5.0}%",
+            fourier.base_label,
+            model.a_deg,
+            model.b_deg,
+            model.c_deg,
+            model.d_deg,
+            model.e_deg,
+            format!(
+                "{:.2}±{:.2}°",
+                fourier.fit.residual_mean_deg, fourier.fit.residual_std_deg
+            ),
+            fourier.fit.within_5_deg_pct
         );
-        for fourier in &report.fourier {
-            let model = fourier.fit.model;
-            let _ = writeln!(
-                text,
-                "  {:<36} {:>7.2} {:>7.2} {:>7.2} {:>7.2} {:>7.2} {:>14} {:>5.0}%",
-                fourier.base_label,
-                model.a_deg,
-                model.b_deg,
-                model.c_deg,
-                model.d_deg,
-                model.e_deg,
-                format!(
-                    "{:.2}±{:.2}°",
-                    fourier.fit.residual_mean_deg, fourier.fit.residual_std_deg
-                ),
-                fourier.fit.within_5_deg_pct
-            );
-        }
     }
+}
+
+/// The neural networks' training, a line each, and the online (RLS) model's terms.
+fn write_learned_models(text: &mut String, report: &HeadingReport) {
     for neural in &report.neural {
         let _ = writeln!(
             text,
@@ -164,8 +190,4 @@ pub(super) fn heading_text(report: &HeadingReport) -> String {
             online.memory_s, online.n_updates, model.a_deg, model.b_deg, model.c_deg, model.d_deg, model.e_deg
         );
     }
-    for note in report.notes.iter().chain(&report.calibration.notes) {
-        let _ = writeln!(text, "  note: {note}");
-    }
-    text
 }

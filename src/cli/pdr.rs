@@ -1,12 +1,14 @@
 //! `compass-pdr pdr` (the track, its figures and exports) and `compass-pdr report` (the
 //! page's analysis as one HTML file).
 
+use std::fmt::Write as _;
 use std::path::Path;
 
 use super::args::ImportArgs;
 use super::inspect::{import_paths, print_import_diagnostics};
 use super::{print_out, print_report};
 use compass_pdr::pdr::export::{track_text, TrackFormat};
+use compass_pdr::pdr::metrics::PositionErrors;
 use compass_pdr::pdr::{PdrOptions, PdrReport};
 use compass_pdr::pipeline;
 use compass_pdr::present::plot::draw_pdr_figure;
@@ -71,8 +73,30 @@ pub(super) fn run_pdr(
 
 /// The PDR result as the paper's tables: steps, the step model, and the errors.
 pub(super) fn pdr_text(report: &PdrReport) -> String {
-    use std::fmt::Write as _;
     let mut text = String::new();
+    write_walk_summary(&mut text, report);
+    write_position_errors(&mut text, report);
+    for gap in report
+        .gnss_gaps
+        .iter()
+        .filter(|gap| gap.position_error.is_none())
+    {
+        let _ = writeln!(
+            text,
+            "  {}",
+            compass_pdr::present::report::gap_sentence(gap)
+        );
+    }
+    write_step_errors(&mut text, report);
+    for note in &report.notes {
+        let _ = writeln!(text, "  note: {note}");
+    }
+    text
+}
+
+/// The report's first lines: the steps and distance, whether it was a walk, the step
+/// model, the heading and the GNSS fixes.
+fn write_walk_summary(text: &mut String, report: &PdrReport) {
     let _ = writeln!(
         text,
         "{}: {} steps in {} bouts over {:.0} s{}, {:.1} m dead-reckoned",
@@ -102,24 +126,12 @@ pub(super) fn pdr_text(report: &PdrReport) -> String {
             let _ = writeln!(text, "  GNSS: none in the log");
         }
     }
-    let position_row = |text: &mut String,
-                        name: &str,
-                        errors: &compass_pdr::pdr::metrics::PositionErrors| {
-        let _ = writeln!(
-            text,
-            "  {name:<26} {:>5} pts {:>8.1} m {:>7.2} m {:>6.2} % {:>7.2} m {:>6.2} % {:>+7.2} % {:>7.2} m {:>5.0} %",
-            errors.n_points,
-            errors.distance_m,
-            errors.rms_m,
-            errors.rms_pct,
-            errors.max_m,
-            errors.max_pct,
-            errors.distance_error_pct,
-            errors.p75_m,
-            errors.within_2_sigma_pct
-        );
-    };
-    let gap_errors: Vec<&compass_pdr::pdr::metrics::PositionErrors> = report
+}
+
+/// The position errors as a table: the whole walk, each simulated outage and each
+/// stretch without GNSS that has a reference (no header without a row).
+fn write_position_errors(text: &mut String, report: &PdrReport) {
+    let gap_errors: Vec<&PositionErrors> = report
         .gnss_gaps
         .iter()
         .filter_map(|gap| gap.position_error.as_ref())
@@ -144,33 +156,43 @@ pub(super) fn pdr_text(report: &PdrReport) -> String {
         );
     }
     if let Some(errors) = &report.position_error {
-        position_row(&mut text, "whole walk", errors);
+        write_position_row(text, "whole walk", errors);
     }
     for errors in &report.outage_position_errors {
-        position_row(
-            &mut text,
+        write_position_row(
+            text,
             &format!("outage {:.0}-{:.0} s", errors.start_s, errors.end_s),
             errors,
         );
     }
     for errors in gap_errors {
-        position_row(
-            &mut text,
+        write_position_row(
+            text,
             &format!("no GNSS {:.0}-{:.0} s", errors.start_s, errors.end_s),
             errors,
         );
     }
-    for gap in report
-        .gnss_gaps
-        .iter()
-        .filter(|gap| gap.position_error.is_none())
-    {
-        let _ = writeln!(
-            text,
-            "  {}",
-            compass_pdr::present::report::gap_sentence(gap)
-        );
-    }
+}
+
+/// One row of the position error table.
+fn write_position_row(text: &mut String, name: &str, errors: &PositionErrors) {
+    let _ = writeln!(
+        text,
+        "  {name:<26} {:>5} pts {:>8.1} m {:>7.2} m {:>6.2} % {:>7.2} m {:>6.2} % {:>+7.2} % {:>7.2} m {:>5.0} %",
+        errors.n_points,
+        errors.distance_m,
+        errors.rms_m,
+        errors.rms_pct,
+        errors.max_m,
+        errors.max_pct,
+        errors.distance_error_pct,
+        errors.p75_m,
+        errors.within_2_sigma_pct
+    );
+}
+
+/// The step length and heading errors against the reference, and the loop closure.
+fn write_step_errors(text: &mut String, report: &PdrReport) {
     if let Some(error) = &report.step_length_error_m {
         let _ = writeln!(
             text,
@@ -192,8 +214,4 @@ pub(super) fn pdr_text(report: &PdrReport) -> String {
             closure.gap_m, closure.gap_pct, closure.length_m
         );
     }
-    for note in &report.notes {
-        let _ = writeln!(text, "  note: {note}");
-    }
-    text
 }

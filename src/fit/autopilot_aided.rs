@@ -196,112 +196,19 @@ pub fn fit_aided(
     if earth_ned.is_none() && model.step == Step::Scale {
         return None;
     }
-    // Unknowns, in order: the step's own (0, 1 or 5-6), the motor term (3), u or w (3),
-    // B where it is fitted (3).
-    let n_step = match (model.step, earth_ned.is_some()) {
-        (Step::Offsets, _) => 0,
-        (Step::Scale, _) => 1,
-        (Step::Iron, true) => 6,
-        // The trace held at 3: five unknowns.
-        (Step::Iron, false) => 5,
-    };
-    let base_motor = n_step;
-    let base_u = base_motor + if model.motor { 3 } else { 0 };
-    let base_b = base_u + 3;
-    let n_unknowns = base_b + if earth_ned.is_none() { 3 } else { 0 };
-    if samples.len() * 3 < 2 * n_unknowns {
+    let unknowns = Unknowns::of(model, earth_ned);
+    if samples.len() * 3 < 2 * unknowns.n_unknowns {
         return None;
     }
-    let held = model.held_soft_iron;
-    let mut normal = Normal::new(n_unknowns);
-    let mut row = DVector::<f64>::zeros(n_unknowns);
-    for sample in samples {
-        let r = sample.raw;
-        let held_r = held * r;
-        // R_iᵀ: rows map NED to body.
-        let ned_to_body = sample.body_to_ned.matrix().transpose();
-        let expected = earth_ned.map(|earth| ned_to_body * earth);
-        for axis in 0..3 {
-            row.fill(0.0);
-            row[base_u + axis] = 1.0;
-            if model.motor {
-                row[base_motor + axis] = sample.current_a;
-            }
-            if earth_ned.is_none() {
-                for col in 0..3 {
-                    row[base_b + col] = -ned_to_body[(axis, col)];
-                }
-            }
-            let target = expected.map_or(0.0, |e| e[axis]);
-            let value = match (model.step, earth_ned.is_some()) {
-                (Step::Offsets, _) => target - held_r[axis],
-                (Step::Scale, _) => {
-                    row[0] = held_r[axis];
-                    target
-                }
-                // M = [[a, d, e], [d, b, f], [e, f, c]]; unknowns a, b, c, d, e, f.
-                (Step::Iron, true) => {
-                    let (diagonal, off) = match axis {
-                        0 => ((0, r.x), [(3, r.y), (4, r.z)]),
-                        1 => ((1, r.y), [(3, r.x), (5, r.z)]),
-                        _ => ((2, r.z), [(4, r.x), (5, r.y)]),
-                    };
-                    row[diagonal.0] = diagonal.1;
-                    for (col, value) in off {
-                        row[col] = value;
-                    }
-                    target
-                }
-                // M = [[a, c, d], [c, b, e], [d, e, 3 − a − b]]; unknowns a, b, c, d, e.
-                (Step::Iron, false) => match axis {
-                    0 => {
-                        row[0] = r.x;
-                        row[2] = r.y;
-                        row[3] = r.z;
-                        0.0
-                    }
-                    1 => {
-                        row[1] = r.y;
-                        row[2] = r.x;
-                        row[4] = r.z;
-                        0.0
-                    }
-                    _ => {
-                        row[0] = -r.z;
-                        row[1] = -r.z;
-                        row[3] = r.x;
-                        row[4] = r.y;
-                        -3.0 * r.z
-                    }
-                },
-            };
-            normal.add(&row, value);
-        }
-    }
-    let (x, covariance) = normal.solve()?;
-    let sigma_of = |idx: usize| covariance[(idx, idx)].max(0.0).sqrt();
+    let (x, covariance) = unknowns.normal_equations(samples).solve()?;
+    let sigma_of = |idx: usize| formal_sigma(&covariance, idx);
+    let (base_u, base_b, base_motor) = (unknowns.base_u, unknowns.base_b, unknowns.base_motor);
     let u = Vector3::new(x[base_u], x[base_u + 1], x[base_u + 2]);
     let earth = match earth_ned {
         Some(earth) => earth,
         None => Vector3::new(x[base_b], x[base_b + 1], x[base_b + 2]),
     };
-    let (soft_iron, scale, soft_iron_sigma) = match (model.step, earth_ned.is_some()) {
-        (Step::Offsets, _) => (held, 1.0, None),
-        (Step::Scale, _) => (held, x[0], Some(sigma_of(0))),
-        (Step::Iron, true) => (
-            Matrix3::new(x[0], x[3], x[4], x[3], x[1], x[5], x[4], x[5], x[2]),
-            1.0,
-            Some((0..6).map(sigma_of).fold(0.0, f64::max)),
-        ),
-        (Step::Iron, false) => {
-            let (a, b, c, d, e) = (x[0], x[1], x[2], x[3], x[4]);
-            (
-                Matrix3::new(a, c, d, c, b, e, d, e, 3.0 - a - b),
-                1.0,
-                Some((0..5).map(sigma_of).fold(0.0, f64::max)),
-            )
-        }
-    };
+    let (soft_iron, scale, soft_iron_sigma) = unknowns.soft_iron(&x, &covariance);
     let (motor_per_a, motor_sigma) = if model.motor {
         (
             Vector3::new(x[base_motor], x[base_motor + 1], x[base_motor + 2]),
@@ -337,6 +244,160 @@ pub fn fit_aided(
         .chain(std::iter::once(&fit.scale))
         .all(|v| v.is_finite());
     finite.then_some(fit)
+}
+
+/// The formal 1σ of unknown `idx` from the solution's covariance.
+fn formal_sigma(covariance: &DMatrix<f64>, idx: usize) -> f64 {
+    covariance[(idx, idx)].max(0.0).sqrt()
+}
+
+/// Where a model's unknowns lie in the solution, in order: the step's own (0, 1 or
+/// 5-6), the motor term (3), u or w (3), B where it is fitted (3).
+struct Unknowns {
+    model: AidedModel,
+    earth_ned: Option<Vector3<f64>>,
+    base_motor: usize,
+    base_u: usize,
+    base_b: usize,
+    n_unknowns: usize,
+}
+
+impl Unknowns {
+    /// The unknowns of `model`, with the Earth's field known (`Some`) or fitted.
+    fn of(model: AidedModel, earth_ned: Option<Vector3<f64>>) -> Unknowns {
+        let n_step = match (model.step, earth_ned.is_some()) {
+            (Step::Offsets, _) => 0,
+            (Step::Scale, _) => 1,
+            (Step::Iron, true) => 6,
+            // The trace held at 3: five unknowns.
+            (Step::Iron, false) => 5,
+        };
+        let base_motor = n_step;
+        let base_u = base_motor + if model.motor { 3 } else { 0 };
+        let base_b = base_u + 3;
+        let n_unknowns = base_b + if earth_ned.is_none() { 3 } else { 0 };
+        Unknowns {
+            model,
+            earth_ned,
+            base_motor,
+            base_u,
+            base_b,
+            n_unknowns,
+        }
+    }
+
+    /// The normal equations of the samples' rows, three per sample (one per body axis).
+    fn normal_equations(&self, samples: &[AidedSample]) -> Normal {
+        let held = self.model.held_soft_iron;
+        let mut normal = Normal::new(self.n_unknowns);
+        let mut row = DVector::<f64>::zeros(self.n_unknowns);
+        for sample in samples {
+            let r = sample.raw;
+            let held_r = held * r;
+            // R_iᵀ: rows map NED to body.
+            let ned_to_body = sample.body_to_ned.matrix().transpose();
+            let expected = self.earth_ned.map(|earth| ned_to_body * earth);
+            for axis in 0..3 {
+                row.fill(0.0);
+                row[self.base_u + axis] = 1.0;
+                if self.model.motor {
+                    row[self.base_motor + axis] = sample.current_a;
+                }
+                if self.earth_ned.is_none() {
+                    for col in 0..3 {
+                        row[self.base_b + col] = -ned_to_body[(axis, col)];
+                    }
+                }
+                let target = expected.map_or(0.0, |e| e[axis]);
+                let value = self.step_columns(&mut row, r, held_r[axis], axis, target);
+                normal.add(&row, value);
+            }
+        }
+        normal
+    }
+
+    /// Writes the step's own columns of body axis `axis`'s row for the raw field `r`
+    /// (`held_r_axis`: that axis of the held iron times `r`) and gives the row's value,
+    /// from `target`, the expected field along the axis (0 where B is fitted).
+    fn step_columns(
+        &self,
+        row: &mut DVector<f64>,
+        r: Vector3<f64>,
+        held_r_axis: f64,
+        axis: usize,
+        target: f64,
+    ) -> f64 {
+        match (self.model.step, self.earth_ned.is_some()) {
+            (Step::Offsets, _) => target - held_r_axis,
+            (Step::Scale, _) => {
+                row[0] = held_r_axis;
+                target
+            }
+            // M = [[a, d, e], [d, b, f], [e, f, c]]; unknowns a, b, c, d, e, f.
+            (Step::Iron, true) => {
+                let (diagonal, off) = match axis {
+                    0 => ((0, r.x), [(3, r.y), (4, r.z)]),
+                    1 => ((1, r.y), [(3, r.x), (5, r.z)]),
+                    _ => ((2, r.z), [(4, r.x), (5, r.y)]),
+                };
+                row[diagonal.0] = diagonal.1;
+                for (col, value) in off {
+                    row[col] = value;
+                }
+                target
+            }
+            // M = [[a, c, d], [c, b, e], [d, e, 3 − a − b]]; unknowns a, b, c, d, e.
+            (Step::Iron, false) => match axis {
+                0 => {
+                    row[0] = r.x;
+                    row[2] = r.y;
+                    row[3] = r.z;
+                    0.0
+                }
+                1 => {
+                    row[1] = r.y;
+                    row[2] = r.x;
+                    row[4] = r.z;
+                    0.0
+                }
+                _ => {
+                    row[0] = -r.z;
+                    row[1] = -r.z;
+                    row[3] = r.x;
+                    row[4] = r.y;
+                    -3.0 * r.z
+                }
+            },
+        }
+    }
+
+    /// The iron matrix, the scale and the largest 1σ of what was fitted of them, from
+    /// the solution `x` and its `covariance`.
+    fn soft_iron(
+        &self,
+        x: &DVector<f64>,
+        covariance: &DMatrix<f64>,
+    ) -> (Matrix3<f64>, f64, Option<f64>) {
+        let sigma_of = |idx: usize| formal_sigma(covariance, idx);
+        let held = self.model.held_soft_iron;
+        match (self.model.step, self.earth_ned.is_some()) {
+            (Step::Offsets, _) => (held, 1.0, None),
+            (Step::Scale, _) => (held, x[0], Some(sigma_of(0))),
+            (Step::Iron, true) => (
+                Matrix3::new(x[0], x[3], x[4], x[3], x[1], x[5], x[4], x[5], x[2]),
+                1.0,
+                Some((0..6).map(sigma_of).fold(0.0, f64::max)),
+            ),
+            (Step::Iron, false) => {
+                let (a, b, c, d, e) = (x[0], x[1], x[2], x[3], x[4]);
+                (
+                    Matrix3::new(a, c, d, c, b, e, d, e, 3.0 - a - b),
+                    1.0,
+                    Some((0..5).map(sigma_of).fold(0.0, f64::max)),
+                )
+            }
+        }
+    }
 }
 
 #[cfg(test)]

@@ -232,111 +232,57 @@ pub fn dead_reckon(
 ) -> Result<PdrAnalysis, PdrError> {
     let file_name = import.file_name.clone();
     let recording = &import.recording;
-    let acc = &recording.acc_in_body_mps2;
-    if acc.is_empty() {
+    if recording.acc_in_body_mps2.is_empty() {
         return Err(PdrError::NoAccelerometer { file_name });
     }
     let mut notes = Vec::new();
 
-    // 1. The heading: the comparison's choice, fitted again outside the outages.
-    let Some(StepHeading {
-        heading_rad: heading_stream,
-        sigma_rad: heading_sigma_stream,
-        key: heading_key,
-        label: heading_label,
-    }) = step_heading(import, (calibration, headings), options, &mut notes)
-    else {
-        return Err(PdrError::NoSteps {
-            file_name,
-            duration_s: acc.duration_s(),
-        });
-    };
-
-    // 2. Steps and their headings.
-    let detection = detect_steps(acc, &options.steps);
-    notes.extend(detection.notes.iter().cloned());
-    let walking = walking_steps(&detection.steps, acc, &recording.gyro_in_body_radps);
-    notes.extend(walking.note());
-    let steps = walking.steps;
+    // 1 and 2: the heading, the steps and their headings.
+    let HeadedSteps {
+        steps,
+        headings_rad: step_headings_rad,
+        heading_sigmas_rad: step_heading_sigmas_rad,
+        heading_key,
+        heading_label,
+    } = headed_steps(import, (calibration, headings), options, &mut notes)?;
     let n_bouts = steps.iter().filter(|step| step.ends_bout).count();
-    if steps.is_empty() {
-        return Err(PdrError::NoSteps {
-            file_name,
-            duration_s: acc.duration_s(),
-        });
-    }
-    let step_headings_rad = step_headings(&steps, &heading_stream, &mut notes);
-    // The heading's 1σ at each step's middle (the filter's changes slowly).
-    let step_heading_sigmas_rad: Vec<Option<f64>> = steps
-        .iter()
-        .map(|step| {
-            heading_sigma_stream
-                .as_ref()
-                .and_then(|sigma| sigma.interpolate_at(step.mid_s(), 1.0))
-        })
-        .collect();
 
     // 3. The local frame, the fixes and the reference positions.
-    let fix_policy = options.fix_policy();
-    let (frame, fixes) = local_fixes(recording, &fix_policy);
-    let reference_en_m =
-        reference_positions(recording, frame.as_ref(), &fixes, &fix_policy, &mut notes);
+    let placing = Placing::of(recording, options, &mut notes);
+    let (fixes, reference_en_m) = (&placing.fixes, &placing.reference_en_m);
 
     // 4. Step lengths.
     let gnss_references = gnss_step_references(recording, &steps, &options.gnss);
     let sets = ReferenceSets::of(
         &steps,
         &step_headings_rad,
-        &fixes,
-        &reference_en_m,
+        fixes,
+        reference_en_m,
         &gnss_references,
         options,
     );
-    let step_model = train_step_model(&steps, &sets, options, &mut notes);
-    let step_model = plausible_step_model(step_model, &steps, options, &mut notes);
-    let step_lengths_m: Vec<f64> = steps
-        .iter()
-        .map(|step| step_model.model.length_m(step))
-        .collect();
+    let (step_model, step_lengths_m) = step_model_and_lengths(&steps, &sets, options, &mut notes);
 
     // 5. The filter.
     let (fused, smoothed) = run_filter(
         &steps,
         &step_lengths_m,
         (&step_headings_rad, &step_heading_sigmas_rad),
-        &fixes,
-        &reference_en_m,
+        fixes,
+        reference_en_m,
         (options, &step_model),
     );
     if let Some(smoothed) = smoothed {
         notes.push(smoothed.describe(options.filter, !fixes.is_empty()));
     }
-    let fix_counts = count_fixes(
-        &fused.fix_use,
-        frame.is_some(),
-        recording,
-        fixes.len(),
-        &fix_policy,
-        &mut notes,
-    );
+    let fix_counts = count_fixes(&fused.fix_use, &placing, recording, &mut notes);
 
     // 6. Scores.
     let track = fused.track;
-    let scores = track_scores(&track, &reference_en_m, &fixes, options);
-    let step_references_m = step_reference_lengths(&steps, &reference_en_m, &gnss_references);
-    let step_length_error_m = MeanStd::of(
-        step_lengths_m
-            .iter()
-            .zip(&step_references_m)
-            .filter_map(|(length, reference)| reference.map(|reference| length - reference)),
-    );
-    let heading_error_deg =
-        metrics::heading_error_deg(steps.iter().zip(&track[1..]).filter_map(|(step, point)| {
-            let reference = recording
-                .ref_heading_rad
-                .interpolate_angle_at(step.mid_s(), 0.5)?;
-            Some((point.heading_rad, reference))
-        }));
+    let scores = track_scores(&track, reference_en_m, fixes, options);
+    let step_references_m = step_reference_lengths(&steps, reference_en_m, &gnss_references);
+    let step_length_error_m = step_length_error_m(&step_lengths_m, &step_references_m);
+    let heading_error_deg = step_heading_error_deg(&steps, &track, recording);
     let report = PdrReport {
         file_name,
         n_steps: steps.len(),
@@ -347,7 +293,8 @@ pub fn dead_reckon(
         step_model,
         heading_key,
         heading_label,
-        frame_origin_lat_lon_deg: frame
+        frame_origin_lat_lon_deg: placing
+            .frame
             .map(|frame| [frame.origin().lat_deg, frame.origin().lon_deg]),
         outages: options.gnss.outages.clone(),
         fixes: fix_counts,
@@ -366,10 +313,118 @@ pub fn dead_reckon(
         step_headings_rad,
         step_references_m,
         track,
-        fixes: fixes.into_iter().zip(fused.fix_use).collect(),
-        reference_en_m,
-        frame,
+        fixes: placing.fixes.into_iter().zip(fused.fix_use).collect(),
+        reference_en_m: placing.reference_en_m,
+        frame: placing.frame,
     })
+}
+
+/// The walk's steps, each with its heading and that heading's 1σ, and the heading model
+/// they took.
+struct HeadedSteps {
+    steps: Vec<Step>,
+    headings_rad: Vec<f64>,
+    heading_sigmas_rad: Vec<Option<f64>>,
+    heading_key: String,
+    heading_label: String,
+}
+
+/// Stages 1 and 2: the heading (the comparison's choice, fitted again outside the
+/// outages), the steps of walking, and each step's heading; fails without either.
+fn headed_steps(
+    import: &ImportReport,
+    (calibration, headings): (&CalibrationAnalysis, &HeadingAnalysis),
+    options: &PdrOptions,
+    notes: &mut Vec<String>,
+) -> Result<HeadedSteps, PdrError> {
+    let recording = &import.recording;
+    let acc = &recording.acc_in_body_mps2;
+    let no_steps = || PdrError::NoSteps {
+        file_name: import.file_name.clone(),
+        duration_s: acc.duration_s(),
+    };
+
+    // 1. The heading: the comparison's choice, fitted again outside the outages.
+    let Some(StepHeading {
+        heading_rad: heading_stream,
+        sigma_rad: heading_sigma_stream,
+        key: heading_key,
+        label: heading_label,
+    }) = step_heading(import, (calibration, headings), options, notes)
+    else {
+        return Err(no_steps());
+    };
+
+    // 2. Steps and their headings.
+    let detection = detect_steps(acc, &options.steps);
+    notes.extend(detection.notes.iter().cloned());
+    let walking = walking_steps(&detection.steps, acc, &recording.gyro_in_body_radps);
+    notes.extend(walking.note());
+    let steps = walking.steps;
+    if steps.is_empty() {
+        return Err(no_steps());
+    }
+    let headings_rad = step_headings(&steps, &heading_stream, notes);
+    // The heading's 1σ at each step's middle (the filter's changes slowly).
+    let heading_sigmas_rad: Vec<Option<f64>> = steps
+        .iter()
+        .map(|step| {
+            heading_sigma_stream
+                .as_ref()
+                .and_then(|sigma| sigma.interpolate_at(step.mid_s(), 1.0))
+        })
+        .collect();
+    Ok(HeadedSteps {
+        steps,
+        headings_rad,
+        heading_sigmas_rad,
+        heading_key,
+        heading_label,
+    })
+}
+
+/// Stage 4: the step model trained on the reference sets (one trained on GNSS only where
+/// its lengths are plausible) and each step's length (m) by it.
+fn step_model_and_lengths(
+    steps: &[Step],
+    sets: &ReferenceSets,
+    options: &PdrOptions,
+    notes: &mut Vec<String>,
+) -> (StepModelReport, Vec<f64>) {
+    let step_model = train_step_model(steps, sets, options, notes);
+    let step_model = plausible_step_model(step_model, steps, options, notes);
+    let step_lengths_m: Vec<f64> = steps
+        .iter()
+        .map(|step| step_model.model.length_m(step))
+        .collect();
+    (step_model, step_lengths_m)
+}
+
+/// The steps' length error (m) against the reference lengths, where a step has one.
+fn step_length_error_m(
+    step_lengths_m: &[f64],
+    step_references_m: &[Option<f64>],
+) -> Option<MeanStd> {
+    MeanStd::of(
+        step_lengths_m
+            .iter()
+            .zip(step_references_m)
+            .filter_map(|(length, reference)| reference.map(|reference| length - reference)),
+    )
+}
+
+/// The track's heading error (deg) at each step against the log's reference heading.
+fn step_heading_error_deg(
+    steps: &[Step],
+    track: &[TrackPoint],
+    recording: &Recording,
+) -> Option<MeanStd> {
+    metrics::heading_error_deg(steps.iter().zip(&track[1..]).filter_map(|(step, point)| {
+        let reference = recording
+            .ref_heading_rad
+            .interpolate_angle_at(step.mid_s(), 0.5)?;
+        Some((point.heading_rad, reference))
+    }))
 }
 
 /// Each step's heading: the circular mean over the step, a step without any carrying
@@ -560,6 +615,31 @@ fn run_filter(
     )
 }
 
+/// What places the walk (stage 3): the local frame, the fixes in it, the reference
+/// positions, and the policy the filter takes the fixes by.
+struct Placing {
+    fix_policy: GnssPolicy,
+    frame: Option<LocalFrame>,
+    fixes: Vec<FixInput>,
+    reference_en_m: Vec<(f64, [f64; 2])>,
+}
+
+impl Placing {
+    /// The frame, fixes and reference positions of `recording` under `options`' policy.
+    fn of(recording: &Recording, options: &PdrOptions, notes: &mut Vec<String>) -> Placing {
+        let fix_policy = options.fix_policy();
+        let (frame, fixes) = local_fixes(recording, &fix_policy);
+        let reference_en_m =
+            reference_positions(recording, frame.as_ref(), &fixes, &fix_policy, notes);
+        Placing {
+            fix_policy,
+            frame,
+            fixes,
+            reference_en_m,
+        }
+    }
+}
+
 /// The local frame (anchored at the first admissible fix) and every fix with a position
 /// in it; none without such a fix.
 fn local_fixes(recording: &Recording, policy: &GnssPolicy) -> (Option<LocalFrame>, Vec<FixInput>) {
@@ -585,15 +665,15 @@ fn local_fixes(recording: &Recording, policy: &GnssPolicy) -> (Option<LocalFrame
     (frame, fixes)
 }
 
-/// What became of the fixes, with a note when none was used.
+/// What became of the fixes `placing` gave the filter, with a note when none was used.
 fn count_fixes(
     fix_use: &[FixUse],
-    has_frame: bool,
+    placing: &Placing,
     recording: &Recording,
-    n_fixes: usize,
-    policy: &GnssPolicy,
     notes: &mut Vec<String>,
 ) -> FixCounts {
+    let (has_frame, n_fixes) = (placing.frame.is_some(), placing.fixes.len());
+    let policy = &placing.fix_policy;
     let mut fix_counts = FixCounts::default();
     for decision in fix_use {
         let counter = match decision {

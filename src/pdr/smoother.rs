@@ -53,6 +53,9 @@ use super::fusion::{FixInput, FixUse, GnssPolicy, StepInput, TrackPoint};
 use crate::base::angle::{wrap_to_2pi, wrap_to_pi};
 
 use super::small_matrix::{Cov, State};
+use track::{ConstantError, Walk};
+
+mod track;
 
 const E: usize = 0;
 const N: usize = 1;
@@ -192,8 +195,6 @@ pub fn fuse_walk(
     let fixes = floored.as_slice();
     let events = events(steps, fixes, first.t_start_s, policy);
     let (prior, noise) = scale_untaught(&events, prior, noise);
-    // The trust in the reported accuracy, from the innovations (three passes converge:
-    // each moves c² by the ratio of the median NIS to χ²₂'s).
     let pass_at = |trust: f64| {
         forward(
             &events,
@@ -203,16 +204,7 @@ pub fn fuse_walk(
             policy.reset_after_rejections,
         )
     };
-    let mut trust = 1.0f64;
-    for _ in 0..3 {
-        let pass = pass_at(trust);
-        if pass.nis.len() < 5 {
-            break;
-        }
-        let median = crate::base::stats::median(&mut pass.nis.clone()).unwrap_or(CHI2_2_MEDIAN);
-        trust = (trust * (median / CHI2_2_MEDIAN).sqrt())
-            .clamp(noise.trust_bounds[0], noise.trust_bounds[1]);
-    }
+    let trust = learnt_trust(&pass_at, noise.trust_bounds);
     let pass = pass_at(trust);
     let (states, covs): (Vec<State>, Vec<Cov>) = if smooth {
         backward(&pass.stored)
@@ -220,70 +212,15 @@ pub fn fuse_walk(
         pass.stored.iter().map(|s| (s.x_post, s.p_post)).unzip()
     };
 
+    let walk = Walk {
+        events: &events,
+        steps,
+        fixes,
+        start_s: first.t_start_s,
+    };
     let constant = ConstantError::of(&events, fixes, trust, noise);
-    let mut track = Vec::with_capacity(steps.len() + 1);
-    let mut gnss_used = false;
-    let mut fix_use = vec![FixUse::AfterWalk; fixes.len()];
-    let last_step_s = steps.last().map_or(first.t_s, |step| step.t_s);
-    for ((event, x), p) in events.iter().zip(&states).zip(&covs) {
-        let t_s = event_time(*event, steps, fixes, first.t_start_s);
-        let sigma_m = (p[(E, E)] + p[(N, N)] + constant.variance_m2(t_s))
-            .max(0.0)
-            .sqrt();
-        match *event {
-            Event::Start => track.push(TrackPoint {
-                t_s: first.t_start_s,
-                east_m: x[E],
-                north_m: x[N],
-                length_m: 0.0,
-                heading_rad: wrap_to_2pi(x[A] - x[D]),
-                position_sigma_m: sigma_m,
-                gnss_used: false,
-            }),
-            Event::Step(k) => {
-                let step = &steps[k];
-                track.push(TrackPoint {
-                    t_s: step.t_s,
-                    east_m: x[E],
-                    north_m: x[N],
-                    length_m: x[S] * step.length_m,
-                    heading_rad: wrap_to_2pi(x[A] - x[D]),
-                    position_sigma_m: sigma_m,
-                    gnss_used,
-                });
-                gnss_used = false;
-            }
-            Event::Heading(_) => {}
-            Event::Fix(j) => {
-                let used = pass.fix_use[j];
-                fix_use[j] = match used {
-                    FixUse::Used | FixUse::DownWeighted | FixUse::UsedAfterReset
-                        if fixes[j].t_s < first.t_start_s =>
-                    {
-                        FixUse::BeforeWalk
-                    }
-                    FixUse::Used | FixUse::DownWeighted | FixUse::UsedAfterReset
-                        if fixes[j].t_s > last_step_s =>
-                    {
-                        FixUse::AfterWalk
-                    }
-                    other => other,
-                };
-                gnss_used |= matches!(
-                    used,
-                    FixUse::Used | FixUse::DownWeighted | FixUse::UsedAfterReset
-                );
-            }
-        }
-    }
-    for (j, fix) in fixes.iter().enumerate() {
-        if policy.in_outage(fix.t_s) {
-            fix_use[j] = FixUse::InOutage;
-        } else if j > 0 && repeats(&fixes[j - 1], fix) {
-            // Logged twice: it fared as its first copy.
-            fix_use[j] = fix_use[j - 1];
-        }
-    }
+    let track = walk.track(&states, &covs, &constant, &pass.fix_use);
+    let fix_use = walk.fix_use(&pass.fix_use, policy);
     let last = states.last().zip(covs.last());
     WalkFusion {
         track,
@@ -293,6 +230,22 @@ pub fn fuse_walk(
             (x[S], p[(S, S)].max(0.0).sqrt())
         }),
     }
+}
+
+/// The trust in the reported accuracy, from the innovations of the passes `pass_at`
+/// makes (three passes converge: each moves c² by the ratio of the median NIS to χ²₂'s),
+/// within `bounds`.
+fn learnt_trust(pass_at: &impl Fn(f64) -> Pass, bounds: [f64; 2]) -> f64 {
+    let mut trust = 1.0f64;
+    for _ in 0..3 {
+        let pass = pass_at(trust);
+        if pass.nis.len() < 5 {
+            break;
+        }
+        let median = crate::base::stats::median(&mut pass.nis.clone()).unwrap_or(CHI2_2_MEDIAN);
+        trust = (trust * (median / CHI2_2_MEDIAN).sqrt()).clamp(bounds[0], bounds[1]);
+    }
+    trust
 }
 
 /// The fixes never teach the scale (see the module's doc): where the walk takes fixes it
@@ -311,45 +264,6 @@ fn scale_untaught(events: &[Event], prior: WalkPrior, noise: WalkNoise) -> (Walk
             ..noise
         },
     )
-}
-
-/// The GNSS error that is constant over the walk cannot be told from the position by
-/// any filter: it moves the whole track and adds its variance to the position's,
-/// 2·ρ_c·σ² (two axes) with σ the per-axis σ of the fix nearest in time.
-struct ConstantError {
-    /// Each taken fix's time (s) and per-axis σ (m), in time order.
-    taken: Vec<(f64, f64)>,
-    share: f64,
-}
-
-impl ConstantError {
-    fn of(events: &[Event], fixes: &[FixInput], trust: f64, noise: WalkNoise) -> ConstantError {
-        let taken = events
-            .iter()
-            .filter_map(|event| match *event {
-                Event::Fix(j) => Some((
-                    fixes[j].t_s,
-                    trust * fix_accuracy_m(&fixes[j], noise) / ACCURACY_PER_SIGMA,
-                )),
-                _ => None,
-            })
-            .collect();
-        ConstantError {
-            taken,
-            share: noise.gnss_constant_share,
-        }
-    }
-
-    /// Its variance (m², both axes) at `t_s`: none without fixes.
-    fn variance_m2(&self, t_s: f64) -> f64 {
-        let i = self.taken.partition_point(|(t, _)| *t < t_s);
-        let nearest = [i.checked_sub(1), Some(i)]
-            .into_iter()
-            .flatten()
-            .filter_map(|k| self.taken.get(k))
-            .min_by(|a, b| (a.0 - t_s).abs().total_cmp(&(b.0 - t_s).abs()));
-        nearest.map_or(0.0, |(_, sigma)| 2.0 * self.share * sigma * sigma)
-    }
 }
 
 /// The steps, the usable fixes and the start, in time order (a fix at a step's end

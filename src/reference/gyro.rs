@@ -25,6 +25,7 @@
 //!   offset is unknown (the start is 0°);
 //! - **relative**: neither; the start is 0° and drift is not corrected.
 
+use nalgebra::Vector3;
 use serde::Serialize;
 
 use crate::attitude::down::GravityEstimate;
@@ -86,94 +87,16 @@ pub fn gyro_heading(
 ) -> Option<GyroHeading> {
     let gyro = &recording.gyro_in_body_radps;
     let max_gap_s = gyro.gap_limit_s(MAX_GYRO_GAP_S);
-    let gravity = &gravity.specific_force_mps2;
-    let mut relative = Stream::default();
-    let mut heading_rad = 0.0;
-    let mut previous: Option<(f64, f64)> = None;
-    let mut n_gaps = 0usize;
-    for (&t_s, rate) in gyro.t_s.iter().zip(&gyro.values) {
-        let tilt = if gravity.is_empty() {
-            Some(Tilt::LEVEL)
-        } else {
-            gravity
-                .interpolate_at(t_s, max_gap_s)
-                .and_then(Tilt::from_specific_force)
-        };
-        let Some(tilt) = tilt else { continue };
-        let (_, cos_pitch) = tilt.pitch_sin_cos();
-        if cos_pitch.abs() < 0.1 || !rate.iter().all(|value| value.is_finite()) {
-            // Near ±90° pitch the heading rate is undefined.
-            continue;
-        }
-        let (sin_roll, cos_roll) = tilt.roll_sin_cos();
-        let heading_rate_radps = (rate.y * sin_roll + rate.z * cos_roll) / cos_pitch;
-        if let Some((previous_t_s, previous_rate_radps)) = previous {
-            let dt_s = t_s - previous_t_s;
-            if dt_s > max_gap_s {
-                n_gaps += 1;
-            } else if dt_s > 0.0 {
-                heading_rad += 0.5 * (heading_rate_radps + previous_rate_radps) * dt_s;
-            }
-        }
-        previous = Some((t_s, heading_rate_radps));
-        relative.push(t_s, heading_rad);
-    }
+    let (relative, n_gaps) = integrate_heading_rate(gyro, &gravity.specific_force_mps2, max_gap_s);
     let (&first_t_s, &last_t_s) = (relative.t_s.first()?, relative.t_s.last()?);
 
-    let anchored = anchor.and_then(|anchor| {
-        // Offsets anchor − gyro, unwrapped along time.
-        let mut offsets: Vec<(f64, f64)> = Vec::new();
-        for (&t_s, &reference_rad) in anchor.t_s.iter().zip(&anchor.values) {
-            let Some(gyro_rad) = relative.interpolate_at(t_s, max_gap_s) else {
-                continue;
-            };
-            let offset_rad = wrap_to_pi(reference_rad - gyro_rad);
-            let unwrapped = offsets.last().map_or(offset_rad, |&(_, previous_rad)| {
-                previous_rad + wrap_to_pi(offset_rad - previous_rad)
-            });
-            offsets.push((t_s, unwrapped));
-        }
-        let n = offsets.len();
-        let (&(t0_s, _), &(t1_s, _)) = (offsets.first()?, offsets.last()?);
-        let mean_t_s = offsets.iter().map(|(t_s, _)| t_s).sum::<f64>() / n as f64;
-        let mean_offset_rad = offsets.iter().map(|(_, offset)| offset).sum::<f64>() / n as f64;
-        let drift_radps = if t1_s - t0_s >= MIN_DRIFT_SPAN_S {
-            let (mut sxy, mut sxx) = (0.0, 0.0);
-            for &(t_s, offset_rad) in &offsets {
-                sxy += (t_s - mean_t_s) * (offset_rad - mean_offset_rad);
-                sxx += (t_s - mean_t_s).powi(2);
-            }
-            (sxx > 0.0).then(|| sxy / sxx)
-        } else {
-            None
-        };
-        let correction = |t_s: f64| mean_offset_rad + drift_radps.unwrap_or(0.0) * (t_s - mean_t_s);
-        let residual_rms_deg = (offsets
-            .iter()
-            .map(|&(t_s, offset_rad)| (offset_rad - correction(t_s)).powi(2))
-            .sum::<f64>()
-            / n as f64)
-            .sqrt()
-            .to_degrees();
-        let mut heading = Stream::default();
-        for (&t_s, &gyro_rad) in relative.t_s.iter().zip(&relative.values) {
-            heading.push(
-                t_s,
-                crate::base::angle::wrap_to_2pi(gyro_rad + correction(t_s)),
-            );
-        }
-        Some(GyroHeading {
-            heading_rad: heading,
-            alignment: GyroAlignment::Anchored {
-                n_anchor_samples: n,
-                drift_deg_per_min: drift_radps.map(|drift| drift.to_degrees() * 60.0),
-                residual_rms_deg,
-            },
+    let anchored = anchor.and_then(|anchor| anchored_heading(&relative, anchor, max_gap_s));
+    if let Some((heading_rad, alignment)) = anchored {
+        return Some(GyroHeading {
+            heading_rad,
+            alignment,
             n_gaps,
-        })
-    });
-    if let Some(anchored) = anchored {
-        return Some(anchored);
+        });
     }
 
     let span_s = last_t_s - first_t_s;
@@ -208,6 +131,104 @@ pub fn gyro_heading(
         alignment,
         n_gaps,
     })
+}
+
+/// The heading rate of each gyro sample, levelled with the specific force `gravity_mps2`
+/// (level without one), integrated from 0 by trapezoids: the relative heading (rad) at
+/// the samples kept, and how many gaps longer than `max_gap_s` it crossed.
+fn integrate_heading_rate(
+    gyro: &Stream<Vector3<f64>>,
+    gravity_mps2: &Stream<Vector3<f64>>,
+    max_gap_s: f64,
+) -> (Stream<f64>, usize) {
+    let mut relative = Stream::default();
+    let mut heading_rad = 0.0;
+    let mut previous: Option<(f64, f64)> = None;
+    let mut n_gaps = 0usize;
+    for (&t_s, rate) in gyro.t_s.iter().zip(&gyro.values) {
+        let tilt = if gravity_mps2.is_empty() {
+            Some(Tilt::LEVEL)
+        } else {
+            gravity_mps2
+                .interpolate_at(t_s, max_gap_s)
+                .and_then(Tilt::from_specific_force)
+        };
+        let Some(tilt) = tilt else { continue };
+        let (_, cos_pitch) = tilt.pitch_sin_cos();
+        if cos_pitch.abs() < 0.1 || !rate.iter().all(|value| value.is_finite()) {
+            // Near ±90° pitch the heading rate is undefined.
+            continue;
+        }
+        let (sin_roll, cos_roll) = tilt.roll_sin_cos();
+        let heading_rate_radps = (rate.y * sin_roll + rate.z * cos_roll) / cos_pitch;
+        if let Some((previous_t_s, previous_rate_radps)) = previous {
+            let dt_s = t_s - previous_t_s;
+            if dt_s > max_gap_s {
+                n_gaps += 1;
+            } else if dt_s > 0.0 {
+                heading_rad += 0.5 * (heading_rate_radps + previous_rate_radps) * dt_s;
+            }
+        }
+        previous = Some((t_s, heading_rate_radps));
+        relative.push(t_s, heading_rad);
+    }
+    (relative, n_gaps)
+}
+
+/// The relative heading made absolute by `anchor`: its offset, and its drift where the
+/// anchor spans at least [`MIN_DRIFT_SPAN_S`]; `None` when no anchor sample meets the gyro.
+fn anchored_heading(
+    relative: &Stream<f64>,
+    anchor: &Stream<f64>,
+    max_gap_s: f64,
+) -> Option<(Stream<f64>, GyroAlignment)> {
+    // Offsets anchor − gyro, unwrapped along time.
+    let mut offsets: Vec<(f64, f64)> = Vec::new();
+    for (&t_s, &reference_rad) in anchor.t_s.iter().zip(&anchor.values) {
+        let Some(gyro_rad) = relative.interpolate_at(t_s, max_gap_s) else {
+            continue;
+        };
+        let offset_rad = wrap_to_pi(reference_rad - gyro_rad);
+        let unwrapped = offsets.last().map_or(offset_rad, |&(_, previous_rad)| {
+            previous_rad + wrap_to_pi(offset_rad - previous_rad)
+        });
+        offsets.push((t_s, unwrapped));
+    }
+    let n = offsets.len();
+    let (&(t0_s, _), &(t1_s, _)) = (offsets.first()?, offsets.last()?);
+    let mean_t_s = offsets.iter().map(|(t_s, _)| t_s).sum::<f64>() / n as f64;
+    let mean_offset_rad = offsets.iter().map(|(_, offset)| offset).sum::<f64>() / n as f64;
+    let drift_radps = if t1_s - t0_s >= MIN_DRIFT_SPAN_S {
+        let (mut sxy, mut sxx) = (0.0, 0.0);
+        for &(t_s, offset_rad) in &offsets {
+            sxy += (t_s - mean_t_s) * (offset_rad - mean_offset_rad);
+            sxx += (t_s - mean_t_s).powi(2);
+        }
+        (sxx > 0.0).then(|| sxy / sxx)
+    } else {
+        None
+    };
+    let correction = |t_s: f64| mean_offset_rad + drift_radps.unwrap_or(0.0) * (t_s - mean_t_s);
+    let residual_rms_deg = (offsets
+        .iter()
+        .map(|&(t_s, offset_rad)| (offset_rad - correction(t_s)).powi(2))
+        .sum::<f64>()
+        / n as f64)
+        .sqrt()
+        .to_degrees();
+    let mut heading = Stream::default();
+    for (&t_s, &gyro_rad) in relative.t_s.iter().zip(&relative.values) {
+        heading.push(
+            t_s,
+            crate::base::angle::wrap_to_2pi(gyro_rad + correction(t_s)),
+        );
+    }
+    let alignment = GyroAlignment::Anchored {
+        n_anchor_samples: n,
+        drift_deg_per_min: drift_radps.map(|drift| drift.to_degrees() * 60.0),
+        residual_rms_deg,
+    };
+    Some((heading, alignment))
 }
 
 /// The drift (rad/s) that closes the dead-reckoned loop, and how far it then misses

@@ -1,16 +1,23 @@
 //! The four calibration methods as [`super::calibrate`] runs them on one log: each fits
 //! its train samples and gives its heading at every sample (min/max, Eq. 6-7; the
 //! tilt-aware ellipse, `fit::ellipse`; the 3D fit, `fit::ellipsoid`; reference least
-//! squares, Eq. 8, `fit::ref_ls`), or says why it was not fitted. The 3D fit's sphere
+//! squares, Eq. 8, `fit::ref_ls`), or says why it was not fitted; [`fit_and_score`]
+//! runs the chosen ones and scores them beside uncalibrated. The 3D fit's sphere
 //! coverage adds advice on where to turn; reference least squares over references that
 //! cover little of the circle is fitted on top of the best 3D calibration so far.
 
 use nalgebra::{Vector2, Vector3};
 
-use super::{inertial_options, plane_options, FittedEllipse, MethodParameters, MethodReport};
+use super::row_key::RowKey;
+use super::selection::{choose_by_reference, Choice, Scored};
+use super::{
+    inertial_options, plane_options, FittedEllipse, Method, MethodParameters, MethodReport,
+    Prepared,
+};
 use crate::analysis::levelled::Levelling;
 use crate::attitude::compass_heading::heading_rad;
 use crate::attitude::tilt::Tilt;
+use crate::base::stats::HeadingErrorStats;
 use crate::earth::wmm::ExpectedField;
 use crate::fit::coverage::sphere_coverage;
 use crate::fit::ellipse::fit_plane;
@@ -21,19 +28,19 @@ use crate::io::SensorFrame;
 
 /// What every method's fit reads: the samples, their levelled and train parts, the
 /// reference and the declination.
-pub(super) struct MethodInputs<'a> {
-    pub(super) samples: &'a crate::analysis::levelled::TiltedSamples,
-    pub(super) level_raw_ut: &'a [Vector2<f64>],
-    pub(super) level_train: &'a [Vector2<f64>],
-    pub(super) mag_train: &'a [Vector3<f64>],
-    pub(super) tilt_train: &'a [Tilt],
+struct MethodInputs<'a> {
+    samples: &'a crate::analysis::levelled::TiltedSamples,
+    level_raw_ut: &'a [Vector2<f64>],
+    level_train: &'a [Vector2<f64>],
+    mag_train: &'a [Vector3<f64>],
+    tilt_train: &'a [Tilt],
     /// How far each train sample's tilt is trusted (0 to 1).
-    pub(super) tilt_trust_train: &'a [f64],
-    pub(super) ref_heading_rad: &'a [Option<f64>],
-    pub(super) is_fit: &'a [bool],
-    pub(super) declination_rad: f64,
-    pub(super) expected: Option<&'a ExpectedField>,
-    pub(super) mag_frame: Option<&'a SensorFrame>,
+    tilt_trust_train: &'a [f64],
+    ref_heading_rad: &'a [Option<f64>],
+    is_fit: &'a [bool],
+    declination_rad: f64,
+    expected: Option<&'a ExpectedField>,
+    mag_frame: Option<&'a SensorFrame>,
 }
 
 impl MethodInputs<'_> {
@@ -48,17 +55,155 @@ impl MethodInputs<'_> {
 
 /// What the methods' fits leave besides their parameters: the correction the circle
 /// plot shows, the corrected |B|, and notes for the user.
-pub(super) struct MethodOutputs<'a> {
-    pub(super) plane_correction: Option<(Vec<Vector2<f64>>, Option<FittedEllipse>)>,
-    pub(super) field_corrected_ut: Option<Vec<f64>>,
-    pub(super) notes: &'a mut Vec<String>,
+struct MethodOutputs<'a> {
+    plane_correction: Option<(Vec<Vector2<f64>>, Option<FittedEllipse>)>,
+    field_corrected_ut: Option<Vec<f64>>,
+    notes: &'a mut Vec<String>,
 }
 
 /// A method's parameters and its heading at every sample, or why it was not fitted.
-pub(super) type Fitted = Result<(MethodParameters, Vec<f64>), String>;
+type Fitted = Result<(MethodParameters, Vec<f64>), String>;
+
+/// What [`fit_and_score`] gives: each method's report and heading (degrees) where it
+/// was fitted, the corrections the plots draw, and uncalibrated's scores with the best by
+/// the reference.
+pub(super) struct Scores {
+    pub(super) method_reports: Vec<MethodReport>,
+    pub(super) headings_deg: Vec<(Method, Vec<f64>)>,
+    pub(super) plane_correction: Option<(Vec<Vector2<f64>>, Option<FittedEllipse>)>,
+    pub(super) field_corrected_ut: Option<Vec<f64>>,
+    pub(super) raw_train: Option<HeadingErrorStats>,
+    pub(super) raw_check: Option<HeadingErrorStats>,
+    pub(super) by_reference: Option<Choice>,
+}
+
+/// Every method of `methods` fitted and scored beside uncalibrated, with the best by the
+/// reference; the fits' notes go to `notes`.
+pub(super) fn fit_and_score(
+    methods: &[Method],
+    prepared: &Prepared,
+    mag_frame: Option<&SensorFrame>,
+    notes: &mut Vec<String>,
+) -> Scores {
+    let mut outputs = MethodOutputs {
+        plane_correction: None,
+        field_corrected_ut: None,
+        notes,
+    };
+    let (method_reports, headings_deg) = run_methods(methods, prepared, mag_frame, &mut outputs);
+    let MethodOutputs {
+        plane_correction,
+        field_corrected_ut,
+        ..
+    } = outputs;
+    let (raw_train, raw_check) = prepared.both_stats(&prepared.raw_heading_rad);
+    let scored = scored_methods(raw_train, raw_check, &method_reports);
+    let by_reference = choose_by_reference(&scored);
+    Scores {
+        method_reports,
+        headings_deg,
+        plane_correction,
+        field_corrected_ut,
+        raw_train,
+        raw_check,
+        by_reference,
+    }
+}
+
+/// Each method fitted on the train part and scored on both: its report, and its heading
+/// at every sample (degrees) where it was fitted.
+fn run_methods(
+    methods: &[Method],
+    prepared: &Prepared,
+    mag_frame: Option<&SensorFrame>,
+    outputs: &mut MethodOutputs,
+) -> (Vec<MethodReport>, Vec<(Method, Vec<f64>)>) {
+    let is_fit = &prepared.split.is_fit;
+    let (samples, level_raw_ut) = (&prepared.samples, &prepared.level_raw_ut);
+    let (mag_train, tilt_train, level_train) = (
+        kept(&samples.mag_ut, is_fit),
+        kept(&samples.tilt, is_fit),
+        kept(level_raw_ut, is_fit),
+    );
+    let tilt_trust_train = kept(&samples.tilt_trust, is_fit);
+    let inputs = MethodInputs {
+        samples,
+        level_raw_ut,
+        level_train: &level_train,
+        mag_train: &mag_train,
+        tilt_train: &tilt_train,
+        tilt_trust_train: &tilt_trust_train,
+        ref_heading_rad: &prepared.ref_heading_rad,
+        is_fit,
+        declination_rad: prepared.declination.declination_deg.to_radians(),
+        expected: prepared.expected.as_ref(),
+        mag_frame,
+    };
+    let mut method_reports = Vec::new();
+    let mut headings_deg = Vec::new();
+    for &method in methods {
+        let fitted = match method {
+            Method::MinMax => fit_min_max(&inputs, outputs),
+            Method::Ellipse => fit_ellipse(&inputs, outputs),
+            Method::Ellipsoid => fit_ellipsoid(&inputs, outputs),
+            Method::RefLs => fit_ref_ls(&inputs, outputs, &method_reports),
+        };
+        let (parameters, error, train, check) = match fitted {
+            Ok((parameters, headings_rad)) => {
+                let scores = prepared.both_stats(&headings_rad);
+                headings_deg.push((
+                    method,
+                    headings_rad.iter().map(|h| h.to_degrees()).collect(),
+                ));
+                (Some(parameters), None, scores.0, scores.1)
+            }
+            Err(reason) => (None, Some(reason), None, None),
+        };
+        method_reports.push(MethodReport {
+            method,
+            label: method.label(),
+            parameters,
+            error,
+            heading_error_train: train,
+            heading_error_check: check,
+        });
+    }
+    (method_reports, headings_deg)
+}
+
+/// The values at the samples `keep` marks.
+fn kept<T: Copy>(values: &[T], keep: &[bool]) -> Vec<T> {
+    values
+        .iter()
+        .zip(keep)
+        .filter(|(_, &keep)| keep)
+        .map(|(value, _)| *value)
+        .collect()
+}
+
+/// Uncalibrated and every method, as the selection scores them.
+fn scored_methods(
+    raw_train: Option<HeadingErrorStats>,
+    raw_check: Option<HeadingErrorStats>,
+    method_reports: &[MethodReport],
+) -> Vec<Scored<'_>> {
+    let mut scored = vec![Scored {
+        key: RowKey::RAW,
+        label: "uncalibrated",
+        train_rms_deg: raw_train.map(|stats| stats.rms_deg),
+        check_rms_deg: raw_check.map(|stats| stats.rms_deg),
+    }];
+    scored.extend(method_reports.iter().map(|report| Scored {
+        key: RowKey::method(report.method),
+        label: report.label,
+        train_rms_deg: report.heading_error_train.map(|stats| stats.rms_deg),
+        check_rms_deg: report.heading_error_check.map(|stats| stats.rms_deg),
+    }));
+    scored
+}
 
 /// Min/max (Eq. 6-7) on the levelled train samples.
-pub(super) fn fit_min_max(inputs: &MethodInputs, outputs: &mut MethodOutputs) -> Fitted {
+fn fit_min_max(inputs: &MethodInputs, outputs: &mut MethodOutputs) -> Fitted {
     MinMaxCalibration::fit(inputs.level_train)
         .map_err(|error| error.to_string())
         .map(|calibration| {
@@ -88,7 +233,7 @@ pub(super) fn fit_min_max(inputs: &MethodInputs, outputs: &mut MethodOutputs) ->
 }
 
 /// The tilt-aware level-plane ellipse (`fit::ellipse`).
-pub(super) fn fit_ellipse(inputs: &MethodInputs, outputs: &mut MethodOutputs) -> Fitted {
+fn fit_ellipse(inputs: &MethodInputs, outputs: &mut MethodOutputs) -> Fitted {
     fit_plane(
         inputs.mag_train,
         inputs.tilt_train,
@@ -142,7 +287,7 @@ fn untrusted_tilt_note(trust: &[f64]) -> String {
 }
 
 /// The 3D fit (`fit::ellipsoid`), with the accelerometer's tilt when the log has one.
-pub(super) fn fit_ellipsoid(inputs: &MethodInputs, outputs: &mut MethodOutputs) -> Fitted {
+fn fit_ellipsoid(inputs: &MethodInputs, outputs: &mut MethodOutputs) -> Fitted {
     let inertial_options = inertial_options(inputs.expected, inputs.mag_frame);
     // The dip-angle invariance needs the accelerometer's tilt; a log without
     // one was only assumed level.
@@ -189,7 +334,7 @@ pub(super) fn fit_ellipsoid(inputs: &MethodInputs, outputs: &mut MethodOutputs) 
 
 /// Reference least squares (Eq. 8), on top of the best 3D calibration so far when the
 /// references cover too little of the circle.
-pub(super) fn fit_ref_ls(
+fn fit_ref_ls(
     inputs: &MethodInputs,
     outputs: &mut MethodOutputs,
     method_reports: &[MethodReport],

@@ -26,8 +26,7 @@ use std::sync::Arc;
 use nalgebra::{Vector2, Vector3};
 use serde::Serialize;
 
-use crate::analysis::calibration::row_key::RowKey;
-use crate::analysis::calibration::selection::{choose_by_reference, Choice, Scored};
+use crate::analysis::calibration::selection::Choice;
 use crate::analysis::levelled::{AnalysisError, Levelling, TiltedSamples};
 use crate::attitude::compass_heading::heading_rad;
 use crate::attitude::down::{gravity_from_attitude, gravity_of, GravityEstimate};
@@ -56,7 +55,7 @@ use context::{
     conditions, declination_used, field_and_reference_notes, split, turn_onto_raw_heading,
 };
 pub use context::{expected_field_of, inertial_options, plane_options, Split};
-use methods::{fit_ellipse, fit_ellipsoid, fit_min_max, fit_ref_ls, MethodInputs, MethodOutputs};
+use methods::{fit_and_score, Scores};
 
 /// A calibration method.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize)]
@@ -363,16 +362,6 @@ impl Prepared {
     }
 }
 
-/// The values at the samples `keep` marks.
-fn kept<T: Copy>(values: &[T], keep: &[bool]) -> Vec<T> {
-    values
-        .iter()
-        .zip(keep)
-        .filter(|(_, &keep)| keep)
-        .map(|(value, _)| *value)
-        .collect()
-}
-
 /// Where down comes from when a log is levelled.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum DownFrom {
@@ -513,67 +502,6 @@ fn prepare(
     }
 }
 
-/// Each method fitted on the train part and scored on both: its report, and its heading
-/// at every sample (degrees) where it was fitted.
-fn run_methods(
-    methods: &[Method],
-    prepared: &Prepared,
-    mag_frame: Option<&SensorFrame>,
-    outputs: &mut MethodOutputs,
-) -> (Vec<MethodReport>, Vec<(Method, Vec<f64>)>) {
-    let is_fit = &prepared.split.is_fit;
-    let (samples, level_raw_ut) = (&prepared.samples, &prepared.level_raw_ut);
-    let (mag_train, tilt_train, level_train) = (
-        kept(&samples.mag_ut, is_fit),
-        kept(&samples.tilt, is_fit),
-        kept(level_raw_ut, is_fit),
-    );
-    let tilt_trust_train = kept(&samples.tilt_trust, is_fit);
-    let inputs = MethodInputs {
-        samples,
-        level_raw_ut,
-        level_train: &level_train,
-        mag_train: &mag_train,
-        tilt_train: &tilt_train,
-        tilt_trust_train: &tilt_trust_train,
-        ref_heading_rad: &prepared.ref_heading_rad,
-        is_fit,
-        declination_rad: prepared.declination.declination_deg.to_radians(),
-        expected: prepared.expected.as_ref(),
-        mag_frame,
-    };
-    let mut method_reports = Vec::new();
-    let mut headings_deg = Vec::new();
-    for &method in methods {
-        let fitted = match method {
-            Method::MinMax => fit_min_max(&inputs, outputs),
-            Method::Ellipse => fit_ellipse(&inputs, outputs),
-            Method::Ellipsoid => fit_ellipsoid(&inputs, outputs),
-            Method::RefLs => fit_ref_ls(&inputs, outputs, &method_reports),
-        };
-        let (parameters, error, train, check) = match fitted {
-            Ok((parameters, headings_rad)) => {
-                let scores = prepared.both_stats(&headings_rad);
-                headings_deg.push((
-                    method,
-                    headings_rad.iter().map(|h| h.to_degrees()).collect(),
-                ));
-                (Some(parameters), None, scores.0, scores.1)
-            }
-            Err(reason) => (None, Some(reason), None, None),
-        };
-        method_reports.push(MethodReport {
-            method,
-            label: method.label(),
-            parameters,
-            error,
-            heading_error_train: train,
-            heading_error_check: check,
-        });
-    }
-    (method_reports, headings_deg)
-}
-
 /// Runs the chosen methods on an imported log.
 pub fn calibrate(
     report: ImportReport,
@@ -649,26 +577,61 @@ fn calibrate_levelled(
         let truth = autopilot::Truth::of(prepared.expected.as_ref(), &prepared.declination);
         autopilot::autopilot_calibration(log, &recording.attitude, &truth)
     });
-    let mut outputs = MethodOutputs {
-        plane_correction: None,
-        field_corrected_ut: None,
-        notes: &mut notes,
-    };
-    let (method_reports, headings_deg) = run_methods(
-        &options.methods,
-        &prepared,
-        mag_frame.as_ref(),
-        &mut outputs,
-    );
-    let MethodOutputs {
-        plane_correction,
-        field_corrected_ut,
-        ..
-    } = outputs;
+    let scores = fit_and_score(&options.methods, &prepared, mag_frame.as_ref(), &mut notes);
     let in_force_heading_deg = in_force_headings_deg(autopilot.as_ref(), &recording, &prepared);
-    let (raw_train, raw_check) = prepared.both_stats(&prepared.raw_heading_rad);
-    let scored = scored_methods(raw_train, raw_check, &method_reports);
-    let by_reference = choose_by_reference(&scored);
+    let log = LogFacts {
+        file_name,
+        format,
+        n_mag_samples: recording.mag_in_body_ut.len(),
+        device_hard_iron: DeviceHardIron::of(&recording),
+        diagnostics,
+        mag_frame,
+        autopilot: autopilot_calibration,
+        in_force_heading_deg,
+    };
+    let conditions = Conditions {
+        temp_c,
+        gyro_heading_deg,
+        gravity,
+    };
+    let mut analysis = assemble(log, prepared, scores, conditions, notes);
+    settle_choice(&mut analysis.report);
+    analysis.attitude_heading = attitude_heading
+        .unwrap_or_else(|| attitude::attitude_heading(&recording, &analysis.report, &analysis.t_s));
+    Ok(analysis)
+}
+
+/// What the analysis repeats of the log itself: its name, format and magnetometer, the
+/// import's diagnostics, and an autopilot's calibrations.
+struct LogFacts {
+    file_name: String,
+    format: &'static str,
+    n_mag_samples: usize,
+    device_hard_iron: Option<DeviceHardIron>,
+    diagnostics: Diagnostics,
+    mag_frame: Option<SensorFrame>,
+    autopilot: Option<autopilot::AutopilotCalibration>,
+    in_force_heading_deg: Option<(&'static str, Vec<f64>)>,
+}
+
+/// What the analysis keeps of the levelling besides the samples: down, and the
+/// conditions at each sample.
+struct Conditions {
+    temp_c: Vec<Option<f64>>,
+    gyro_heading_deg: Vec<Option<f64>>,
+    gravity: Arc<GravityEstimate>,
+}
+
+/// The analysis of the prepared log and its methods' scores, with the notes on the field
+/// and the reference added; the choice of best is not settled yet, nor the attitude
+/// filter's heading computed.
+fn assemble(
+    log: LogFacts,
+    prepared: Prepared,
+    scores: Scores,
+    conditions: Conditions,
+    mut notes: Vec<String>,
+) -> CalibrationAnalysis {
     let Prepared {
         samples,
         reference,
@@ -686,13 +649,14 @@ fn calibrate_levelled(
         expected.as_ref(),
         reference.is_some(),
     ));
-    let (level_corrected_ut, fitted_ellipse) =
-        plane_correction.unwrap_or_else(|| (level_raw_ut.clone(), None));
-    let mut analysis = CalibrationAnalysis {
+    let (level_corrected_ut, fitted_ellipse) = scores
+        .plane_correction
+        .unwrap_or_else(|| (level_raw_ut.clone(), None));
+    CalibrationAnalysis {
         report: CalibrationReport {
-            file_name,
-            format,
-            n_mag_samples: recording.mag_in_body_ut.len(),
+            file_name: log.file_name,
+            format: log.format,
+            n_mag_samples: log.n_mag_samples,
             n_samples_used: samples.t_s.len(),
             n_train: split.n_train,
             n_check: split.n_check,
@@ -701,17 +665,17 @@ fn calibrate_levelled(
             declination,
             expected_field: expected,
             mean_raw_field_ut,
-            device_hard_iron: DeviceHardIron::of(&recording),
-            raw_heading_error_train: raw_train,
-            raw_heading_error_check: raw_check,
+            device_hard_iron: log.device_hard_iron,
+            raw_heading_error_train: scores.raw_train,
+            raw_heading_error_check: scores.raw_check,
             tilt_trust_mean: samples.tilt_trust.iter().sum::<f64>()
                 / samples.tilt_trust.len().max(1) as f64,
-            methods: method_reports,
-            choice: by_reference,
+            methods: scores.method_reports,
+            choice: scores.by_reference,
             notes,
-            diagnostics,
-            mag_frame,
-            autopilot: autopilot_calibration,
+            diagnostics: log.diagnostics,
+            mag_frame: log.mag_frame,
+            autopilot: log.autopilot,
         },
         t_s: samples.t_s,
         mag_ut: samples.mag_ut,
@@ -727,20 +691,16 @@ fn calibrate_levelled(
             .iter()
             .map(|heading| heading.to_degrees())
             .collect(),
-        headings_deg,
-        in_force_heading_deg,
-        field_corrected_ut: field_corrected_ut.unwrap_or_default(),
-        temp_c,
-        gyro_heading_deg,
+        headings_deg: scores.headings_deg,
+        in_force_heading_deg: log.in_force_heading_deg,
+        field_corrected_ut: scores.field_corrected_ut.unwrap_or_default(),
+        temp_c: conditions.temp_c,
+        gyro_heading_deg: conditions.gyro_heading_deg,
         attitude_heading: None,
         field_raw_ut,
-        gravity,
+        gravity: conditions.gravity,
         split,
-    };
-    settle_choice(&mut analysis.report);
-    analysis.attitude_heading = attitude_heading
-        .unwrap_or_else(|| attitude::attitude_heading(&recording, &analysis.report, &analysis.t_s));
-    Ok(analysis)
+    }
 }
 
 /// The calibration's own choice of best (by the reference where it scored the methods,
@@ -780,27 +740,6 @@ fn in_force_headings_deg(
         heading_rad(tilt.level(corrected_ut), declination_rad).to_degrees()
     });
     Some((in_force.autopilot(), headings_deg))
-}
-
-/// Uncalibrated and every method, as the selection scores them.
-fn scored_methods(
-    raw_train: Option<HeadingErrorStats>,
-    raw_check: Option<HeadingErrorStats>,
-    method_reports: &[MethodReport],
-) -> Vec<Scored<'_>> {
-    let mut scored = vec![Scored {
-        key: RowKey::RAW,
-        label: "uncalibrated",
-        train_rms_deg: raw_train.map(|stats| stats.rms_deg),
-        check_rms_deg: raw_check.map(|stats| stats.rms_deg),
-    }];
-    scored.extend(method_reports.iter().map(|report| Scored {
-        key: RowKey::method(report.method),
-        label: report.label,
-        train_rms_deg: report.heading_error_train.map(|stats| stats.rms_deg),
-        check_rms_deg: report.heading_error_check.map(|stats| stats.rms_deg),
-    }));
-    scored
 }
 
 #[cfg(test)]

@@ -110,11 +110,7 @@ pub fn minimise<O: Objective>(
         return outcome(value, 0, 1, LbfgsStop::GradientTolerance);
     }
 
-    let mut history = History::new(n, memory);
-    let mut direction = vec![0.0; n];
-    let mut alphas = vec![0.0; memory];
-    let mut x_start = vec![0.0; n];
-    let mut gradient_start = vec![0.0; n];
+    let mut state = IterationState::new(n, memory);
     let mut iteration = 0;
     loop {
         if iteration >= options.max_iterations {
@@ -125,48 +121,14 @@ pub fn minimise<O: Objective>(
                 LbfgsStop::MaxIterations,
             );
         }
-        x_start.copy_from_slice(x);
-        gradient_start.copy_from_slice(&gradient);
+        state.x_start.copy_from_slice(x);
+        state.gradient_start.copy_from_slice(&gradient);
         let value_start = value;
 
-        let mut step = None;
-        // The quasi-Newton direction, then (after a failure) the steepest descent.
-        for attempt in 0..2 {
-            if attempt == 1 {
-                if history.is_empty() {
-                    break;
-                }
-                history.clear();
-            }
-            history.direction(&gradient_start, &mut direction, &mut alphas);
-            let mut slope = dot(&direction, &gradient_start);
-            // NaN counts as not descending.
-            if slope.is_nan() || slope >= 0.0 {
-                history.clear();
-                for (d, g) in direction.iter_mut().zip(&gradient_start) {
-                    *d = -g;
-                }
-                slope = dot(&direction, &gradient_start);
-            }
-            let initial_step = if history.is_empty() {
-                (1.0 / norm(&gradient_start)).min(1.0)
-            } else {
-                1.0
-            };
-            let search = LineSearch {
-                x_start: &x_start,
-                value_start,
-                direction: &direction,
-                slope_start: slope,
-            };
-            step = search.run(objective, initial_step, x, &mut gradient, &mut counter);
-            if step.is_some() {
-                break;
-            }
-        }
+        let step = state.step(objective, value_start, x, &mut gradient, &mut counter);
         let Some(new_value) = step else {
-            x.copy_from_slice(&x_start);
-            gradient.copy_from_slice(&gradient_start);
+            x.copy_from_slice(&state.x_start);
+            gradient.copy_from_slice(&state.gradient_start);
             let stop = if counter.exhausted() {
                 LbfgsStop::MaxEvaluations
             } else {
@@ -176,7 +138,9 @@ pub fn minimise<O: Objective>(
         };
         value = new_value;
         iteration += 1;
-        history.push(x, &x_start, &gradient, &gradient_start);
+        state
+            .history
+            .push(x, &state.x_start, &gradient, &state.gradient_start);
 
         if after_iteration(iteration, x, value).is_break() {
             return outcome(
@@ -186,31 +150,104 @@ pub fn minimise<O: Objective>(
                 LbfgsStop::Interrupted,
             );
         }
-        let relative_decrease = (value_start - value) / value_start.abs().max(value.abs()).max(1.0);
-        if relative_decrease <= options.relative_decrease_tolerance {
-            return outcome(
-                value,
-                iteration,
-                counter.evaluations,
-                LbfgsStop::RelativeDecrease,
-            );
+        let stop = stop_after_iteration(options, value_start, value, &gradient, &counter);
+        if let Some(stop) = stop {
+            return outcome(value, iteration, counter.evaluations, stop);
         }
-        if max_abs(&gradient) <= options.gradient_tolerance {
-            return outcome(
-                value,
-                iteration,
-                counter.evaluations,
-                LbfgsStop::GradientTolerance,
-            );
+    }
+}
+
+/// Why to stop after an iteration that lowered the value from `value_start` to `value`
+/// (the relative decrease, the gradient, the evaluations, in that order); `None` to go on.
+fn stop_after_iteration(
+    options: &LbfgsOptions,
+    value_start: f64,
+    value: f64,
+    gradient: &[f64],
+    counter: &Counter,
+) -> Option<LbfgsStop> {
+    let relative_decrease = (value_start - value) / value_start.abs().max(value.abs()).max(1.0);
+    if relative_decrease <= options.relative_decrease_tolerance {
+        return Some(LbfgsStop::RelativeDecrease);
+    }
+    if max_abs(gradient) <= options.gradient_tolerance {
+        return Some(LbfgsStop::GradientTolerance);
+    }
+    if counter.exhausted() {
+        return Some(LbfgsStop::MaxEvaluations);
+    }
+    None
+}
+
+/// What the iterations share: the correction pairs, the buffers of the direction and of
+/// the two-loop recursion, and the iterate and gradient an iteration starts from.
+struct IterationState {
+    history: History,
+    direction: Vec<f64>,
+    alphas: Vec<f64>,
+    x_start: Vec<f64>,
+    gradient_start: Vec<f64>,
+}
+
+impl IterationState {
+    /// Empty state for `n` unknowns and `memory` correction pairs.
+    fn new(n: usize, memory: usize) -> Self {
+        IterationState {
+            history: History::new(n, memory),
+            direction: vec![0.0; n],
+            alphas: vec![0.0; memory],
+            x_start: vec![0.0; n],
+            gradient_start: vec![0.0; n],
         }
-        if counter.exhausted() {
-            return outcome(
-                value,
-                iteration,
-                counter.evaluations,
-                LbfgsStop::MaxEvaluations,
-            );
+    }
+
+    /// One iteration's line search from `x_start`: its new value, with the step left in
+    /// `x` and `gradient`; `None` when no step was found.
+    fn step<O: Objective>(
+        &mut self,
+        objective: &mut O,
+        value_start: f64,
+        x: &mut [f64],
+        gradient: &mut [f64],
+        counter: &mut Counter,
+    ) -> Option<f64> {
+        let mut step = None;
+        // The quasi-Newton direction, then (after a failure) the steepest descent.
+        for attempt in 0..2 {
+            if attempt == 1 {
+                if self.history.is_empty() {
+                    break;
+                }
+                self.history.clear();
+            }
+            self.history
+                .direction(&self.gradient_start, &mut self.direction, &mut self.alphas);
+            let mut slope = dot(&self.direction, &self.gradient_start);
+            // NaN counts as not descending.
+            if slope.is_nan() || slope >= 0.0 {
+                self.history.clear();
+                for (d, g) in self.direction.iter_mut().zip(&self.gradient_start) {
+                    *d = -g;
+                }
+                slope = dot(&self.direction, &self.gradient_start);
+            }
+            let initial_step = if self.history.is_empty() {
+                (1.0 / norm(&self.gradient_start)).min(1.0)
+            } else {
+                1.0
+            };
+            let search = LineSearch {
+                x_start: &self.x_start,
+                value_start,
+                direction: &self.direction,
+                slope_start: slope,
+            };
+            step = search.run(objective, initial_step, x, gradient, counter);
+            if step.is_some() {
+                break;
+            }
         }
+        step
     }
 }
 

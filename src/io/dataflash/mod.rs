@@ -39,7 +39,7 @@ use super::autopilot::ardupilot::ArduPilotCompass;
 use super::autopilot::{Autopilot, AutopilotLog, CompassLog};
 use super::frame::{MagUnit, SensorFrame};
 use super::{thousands, Diagnostics, ImportError, ImportReport};
-use crate::io::recording::{GyroBias, Stream};
+use crate::io::recording::{GyroBias, Recording, Stream};
 
 pub const BINARY: &str = "ArduPilot DataFlash log";
 pub const TEXT: &str = "ArduPilot DataFlash text log";
@@ -292,6 +292,8 @@ fn log_notes(summary: String, counts: &[(String, usize)], autopilot: &AutopilotL
     notes
 }
 
+/// The import report of a whole log from what its messages gave: the main compass's
+/// raw field as the magnetometer, the other compasses kept apart, and the notes.
 fn finish(
     file_name: &str,
     format: &'static str,
@@ -325,19 +327,7 @@ fn finish(
         });
     }
     mags.sort_by_key(|track| track.instance);
-    let zero_notes: Vec<String> = mags
-        .iter()
-        .filter(|track| track.n_zero_readings > 0)
-        .map(|track| {
-            format!(
-                "{}: {} {} of exactly (0, 0, 0) left out: ArduPilot logs zeros while the \
-                 compass reads nothing",
-                track.source,
-                thousands(track.n_zero_readings),
-                crate::base::words::plural(track.n_zero_readings, "reading", "readings")
-            )
-        })
-        .collect();
+    let zero_notes = zero_reading_notes(&mags);
     let mut autopilot = AutopilotLog {
         autopilot: Autopilot::ArduPilot,
         firmware,
@@ -350,60 +340,9 @@ fn finish(
     let n_main_out_of_order = set_compasses(&mut autopilot, &mags);
     let mut notes = log_notes(summary, &counts, &autopilot);
     notes.extend(zero_notes);
-    let chosen = autopilot
-        .main_compass
-        .and_then(|idx| autopilot.compasses.get(idx));
-    let mut mag_frame = None;
-    if let Some(compass) = chosen {
-        recording.mag_in_body_ut = compass.raw_in_body_ut.clone().unwrap_or_default();
-        mag_frame = Some(SensorFrame {
-            body_from_sensor: Matrix3::identity(),
-            unit: MagUnit::MILLIGAUSS,
-            axes: ARDUPILOT_AXES,
-        });
-        notes.push(format!(
-            "magnetometer: compass {} of {} ({}), raw. ArduPilot logs the field after its \
-             calibration; it was undone to fit a new one: {}",
-            compass.instance + 1,
-            autopilot.compasses.len(),
-            compass.source,
-            compass.how_raw
-        ));
-    }
-    for compass in &autopilot.compasses {
-        if Some(compass.instance) != chosen.map(|chosen| chosen.instance) {
-            notes.push(format!(
-                "compass {} ({}): kept apart for its own calibration; {}",
-                compass.instance + 1,
-                compass.source,
-                compass.how_raw
-            ));
-        }
-    }
-    if !recording.gyro_in_body_radps.is_empty() {
-        recording.gyro_bias = GyroBias::RemovedByDevice;
-        notes.push(
-            "IMU: the first IMU's gyroscope (rad/s) and accelerometer (m/s²), body axes; \
-             ArduPilot removes the gyroscope offsets it measured at boot"
-                .to_string(),
-        );
-    }
-    if n_other_instances > 0 {
-        notes.push(format!(
-            "{} IMU and GPS samples of second and third instances not used",
-            thousands(n_other_instances)
-        ));
-    }
-    if !recording.attitude.is_empty() {
-        notes.push(
-            "ATT: the autopilot's own attitude estimate (roll, pitch, yaw from true north), \
-             which used the compass calibration in force"
-                .to_string(),
-        );
-        if let Some(note) = board_attitude(&mut recording.attitude, &autopilot) {
-            notes.push(note);
-        }
-    }
+    let mag_frame = take_main_compass(&mut recording, &autopilot, &mut notes);
+    imu_notes(&mut recording, n_other_instances, &mut notes);
+    attitude_notes(&mut recording, &autopilot, &mut notes);
     if n_gps_without_fix > 0 {
         notes.push(format!(
             "GPS: {} messages without a 3D fix skipped",
@@ -439,6 +378,95 @@ fn finish(
         mag_frame,
         autopilot: Some(autopilot),
     })
+}
+
+/// A note for each compass that logged readings of exactly zero, which were left out.
+fn zero_reading_notes(mags: &[MagTrack]) -> Vec<String> {
+    mags.iter()
+        .filter(|track| track.n_zero_readings > 0)
+        .map(|track| {
+            format!(
+                "{}: {} {} of exactly (0, 0, 0) left out: ArduPilot logs zeros while the \
+                 compass reads nothing",
+                track.source,
+                thousands(track.n_zero_readings),
+                crate::base::words::plural(track.n_zero_readings, "reading", "readings")
+            )
+        })
+        .collect()
+}
+
+/// The main compass's raw field as the recording's magnetometer, with its frame; notes
+/// say which compass it is and that the others are kept apart. `None` without one.
+fn take_main_compass(
+    recording: &mut Recording,
+    autopilot: &AutopilotLog,
+    notes: &mut Vec<String>,
+) -> Option<SensorFrame> {
+    let chosen = autopilot
+        .main_compass
+        .and_then(|idx| autopilot.compasses.get(idx));
+    let mut mag_frame = None;
+    if let Some(compass) = chosen {
+        recording.mag_in_body_ut = compass.raw_in_body_ut.clone().unwrap_or_default();
+        mag_frame = Some(SensorFrame {
+            body_from_sensor: Matrix3::identity(),
+            unit: MagUnit::MILLIGAUSS,
+            axes: ARDUPILOT_AXES,
+        });
+        notes.push(format!(
+            "magnetometer: compass {} of {} ({}), raw. ArduPilot logs the field after its \
+             calibration; it was undone to fit a new one: {}",
+            compass.instance + 1,
+            autopilot.compasses.len(),
+            compass.source,
+            compass.how_raw
+        ));
+    }
+    for compass in &autopilot.compasses {
+        if Some(compass.instance) != chosen.map(|chosen| chosen.instance) {
+            notes.push(format!(
+                "compass {} ({}): kept apart for its own calibration; {}",
+                compass.instance + 1,
+                compass.source,
+                compass.how_raw
+            ));
+        }
+    }
+    mag_frame
+}
+
+/// The gyroscope's bias marked as removed by ArduPilot, with notes on the IMU and the
+/// samples of other instances left unused.
+fn imu_notes(recording: &mut Recording, n_other_instances: usize, notes: &mut Vec<String>) {
+    if !recording.gyro_in_body_radps.is_empty() {
+        recording.gyro_bias = GyroBias::RemovedByDevice;
+        notes.push(
+            "IMU: the first IMU's gyroscope (rad/s) and accelerometer (m/s²), body axes; \
+             ArduPilot removes the gyroscope offsets it measured at boot"
+                .to_string(),
+        );
+    }
+    if n_other_instances > 0 {
+        notes.push(format!(
+            "{} IMU and GPS samples of second and third instances not used",
+            thousands(n_other_instances)
+        ));
+    }
+}
+
+/// The note on `ATT`, whose attitude is turned into the board's ([`board_attitude`]).
+fn attitude_notes(recording: &mut Recording, autopilot: &AutopilotLog, notes: &mut Vec<String>) {
+    if !recording.attitude.is_empty() {
+        notes.push(
+            "ATT: the autopilot's own attitude estimate (roll, pitch, yaw from true north), \
+             which used the compass calibration in force"
+                .to_string(),
+        );
+        if let Some(note) = board_attitude(&mut recording.attitude, autopilot) {
+            notes.push(note);
+        }
+    }
 }
 
 /// Turns `ATT` into the attitude of the autopilot board, whose axes the compasses are

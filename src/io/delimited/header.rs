@@ -293,47 +293,13 @@ pub(super) enum Naming {
 
 /// Resolves one header name to a column.
 pub(super) fn resolve(raw_name: &str) -> Option<(Column, Naming)> {
-    let lower = raw_name.trim().trim_matches('"').to_lowercase();
-    // "X (µT)": a name and a unit in parentheses.
-    let (name, paren_unit) = match (lower.find('('), lower.rfind(')')) {
-        (Some(open), Some(close)) if close > open => (
-            lower[..open].trim().to_string(),
-            Some(lower[open + 1..close].trim().to_string()),
-        ),
-        _ => (lower.clone(), None),
-    };
-    let name = name.replace([' ', '-', '.'], "_");
-    let tokens: Vec<&str> = name.split('_').filter(|token| !token.is_empty()).collect();
-    // A trailing unit token: "mag_x_gauss", "t_s", "temp_c".
-    let (base_tokens, suffix_unit) = match tokens.split_last() {
-        Some((last, rest)) if !rest.is_empty() && unit_scale(last).is_some() => {
-            (rest.to_vec(), Some(last.to_string()))
-        }
-        _ => (tokens.clone(), None),
-    };
+    let NameParts {
+        base_tokens,
+        paren_unit,
+        suffix_unit,
+    } = NameParts::of(raw_name);
     let unit = paren_unit.clone().or(suffix_unit.clone());
     let scale = unit.as_deref().and_then(unit_scale);
-    let base = base_tokens.join("_");
-    let column = |quantity: Quantity, axis: usize, scale: Option<f64>| Column {
-        quantity,
-        axis,
-        scale,
-    };
-
-    // A vector component: a sensor prefix and an axis letter, or an axis letter whose
-    // unit says the sensor (phyphox).
-    let axis_of = |token: &str| match token {
-        "x" => Some(0),
-        "y" => Some(1),
-        "z" => Some(2),
-        _ => None,
-    };
-    let sensor_of = |token: &str| match token {
-        "acc" | "accel" | "accelerometer" | "acceleration" | "a" => Some(Quantity::Acc),
-        "gyro" | "gyroscope" | "gyr" | "rot" | "rate" | "g" => Some(Quantity::Gyro),
-        "mag" | "magnetometer" | "magnetic" | "magn" | "compass" | "m" | "b" => Some(Quantity::Mag),
-        _ => None,
-    };
     let naming = if suffix_unit.is_some() {
         Naming::Suffixed
     } else if paren_unit.is_some() {
@@ -341,7 +307,10 @@ pub(super) fn resolve(raw_name: &str) -> Option<(Column, Naming)> {
     } else {
         Naming::Suffixed
     };
-    match base_tokens.as_slice() {
+    let tokens: Vec<&str> = base_tokens.iter().map(String::as_str).collect();
+    // A vector component: a sensor prefix and an axis letter, or an axis letter whose
+    // unit says the sensor (phyphox).
+    match tokens.as_slice() {
         [sensor, axis] if sensor_of(sensor).is_some() && axis_of(axis).is_some() => {
             let quantity = sensor_of(sensor)?;
             let axis = axis_of(axis)?;
@@ -351,14 +320,14 @@ pub(super) fn resolve(raw_name: &str) -> Option<(Column, Naming)> {
             } else {
                 naming
             };
-            return Some((
+            Some((
                 column(
                     quantity,
                     axis,
                     scale.filter(|_| unit_matches(quantity, unit.as_deref())),
                 ),
                 naming,
-            ));
+            ))
         }
         [compact]
             if compact.len() == 2
@@ -368,10 +337,10 @@ pub(super) fn resolve(raw_name: &str) -> Option<(Column, Naming)> {
             // "mx", "ax", "gz". `get` and not indexing: a two-byte name may be one
             // character ("À"), and slicing inside it would panic.
             let quantity = compact.get(..1).and_then(sensor_of)?;
-            return Some((
+            Some((
                 column(quantity, compact.get(1..).and_then(axis_of)?, scale),
                 Naming::Suffixed,
-            ));
+            ))
         }
         [axis] if axis_of(axis).is_some() => {
             let axis = axis_of(axis)?;
@@ -379,18 +348,94 @@ pub(super) fn resolve(raw_name: &str) -> Option<(Column, Naming)> {
                 Some(unit) => quantity_of_unit(unit)?,
                 None => Quantity::Mag,
             };
-            return Some((
+            Some((
                 column(quantity, axis, scale),
                 if paren_unit.is_some() {
                     Naming::PhoneApp
                 } else {
                     Naming::Suffixed
                 },
-            ));
+            ))
         }
-        _ => {}
+        _ => scalar_column(&tokens.join("_"), unit.as_deref(), scale, naming),
     }
-    let quantity = match base.as_str() {
+}
+
+/// A header name taken apart: its tokens without a trailing unit, and its unit in
+/// parentheses or as its last token.
+struct NameParts {
+    base_tokens: Vec<String>,
+    paren_unit: Option<String>,
+    suffix_unit: Option<String>,
+}
+
+impl NameParts {
+    /// `raw_name` without quotes, in lower case, split at `_`, spaces, `-` and `.`.
+    fn of(raw_name: &str) -> NameParts {
+        let lower = raw_name.trim().trim_matches('"').to_lowercase();
+        // "X (µT)": a name and a unit in parentheses.
+        let (name, paren_unit) = match (lower.find('('), lower.rfind(')')) {
+            (Some(open), Some(close)) if close > open => (
+                lower[..open].trim().to_string(),
+                Some(lower[open + 1..close].trim().to_string()),
+            ),
+            _ => (lower.clone(), None),
+        };
+        let name = name.replace([' ', '-', '.'], "_");
+        let tokens: Vec<&str> = name.split('_').filter(|token| !token.is_empty()).collect();
+        // A trailing unit token: "mag_x_gauss", "t_s", "temp_c".
+        let (base_tokens, suffix_unit) = match tokens.split_last() {
+            Some((last, rest)) if !rest.is_empty() && unit_scale(last).is_some() => {
+                (rest.to_vec(), Some(last.to_string()))
+            }
+            _ => (tokens.clone(), None),
+        };
+        NameParts {
+            base_tokens: base_tokens.into_iter().map(str::to_string).collect(),
+            paren_unit,
+            suffix_unit,
+        }
+    }
+}
+
+/// A column of `quantity`'s component `axis` (0 for a scalar), with its unit's factor.
+fn column(quantity: Quantity, axis: usize, scale: Option<f64>) -> Column {
+    Column {
+        quantity,
+        axis,
+        scale,
+    }
+}
+
+/// The axis an axis letter names: 0, 1, 2 for x, y, z.
+fn axis_of(token: &str) -> Option<usize> {
+    match token {
+        "x" => Some(0),
+        "y" => Some(1),
+        "z" => Some(2),
+        _ => None,
+    }
+}
+
+/// The sensor a name's prefix names ("acc", "gyro", "mag", or their one letters).
+fn sensor_of(token: &str) -> Option<Quantity> {
+    match token {
+        "acc" | "accel" | "accelerometer" | "acceleration" | "a" => Some(Quantity::Acc),
+        "gyro" | "gyroscope" | "gyr" | "rot" | "rate" | "g" => Some(Quantity::Gyro),
+        "mag" | "magnetometer" | "magnetic" | "magn" | "compass" | "m" | "b" => Some(Quantity::Mag),
+        _ => None,
+    }
+}
+
+/// A column of one value (time, temperature, position, ...) by its name without the
+/// unit, `base`; `None` for a name this reader does not know.
+fn scalar_column(
+    base: &str,
+    unit: Option<&str>,
+    scale: Option<f64>,
+    naming: Naming,
+) -> Option<(Column, Naming)> {
+    let quantity = match base {
         "t" | "time" | "timestamp" | "unix_time" | "epoch" => Quantity::Time,
         "seconds_elapsed" | "elapsed" | "elapsed_time" => {
             return Some((column(Quantity::Time, 0, Some(1.0)), Naming::Elapsed));

@@ -181,21 +181,7 @@ impl Collector {
         if self.is_empty() {
             return Err(self.nothing_recognised(file_name, format));
         }
-        let mut notes = Vec::new();
-        if !self.n_read.is_empty() {
-            let counts: Vec<String> = self
-                .n_read
-                .iter()
-                .map(|(tag, count)| format!("{count} {tag}"))
-                .collect();
-            notes.push(format!("read {} samples", counts.join(", ")));
-        }
-        if !self.gyro_in_device_radps.is_empty() {
-            notes.push(
-                "gyroscope: Android's TYPE_GYROSCOPE, the rate with the OS's bias estimate removed"
-                    .to_string(),
-            );
-        }
+        let mut notes = self.read_notes();
         let Clock {
             origin,
             scale,
@@ -205,45 +191,8 @@ impl Collector {
         let mount = detect_mount(&self.acc_in_device_mps2, &mut notes);
 
         let to_s = |t: f64| (t - origin) * scale;
-        let to_body = |v: &Vector3<f64>| mount.device_to_body(*v);
-        let mut recording = Recording {
-            acc_in_body_mps2: convert(&self.acc_in_device_mps2, to_s, to_body),
-            gyro_in_body_radps: convert(&self.gyro_in_device_radps, to_s, to_body),
-            // Both dialects log Android's `TYPE_GYROSCOPE`, the OS's drift removed.
-            gyro_bias: GyroBias::RemovedByDevice,
-            temp_c: convert(&self.temp_c, to_s, |v| *v),
-            pressure_hpa: convert(&self.pressure_hpa, to_s, |v| *v),
-            gnss: convert(&self.gnss, to_s, |v| *v),
-            attitude: convert(&self.device_to_enu, to_s, |q| {
-                attitude_from_rotation_vector(q, mount)
-            }),
-            ref_position_en_m: convert(&self.ref_position_en_m, to_s, |v| *v),
-            ref_position_lat_lon_deg: convert(&self.ref_position_lat_lon_deg, to_s, |v| *v),
-            ..Recording::default()
-        };
-        if !self.mag_raw_in_device_ut.is_empty() {
-            recording.mag_in_body_ut = convert(&self.mag_raw_in_device_ut, to_s, to_body);
-            recording.mag_bias_in_body_ut = convert(&self.mag_bias_in_device_ut, to_s, to_body);
-            let unused = if self.mag_calibrated_in_device_ut.is_empty() {
-                String::new()
-            } else {
-                format!(
-                    "; the {} OS-calibrated samples were not used",
-                    self.mag_calibrated_in_device_ut.len()
-                )
-            };
-            notes.push(format!(
-                "magnetometer: the raw (uncalibrated) field, with the OS's own hard-iron \
-                 estimate kept as the device bias{unused}"
-            ));
-        } else if !self.mag_calibrated_in_device_ut.is_empty() {
-            recording.mag_in_body_ut = convert(&self.mag_calibrated_in_device_ut, to_s, to_body);
-            notes.push(
-                "magnetometer: only the OS-calibrated field, from which the OS has already \
-                 removed its hard-iron estimate, so a calibration fit should find little offset"
-                    .to_string(),
-            );
-        }
+        let mut recording = self.recording_in_body(to_s, mount);
+        notes.extend(self.take_magnetometer(&mut recording, to_s, mount));
         // Both formats write the field in µT (Android's `SensorEvent` unit), device axes.
         let mag_frame = (!recording.mag_in_body_ut.is_empty())
             .then(|| SensorFrame::android_device(mount, MagUnit::MICROTESLA));
@@ -262,7 +211,101 @@ impl Collector {
             ));
         }
         notes.append(&mut self.extra_notes);
+        self.sort_by_time(&mut recording);
 
+        Ok(ImportReport {
+            autopilot: None,
+            file_name,
+            format,
+            recording,
+            diagnostics: self.diagnostics,
+            header: None,
+            n_data_lines: self.n_data_lines,
+            notes,
+            mag_frame,
+        })
+    }
+
+    /// The first notes: the samples read per tag, and the gyroscope's kind.
+    fn read_notes(&self) -> Vec<String> {
+        let mut notes = Vec::new();
+        if !self.n_read.is_empty() {
+            let counts: Vec<String> = self
+                .n_read
+                .iter()
+                .map(|(tag, count)| format!("{count} {tag}"))
+                .collect();
+            notes.push(format!("read {} samples", counts.join(", ")));
+        }
+        if !self.gyro_in_device_radps.is_empty() {
+            notes.push(
+                "gyroscope: Android's TYPE_GYROSCOPE, the rate with the OS's bias estimate removed"
+                    .to_string(),
+            );
+        }
+        notes
+    }
+
+    /// Every stream but the magnetometer in body axes (by `mount`) and seconds (by
+    /// `to_s`), the rotation vector as an attitude.
+    fn recording_in_body(&self, to_s: impl Fn(f64) -> f64 + Copy, mount: PhoneMount) -> Recording {
+        let to_body = |v: &Vector3<f64>| mount.device_to_body(*v);
+        Recording {
+            acc_in_body_mps2: convert(&self.acc_in_device_mps2, to_s, to_body),
+            gyro_in_body_radps: convert(&self.gyro_in_device_radps, to_s, to_body),
+            // Both dialects log Android's `TYPE_GYROSCOPE`, the OS's drift removed.
+            gyro_bias: GyroBias::RemovedByDevice,
+            temp_c: convert(&self.temp_c, to_s, |v| *v),
+            pressure_hpa: convert(&self.pressure_hpa, to_s, |v| *v),
+            gnss: convert(&self.gnss, to_s, |v| *v),
+            attitude: convert(&self.device_to_enu, to_s, |q| {
+                attitude_from_rotation_vector(q, mount)
+            }),
+            ref_position_en_m: convert(&self.ref_position_en_m, to_s, |v| *v),
+            ref_position_lat_lon_deg: convert(&self.ref_position_lat_lon_deg, to_s, |v| *v),
+            ..Recording::default()
+        }
+    }
+
+    /// The raw field (with the OS's bias estimate) as the recording's magnetometer, else
+    /// the OS-calibrated one, in body axes and seconds; a note says which.
+    fn take_magnetometer(
+        &self,
+        recording: &mut Recording,
+        to_s: impl Fn(f64) -> f64 + Copy,
+        mount: PhoneMount,
+    ) -> Option<String> {
+        let to_body = |v: &Vector3<f64>| mount.device_to_body(*v);
+        if !self.mag_raw_in_device_ut.is_empty() {
+            recording.mag_in_body_ut = convert(&self.mag_raw_in_device_ut, to_s, to_body);
+            recording.mag_bias_in_body_ut = convert(&self.mag_bias_in_device_ut, to_s, to_body);
+            let unused = if self.mag_calibrated_in_device_ut.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    "; the {} OS-calibrated samples were not used",
+                    self.mag_calibrated_in_device_ut.len()
+                )
+            };
+            Some(format!(
+                "magnetometer: the raw (uncalibrated) field, with the OS's own hard-iron \
+                 estimate kept as the device bias{unused}"
+            ))
+        } else if !self.mag_calibrated_in_device_ut.is_empty() {
+            recording.mag_in_body_ut = convert(&self.mag_calibrated_in_device_ut, to_s, to_body);
+            Some(
+                "magnetometer: only the OS-calibrated field, from which the OS has already \
+                 removed its hard-iron estimate, so a calibration fit should find little offset"
+                    .to_string(),
+            )
+        } else {
+            None
+        }
+    }
+
+    /// Sorts every stream of `recording` by time, with a diagnostic when time went
+    /// backwards.
+    fn sort_by_time(&mut self, recording: &mut Recording) {
         // The bias shares the magnetometer's times, so only the magnetometer is counted.
         let n_out_of_order = recording.acc_in_body_mps2.sort_by_time()
             + recording.gyro_in_body_radps.sort_by_time()
@@ -286,18 +329,6 @@ impl Collector {
                 ),
             );
         }
-
-        Ok(ImportReport {
-            autopilot: None,
-            file_name,
-            format,
-            recording,
-            diagnostics: self.diagnostics,
-            header: None,
-            n_data_lines: self.n_data_lines,
-            notes,
-            mag_frame,
-        })
     }
 }
 

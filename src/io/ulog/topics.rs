@@ -229,83 +229,103 @@ impl UlogReader {
         };
         match topic {
             Topic::SensorCombined if single(collected) => {
-                const GYRO_AT: usize = 0;
-                const ACC_AT: usize = 1;
-                const ACC_RELATIVE_AT: usize = 2;
-                const MAG_AT: usize = 3;
-                const MAG_RELATIVE_AT: usize = 4;
-                if let Some(gyro) = vector3(sub.field(GYRO_AT), data) {
-                    collected.gyro_radps.push(t_s, gyro);
-                }
-                // In whole µs, so that a sample repeated by the next message has the
-                // very same time.
-                let relative = |idx: usize| {
-                    sub.scalar(idx, data)
-                        .filter(|&dt| dt != RELATIVE_TIMESTAMP_INVALID)
-                        // A corrupt timestamp near the end of i64 has no sample time.
-                        .and_then(|dt_us| t_us.checked_add(dt_us as i64))
-                };
-                if let (Some(acc), Some(acc_t_us)) =
-                    (vector3(sub.field(ACC_AT), data), relative(ACC_RELATIVE_AT))
-                {
-                    collected.acc_mps2.push(seconds(acc_t_us), acc);
-                }
-                if let (Some(mag), Some(mag_t_us)) =
-                    (vector3(sub.field(MAG_AT), data), relative(MAG_RELATIVE_AT))
-                {
-                    collected.combined_mag.push(mag_t_us, mag, None);
-                }
+                sensor_combined(sub, data, t_us, collected);
             }
-            Topic::SensorMag => {
-                let field = (|| {
-                    Some(Vector3::new(
-                        sub.scalar(0, data)?,
-                        sub.scalar(1, data)?,
-                        sub.scalar(2, data)?,
-                    ))
-                })();
-                let device_id = sub.scalar(3, data).map(|id| id as u32);
-                if let Some(field) = field {
-                    let series = collected.sensor_mag.entry(multi_id).or_default();
-                    series.push(t_us, field, device_id);
-                }
-            }
-            Topic::VehicleMagnetometer => {
-                let device_id = sub.scalar(1, data).map(|id| id as u32);
-                if let Some(field) = vector3(sub.field(0), data) {
-                    let series = collected.vehicle_mag.entry(multi_id).or_default();
-                    series.push(t_us, field, device_id);
-                }
-            }
+            Topic::SensorMag => sensor_mag(sub, data, t_us, collected),
+            Topic::VehicleMagnetometer => vehicle_magnetometer(sub, data, t_us, collected),
             Topic::VehicleAttitude if single(collected) => {
-                let q = sub.field(0);
-                let components = (0..4)
-                    .map(|idx| q.and_then(|q| q.read(data, idx)))
-                    .collect::<Option<Vec<f64>>>();
-                if let Some(&[w, x, y, z]) = components.as_deref() {
-                    let norm = (w * w + x * x + y * y + z * z).sqrt();
-                    if norm.is_finite() && norm > 0.5 {
-                        // q rotates body FRD into NED; Euler ZYX gives roll, pitch and
-                        // yaw clockwise from north.
-                        let q =
-                            UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(w, x, y, z));
-                        let (roll_rad, pitch_rad, yaw_rad) = q.euler_angles();
-                        collected.attitude.push(
-                            t_s,
-                            Attitude {
-                                roll_rad,
-                                pitch_rad,
-                                yaw_rad: Some(yaw_rad),
-                            },
-                        );
-                    }
-                }
+                vehicle_attitude(sub, data, t_s, collected);
             }
             Topic::VehicleGpsPosition | Topic::SensorGps if single(collected) => {
                 let source = usize::from(topic == Topic::SensorGps);
                 gnss_fix(sub, data, t_s, source, collected);
             }
             _ => {}
+        }
+    }
+}
+
+/// One `sensor_combined` message (its instance 0): the gyro at its time, the
+/// accelerometer and (old logs) the magnetometer at their relative timestamps.
+fn sensor_combined(sub: &Subscription, data: &[u8], t_us: i64, collected: &mut Collected) {
+    const GYRO_AT: usize = 0;
+    const ACC_AT: usize = 1;
+    const ACC_RELATIVE_AT: usize = 2;
+    const MAG_AT: usize = 3;
+    const MAG_RELATIVE_AT: usize = 4;
+    let t_s = seconds(t_us);
+    if let Some(gyro) = vector3(sub.field(GYRO_AT), data) {
+        collected.gyro_radps.push(t_s, gyro);
+    }
+    // In whole µs, so that a sample repeated by the next message has the
+    // very same time.
+    let relative = |idx: usize| {
+        sub.scalar(idx, data)
+            .filter(|&dt| dt != RELATIVE_TIMESTAMP_INVALID)
+            // A corrupt timestamp near the end of i64 has no sample time.
+            .and_then(|dt_us| t_us.checked_add(dt_us as i64))
+    };
+    if let (Some(acc), Some(acc_t_us)) =
+        (vector3(sub.field(ACC_AT), data), relative(ACC_RELATIVE_AT))
+    {
+        collected.acc_mps2.push(seconds(acc_t_us), acc);
+    }
+    if let (Some(mag), Some(mag_t_us)) =
+        (vector3(sub.field(MAG_AT), data), relative(MAG_RELATIVE_AT))
+    {
+        collected.combined_mag.push(mag_t_us, mag, None);
+    }
+}
+
+/// One `sensor_mag` message: a compass's field (`x`, `y`, `z`) and its device id, in
+/// the series of its instance.
+fn sensor_mag(sub: &Subscription, data: &[u8], t_us: i64, collected: &mut Collected) {
+    let field = (|| {
+        Some(Vector3::new(
+            sub.scalar(0, data)?,
+            sub.scalar(1, data)?,
+            sub.scalar(2, data)?,
+        ))
+    })();
+    let device_id = sub.scalar(3, data).map(|id| id as u32);
+    if let Some(field) = field {
+        let series = collected.sensor_mag.entry(sub.multi_id).or_default();
+        series.push(t_us, field, device_id);
+    }
+}
+
+/// One `vehicle_magnetometer` message: the calibrated field and its device id, in the
+/// series of its instance.
+fn vehicle_magnetometer(sub: &Subscription, data: &[u8], t_us: i64, collected: &mut Collected) {
+    let device_id = sub.scalar(1, data).map(|id| id as u32);
+    if let Some(field) = vector3(sub.field(0), data) {
+        let series = collected.vehicle_mag.entry(sub.multi_id).or_default();
+        series.push(t_us, field, device_id);
+    }
+}
+
+/// One `vehicle_attitude` message (its instance 0): roll, pitch and yaw from its
+/// quaternion, unless the quaternion is far from unit length.
+fn vehicle_attitude(sub: &Subscription, data: &[u8], t_s: f64, collected: &mut Collected) {
+    let q = sub.field(0);
+    let components = (0..4)
+        .map(|idx| q.and_then(|q| q.read(data, idx)))
+        .collect::<Option<Vec<f64>>>();
+    if let Some(&[w, x, y, z]) = components.as_deref() {
+        let norm = (w * w + x * x + y * y + z * z).sqrt();
+        if norm.is_finite() && norm > 0.5 {
+            // q rotates body FRD into NED; Euler ZYX gives roll, pitch and
+            // yaw clockwise from north.
+            let q = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(w, x, y, z));
+            let (roll_rad, pitch_rad, yaw_rad) = q.euler_angles();
+            collected.attitude.push(
+                t_s,
+                Attitude {
+                    roll_rad,
+                    pitch_rad,
+                    yaw_rad: Some(yaw_rad),
+                },
+            );
         }
     }
 }

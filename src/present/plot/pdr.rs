@@ -67,6 +67,9 @@ fn scale_bar_m(span_m: f64) -> f64 {
         .unwrap_or(power)
 }
 
+/// The trajectory in metres east and north of the origin, on equal axes: the reference,
+/// the GNSS fixes used and ignored, the dead-reckoned track with its stretches without
+/// GNSS, its start and end, and a scale bar; `zoom` picks the window.
 pub fn draw_trajectory<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
     analysis: &PdrAnalysis,
@@ -83,42 +86,21 @@ pub fn draw_trajectory<DB: DrawingBackend>(
             .filter_map(|idx| analysis.reference_en_m.get(idx))
             .map(|(_, en)| (en[0], en[1]))
             .collect();
-    let mut used: Vec<(f64, f64)> = Vec::new();
-    let mut ignored: Vec<(f64, f64)> = Vec::new();
-    {
-        for (fix, decision) in &analysis.fixes {
-            let point = (fix.en_m[0], fix.en_m[1]);
-            match decision {
-                FixUse::Used | FixUse::UsedAfterReset => used.push(point),
-                FixUse::InOutage | FixUse::Rejected => ignored.push(point),
-                // Fixes of hundreds of metres of error would only stretch the axes.
-                FixUse::PoorAccuracy
-                | FixUse::DownWeighted
-                | FixUse::BeforeWalk
-                | FixUse::AfterWalk => {}
-            }
-        }
-    }
+    let FixesDrawn {
+        mut used,
+        mut ignored,
+    } = FixesDrawn::of(analysis);
     let all = || track.iter().chain(&reference).chain(&used).chain(&ignored);
     let (x_range, y_range) = map_ranges(area.dim_in_pixel(), all(), zoom);
-    // What lies inside the window: plotters would draw the rest on its edges.
-    let inside = |point: &(f64, f64)| x_range.contains(&point.0) && y_range.contains(&point.1);
-    let runs = |line: &[(f64, f64)]| runs_within(line, &x_range, &y_range);
-    used.retain(inside);
-    ignored.retain(inside);
-    let caption = match &analysis.report.position_error {
-        Some(errors) => format!(
-            "Trajectory: {} steps, RMS error {:.1} m ({:.1} %)",
-            analysis.report.n_steps, errors.rms_m, errors.rms_pct
-        ),
-        None => format!(
-            "Trajectory: {} steps, {:.0} m",
-            analysis.report.n_steps, analysis.report.pdr_distance_m
-        ),
+    let window = Window {
+        x_m: x_range.clone(),
+        y_m: y_range.clone(),
     };
+    used.retain(|point| window.contains(point));
+    ignored.retain(|point| window.contains(point));
     let mut chart = super::styled_chart(
         area,
-        caption,
+        trajectory_caption(analysis),
         x_range.clone(),
         y_range.clone(),
         "east (m)",
@@ -131,26 +113,7 @@ pub fn draw_trajectory<DB: DrawingBackend>(
         ("east (m)", "north (m)"),
         true,
     );
-    for (run_idx, run) in runs(&reference).into_iter().enumerate() {
-        let series = chart
-            .draw_series(LineSeries::new(run, REFERENCE_COLOR.stroke_width(1)))
-            .map_err(&error)?;
-        if run_idx == 0 {
-            series
-                .label("reference")
-                .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], REFERENCE_COLOR));
-        }
-    }
-    if reference.len() < 200 {
-        chart
-            .draw_series(
-                reference
-                    .iter()
-                    .filter(|point| inside(point))
-                    .map(|&p| Cross::new(p, 4, REFERENCE_COLOR.stroke_width(2))),
-            )
-            .map_err(&error)?;
-    }
+    draw_reference(&mut chart, &reference, &window).map_err(&error)?;
     if !used.is_empty() {
         super::draw_dots(&mut chart, &used, GNSS_COLOR, "GNSS used").map_err(&error)?;
     }
@@ -163,16 +126,124 @@ pub fn draw_trajectory<DB: DrawingBackend>(
         )
         .map_err(&error)?;
     }
-    for (run_idx, run) in runs(&track).into_iter().enumerate() {
-        let series = chart
-            .draw_series(LineSeries::new(run, TRACK_COLOR.stroke_width(2)))
-            .map_err(&error)?;
+    draw_track(&mut chart, &track, &window).map_err(&error)?;
+    draw_without_gnss(&mut chart, analysis, &window).map_err(&error)?;
+    draw_track_ends(&mut chart, &track, &window).map_err(&error)?;
+    draw_scale_bar(&mut chart, &x_range, &y_range).map_err(&error)?;
+    super::draw_legend(&mut chart, SeriesLabelPosition::UpperRight).map_err(&error)?;
+    Ok(frame)
+}
+
+/// The trajectory's window (metres east and north): plotters would draw what lies
+/// outside it on its edges, so only what lies inside is drawn.
+struct Window {
+    x_m: std::ops::Range<f64>,
+    y_m: std::ops::Range<f64>,
+}
+
+impl Window {
+    /// Whether `point` lies inside the window.
+    fn contains(&self, point: &(f64, f64)) -> bool {
+        self.x_m.contains(&point.0) && self.y_m.contains(&point.1)
+    }
+
+    /// The runs of `line` that lie inside the window.
+    fn runs(&self, line: &[(f64, f64)]) -> Vec<Vec<(f64, f64)>> {
+        runs_within(line, &self.x_m, &self.y_m)
+    }
+}
+
+/// The fixes drawn (m east, m north): those the track used, and those it ignored (in an
+/// outage, beyond the gate); the others are not drawn.
+struct FixesDrawn {
+    used: Vec<(f64, f64)>,
+    ignored: Vec<(f64, f64)>,
+}
+
+impl FixesDrawn {
+    /// The fixes of `analysis` to draw, by what became of them.
+    fn of(analysis: &PdrAnalysis) -> FixesDrawn {
+        let mut used: Vec<(f64, f64)> = Vec::new();
+        let mut ignored: Vec<(f64, f64)> = Vec::new();
+        for (fix, decision) in &analysis.fixes {
+            let point = (fix.en_m[0], fix.en_m[1]);
+            match decision {
+                FixUse::Used | FixUse::UsedAfterReset => used.push(point),
+                FixUse::InOutage | FixUse::Rejected => ignored.push(point),
+                // Fixes of hundreds of metres of error would only stretch the axes.
+                FixUse::PoorAccuracy
+                | FixUse::DownWeighted
+                | FixUse::BeforeWalk
+                | FixUse::AfterWalk => {}
+            }
+        }
+        FixesDrawn { used, ignored }
+    }
+}
+
+/// The trajectory's caption: the steps, and the RMS error where there is a reference,
+/// else the distance.
+fn trajectory_caption(analysis: &PdrAnalysis) -> String {
+    match &analysis.report.position_error {
+        Some(errors) => format!(
+            "Trajectory: {} steps, RMS error {:.1} m ({:.1} %)",
+            analysis.report.n_steps, errors.rms_m, errors.rms_pct
+        ),
+        None => format!(
+            "Trajectory: {} steps, {:.0} m",
+            analysis.report.n_steps, analysis.report.pdr_distance_m
+        ),
+    }
+}
+
+/// The reference track as a line, and its points as crosses when there are few.
+fn draw_reference<DB: DrawingBackend>(
+    chart: &mut super::XyChart<'_, DB>,
+    reference: &[(f64, f64)],
+    window: &Window,
+) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    for (run_idx, run) in window.runs(reference).into_iter().enumerate() {
+        let series = chart.draw_series(LineSeries::new(run, REFERENCE_COLOR.stroke_width(1)))?;
+        if run_idx == 0 {
+            series
+                .label("reference")
+                .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], REFERENCE_COLOR));
+        }
+    }
+    if reference.len() < 200 {
+        chart.draw_series(
+            reference
+                .iter()
+                .filter(|point| window.contains(point))
+                .map(|&p| Cross::new(p, 4, REFERENCE_COLOR.stroke_width(2))),
+        )?;
+    }
+    Ok(())
+}
+
+/// The dead-reckoned track.
+fn draw_track<DB: DrawingBackend>(
+    chart: &mut super::XyChart<'_, DB>,
+    track: &[(f64, f64)],
+    window: &Window,
+) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    for (run_idx, run) in window.runs(track).into_iter().enumerate() {
+        let series = chart.draw_series(LineSeries::new(run, TRACK_COLOR.stroke_width(2)))?;
         if run_idx == 0 {
             series.label("PDR").legend(|(x, y)| {
                 PathElement::new([(x, y), (x + 16, y)], TRACK_COLOR.stroke_width(2))
             });
         }
     }
+    Ok(())
+}
+
+/// The track's stretches without GNSS (outages and gaps), over the track.
+fn draw_without_gnss<DB: DrawingBackend>(
+    chart: &mut super::XyChart<'_, DB>,
+    analysis: &PdrAnalysis,
+    window: &Window,
+) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
     let mut labelled = false;
     for (start_s, end_s) in without_gnss(analysis) {
         let segment: Vec<(f64, f64)> = analysis
@@ -181,13 +252,11 @@ pub fn draw_trajectory<DB: DrawingBackend>(
             .filter(|point| (start_s..=end_s).contains(&point.t_s))
             .map(|point| (point.east_m, point.north_m))
             .collect();
-        for run in runs(&segment) {
+        for run in window.runs(&segment) {
             if run.len() < 2 {
                 continue;
             }
-            let series = chart
-                .draw_series(LineSeries::new(run, OUTAGE_COLOR.stroke_width(3)))
-                .map_err(&error)?;
+            let series = chart.draw_series(LineSeries::new(run, OUTAGE_COLOR.stroke_width(3)))?;
             if !labelled {
                 series.label("PDR without GNSS").legend(|(x, y)| {
                     PathElement::new([(x, y), (x + 16, y)], OUTAGE_COLOR.stroke_width(3))
@@ -196,22 +265,27 @@ pub fn draw_trajectory<DB: DrawingBackend>(
             }
         }
     }
+    Ok(())
+}
+
+/// The track's start (a filled circle) and end (a ring), where they lie in the window.
+fn draw_track_ends<DB: DrawingBackend>(
+    chart: &mut super::XyChart<'_, DB>,
+    track: &[(f64, f64)],
+    window: &Window,
+) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
     if let (Some(first), Some(last)) = (track.first(), track.last()) {
-        chart
-            .draw_series(
-                [
-                    (*first, TRACK_COLOR.filled()),
-                    (*last, TRACK_COLOR.stroke_width(2)),
-                ]
-                .into_iter()
-                .filter(|(point, _)| inside(point))
-                .map(|(point, style)| Circle::new(point, 5, style)),
-            )
-            .map_err(&error)?;
+        chart.draw_series(
+            [
+                (*first, TRACK_COLOR.filled()),
+                (*last, TRACK_COLOR.stroke_width(2)),
+            ]
+            .into_iter()
+            .filter(|(point, _)| window.contains(point))
+            .map(|(point, style)| Circle::new(point, 5, style)),
+        )?;
     }
-    draw_scale_bar(&mut chart, &x_range, &y_range).map_err(&error)?;
-    super::draw_legend(&mut chart, SeriesLabelPosition::UpperRight).map_err(&error)?;
-    Ok(frame)
+    Ok(())
 }
 
 /// The trajectory's ranges: every point with a margin, on equal axes (the range short
