@@ -111,7 +111,8 @@ pub fn device_export(analysis: &CalibrationAnalysis) -> Option<DeviceExport> {
 /// sensor's own axes and unit, or why there is none: the rule every write-back follows,
 /// [`crate::analysis::calibration::selection::device_write_back`].
 pub fn device_export_or_why(analysis: &CalibrationAnalysis) -> Result<DeviceExport, String> {
-    let (method, body_ut) = crate::analysis::calibration::selection::device_write_back(analysis)?;
+    let (method, body_ut) = crate::analysis::calibration::selection::device_write_back(analysis)
+        .map_err(|refused| refused.to_string())?;
     let frame = analysis
         .report
         .mag_frame

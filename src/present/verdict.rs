@@ -190,9 +190,9 @@ pub fn verdict(
     // What is written back to the device follows one rule: where it refuses, the answer
     // says why (an autopilot's compasses say it in their own sentences).
     let refused = match (&analysis.report.autopilot, analysis.device_calibration()) {
-        (None, Some(_)) => {
-            crate::analysis::calibration::selection::device_write_back(analysis).err()
-        }
+        (None, Some(_)) => crate::analysis::calibration::selection::device_write_back(analysis)
+            .err()
+            .map(|refused| refused.to_string()),
         _ => None,
     };
     match (refused, field.worse_warning()) {

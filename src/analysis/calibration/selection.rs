@@ -306,6 +306,43 @@ pub fn device_calibration(report: &CalibrationReport) -> Option<(Method, FieldCa
     Some((chosen.method, field_calibration_of(chosen)?))
 }
 
+/// Why no device calibration is written back ([`device_write_back`]); each message says
+/// what the user reads.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum WriteBackRefused {
+    #[error(
+        "an autopilot log's calibration is its {autopilot} parameter file (each compass written only \
+         where it beats the parameters in force); no sensor calibration is exported"
+    )]
+    AutopilotLog { autopilot: &'static str },
+    #[error("the ellipse and ellipsoid methods both failed (see the table)")]
+    NoThreeDFit,
+    #[error(
+        "on the check part the {label} gives {rms_deg:.1}° RMS against {raw_rms_deg:.1}° uncalibrated: \
+         it is not better than the readings as they are, so nothing is written to the \
+         device"
+    )]
+    NoBetterOnCheck {
+        label: &'static str,
+        rms_deg: f64,
+        raw_rms_deg: f64,
+    },
+    #[error(
+        "the {label} leaves |B| varying by {spread_pct:.1} % against {raw_spread_pct:.1} % for the \
+         readings as they are: nothing better to write to the device"
+    )]
+    NoSteadierField {
+        label: &'static str,
+        spread_pct: f64,
+        raw_spread_pct: f64,
+    },
+    #[error("the {label} is outside what a device accepts: {}", reasons.join("; "))]
+    OutOfBounds {
+        label: &'static str,
+        reasons: Vec<String>,
+    },
+}
+
 /// The device calibration to write back (JSON, C snippet, MotionCal packet), in body
 /// axes, or why there is none. The rule every write-back follows: the calibration must be better than
 /// the one in force (for a sensor, its readings as logged) on the part of the log held
@@ -315,18 +352,16 @@ pub fn device_calibration(report: &CalibrationReport) -> Option<(Method, FieldCa
 /// file, judged compass by compass ([`crate::analysis::calibration::autopilot`]): it gets none here.
 pub fn device_write_back(
     analysis: &CalibrationAnalysis,
-) -> Result<(Method, FieldCalibration), String> {
+) -> Result<(Method, FieldCalibration), WriteBackRefused> {
     let report = &analysis.report;
     if let Some(autopilot) = &report.autopilot {
-        return Err(format!(
-            "an autopilot log's calibration is its {} parameter file (each compass written only \
-             where it beats the parameters in force); no sensor calibration is exported",
-            autopilot.autopilot
-        ));
+        return Err(WriteBackRefused::AutopilotLog {
+            autopilot: autopilot.autopilot,
+        });
     }
-    let (method, body_ut) = analysis.device_calibration().ok_or_else(|| {
-        "the ellipse and ellipsoid methods both failed (see the table)".to_string()
-    })?;
+    let (method, body_ut) = analysis
+        .device_calibration()
+        .ok_or(WriteBackRefused::NoThreeDFit)?;
     let label = method.label();
     let checked = report
         .method(method)
@@ -334,12 +369,11 @@ pub fn device_write_back(
         .zip(report.raw_heading_error_check);
     match checked {
         Some((new, raw)) if new.rms_deg >= raw.rms_deg => {
-            return Err(format!(
-                "on the check part the {label} gives {:.1}° RMS against {:.1}° uncalibrated: \
-                 it is not better than the readings as they are, so nothing is written to the \
-                 device",
-                new.rms_deg, raw.rms_deg
-            ));
+            return Err(WriteBackRefused::NoBetterOnCheck {
+                label,
+                rms_deg: new.rms_deg,
+                raw_rms_deg: raw.rms_deg,
+            });
         }
         Some(_) => {}
         None => {
@@ -348,10 +382,11 @@ pub fn device_write_back(
             };
             if let (Some(new), Some(raw)) = (spread(&|m| body_ut.apply(m)), spread(&|m| m)) {
                 if new >= raw {
-                    return Err(format!(
-                        "the {label} leaves |B| varying by {new:.1} % against {raw:.1} % for the \
-                         readings as they are: nothing better to write to the device"
-                    ));
+                    return Err(WriteBackRefused::NoSteadierField {
+                        label,
+                        spread_pct: new,
+                        raw_spread_pct: raw,
+                    });
                 }
             }
         }
@@ -371,10 +406,7 @@ pub fn device_write_back(
         crate::fit::quality::shape_reasons(&body_ut)
     };
     if !reasons.is_empty() {
-        return Err(format!(
-            "the {label} is outside what a device accepts: {}",
-            reasons.join("; ")
-        ));
+        return Err(WriteBackRefused::OutOfBounds { label, reasons });
     }
     Ok((method, body_ut))
 }
