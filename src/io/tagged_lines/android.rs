@@ -399,6 +399,47 @@ mod tests {
         assert_eq!(report.n_data_lines, 11);
     }
 
+    /// Every line diagnostic, word for word (the wording users see).
+    #[test]
+    fn android_diagnostics_are_worded_exactly() {
+        let text = "#\tstartTime:abc\n\
+                    1000\tTYPE_ACCELEROMETER\t0\tabc\t9.8\t3\n\
+                    1020\tTYPE_ACCELEROMETER\t0\tNaN\t9.8\t3\n\
+                    1040\tTYPE_ACCELEROMETER\t0\t9.8\n\
+                    x1060\tTYPE_GYROSCOPE\t0\t0\t0\n\
+                    1080\n\
+                    1100\tTYPE_ROTATION_VECTOR\t0.9\t0.9\t0.0\t3\n\
+                    1120\tTYPE_ROTATION_VECTOR\t0\t0\t0\t1\t3\t7\n\
+                    1140\tTYPE_MAGNETIC_FIELD_UNCALIBRATED\t1\t2\t3\t4\t5\n\
+                    1160\tTYPE_WAYPOINT\t1\n\
+                    1180\tTYPE_MAGNETIC_FIELD\t20\t0\t-40\t3\n";
+        let report = android(text).expect("readable");
+        let messages: Vec<&str> = report
+            .diagnostics
+            .kept
+            .iter()
+            .map(|d| d.message.as_str())
+            .collect();
+        assert_eq!(
+            messages,
+            [
+                "startTime is not a number (abc); times count from the earliest sample instead",
+                "TYPE_ACCELEROMETER: y is not a number (abc)",
+                "TYPE_ACCELEROMETER: y is NaN",
+                "TYPE_ACCELEROMETER: 3 or 4 values expected (x y z [accuracy]), found 2",
+                "the time (unix_ms) is not a number (x1060)",
+                "expected unix_ms<TAB>TYPE<TAB>values, found only \"1080\"",
+                "TYPE_ROTATION_VECTOR: the rotation vector's length is 1.2728, more than 1, so it \
+                 is not part of a unit quaternion",
+                "TYPE_ROTATION_VECTOR: 3 to 5 values expected (x y z [accuracy or w [accuracy]]), \
+                 found 6",
+                "TYPE_MAGNETIC_FIELD_UNCALIBRATED: 6 or 7 values expected (mx my mz bx by bz \
+                 [accuracy]), found 5",
+                "TYPE_WAYPOINT: 2 values expected (x y), found 1",
+            ]
+        );
+    }
+
     #[test]
     fn android_without_start_time_counts_from_the_earliest_sample() {
         let text = "2000\tTYPE_MAGNETIC_FIELD\t20\t0\t-40\t3\n\
