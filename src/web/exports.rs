@@ -228,7 +228,7 @@ fn write(page: &Page, results: &Results, export: Export) -> Result<(), String> {
         }
         Export::Track(format) => {
             let pdr = results.pdr.as_ref().map_err(Clone::clone)?;
-            let text = track_text(pdr, format)?;
+            let text = track_text(pdr, format).map_err(|error| error.to_string())?;
             let (extension, mime) = match format {
                 TrackFormat::Csv => ("csv", "text/csv"),
                 TrackFormat::GeoJson => ("geojson", "application/geo+json"),
