@@ -6,6 +6,7 @@
 //! cover little of the circle is fitted on top of the best 3D calibration so far.
 
 use nalgebra::{Vector2, Vector3};
+use thiserror::Error;
 
 use super::{inertial_options, plane_options, FittedEllipse, MethodParameters, MethodReport};
 use crate::analysis::levelled::Levelling;
@@ -13,10 +14,11 @@ use crate::attitude::compass_heading::heading_rad;
 use crate::attitude::tilt::Tilt;
 use crate::earth::wmm::ExpectedField;
 use crate::fit::coverage::sphere_coverage;
-use crate::fit::ellipse::fit_plane;
-use crate::fit::ellipsoid::{fit_inertial_trusting, TiltTrusted};
+use crate::fit::ellipse::{fit_plane, PlaneError};
+use crate::fit::ellipsoid::{fit_inertial_trusting, InertialError, TiltTrusted};
 use crate::fit::minmax::MinMaxCalibration;
-use crate::fit::ref_ls::{fit_reference_ls, PartialPrior, RefLsOptions};
+use crate::fit::ref_ls::{fit_reference_ls, PartialPrior, RefLsError, RefLsOptions};
+use crate::fit::CalibError;
 use crate::io::SensorFrame;
 
 /// What every method's fit reads: the samples, their levelled and train parts, the
@@ -54,13 +56,30 @@ pub(super) struct MethodOutputs<'a> {
     pub(super) notes: &'a mut Vec<String>,
 }
 
+/// Why a method was not fitted: its fit's own error, or no reference heading for the
+/// reference least squares. The method table shows the message.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub(super) enum MethodFitError {
+    #[error(transparent)]
+    MinMax(#[from] CalibError),
+    #[error(transparent)]
+    Ellipse(#[from] PlaneError),
+    #[error(transparent)]
+    Ellipsoid(#[from] InertialError),
+    #[error(transparent)]
+    RefLs(#[from] RefLsError),
+    /// The reference least squares (Eq. 8) without a reference heading in the train part.
+    #[error("needs a reference heading (a ref_heading_deg column, or GPS course while moving)")]
+    NoReference,
+}
+
 /// A method's parameters and its heading at every sample, or why it was not fitted.
-pub(super) type Fitted = Result<(MethodParameters, Vec<f64>), String>;
+pub(super) type Fitted = Result<(MethodParameters, Vec<f64>), MethodFitError>;
 
 /// Min/max (Eq. 6-7) on the levelled train samples.
 pub(super) fn fit_min_max(inputs: &MethodInputs, outputs: &mut MethodOutputs) -> Fitted {
     MinMaxCalibration::fit(inputs.level_train)
-        .map_err(|error| error.to_string())
+        .map_err(MethodFitError::MinMax)
         .map(|calibration| {
             let headings = crate::base::par::map(inputs.level_raw_ut, |_, &level| {
                 heading_rad(calibration.apply(level), inputs.declination_rad)
@@ -94,7 +113,7 @@ pub(super) fn fit_ellipse(inputs: &MethodInputs, outputs: &mut MethodOutputs) ->
         inputs.tilt_train,
         &plane_options(inputs.expected),
     )
-    .map_err(|error| error.to_string())
+    .map_err(MethodFitError::Ellipse)
     .map(|fit| {
         let headings =
             inputs.map_tilted(|mag, tilt| fit.heading_rad(mag, tilt, inputs.declination_rad));
@@ -153,7 +172,7 @@ pub(super) fn fit_ellipsoid(inputs: &MethodInputs, outputs: &mut MethodOutputs) 
         },
     );
     fit_inertial_trusting(inputs.mag_train, tilt, &inertial_options)
-        .map_err(|error| error.to_string())
+        .map_err(MethodFitError::Ellipsoid)
         .map(|fit| {
             if fit.tilt_untrusted {
                 outputs
@@ -228,10 +247,7 @@ pub(super) fn fit_ref_ls(
         })
         .flatten();
     if pairs.0.is_empty() {
-        Err(
-            "needs a reference heading (a ref_heading_deg column, or GPS course while moving)"
-                .to_string(),
-        )
+        Err(MethodFitError::NoReference)
     } else if let Some((base_method, calibration, _)) = base {
         let level_base_ut: Vec<Vector2<f64>> = inputs
             .samples
@@ -251,7 +267,7 @@ pub(super) fn fit_ref_ls(
             ..refls_options
         };
         fit_reference_ls(&base_pairs, &pairs.1, &partial_options)
-                .map_err(|error| error.to_string())
+                .map_err(MethodFitError::RefLs)
                 .map(|fit| {
                     outputs.notes.push(format!(
                         "reference LS: the reference headings cover too little of the circle for Eq. 8 alone \
@@ -268,7 +284,7 @@ pub(super) fn fit_ref_ls(
                 })
     } else {
         fit_reference_ls(&pairs.0, &pairs.1, &refls_options)
-            .map_err(|error| error.to_string())
+            .map_err(MethodFitError::RefLs)
             .map(|fit| {
                 let headings =
                     crate::base::par::map(inputs.level_raw_ut, |_, &level| fit.heading_rad(level));

@@ -554,7 +554,7 @@ fn run_methods(
                 ));
                 (Some(parameters), None, scores.0, scores.1)
             }
-            Err(reason) => (None, Some(reason), None, None),
+            Err(reason) => (None, Some(reason.to_string()), None, None),
         };
         method_reports.push(MethodReport {
             method,
