@@ -20,15 +20,33 @@
 //!   validation share, from a fixed seed (the same data give the same weights).
 
 use serde::Serialize;
+use thiserror::Error;
 
 use crate::base::angle::wrap_to_pi;
 use crate::deviation::network::{
-    correlation_matrix, train, Dataset, Mlp, TrainOptions, TrainingReport,
+    correlation_matrix, train, Dataset, Mlp, NnError, TrainOptions, TrainingReport,
 };
 
+/// The fewest one-second pairs (train samples with a reference heading) the network
+/// trains on.
+const MIN_PAIRS: usize = 50;
 /// The most one-second pairs the network trains on (evenly thinned beyond): 50 minutes
 /// are plenty for 15 neurons (about 120 weights), and keep training in the page short.
 const MAX_PAIRS: usize = 3000;
+
+/// Why the network correction ([`train_correction`]) could not be trained.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum NeuralTrainError {
+    /// Fewer one-second pairs than the network needs (50).
+    #[error(
+        "needs at least {MIN_PAIRS} seconds of train samples with a reference heading; there \
+         were {n_pairs}"
+    )]
+    TooFewPairs { n_pairs: usize },
+    /// The network's data or training failed.
+    #[error(transparent)]
+    Network(#[from] NnError),
+}
 /// Share of samples a condition must be known at for it to be an input.
 const MIN_INPUT_COVERAGE: f64 = 0.9;
 
@@ -192,7 +210,7 @@ pub fn train_correction(
     conditions: &Conditions<'_>,
     bins: &[Vec<usize>],
     seed: u64,
-) -> Result<NeuralCorrection, String> {
+) -> Result<NeuralCorrection, NeuralTrainError> {
     let optional = OptionalInputs {
         gyro: coverage(conditions.gyro_heading_deg) >= MIN_INPUT_COVERAGE,
         temp: coverage(conditions.temp_c) >= MIN_INPUT_COVERAGE,
@@ -261,8 +279,8 @@ pub fn train_correction(
         targets_rad.push(sum_sin.atan2(sum_cos));
     }
     let n_pairs = targets_rad.len();
-    if n_pairs < 50 || width == 0 {
-        return Err(format!("needs at least 50 seconds of train samples with a reference heading; there were {n_pairs}"));
+    if n_pairs < MIN_PAIRS || width == 0 {
+        return Err(NeuralTrainError::TooFewPairs { n_pairs });
     }
     // Unwrap about the circular mean, in degrees.
     let (sum_sin, sum_cos) = targets_rad.iter().fold((0.0, 0.0), |(s, c), &target| {
@@ -273,13 +291,12 @@ pub fn train_correction(
         .iter()
         .map(|&target| (mean_rad + wrap_to_pi(target - mean_rad)).to_degrees())
         .collect();
-    let data = Dataset::new(&rows, width, &targets_deg, 1).map_err(|error| error.to_string())?;
+    let data = Dataset::new(&rows, width, &targets_deg, 1)?;
     let options = TrainOptions {
         seed,
         ..TrainOptions::default()
     };
-    let (model, training): (Mlp, TrainingReport) =
-        train(&data, &options).map_err(|error| error.to_string())?;
+    let (model, training): (Mlp, TrainingReport) = train(&data, &options)?;
     let correlation = correlation_matrix(&paper_rows, inputs.len())
         .map(|matrix| matrix.coefficients)
         .unwrap_or_default();

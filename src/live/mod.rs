@@ -49,6 +49,7 @@ mod sending;
 
 use nalgebra::Vector3;
 use serde::Serialize;
+use thiserror::Error;
 
 use crate::attitude::tilt::Tilt;
 use crate::fit::coverage::{sphere_coverage, SphereCoverage};
@@ -72,6 +73,20 @@ pub const MAX_KEPT_SAMPLES: usize = 16_384;
 
 /// The fewest magnetometer samples a refit is tried on.
 pub const MIN_FIT_SAMPLES: usize = 50;
+
+/// Why [`LiveSession::refit`] made no fit; the message says what to do.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum RefitError {
+    /// Fewer than `min` ([`MIN_FIT_SAMPLES`]) magnetometer samples so far.
+    #[error(
+        "{n_samples} magnetometer samples so far; the first fit needs {min}. Keep turning the \
+         device."
+    )]
+    TooFewSamples { n_samples: usize, min: usize },
+    /// The ellipsoid could not be fitted (all samples in a plane, …).
+    #[error("No fit yet: {0}")]
+    Fit(#[from] EllipsoidError),
+}
 
 /// A live calibration session: everything received, what it was read as, and the fit.
 #[derive(Debug, Clone)]
@@ -296,25 +311,21 @@ impl LiveSession {
 
     /// Refits from every sample so far and measures the fit. `Err` says why no fit is
     /// possible yet (too few samples, or all in a plane) and what to do.
-    pub fn refit(&mut self) -> Result<&LiveQuality, String> {
+    pub fn refit(&mut self) -> Result<&LiveQuality, RefitError> {
         let n_samples = self.accumulator.n_samples();
         if n_samples < MIN_FIT_SAMPLES {
-            return Err(format!(
-                "{n_samples} magnetometer samples so far; the first fit needs {MIN_FIT_SAMPLES}. \
-                 Keep turning the device."
-            ));
+            return Err(RefitError::TooFewSamples {
+                n_samples,
+                min: MIN_FIT_SAMPLES,
+            });
         }
-        let fit = self
-            .accumulator
-            .solve(EllipsoidModel::Auto, None)
-            .map_err(|error| describe_fit_error(&error))?;
+        let fit = self.accumulator.solve(EllipsoidModel::Auto, None)?;
         // The train blocks alone, with the full fit's model, for the held-back check.
         let train = self
             .blocks
             .train()
             .solve(fit.model, None)
-            .map(|train| train.calibration)
-            .map_err(|error| error.to_string());
+            .map(|train| train.calibration);
         let quality = self.measure(fit.calibration, fit.model, n_samples, train);
         let recording = self.reader.recording();
         match &mut self.attitude {
@@ -362,7 +373,7 @@ impl LiveSession {
         calibration: FieldCalibration,
         model: EllipsoidModel,
         n_samples: usize,
-        train: Result<FieldCalibration, String>,
+        train: Result<FieldCalibration, EllipsoidError>,
     ) -> LiveQuality {
         let measured = self.measure_only(&calibration);
         let held_back = HeldBack::assess(
@@ -447,10 +458,6 @@ struct Measured {
 const NMEA_LABEL: &str = "NMEA 0183 sentences (headings and fixes, no magnetometer vector to \
                           calibrate: the stream is recorded; download it and drop it on the \
                           page to analyse it)";
-
-fn describe_fit_error(error: &EllipsoidError) -> String {
-    format!("No fit yet: {error}")
-}
 
 /// A fitted session of a board turned through `share` of the sphere from its top (a
 /// Fibonacci spiral of `n_samples` MotionCal `Raw:` lines, hard iron (100, −50, 300)

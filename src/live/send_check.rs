@@ -25,10 +25,10 @@
 //! Earth's (0.35-1.65 × the World Magnetic Model's, else 10-150 µT).
 
 use nalgebra::{Matrix3, Vector3};
-use serde::Serialize;
+use serde::{Serialize, Serializer};
 
 use crate::fit::model::FieldCalibration;
-use crate::fit::streaming_ellipsoid::EllipsoidAccumulator;
+use crate::fit::streaming_ellipsoid::{EllipsoidAccumulator, EllipsoidError};
 
 use crate::fit::quality::acceptance_reasons;
 use crate::fit::quality::FieldVerdict;
@@ -203,8 +203,9 @@ pub struct HeldBack {
     /// The fit of the train blocks alone, with the full fit's model (`None` for a saved
     /// calibration, which was fitted on other data).
     pub train_calibration: Option<FieldCalibration>,
-    /// Why there is no train-only fit, when it failed.
-    pub train_error: Option<String>,
+    /// Why there is no train-only fit, when it failed (serialized as its message).
+    #[serde(serialize_with = "serialize_message")]
+    pub train_error: Option<EllipsoidError>,
     pub train: Option<Compared>,
     /// The calibration to send (the full fit, which has seen the check samples, or a
     /// saved one).
@@ -213,13 +214,24 @@ pub struct HeldBack {
     pub in_force_on_check: OnCheck,
 }
 
+/// An optional error as its message, as the held-back check's JSON shows it.
+fn serialize_message<S: Serializer>(
+    error: &Option<EllipsoidError>,
+    serializer: S,
+) -> Result<S::Ok, S::Error> {
+    error
+        .as_ref()
+        .map(ToString::to_string)
+        .serialize(serializer)
+}
+
 impl HeldBack {
     /// The check of `candidate` (and of `train`, the train-only fit or why it failed)
     /// against `in_force` on the split's check samples.
     pub(super) fn assess(
         blocks: &Blocks,
         candidate: &FieldCalibration,
-        train: Option<Result<FieldCalibration, String>>,
+        train: Option<Result<FieldCalibration, EllipsoidError>>,
         in_force: InForce,
         expected_field_ut: Option<f64>,
     ) -> HeldBack {

@@ -139,14 +139,16 @@ impl LiveSession {
         let Some(quality) = self.quality.as_mut() else {
             return;
         };
-        let train = quality
-            .held_back
-            .train_calibration
-            .ok_or_else(|| quality.held_back.train_error.clone().unwrap_or_default());
+        let held_back = &quality.held_back;
+        let train = match (held_back.train_calibration, &held_back.train_error) {
+            (Some(calibration), _) => Some(Ok(calibration)),
+            (None, Some(error)) => Some(Err(error.clone())),
+            (None, None) => None,
+        };
         quality.held_back = HeldBack::assess(
             &self.blocks,
             &quality.calibration,
-            Some(train),
+            train,
             in_force,
             quality.expected_field_ut,
         );

@@ -136,8 +136,33 @@ fn half_a_sphere_is_not_good_enough_and_says_where_to_turn() {
 fn too_few_samples_say_how_many_are_needed() {
     let board = Board::new();
     let (mut session, _) = streamed(&board, 20, 64);
-    let message = session.refit().expect_err("20 samples are too few");
-    assert!(message.contains("needs 50"), "{message}");
+    let error = session.refit().expect_err("20 samples are too few");
+    let &RefitError::TooFewSamples { n_samples, min: 50 } = &error else {
+        panic!("{error:?}");
+    };
+    assert_eq!(
+        error.to_string(),
+        format!(
+            "{n_samples} magnetometer samples so far; the first fit needs 50. Keep turning the \
+             device."
+        )
+    );
+}
+
+#[test]
+fn a_device_held_still_gets_no_fit_and_is_told_to_turn() {
+    let mut session = LiveSession::new();
+    session.feed("Raw:0,0,8192,0,0,0,100,2,300\n".repeat(60).as_bytes(), 0.0);
+    let error = session.refit().expect_err("one direction does not fit");
+    assert!(
+        matches!(error, RefitError::Fit(EllipsoidError::NoRotation { .. })),
+        "{error:?}"
+    );
+    assert_eq!(
+        error.to_string(),
+        "No fit yet: the samples hardly change (spread 0.00 µT): the device was not turned. \
+         Record while turning it through many orientations."
+    );
 }
 
 #[test]

@@ -10,6 +10,7 @@ use std::fmt::Write as _;
 use super::PdrAnalysis;
 use crate::base::geodesy::LocalFrame;
 use nalgebra::Vector3;
+use thiserror::Error;
 
 /// The track's formats.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -33,14 +34,25 @@ impl TrackFormat {
     }
 }
 
+/// Why the track cannot be written in a format.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum TrackExportError {
+    /// GeoJSON or GPX (`format`) asked of a track without a geodetic frame.
+    #[error(
+        "the track has no latitude and longitude (the log has no usable GNSS fix), so it can \
+         only be written as CSV in local metres"
+    )]
+    NoLatLon { format: TrackFormat },
+}
+
 /// The track in `format`; an error saying why for GeoJSON and GPX without a frame.
-pub fn track_text(analysis: &PdrAnalysis, format: TrackFormat) -> Result<String, String> {
+pub fn track_text(analysis: &PdrAnalysis, format: TrackFormat) -> Result<String, TrackExportError> {
     match format {
         TrackFormat::Csv => Ok(csv(analysis)),
         TrackFormat::GeoJson | TrackFormat::Gpx => {
-            let frame = analysis.frame.ok_or_else(|| {
-                "the track has no latitude and longitude (the log has no usable GNSS fix), so it can only be written as CSV in local metres".to_string()
-            })?;
+            let frame = analysis
+                .frame
+                .ok_or(TrackExportError::NoLatLon { format })?;
             Ok(if format == TrackFormat::GeoJson {
                 geojson(analysis, &frame)
             } else {
@@ -162,5 +174,17 @@ mod tests {
         assert_eq!(TrackFormat::from_file_name("track"), None);
         assert_eq!(xml_escape("a<&>\""), "a&lt;&amp;&gt;&quot;");
         assert_eq!(json_escape("a\"b"), "a\\\"b");
+    }
+
+    #[test]
+    fn a_track_without_lat_lon_says_csv_only() {
+        assert_eq!(
+            TrackExportError::NoLatLon {
+                format: TrackFormat::Gpx
+            }
+            .to_string(),
+            "the track has no latitude and longitude (the log has no usable GNSS fix), so it can \
+             only be written as CSV in local metres"
+        );
     }
 }

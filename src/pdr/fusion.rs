@@ -14,6 +14,7 @@
 //!   position uncertainty and takes the fix.
 
 use serde::Serialize;
+use thiserror::Error;
 
 use super::ekf::{EkfNoise, PdrEkf};
 
@@ -40,16 +41,28 @@ impl Outage {
     }
 }
 
+/// An item of an outage list ([`parse_outages`]) that is not `START-END` in seconds,
+/// START before END.
+#[derive(Debug, Clone, PartialEq, Error)]
+#[error(
+    "\"{item}\" is not an outage: write START-END in seconds of log time, START before END, \
+     e.g. 240-840"
+)]
+pub struct OutageError {
+    /// The item as written, trimmed.
+    pub item: String,
+}
+
 /// Outages written as a list, `START:END` or `START-END` in seconds, separated by commas
 /// or semicolons (`240:840, 900-960`); an empty text is no outage. The error names the
 /// item that could not be read.
-pub fn parse_outages(text: &str) -> Result<Vec<Outage>, String> {
+pub fn parse_outages(text: &str) -> Result<Vec<Outage>, OutageError> {
     text.split([',', ';'])
         .map(str::trim)
         .filter(|item| !item.is_empty())
         .map(|item| {
-            Outage::parse(item).ok_or_else(|| {
-                format!("\"{item}\" is not an outage: write START-END in seconds of log time, START before END, e.g. 240-840")
+            Outage::parse(item).ok_or_else(|| OutageError {
+                item: item.to_string(),
             })
         })
         .collect()
@@ -275,7 +288,11 @@ mod tests {
         );
         assert_eq!(parse_outages("  "), Ok(Vec::new()));
         let error = parse_outages("240-840, 9-3").expect_err("end before start");
-        assert!(error.starts_with("\"9-3\" is not an outage"), "{error}");
+        assert_eq!(
+            error.to_string(),
+            "\"9-3\" is not an outage: write START-END in seconds of log time, START before \
+             END, e.g. 240-840"
+        );
     }
 
     fn walk_north(n: usize) -> Vec<StepInput> {

@@ -135,7 +135,7 @@ pub enum StepModelError {
     #[error("the {model} step model needs per-step references (GNSS speed or reference positions); a known total distance fits only the Weinberg model")]
     NeedsPerStepReferences { model: &'static str },
     #[error("the step-length network could not be trained: {0}")]
-    Training(String),
+    Training(#[from] network::NnError),
 }
 
 /// (Amax − Amin)^¼, the feature of Weinberg's model.
@@ -273,8 +273,7 @@ pub fn fit_segments(
                 .flat_map(|(run, _)| run.iter().flat_map(neural_inputs))
                 .collect();
             let targets: Vec<f64> = usable.iter().map(|(_, length)| *length).collect();
-            let data = Dataset::new(&inputs, 4, &targets, 1)
-                .map_err(|error| StepModelError::Training(error.to_string()))?;
+            let data = Dataset::new(&inputs, 4, &targets, 1)?;
             let options = TrainOptions {
                 n_hidden: 16,
                 activation: Activation::Tanh,
@@ -284,8 +283,7 @@ pub fn fit_segments(
                 seed,
                 ..TrainOptions::default()
             };
-            let (model, _report): (Mlp, network::TrainingReport) = network::train(&data, &options)
-                .map_err(|error| StepModelError::Training(error.to_string()))?;
+            let (model, _report): (Mlp, network::TrainingReport) = network::train(&data, &options)?;
             Ok(StepLengthModel::Neural {
                 network: Box::new(model),
             })

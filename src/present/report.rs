@@ -15,8 +15,10 @@ use std::fmt::Write as _;
 use plotters::prelude::*;
 
 use serde::Serialize;
+use thiserror::Error;
 
 use crate::analysis::calibration::autopilot::AutopilotCalibration;
+use crate::analysis::calibration::selection::WriteBackRefused;
 use crate::analysis::calibration::{CalibrationAnalysis, CalibrationReport, Method};
 use crate::analysis::headings::{HeadingAnalysis, HeadingReport};
 use crate::fit::export::{CalibrationExport, SensorCalibration};
@@ -107,12 +109,25 @@ pub fn device_export(analysis: &CalibrationAnalysis) -> Option<DeviceExport> {
     device_export_or_why(analysis).ok()
 }
 
+/// Why there is no device calibration to write back ([`device_export_or_why`]).
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum DeviceExportError {
+    /// The rule every write-back follows refused it
+    /// ([`crate::analysis::calibration::selection::device_write_back`]): an autopilot
+    /// log, no 3D method fitted, not better than the readings as they are, outside a
+    /// device's bounds.
+    #[error(transparent)]
+    NotWrittenBack(#[from] WriteBackRefused),
+}
+
 /// The device calibration to write back (JSON, C snippet, MotionCal packet) in the
 /// sensor's own axes and unit, or why there is none: the rule every write-back follows,
 /// [`crate::analysis::calibration::selection::device_write_back`].
-pub fn device_export_or_why(analysis: &CalibrationAnalysis) -> Result<DeviceExport, String> {
+pub fn device_export_or_why(
+    analysis: &CalibrationAnalysis,
+) -> Result<DeviceExport, DeviceExportError> {
     let (method, body_ut) = crate::analysis::calibration::selection::device_write_back(analysis)
-        .map_err(|refused| refused.to_string())?;
+        .map_err(DeviceExportError::NotWrittenBack)?;
     let frame = analysis
         .report
         .mag_frame

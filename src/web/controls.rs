@@ -90,8 +90,8 @@ pub fn read(document: &Document) -> Controls {
     let known_distance_m =
         number(KNOWN_DISTANCE_ID, "Known distance", &mut problems).filter(|m| *m > 0.0);
     let outages = match input(document, OUTAGES_ID).map(|input| input.value()) {
-        Some(text) => parse_outages(&text).unwrap_or_else(|message| {
-            problems.push(format!("GNSS outages: {message}"));
+        Some(text) => parse_outages(&text).unwrap_or_else(|error| {
+            problems.push(format!("GNSS outages: {error}"));
             Vec::new()
         }),
         None => Vec::new(),

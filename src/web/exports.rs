@@ -130,7 +130,9 @@ pub fn enable(document: &Document, results: Option<&Rc<Results>>, recording: Opt
                     .unwrap_or_else(|| "The log this analysis came from is gone.".to_string()),
             ),
             (Some(results), Export::CalibrationJson | Export::CSnippet) => {
-                device_export_or_why(&results.calibration).err()
+                device_export_or_why(&results.calibration)
+                    .err()
+                    .map(|error| error.to_string())
             }
             _ => None,
         };
@@ -169,7 +171,8 @@ fn write(page: &Page, results: &Results, export: Export) -> Result<(), String> {
     let stem = file_stem(&results.calibration.report.file_name);
     match export {
         Export::CalibrationJson => {
-            let export = device_export_or_why(&results.calibration)?;
+            let export =
+                device_export_or_why(&results.calibration).map_err(|error| error.to_string())?;
             let text = calibration_json(&export.sensor)?;
             download_bytes(
                 document,
@@ -179,7 +182,8 @@ fn write(page: &Page, results: &Results, export: Export) -> Result<(), String> {
             );
         }
         Export::CSnippet => {
-            let export = device_export_or_why(&results.calibration)?;
+            let export =
+                device_export_or_why(&results.calibration).map_err(|error| error.to_string())?;
             download_bytes(
                 document,
                 &format!("{stem}-calibration.h"),
@@ -228,7 +232,7 @@ fn write(page: &Page, results: &Results, export: Export) -> Result<(), String> {
         }
         Export::Track(format) => {
             let pdr = results.pdr.as_ref().map_err(Clone::clone)?;
-            let text = track_text(pdr, format)?;
+            let text = track_text(pdr, format).map_err(|error| error.to_string())?;
             let (extension, mime) = match format {
                 TrackFormat::Csv => ("csv", "text/csv"),
                 TrackFormat::GeoJson => ("geojson", "application/geo+json"),

@@ -7,6 +7,7 @@
 //! cover little of the circle is fitted on top of the best 3D calibration so far.
 
 use nalgebra::{Vector2, Vector3};
+use thiserror::Error;
 
 use super::row_key::RowKey;
 use super::selection::{choose_by_reference, Choice, Scored};
@@ -20,10 +21,11 @@ use crate::attitude::tilt::Tilt;
 use crate::base::stats::HeadingErrorStats;
 use crate::earth::wmm::ExpectedField;
 use crate::fit::coverage::sphere_coverage;
-use crate::fit::ellipse::fit_plane;
-use crate::fit::ellipsoid::{fit_inertial_trusting, TiltTrusted};
+use crate::fit::ellipse::{fit_plane, PlaneError};
+use crate::fit::ellipsoid::{fit_inertial_trusting, InertialError, TiltTrusted};
 use crate::fit::minmax::MinMaxCalibration;
-use crate::fit::ref_ls::{fit_reference_ls, PartialPrior, RefLsOptions};
+use crate::fit::ref_ls::{fit_reference_ls, PartialPrior, RefLsError, RefLsOptions};
+use crate::fit::CalibError;
 use crate::io::SensorFrame;
 
 /// What every method's fit reads: the samples, their levelled and train parts, the
@@ -61,8 +63,25 @@ struct MethodOutputs<'a> {
     notes: &'a mut Vec<String>,
 }
 
+/// Why a method was not fitted: its fit's own error, or no reference heading for the
+/// reference least squares. The method table shows the message.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub(super) enum MethodFitError {
+    #[error(transparent)]
+    MinMax(#[from] CalibError),
+    #[error(transparent)]
+    Ellipse(#[from] PlaneError),
+    #[error(transparent)]
+    Ellipsoid(#[from] InertialError),
+    #[error(transparent)]
+    RefLs(#[from] RefLsError),
+    /// The reference least squares (Eq. 8) without a reference heading in the train part.
+    #[error("needs a reference heading (a ref_heading_deg column, or GPS course while moving)")]
+    NoReference,
+}
+
 /// A method's parameters and its heading at every sample, or why it was not fitted.
-type Fitted = Result<(MethodParameters, Vec<f64>), String>;
+type Fitted = Result<(MethodParameters, Vec<f64>), MethodFitError>;
 
 /// What [`fit_and_score`] gives: each method's report and heading (degrees) where it
 /// was fitted, the corrections the plots draw, and uncalibrated's scores with the best by
@@ -157,7 +176,7 @@ fn run_methods(
                 ));
                 (Some(parameters), None, scores.0, scores.1)
             }
-            Err(reason) => (None, Some(reason), None, None),
+            Err(reason) => (None, Some(reason.to_string()), None, None),
         };
         method_reports.push(MethodReport {
             method,
@@ -205,7 +224,7 @@ fn scored_methods(
 /// Min/max (Eq. 6-7) on the levelled train samples.
 fn fit_min_max(inputs: &MethodInputs, outputs: &mut MethodOutputs) -> Fitted {
     MinMaxCalibration::fit(inputs.level_train)
-        .map_err(|error| error.to_string())
+        .map_err(MethodFitError::MinMax)
         .map(|calibration| {
             let headings = crate::base::par::map(inputs.level_raw_ut, |_, &level| {
                 heading_rad(calibration.apply(level), inputs.declination_rad)
@@ -239,7 +258,7 @@ fn fit_ellipse(inputs: &MethodInputs, outputs: &mut MethodOutputs) -> Fitted {
         inputs.tilt_train,
         &plane_options(inputs.expected),
     )
-    .map_err(|error| error.to_string())
+    .map_err(MethodFitError::Ellipse)
     .map(|fit| {
         let headings =
             inputs.map_tilted(|mag, tilt| fit.heading_rad(mag, tilt, inputs.declination_rad));
@@ -298,7 +317,7 @@ fn fit_ellipsoid(inputs: &MethodInputs, outputs: &mut MethodOutputs) -> Fitted {
         },
     );
     fit_inertial_trusting(inputs.mag_train, tilt, &inertial_options)
-        .map_err(|error| error.to_string())
+        .map_err(MethodFitError::Ellipsoid)
         .map(|fit| {
             if fit.tilt_untrusted {
                 outputs
@@ -373,10 +392,7 @@ fn fit_ref_ls(
         })
         .flatten();
     if pairs.0.is_empty() {
-        Err(
-            "needs a reference heading (a ref_heading_deg column, or GPS course while moving)"
-                .to_string(),
-        )
+        Err(MethodFitError::NoReference)
     } else if let Some((base_method, calibration, _)) = base {
         let level_base_ut: Vec<Vector2<f64>> = inputs
             .samples
@@ -396,7 +412,7 @@ fn fit_ref_ls(
             ..refls_options
         };
         fit_reference_ls(&base_pairs, &pairs.1, &partial_options)
-                .map_err(|error| error.to_string())
+                .map_err(MethodFitError::RefLs)
                 .map(|fit| {
                     outputs.notes.push(format!(
                         "reference LS: the reference headings cover too little of the circle for Eq. 8 alone \
@@ -413,7 +429,7 @@ fn fit_ref_ls(
                 })
     } else {
         fit_reference_ls(&pairs.0, &pairs.1, &refls_options)
-            .map_err(|error| error.to_string())
+            .map_err(MethodFitError::RefLs)
             .map(|fit| {
                 let headings =
                     crate::base::par::map(inputs.level_raw_ut, |_, &level| fit.heading_rad(level));

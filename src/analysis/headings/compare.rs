@@ -399,7 +399,7 @@ fn neural_stacks(
                 }
                 reports.push(correction.report);
             }
-            Err(reason) => table.push_error(key, label, reason),
+            Err(reason) => table.push_error(key, label, reason.to_string()),
         }
     }
     reports

@@ -38,11 +38,32 @@
 //! earliest sample when there is no header.
 
 use nalgebra::Vector2;
+use thiserror::Error;
 
 use super::collector::{Clock, Collector, Slot};
-use super::fields::{check_count, finite, quaternion_from_rotation_vector, split_fields, vector3};
+use super::fields::{
+    check_count, finite, quaternion_from_rotation_vector, split_fields, vector3, TaggedFieldError,
+};
 use super::{LineReader, ANDROID_DUMP, MAX_LINE_BYTES};
 use crate::io::{shorten, ImportError, ImportReport};
+
+/// Why a line of an Android sensor dump was not read; the line's diagnostic.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum AndroidLineError {
+    /// The line has no type after its time; `found` is its first field.
+    #[error("expected unix_ms<TAB>TYPE<TAB>values, found only {:?}", shorten(.found))]
+    NoType { found: String },
+    /// The time (unix_ms) is not a finite number.
+    #[error(transparent)]
+    Time(#[from] TaggedFieldError),
+    /// A value of a line of type `kind` (`TYPE_ACCELEROMETER`, …), or their count.
+    #[error("{kind}: {error}")]
+    InType {
+        kind: String,
+        #[source]
+        error: TaggedFieldError,
+    },
+}
 
 #[derive(Default)]
 pub struct AndroidReader {
@@ -75,8 +96,8 @@ impl LineReader for AndroidReader {
         } else {
             trimmed.split_whitespace().collect()
         };
-        if let Err(message) = self.read_fields(number, &fields) {
-            self.collector.problem(number, message);
+        if let Err(error) = self.read_fields(number, &fields) {
+            self.collector.problem(number, error.to_string());
         }
     }
 
@@ -124,48 +145,60 @@ impl AndroidReader {
         }
         match number_of(start, "startTime") {
             Ok(start_ms) => self.start_time_ms = Some(start_ms),
-            Err(message) => self.collector.problem(
+            Err(error) => self.collector.problem(
                 number,
-                format!("{message}; times count from the earliest sample instead"),
+                format!("{error}; times count from the earliest sample instead"),
             ),
         }
     }
 
-    fn read_fields(&mut self, number: usize, fields: &[&str]) -> Result<(), String> {
+    fn read_fields(&mut self, number: usize, fields: &[&str]) -> Result<(), AndroidLineError> {
         let (Some(time), Some(kind)) = (fields.first(), fields.get(1)) else {
-            return Err(format!(
-                "expected unix_ms<TAB>TYPE<TAB>values, found only {:?}",
-                shorten(fields.first().copied().unwrap_or_default())
-            ));
+            return Err(AndroidLineError::NoType {
+                found: fields.first().copied().unwrap_or_default().to_string(),
+            });
         };
         let t_ms = finite(Some(time), "the time (unix_ms)")?;
         let values = fields.get(2..).unwrap_or_default();
+        self.read_values(number, kind, t_ms, values)
+            .map_err(|error| AndroidLineError::InType {
+                kind: (*kind).to_string(),
+                error,
+            })
+    }
+
+    /// The values of a line of type `kind` at `t_ms`.
+    fn read_values(
+        &mut self,
+        number: usize,
+        kind: &str,
+        t_ms: f64,
+        values: &[&str],
+    ) -> Result<(), TaggedFieldError> {
         let c = &mut self.collector;
-        let in_type = |message: String| format!("{kind}: {message}");
-        match *kind {
+        match kind {
             "TYPE_ACCELEROMETER" => {
-                check_count(values.len(), 3, 4, "values", "x y z [accuracy]").map_err(in_type)?;
-                let acc = vector3(values, 0, ["x", "y", "z"]).map_err(in_type)?;
+                check_count(values.len(), 3, 4, "values", "x y z [accuracy]")?;
+                let acc = vector3(values, 0, ["x", "y", "z"])?;
                 c.record(Slot::Acc, "TYPE_ACCELEROMETER", number, t_ms);
                 c.acc_in_device_mps2.push(t_ms, acc);
             }
             "TYPE_GYROSCOPE" => {
-                check_count(values.len(), 3, 4, "values", "x y z [accuracy]").map_err(in_type)?;
-                let gyro = vector3(values, 0, ["x", "y", "z"]).map_err(in_type)?;
+                check_count(values.len(), 3, 4, "values", "x y z [accuracy]")?;
+                let gyro = vector3(values, 0, ["x", "y", "z"])?;
                 c.record(Slot::Gyro, "TYPE_GYROSCOPE", number, t_ms);
                 c.gyro_in_device_radps.push(t_ms, gyro);
             }
             "TYPE_MAGNETIC_FIELD" => {
-                check_count(values.len(), 3, 4, "values", "x y z [accuracy]").map_err(in_type)?;
-                let mag = vector3(values, 0, ["x", "y", "z"]).map_err(in_type)?;
+                check_count(values.len(), 3, 4, "values", "x y z [accuracy]")?;
+                let mag = vector3(values, 0, ["x", "y", "z"])?;
                 c.record(Slot::MagCalibrated, "TYPE_MAGNETIC_FIELD", number, t_ms);
                 c.mag_calibrated_in_device_ut.push(t_ms, mag);
             }
             "TYPE_MAGNETIC_FIELD_UNCALIBRATED" => {
-                check_count(values.len(), 6, 7, "values", "mx my mz bx by bz [accuracy]")
-                    .map_err(in_type)?;
-                let raw = vector3(values, 0, ["mx", "my", "mz"]).map_err(in_type)?;
-                let bias = vector3(values, 3, ["bx", "by", "bz"]).map_err(in_type)?;
+                check_count(values.len(), 6, 7, "values", "mx my mz bx by bz [accuracy]")?;
+                let raw = vector3(values, 0, ["mx", "my", "mz"])?;
+                let bias = vector3(values, 3, ["bx", "by", "bz"])?;
                 c.record(
                     Slot::MagRaw,
                     "TYPE_MAGNETIC_FIELD_UNCALIBRATED",
@@ -182,17 +215,16 @@ impl AndroidReader {
                     5,
                     "values",
                     "x y z [accuracy or w [accuracy]]",
-                )
-                .map_err(in_type)?;
-                let v = vector3(values, 0, ["x", "y", "z"]).map_err(in_type)?;
-                let q = quaternion_from_rotation_vector(v.x, v.y, v.z).map_err(in_type)?;
+                )?;
+                let v = vector3(values, 0, ["x", "y", "z"])?;
+                let q = quaternion_from_rotation_vector(v.x, v.y, v.z)?;
                 c.record(Slot::Rotation, "TYPE_ROTATION_VECTOR", number, t_ms);
                 c.device_to_enu.push(t_ms, q);
             }
             "TYPE_WAYPOINT" => {
-                check_count(values.len(), 2, 2, "values", "x y").map_err(in_type)?;
-                let east_m = finite(values.first(), "x").map_err(in_type)?;
-                let north_m = finite(values.get(1), "y").map_err(in_type)?;
+                check_count(values.len(), 2, 2, "values", "x y")?;
+                let east_m = finite(values.first(), "x")?;
+                let north_m = finite(values.get(1), "y")?;
                 c.record(Slot::RefEn, "TYPE_WAYPOINT", number, t_ms);
                 c.ref_position_en_m
                     .push(t_ms, Vector2::new(east_m, north_m));
@@ -204,7 +236,7 @@ impl AndroidReader {
 }
 
 /// A bare string as a finite number (for header values).
-fn number_of(text: &str, name: &str) -> Result<f64, String> {
+fn number_of(text: &str, name: &str) -> Result<f64, TaggedFieldError> {
     finite(Some(&text), name)
 }
 
@@ -397,6 +429,47 @@ mod tests {
         assert!(messages[7].contains("6 or 7 values"), "{messages:?}");
         assert!(messages[8].contains("TYPE_WAYPOINT"), "{messages:?}");
         assert_eq!(report.n_data_lines, 11);
+    }
+
+    /// Every line diagnostic, word for word (the wording users see).
+    #[test]
+    fn android_diagnostics_are_worded_exactly() {
+        let text = "#\tstartTime:abc\n\
+                    1000\tTYPE_ACCELEROMETER\t0\tabc\t9.8\t3\n\
+                    1020\tTYPE_ACCELEROMETER\t0\tNaN\t9.8\t3\n\
+                    1040\tTYPE_ACCELEROMETER\t0\t9.8\n\
+                    x1060\tTYPE_GYROSCOPE\t0\t0\t0\n\
+                    1080\n\
+                    1100\tTYPE_ROTATION_VECTOR\t0.9\t0.9\t0.0\t3\n\
+                    1120\tTYPE_ROTATION_VECTOR\t0\t0\t0\t1\t3\t7\n\
+                    1140\tTYPE_MAGNETIC_FIELD_UNCALIBRATED\t1\t2\t3\t4\t5\n\
+                    1160\tTYPE_WAYPOINT\t1\n\
+                    1180\tTYPE_MAGNETIC_FIELD\t20\t0\t-40\t3\n";
+        let report = android(text).expect("readable");
+        let messages: Vec<&str> = report
+            .diagnostics
+            .kept
+            .iter()
+            .map(|d| d.message.as_str())
+            .collect();
+        assert_eq!(
+            messages,
+            [
+                "startTime is not a number (abc); times count from the earliest sample instead",
+                "TYPE_ACCELEROMETER: y is not a number (abc)",
+                "TYPE_ACCELEROMETER: y is NaN",
+                "TYPE_ACCELEROMETER: 3 or 4 values expected (x y z [accuracy]), found 2",
+                "the time (unix_ms) is not a number (x1060)",
+                "expected unix_ms<TAB>TYPE<TAB>values, found only \"1080\"",
+                "TYPE_ROTATION_VECTOR: the rotation vector's length is 1.2728, more than 1, so it \
+                 is not part of a unit quaternion",
+                "TYPE_ROTATION_VECTOR: 3 to 5 values expected (x y z [accuracy or w [accuracy]]), \
+                 found 6",
+                "TYPE_MAGNETIC_FIELD_UNCALIBRATED: 6 or 7 values expected (mx my mz bx by bz \
+                 [accuracy]), found 5",
+                "TYPE_WAYPOINT: 2 values expected (x y), found 1",
+            ]
+        );
     }
 
     #[test]

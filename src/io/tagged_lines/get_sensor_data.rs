@@ -52,13 +52,56 @@
 use std::collections::BTreeMap;
 
 use nalgebra::Vector2;
+use thiserror::Error;
 
 use super::collector::{Clock, Collector, Slot};
-use super::fields::{check_count, finite, quaternion_from_rotation_vector, split_fields, vector3};
+use super::fields::{
+    check_count, finite, quaternion_from_rotation_vector, split_fields, vector3, TaggedFieldError,
+};
 use super::{LineReader, GET_SENSOR_DATA, MAX_LINE_BYTES};
 use crate::base::angle::wrap_to_2pi;
 use crate::io::recording::GnssFix;
 use crate::io::{shorten, ImportError, ImportReport};
+
+/// Why a GetSensorData line was not read; the line's diagnostic.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum GetSensorDataLineError {
+    /// The line does not start with a tag; `found` is its first field.
+    #[error(
+        "not a GetSensorData line: it should start with a tag such as ACCE; (found {:?})",
+        shorten(.found)
+    )]
+    NoTag { found: String },
+    /// A line led by `tag` (`ACCE`, `GNSS`, …) whose values are not usable.
+    #[error("{tag}: {error}")]
+    InTag {
+        tag: String,
+        #[source]
+        error: GetSensorDataValueError,
+    },
+}
+
+/// Why the values of a tagged GetSensorData line are not usable.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum GetSensorDataValueError {
+    #[error(transparent)]
+    Field(#[from] TaggedFieldError),
+    /// A `GNSS` line with `found` fields after the tag, fewer than its layout's `min`.
+    #[error(
+        "{min} fields after the tag expected \
+         (AppTimestamp;[SensorTimeStamp;]Latit;Long;Altitude;Bearing;Accuracy;Speed;…), \
+         found {found}"
+    )]
+    TooFewGnssFields { found: usize, min: usize },
+    /// A `POSI` line at 0, 0, which the app writes before the ground truth is known.
+    #[error(
+        "a position mark without coordinates (0, 0), as the app writes before the \
+         ground truth is filled in; skipped"
+    )]
+    PositionNotFilledIn,
+    #[error("latitude {lat_deg} or longitude {lon_deg} is out of range")]
+    LatLonOutOfRange { lat_deg: f64, lon_deg: f64 },
+}
 
 #[derive(Default)]
 pub struct GetSensorDataReader {
@@ -97,8 +140,8 @@ impl LineReader for GetSensorDataReader {
             return;
         }
         let fields = split_fields(trimmed, ';');
-        if let Err(message) = self.read_fields(number, &fields) {
-            self.collector.problem(number, message);
+        if let Err(error) = self.read_fields(number, &fields) {
+            self.collector.problem(number, error.to_string());
         }
     }
 
@@ -159,26 +202,36 @@ impl LineReader for GetSensorDataReader {
 }
 
 impl GetSensorDataReader {
-    fn read_fields(&mut self, number: usize, fields: &[&str]) -> Result<(), String> {
+    fn read_fields(
+        &mut self,
+        number: usize,
+        fields: &[&str],
+    ) -> Result<(), GetSensorDataLineError> {
         let tag = fields.first().copied().unwrap_or_default();
         if !is_tag(tag) {
-            return Err(format!(
-                "not a GetSensorData line: it should start with a tag such as ACCE; (found {:?})",
-                shorten(tag)
-            ));
+            return Err(GetSensorDataLineError::NoTag {
+                found: tag.to_string(),
+            });
         }
-        let in_tag = |message: String| format!("{tag}: {message}");
+        self.read_tagged(number, tag, fields)
+            .map_err(|error| GetSensorDataLineError::InTag {
+                tag: tag.to_string(),
+                error,
+            })
+    }
+
+    /// A line led by `tag`.
+    fn read_tagged(
+        &mut self,
+        number: usize,
+        tag: &str,
+        fields: &[&str],
+    ) -> Result<(), GetSensorDataValueError> {
         let n_values = fields.len().saturating_sub(1);
         match tag {
-            "ACCE" => self
-                .read_vector(number, fields, "ACCE", Slot::Acc, "Acc")
-                .map_err(in_tag),
-            "GYRO" => self
-                .read_vector(number, fields, "GYRO", Slot::Gyro, "Gyr")
-                .map_err(in_tag),
-            "MAGN" => self
-                .read_vector(number, fields, "MAGN", Slot::MagCalibrated, "Mag")
-                .map_err(in_tag),
+            "ACCE" => self.read_vector(number, fields, "ACCE", Slot::Acc, "Acc")?,
+            "GYRO" => self.read_vector(number, fields, "GYRO", Slot::Gyro, "Gyr")?,
+            "MAGN" => self.read_vector(number, fields, "MAGN", Slot::MagCalibrated, "Mag")?,
             "PRES" => {
                 check_count(
                     n_values,
@@ -186,13 +239,11 @@ impl GetSensorDataReader {
                     4,
                     "fields after the tag",
                     "AppTimestamp;SensorTimestamp;Pres(mbar)[;Accuracy]",
-                )
-                .map_err(in_tag)?;
-                let (t, pressure) = self.read_scalar(fields, "PRES", "Pres").map_err(in_tag)?;
+                )?;
+                let (t, pressure) = self.read_scalar(fields, "PRES", "Pres")?;
                 let c = &mut self.collector;
                 c.record(Slot::Pressure, "PRES", number, t);
                 c.pressure_hpa.push(t, pressure);
-                Ok(())
             }
             "TEMP" => {
                 check_count(
@@ -201,26 +252,22 @@ impl GetSensorDataReader {
                     4,
                     "fields after the tag",
                     "AppTimestamp;SensorTimestamp;temp(Celsius)[;Accuracy]",
-                )
-                .map_err(in_tag)?;
-                let (t, temp_c) = self.read_scalar(fields, "TEMP", "temp").map_err(in_tag)?;
+                )?;
+                let (t, temp_c) = self.read_scalar(fields, "TEMP", "temp")?;
                 let c = &mut self.collector;
                 c.record(Slot::Temp, "TEMP", number, t);
                 c.temp_c.push(t, temp_c);
-                Ok(())
             }
-            "AHRS" => self.read_ahrs(number, fields).map_err(in_tag),
-            "GNSS" => self.read_gnss(number, fields).map_err(in_tag),
-            "POSI" => self.read_posi(number, fields).map_err(in_tag),
-            other => {
-                self.collector.ignore(number, other);
-                Ok(())
-            }
+            "AHRS" => self.read_ahrs(number, fields)?,
+            "GNSS" => self.read_gnss(number, fields)?,
+            "POSI" => self.read_posi(number, fields)?,
+            other => self.collector.ignore(number, other),
         }
+        Ok(())
     }
 
     /// AppTimestamp, and SensorTimestamp − AppTimestamp kept for the notes.
-    fn read_times(&mut self, fields: &[&str], tag: &'static str) -> Result<f64, String> {
+    fn read_times(&mut self, fields: &[&str], tag: &'static str) -> Result<f64, TaggedFieldError> {
         let app_s = finite(fields.get(1), "AppTimestamp")?;
         let sensor_s = finite(fields.get(2), "SensorTimestamp")?;
         let offset_s = sensor_s - app_s;
@@ -240,7 +287,7 @@ impl GetSensorDataReader {
         tag: &'static str,
         slot: Slot,
         name: &str,
-    ) -> Result<(), String> {
+    ) -> Result<(), TaggedFieldError> {
         let unit = match slot {
             Slot::Acc => "m/s^2",
             Slot::Gyro => "rad/s",
@@ -275,13 +322,13 @@ impl GetSensorDataReader {
         fields: &[&str],
         tag: &'static str,
         name: &str,
-    ) -> Result<(f64, f64), String> {
+    ) -> Result<(f64, f64), TaggedFieldError> {
         let value = finite(fields.get(3), name)?;
         let t = self.read_times(fields, tag)?;
         Ok((t, value))
     }
 
-    fn read_ahrs(&mut self, number: usize, fields: &[&str]) -> Result<(), String> {
+    fn read_ahrs(&mut self, number: usize, fields: &[&str]) -> Result<(), TaggedFieldError> {
         check_count(
             fields.len().saturating_sub(1),
             8,
@@ -298,7 +345,7 @@ impl GetSensorDataReader {
         Ok(())
     }
 
-    fn read_gnss(&mut self, number: usize, fields: &[&str]) -> Result<(), String> {
+    fn read_gnss(&mut self, number: usize, fields: &[&str]) -> Result<(), GetSensorDataValueError> {
         let t = number_at(fields, 1, "AppTimestamp")?;
         let third = number_at(fields, 2, "the third field")?;
         // The current app writes the fix time (seconds since 1970) before the latitude,
@@ -306,13 +353,10 @@ impl GetSensorDataReader {
         let lat_idx = if third.abs() > 90.0 { 3 } else { 2 };
         let n_needed = lat_idx + 6;
         if fields.len() < n_needed {
-            return Err(format!(
-                "{} fields after the tag expected \
-                 (AppTimestamp;[SensorTimeStamp;]Latit;Long;Altitude;Bearing;Accuracy;Speed;…), \
-                 found {}",
-                n_needed - 1,
-                fields.len().saturating_sub(1)
-            ));
+            return Err(GetSensorDataValueError::TooFewGnssFields {
+                found: fields.len().saturating_sub(1),
+                min: n_needed - 1,
+            });
         }
         let lat_deg = number_at(fields, lat_idx, "Latit")?;
         let lon_deg = number_at(fields, lat_idx + 1, "Long")?;
@@ -352,7 +396,7 @@ impl GetSensorDataReader {
         Ok(())
     }
 
-    fn read_posi(&mut self, number: usize, fields: &[&str]) -> Result<(), String> {
+    fn read_posi(&mut self, number: usize, fields: &[&str]) -> Result<(), GetSensorDataValueError> {
         check_count(
             fields.len().saturating_sub(1),
             4,
@@ -364,11 +408,7 @@ impl GetSensorDataReader {
         let lat_deg = number_at(fields, 3, "Latitude")?;
         let lon_deg = number_at(fields, 4, "Longitude")?;
         if lat_deg == 0.0 && lon_deg == 0.0 {
-            return Err(
-                "a position mark without coordinates (0, 0), as the app writes before the \
-                 ground truth is filled in; skipped"
-                    .to_string(),
-            );
+            return Err(GetSensorDataValueError::PositionNotFilledIn);
         }
         check_lat_lon(lat_deg, lon_deg)?;
         let c = &mut self.collector;
@@ -379,15 +419,13 @@ impl GetSensorDataReader {
     }
 }
 
-fn number_at(fields: &[&str], idx: usize, name: &str) -> Result<f64, String> {
+fn number_at(fields: &[&str], idx: usize, name: &str) -> Result<f64, TaggedFieldError> {
     finite(fields.get(idx), name)
 }
 
-fn check_lat_lon(lat_deg: f64, lon_deg: f64) -> Result<(), String> {
+fn check_lat_lon(lat_deg: f64, lon_deg: f64) -> Result<(), GetSensorDataValueError> {
     if lat_deg.abs() > 90.0 || lon_deg.abs() > 180.0 {
-        return Err(format!(
-            "latitude {lat_deg} or longitude {lon_deg} is out of range"
-        ));
+        return Err(GetSensorDataValueError::LatLonOutOfRange { lat_deg, lon_deg });
     }
     Ok(())
 }
@@ -556,27 +594,28 @@ mod tests {
             .iter()
             .map(|d| d.message.as_str())
             .collect();
-        assert!(
-            messages[0].contains("ACCE: Acc_Y is not a number (oops)"),
-            "{messages:?}"
+        // Word for word (the wording users see).
+        assert_eq!(
+            messages,
+            [
+                "ACCE: Acc_Y is not a number (oops)",
+                "GYRO: 5 or 6 fields after the tag expected \
+                 (AppTimestamp;SensorTimestamp;Gyr_X(rad/s);Gyr_Y;Gyr_Z[;Accuracy]), found 4",
+                "MAGN: Mag_X is inf",
+                "not a GetSensorData line: it should start with a tag such as ACCE; (found \
+                 \"hello world\")",
+                "PRES: 3 or 4 fields after the tag expected \
+                 (AppTimestamp;SensorTimestamp;Pres(mbar)[;Accuracy]), found 2",
+                "AHRS: the rotation vector's length is 1.5588, more than 1, so it is not part of \
+                 a unit quaternion",
+                "GNSS: latitude 95 or longitude -3.48 is out of range",
+                "GNSS: 8 fields after the tag expected \
+                 (AppTimestamp;[SensorTimeStamp;]Latit;Long;Altitude;Bearing;Accuracy;Speed;…), \
+                 found 3",
+                "POSI: a position mark without coordinates (0, 0), as the app writes before the \
+                 ground truth is filled in; skipped",
+            ]
         );
-        assert!(
-            messages[1].contains("GYRO: 5 or 6 fields after the tag expected"),
-            "{messages:?}"
-        );
-        assert!(messages[2].contains("Mag_X is inf"), "{messages:?}");
-        assert!(
-            messages[3].contains("not a GetSensorData line"),
-            "{messages:?}"
-        );
-        assert!(messages[4].contains("PRES"), "{messages:?}");
-        assert!(messages[5].contains("unit quaternion"), "{messages:?}");
-        assert!(messages[6].contains("out of range"), "{messages:?}");
-        assert!(
-            messages[7].contains("GNSS: 8 fields after the tag expected"),
-            "{messages:?}"
-        );
-        assert!(messages[8].contains("without coordinates"), "{messages:?}");
     }
 
     #[test]

@@ -146,7 +146,7 @@ impl LivePanel {
 
     fn refit(&self) {
         let mut session = self.session.borrow_mut();
-        let message = session.refit().err();
+        let message = session.refit().err().map(|error| error.to_string());
         *self.fit_message.borrow_mut() = message;
     }
 
