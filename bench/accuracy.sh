@@ -8,14 +8,18 @@ set -euo pipefail
 source "$(dirname "$0")/../scripts/setup.sh"
 cd "$ROOT"
 ensure_rust
-# The MAGFit section is written by hand from bench/magfit.sh's run (its reading is prose);
-# kept aside while the bench rewrites the file and put back at its end.
-magfit_section="$(sed -n '/^## Autopilot compasses beside MAGFit/,$p' docs/ACCURACY.md 2>/dev/null || true)"
+# The sections written by hand (issue 43's motions, the attitude filter's σ and settings,
+# MAGFit, the IPIN walks) follow a marker line in docs/ACCURACY.md; kept aside while the
+# bench rewrites the file and put back at its end, as they are.
+marker='<!-- Written by hand below this line'
+kept_by_hand="$(sed -n "/^${marker}/,\$p" docs/ACCURACY.md 2>/dev/null || true)"
 log "cargo bench --bench accuracy --profile bench-import (writes docs/ACCURACY.md)"
 cargo bench --bench accuracy --profile bench-import
 log "bench/attitude.sh (appends the attitude section to docs/ACCURACY.md)"
 bench/attitude.sh >> docs/ACCURACY.md
-if [ -n "$magfit_section" ]; then
-  log "putting back the MAGFit section (bench/magfit.sh refreshes its figures)"
-  printf '\n%s\n' "$magfit_section" >> docs/ACCURACY.md
+if [ -n "$kept_by_hand" ]; then
+  log "putting back the sections written by hand (each names the command of its figures)"
+  printf '\n%s\n' "$kept_by_hand" >> docs/ACCURACY.md
+else
+  log "no '${marker}' line in docs/ACCURACY.md: nothing written by hand was kept"
 fi

@@ -174,7 +174,8 @@ mod report {
              Heading and dead-reckoning accuracy of compass-pdr on the simulator's scenarios and on the real\n\
              recordings in `../shared/data`, beside the numbers the two papers report. Written by\n\
              `bench/accuracy.sh` (`cargo bench --bench accuracy --profile bench-import`, `benches/accuracy.rs`);\n\
-             rerun it to refresh this file. Every figure below comes from that run.\n\n",
+             rerun it to refresh this file. Every figure below comes from that run, except where a section\n\
+             names another command (those are written by hand, below a marker line the script keeps).\n\n",
         );
 
         // ---- Heading -------------------------------------------------------------------
