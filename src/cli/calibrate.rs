@@ -16,7 +16,9 @@ use compass_pdr::fit::ellipse::SoftIronModel;
 use compass_pdr::fit::export::{c_snippet, motioncal_packet};
 use compass_pdr::pipeline;
 use compass_pdr::present::plot::draw_calibration_figure;
-use compass_pdr::present::report::{device_calibration_lines, device_export_or_why, DeviceExport};
+use compass_pdr::present::report::{
+    device_calibration_lines, device_export_or_why, DeviceExport, DeviceExportError,
+};
 use plotters::prelude::{IntoDrawingArea, SVGBackend};
 
 /// What `calibrate` writes besides its summary.
@@ -59,76 +61,9 @@ pub(super) fn run_calibrate(
             .map_err(|error| format!("{error} ({})", plot.display()))?;
     }
     let export = device_export_or_why(&analysis);
-    let mut written = Vec::new();
-    if outputs.export_c.is_some() || outputs.export_packet.is_some() {
-        let export = export
-            .as_ref()
-            .map_err(|why| format!("{}: nothing to export: {why}", report.file_name))?;
-        let frame = &export.calibration.frame;
-        if let Some(path) = outputs.export_c {
-            let text = format!(
-                "// {} calibration of {}\n{}",
-                export.method.label(),
-                report.file_name,
-                c_snippet(&export.calibration)
-            );
-            std::fs::write(path, text)
-                .map_err(|error| format!("cannot write {}: {error}", path.display()))?;
-            written.push(format!(
-                "C snippet written to {}: {}, raw values in {}",
-                path.display(),
-                frame.axes,
-                frame.unit.label()
-            ));
-        }
-        if let Some(path) = outputs.export_packet {
-            // MotionCal's floats are µT by definition: the raw axes, in µT.
-            let Some(in_ut) = export.calibration.in_ut() else {
-                return Err(format!(
-                    "no MotionCal packet: its floats are µT, but the magnetometer's raw values \
-                     are in {}; export the JSON or the C snippet, which are in the raw values' unit",
-                    frame.unit.label()
-                ));
-            };
-            std::fs::write(path, motioncal_packet(&in_ut))
-                .map_err(|error| format!("cannot write {}: {error}", path.display()))?;
-            written.push(format!(
-                "MotionCal packet written to {}: in µT along {}",
-                path.display(),
-                frame.axes
-            ));
-        }
-    }
+    let mut written = write_device_exports(outputs, &report.file_name, export.as_ref())?;
     if let Some(path) = outputs.param_out {
-        let Some(autopilot) = report
-            .autopilot
-            .as_ref()
-            .filter(|a| a.written().next().is_some())
-        else {
-            return Err(format!(
-                "--param-out {}: no autopilot parameters to write for {}: {}",
-                path.display(),
-                report.file_name,
-                report.autopilot.as_ref().map_or_else(
-                    || "it is not an autopilot log with its compasses' raw fields and attitude"
-                        .to_string(),
-                    |autopilot| autopilot
-                        .compasses
-                        .iter()
-                        .map(|compass| compass.sentence.clone())
-                        .chain(autopilot.notes.iter().cloned())
-                        .collect::<Vec<_>>()
-                        .join("; ")
-                )
-            ));
-        };
-        std::fs::write(path, &autopilot.param_file)
-            .map_err(|error| format!("cannot write {}: {error}", path.display()))?;
-        written.push(format!(
-            "{} parameters written to {}",
-            autopilot.autopilot,
-            path.display()
-        ));
+        written.push(write_param_file(path, report)?);
     }
     if outputs.json {
         let output = CalibrateOutput {
@@ -147,6 +82,89 @@ pub(super) fn run_calibrate(
         text.push_str(&format!("  {line}\n"));
     }
     print_out(&text)
+}
+
+/// The C snippet and the MotionCal packet the user asked for, written to their files; what
+/// was written, one line each.
+fn write_device_exports(
+    outputs: &Outputs<'_>,
+    file_name: &str,
+    export: Result<&DeviceExport, &DeviceExportError>,
+) -> Result<Vec<String>, String> {
+    let mut written = Vec::new();
+    if outputs.export_c.is_none() && outputs.export_packet.is_none() {
+        return Ok(written);
+    }
+    let export = export.map_err(|why| format!("{file_name}: nothing to export: {why}"))?;
+    let frame = &export.calibration.frame;
+    if let Some(path) = outputs.export_c {
+        let text = format!(
+            "// {} calibration of {}\n{}",
+            export.method.label(),
+            file_name,
+            c_snippet(&export.calibration)
+        );
+        std::fs::write(path, text)
+            .map_err(|error| format!("cannot write {}: {error}", path.display()))?;
+        written.push(format!(
+            "C snippet written to {}: {}, raw values in {}",
+            path.display(),
+            frame.axes,
+            frame.unit.label()
+        ));
+    }
+    if let Some(path) = outputs.export_packet {
+        // MotionCal's floats are µT by definition: the raw axes, in µT.
+        let Some(in_ut) = export.calibration.in_ut() else {
+            return Err(format!(
+                    "no MotionCal packet: its floats are µT, but the magnetometer's raw values \
+                     are in {}; export the JSON or the C snippet, which are in the raw values' unit",
+                    frame.unit.label()
+                ));
+        };
+        std::fs::write(path, motioncal_packet(&in_ut))
+            .map_err(|error| format!("cannot write {}: {error}", path.display()))?;
+        written.push(format!(
+            "MotionCal packet written to {}: in µT along {}",
+            path.display(),
+            frame.axes
+        ));
+    }
+    Ok(written)
+}
+
+/// An autopilot log's parameter file, written to `path` (`--param-out`), or why there is
+/// none; the line that says it was written.
+fn write_param_file(path: &Path, report: &CalibrationReport) -> Result<String, String> {
+    let Some(autopilot) = report
+        .autopilot
+        .as_ref()
+        .filter(|a| a.written().next().is_some())
+    else {
+        return Err(format!(
+            "--param-out {}: no autopilot parameters to write for {}: {}",
+            path.display(),
+            report.file_name,
+            report.autopilot.as_ref().map_or_else(
+                || "it is not an autopilot log with its compasses' raw fields and attitude"
+                    .to_string(),
+                |autopilot| autopilot
+                    .compasses
+                    .iter()
+                    .map(|compass| compass.sentence.clone())
+                    .chain(autopilot.notes.iter().cloned())
+                    .collect::<Vec<_>>()
+                    .join("; ")
+            )
+        ));
+    };
+    std::fs::write(path, &autopilot.param_file)
+        .map_err(|error| format!("cannot write {}: {error}", path.display()))?;
+    Ok(format!(
+        "{} parameters written to {}",
+        autopilot.autopilot,
+        path.display()
+    ))
 }
 
 /// What `calibrate --json` prints: the report, the device calibration in the sensor's
