@@ -105,10 +105,20 @@ fn row(text: &mut String, name: &str, what: &str, truth: &str, analysis: &Calibr
     let (raw, chosen) = heading_cells(analysis);
     let _ = writeln!(
         text,
-        "| {name} | {what} | {truth} | {raw} | {chosen} | {}{} |",
-        fit_cell(analysis),
-        device_cell(analysis)
+        "| {} | {} | {} | {} | {} | {}{} |",
+        cell(name),
+        cell(what),
+        cell(truth),
+        cell(&raw),
+        cell(&chosen),
+        cell(&fit_cell(analysis)),
+        cell(&device_cell(analysis))
     );
+}
+
+/// A table cell's text with its bars escaped, so that `|B|` stays inside its cell.
+fn cell(text: &str) -> String {
+    text.replace('|', "\\|")
 }
 
 /// Unwrapped change of a heading series (degrees).
@@ -281,7 +291,7 @@ pub fn section(text: &mut String, data: &Path) {
             );
             let _ = writeln!(
                 text,
-                "| `qmc5883l-calibration` {file} | a QMC5883L turned by hand, raw counts, 50 Hz (`Fs,50.00`) | the author's result: hard iron ({:.0}, {:.0}, {:.0}) counts, |B| spread {theirs_pct:.2} % here | — | — | hard iron ({:.0}, {:.0}, {:.0}), {:.1} % of the field's radius ({radius:.0} counts) from the author's; |B| spread {ours_pct:.2} % |",
+                "| `qmc5883l-calibration` {file} | a QMC5883L turned by hand, raw counts, 50 Hz (`Fs,50.00`) | the author's result: hard iron ({:.0}, {:.0}, {:.0}) counts, \\|B\\| spread {theirs_pct:.2} % here | — | — | hard iron ({:.0}, {:.0}, {:.0}), {:.1} % of the field's radius ({radius:.0} counts) from the author's; \\|B\\| spread {ours_pct:.2} % |",
                 author_hard_iron.x,
                 author_hard_iron.y,
                 author_hard_iron.z,
@@ -310,7 +320,7 @@ pub fn section(text: &mut String, data: &Path) {
     ] {
         let _ = writeln!(
             text,
-            "| {name} | {what} | the autopilot's parameters and attitude | — | — | not read yet: the drone-log importers are the next piece of work (the logs are refused with a message) |"
+            "| {name} | {what} | the autopilot's parameters and attitude | — | — | each compass against the autopilot's heading, in force and as written: \"Autopilot compasses beside MAGFit\" below |"
         );
     }
     text.push('\n');
