@@ -54,7 +54,7 @@ use nalgebra::{Rotation3, Vector2, Vector3};
 use serde::Serialize;
 
 use crate::attitude::tilt::smooth_specific_force;
-use crate::base::geodesy::{Geodetic, LocalFrame};
+use crate::base::geodesy::LocalFrame;
 use crate::io::recording::{Attitude, GnssFix, Recording, Stream};
 
 /// Standard gravity (m/s²), the magnitude given to the estimated specific force
@@ -433,19 +433,14 @@ fn with_speeds_from_positions(gnss: &Stream<GnssFix>) -> Option<Stream<GnssFix>>
     {
         return None;
     }
-    let (lat_deg, lon_deg) = gnss
-        .values
-        .iter()
-        .find_map(|fix| Some((fix.lat_deg?, fix.lon_deg?)))?;
-    let frame = LocalFrame::at(Geodetic {
-        lat_deg,
-        lon_deg,
-        alt_m: 0.0,
-    });
+    let frame = LocalFrame::at(gnss.values.iter().find_map(GnssFix::position)?);
     let en_m: Vec<Option<Vector2<f64>>> = gnss
         .values
         .iter()
-        .map(|fix| Some(frame.en_of(fix.lat_deg?, fix.lon_deg?)))
+        .map(|fix| {
+            let position = fix.position()?;
+            Some(frame.en_of(position.lat_deg, position.lon_deg))
+        })
         .collect();
     let mut filled = gnss.clone();
     let mut any = false;
@@ -713,6 +708,36 @@ fn pass(
 mod tests {
     use super::*;
     use crate::attitude::tilt::Tilt;
+
+    /// Speeds between fixes' positions: 10 m/s eastward along the equator, and a fix whose
+    /// latitude is out of range (a corrupt line) gives no speed to its neighbours rather
+    /// than a NaN.
+    #[test]
+    fn speeds_from_positions_skip_a_fix_without_a_usable_position() {
+        let metres_per_deg = 111_319.49;
+        let mut gnss = Stream::default();
+        for idx in 0..5 {
+            let lat_deg = if idx == 2 { 95.0 } else { 0.0 };
+            gnss.push(
+                idx as f64,
+                GnssFix {
+                    lat_deg: Some(lat_deg),
+                    lon_deg: Some(10.0 * idx as f64 / metres_per_deg),
+                    alt_m: None,
+                    speed_mps: None,
+                    course_rad: None,
+                    hacc_m: Some(3.0),
+                },
+            );
+        }
+        let filled = with_speeds_from_positions(&gnss).expect("speeds");
+        let speeds: Vec<Option<f64>> = filled.values.iter().map(|fix| fix.speed_mps).collect();
+        assert_eq!(speeds[0], None);
+        assert_eq!(speeds[1], None, "its neighbour after has no position");
+        assert!((speeds[2].expect("a speed") - 10.0).abs() < 0.01, "{speeds:?}");
+        assert_eq!(speeds[3], None, "its neighbour before has no position");
+        assert_eq!(speeds[4], None);
+    }
 
     #[test]
     fn an_autopilot_s_roll_and_pitch_level_as_the_accelerometer_would_at_rest() {

@@ -15,6 +15,7 @@ use nalgebra::{Vector2, Vector3};
 use serde::Serialize;
 
 use crate::base::angle::wrap_to_pi;
+use crate::base::geodesy::Geodetic;
 
 /// One stream: sample times and values, sorted by time (importers sort and report).
 #[derive(Debug, Clone, PartialEq)]
@@ -186,6 +187,20 @@ pub struct GnssFix {
     pub course_rad: Option<f64>,
     /// Horizontal accuracy (1 σ) as reported.
     pub hacc_m: Option<f64>,
+}
+
+impl GnssFix {
+    /// Where the fix is on the ellipsoid (altitude left at 0: the horizontal position is
+    /// what the headings and speeds use), when it states a usable one: finite, the
+    /// latitude within ±90°.
+    pub fn position(&self) -> Option<Geodetic> {
+        let (lat_deg, lon_deg) = (self.lat_deg?, self.lon_deg?);
+        (lat_deg.is_finite() && lon_deg.is_finite() && lat_deg.abs() <= 90.0).then_some(Geodetic {
+            lat_deg,
+            lon_deg,
+            alt_m: 0.0,
+        })
+    }
 }
 
 /// Roll, pitch and yaw of the body frame as the device itself reports them (for

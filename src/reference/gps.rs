@@ -136,18 +136,7 @@ pub fn course_reference(
         .t_s
         .iter()
         .zip(&gnss.values)
-        .filter_map(|(&t_s, fix)| {
-            let (lat_deg, lon_deg) = (fix.lat_deg?, fix.lon_deg?);
-            (lat_deg.is_finite() && lon_deg.is_finite() && lat_deg.abs() <= 90.0).then_some((
-                t_s,
-                Geodetic {
-                    lat_deg,
-                    lon_deg,
-                    alt_m: 0.0,
-                },
-                fix.hacc_m.unwrap_or(0.0),
-            ))
-        })
+        .filter_map(|(&t_s, fix)| Some((t_s, fix.position()?, fix.hacc_m.unwrap_or(0.0))))
         .collect();
     let Some(&(_, origin, _)) = positioned.first() else {
         return (course, used);
