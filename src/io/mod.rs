@@ -64,6 +64,12 @@ pub struct Diagnostics {
 }
 
 impl Diagnostics {
+    /// The kept diagnostics' messages, in order (for tests that pin their wording).
+    #[cfg(test)]
+    pub(crate) fn messages(&self) -> Vec<&str> {
+        self.kept.iter().map(|d| d.message.as_str()).collect()
+    }
+
     pub fn push(&mut self, line: Option<usize>, message: impl Into<String>) {
         if self.kept.len() < MAX_DIAGNOSTICS_KEPT {
             self.kept.push(Diagnostic {

@@ -401,12 +401,7 @@ mod tests {
             "{:?}",
             report.diagnostics
         );
-        let messages: Vec<&str> = report
-            .diagnostics
-            .kept
-            .iter()
-            .map(|d| d.message.as_str())
-            .collect();
+        let messages = report.diagnostics.messages();
         assert!(
             messages[0].contains("TYPE_ACCELEROMETER: y is not a number (abc)"),
             "{messages:?}"
@@ -446,12 +441,7 @@ mod tests {
                     1160\tTYPE_WAYPOINT\t1\n\
                     1180\tTYPE_MAGNETIC_FIELD\t20\t0\t-40\t3\n";
         let report = android(text).expect("readable");
-        let messages: Vec<&str> = report
-            .diagnostics
-            .kept
-            .iter()
-            .map(|d| d.message.as_str())
-            .collect();
+        let messages = report.diagnostics.messages();
         assert_eq!(
             messages,
             [

@@ -588,12 +588,7 @@ mod tests {
             "{:?}",
             report.diagnostics
         );
-        let messages: Vec<&str> = report
-            .diagnostics
-            .kept
-            .iter()
-            .map(|d| d.message.as_str())
-            .collect();
+        let messages = report.diagnostics.messages();
         // Word for word (the wording users see).
         assert_eq!(
             messages,
