@@ -734,7 +734,10 @@ mod tests {
         let speeds: Vec<Option<f64>> = filled.values.iter().map(|fix| fix.speed_mps).collect();
         assert_eq!(speeds[0], None);
         assert_eq!(speeds[1], None, "its neighbour after has no position");
-        assert!((speeds[2].expect("a speed") - 10.0).abs() < 0.01, "{speeds:?}");
+        assert!(
+            (speeds[2].expect("a speed") - 10.0).abs() < 0.01,
+            "{speeds:?}"
+        );
         assert_eq!(speeds[3], None, "its neighbour before has no position");
         assert_eq!(speeds[4], None);
     }

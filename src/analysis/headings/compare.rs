@@ -183,7 +183,6 @@ pub fn compare(calibration: &CalibrationAnalysis, options: &HeadingOptions) -> H
             calibration: calibration_report,
         },
         t_s: calibration.t_s.clone(),
-        is_train: scoring.is_train.to_vec(),
         reference_deg: calibration.ref_heading_deg.clone(),
         headings_deg: table.series,
     }

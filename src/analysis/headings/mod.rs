@@ -174,7 +174,6 @@ fn featured(reports: &[FourierReport]) -> Option<&FourierReport> {
 pub struct HeadingAnalysis {
     pub report: HeadingReport,
     pub t_s: Vec<f64>,
-    pub is_train: Vec<bool>,
     pub reference_deg: Vec<Option<f64>>,
     /// Each row's heading per sample, by key.
     pub headings_deg: Vec<(RowKey, Vec<f64>)>,
