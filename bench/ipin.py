@@ -18,7 +18,9 @@ For every GetSensorData walk given (default: ../shared/data/ipin2023-track3-walk
 - in the outage run, each landmark inside the outage: error / true distance walked
   since the outage began (along the landmarks' polyline), and the drift: the error of
   the track's displacement since the outage began against the truth's, over the same
-  distance (the error the track already had when the GNSS went is not the bridge's).
+  distance (the error the track already had when the GNSS went is not the bridge's);
+  and both again for the track with every fix at the same landmarks, the floor no
+  bridge of the outage can go below.
 
 Prints per walk, per route and pooled figures; --json writes them all.
 
@@ -186,10 +188,12 @@ def score_walk(cli, walk, tmp, extra):
         else [math.nan] * len(truth)
     )
 
+    tracks = {}
     for name, cut in (("track", None), ("outage", outage)):
         out = Path(tmp) / f"{walk.stem}-{name}.csv"
         run_cli(cli, walk, cut, out, extra)
         rows = read_track(out)
+        tracks[name] = rows
         ts = np.array([r[0] for r in rows])
         geo = not any(math.isnan(r[1]) for r in rows)
         errors, sigmas = [], []
@@ -211,31 +215,41 @@ def score_walk(cli, walk, tmp, extra):
             walked = polyline_length(en)
             result["walked_m"] = walked
             result["truth_m"] = polyline_length([(e, n) for _, e, n in truth])
-        else:
-            # Landmarks inside the outage: error / distance walked since it began.
-            start = (
-                interp(np.array([p[0] for p in truth]), np.array([p[1] for p in truth]), outage[0]),
-                interp(np.array([p[0] for p in truth]), np.array([p[2] for p in truth]), outage[0]),
-            )
-            # The track's own position when the outage began, to tell the drift inside
-            # it from the error it started with.
-            track_e = np.array([r[4] for r in rows])
-            track_n = np.array([r[5] for r in rows])
-            track_start = (interp(ts, track_e, outage[0]), interp(ts, track_n, outage[0]))
-            ratios, drifts = [], []
-            for i, (t, e, n) in enumerate(truth):
-                if not (outage[0] < t <= outage[1]):
-                    continue
-                path = [start] + [(p[1], p[2]) for p in truth[: i + 1] if p[0] > outage[0]]
-                walked = polyline_length(path)
-                if walked > 1.0 and not math.isnan(errors[i]):
-                    ratios.append(100.0 * errors[i] / walked)
-                    moved = (interp(ts, track_e, t) - track_start[0], interp(ts, track_n, t) - track_start[1])
-                    drift = math.dist(moved, (e - start[0], n - start[1]))
-                    drifts.append(100.0 * drift / walked)
-            result["outage_pct"] = ratios
-            result["outage_drift_pct"] = drifts
+    # Landmarks inside the outage: error / distance walked since it began, for the
+    # track with the outage and, as the floor no bridge can go below, the track with
+    # every fix at the same landmarks.
+    for name in ("outage", "track"):
+        ratios, drifts, walked_since = outage_scores(truth, outage, tracks[name], result[f"{name}_m"])
+        result[f"{name}_outage_pct" if name == "track" else "outage_pct"] = ratios
+        result[f"{name}_outage_drift_pct" if name == "track" else "outage_drift_pct"] = drifts
+        result["outage_walked_m"] = walked_since
     return result
+
+
+def outage_scores(truth, outage, rows, errors):
+    """Each landmark inside the outage: its error, and the drift (the error of the track's
+    displacement since the outage began against the truth's), both in % of the distance
+    walked since the outage began along the landmarks' polyline."""
+    ts = np.array([r[0] for r in rows])
+    start = (
+        interp(np.array([p[0] for p in truth]), np.array([p[1] for p in truth]), outage[0]),
+        interp(np.array([p[0] for p in truth]), np.array([p[2] for p in truth]), outage[0]),
+    )
+    track_e = np.array([r[4] for r in rows])
+    track_n = np.array([r[5] for r in rows])
+    track_start = (interp(ts, track_e, outage[0]), interp(ts, track_n, outage[0]))
+    ratios, drifts, walked_since = [], [], []
+    for i, (t, e, n) in enumerate(truth):
+        if not (outage[0] < t <= outage[1]):
+            continue
+        path = [start] + [(p[1], p[2]) for p in truth[: i + 1] if p[0] > outage[0]]
+        walked = polyline_length(path)
+        if walked > 1.0 and not math.isnan(errors[i]):
+            ratios.append(100.0 * errors[i] / walked)
+            moved = (interp(ts, track_e, t) - track_start[0], interp(ts, track_n, t) - track_start[1])
+            drifts.append(100.0 * math.dist(moved, (e - start[0], n - start[1])) / walked)
+            walked_since.append(walked)
+    return ratios, drifts, walked_since
 
 
 def p75(values):
@@ -260,12 +274,14 @@ def summary(label, results):
     smooth = [e for r in results for e in r["gnss_smoother_m"]]
     outage = [x for r in results for x in r["outage_pct"]]
     drift = [x for r in results for x in r["outage_drift_pct"]]
+    floor = [x for r in results for x in r["track_outage_pct"]]
+    floor_drift = [x for r in results for x in r["track_outage_drift_pct"]]
     nan = sum(math.isnan(e) for e in track)
     print(
         f"{label:<10} P75 track {p75(track):5.1f} m  raw GNSS {p75(raw):5.1f}  GNSS smoother "
         f"{p75(smooth):5.1f}  | median {median(track):4.1f} / {median(raw):4.1f} / {median(smooth):4.1f}"
         f"  | 1σ {coverage(track, sig, 1):3.0f} %  2σ {coverage(track, sig, 2):3.0f} %"
-        f"  | outage: median error {median(outage):4.1f} %, drift {median(drift):4.1f} % of the distance ({len(outage)} landmarks)"
+        f"  | outage: median error {median(outage):4.1f} %, drift {median(drift):4.1f} % of the distance ({len(outage)} landmarks); with every fix {median(floor):4.1f} / {median(floor_drift):4.1f} %"
         + (f"  | {nan} landmarks without lat/lon" if nan else "")
     )
 

@@ -259,3 +259,43 @@ fn the_fixes_do_not_shrink_route_01_s_walks() {
         );
     }
 }
+
+/// Issue 42's distance bar on all twelve IPIN walks: the walked distance between the first
+/// and last landmark within ±10 % of the landmarks' polyline on at least ten, the median
+/// within ±5 %. Without `pdr/lone_steps.rs` (the feet shifted at the turn-about landmark
+/// walked as steps) the median was +5.2 %.
+#[test]
+fn the_twelve_ipin_walks_walk_the_landmarks_distance() {
+    let Some(data) = common::shared_data() else {
+        return;
+    };
+    let walks = common::files_in(&data.join("ipin2023-track3-walks"), "txt");
+    assert_eq!(walks.len(), 12);
+    let mut distance_errors_pct: Vec<f64> = walks
+        .iter()
+        .map(|walk| {
+            let analysis = dead_reckon(std::slice::from_ref(walk), &PdrOptions::default());
+            let errors = analysis
+                .report
+                .position_error
+                .as_ref()
+                .unwrap_or_else(|| panic!("{}: no landmarks scored", walk.display()));
+            eprintln!(
+                "{}: walked {:+.1} % of the landmarks' {:.1} m",
+                walk.display(),
+                errors.distance_error_pct,
+                errors.distance_m
+            );
+            errors.distance_error_pct
+        })
+        .collect();
+    let within = distance_errors_pct
+        .iter()
+        .filter(|e| e.abs() <= 10.0)
+        .count();
+    distance_errors_pct.sort_by(f64::total_cmp);
+    let median = 0.5 * (distance_errors_pct[5] + distance_errors_pct[6]);
+    eprintln!("within ±10 %: {within} of 12, median {median:+.1} %");
+    assert!(within >= 10, "{distance_errors_pct:?}");
+    assert!(median.abs() <= 5.0, "{distance_errors_pct:?}");
+}

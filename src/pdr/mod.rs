@@ -7,7 +7,8 @@
 //! - `steps.rs`: step detection (sliding window, zero crossing and peak detection on
 //!   `|f|`) with SF, SV, Amax and Amin per step.
 //! - `turning_over.rs`: the "steps" of a phone turned over in the hand (a compass
-//!   calibration's figure eight) left out.
+//!   calibration's figure eight) left out; `lone_steps.rs`: bouts of one or two steps
+//!   (feet shifted while standing or turning about) left out.
 //! - `step_length.rs`: the linear (Eq. 2), Weinberg (Eq. 3) and neural step-length
 //!   models, fitted to per-step references or to a known distance; `references.rs`
 //!   where those references (and the track's local frame and reference positions) come
@@ -58,6 +59,7 @@ pub mod ekf;
 pub mod export;
 mod fix_accuracy;
 pub mod fusion;
+pub mod lone_steps;
 pub mod metrics;
 mod references;
 mod results;
@@ -81,6 +83,7 @@ use crate::io::ImportReport;
 use crate::base::stats::MeanStd;
 use ekf::EkfNoise;
 use fusion::{fuse, FixInput, FixUse, Fused, GnssPolicy, StepInput, TrackPoint};
+use lone_steps::gait_steps;
 use metrics::{LoopClosure, PositionErrors};
 use references::{
     first_good_fix, gnss_step_references, reference_positions, start_position,
@@ -360,7 +363,9 @@ fn headed_steps(
     notes.extend(detection.notes.iter().cloned());
     let walking = walking_steps(&detection.steps, acc, &recording.gyro_in_body_radps);
     notes.extend(walking.note());
-    let steps = walking.steps;
+    let gait = gait_steps(&walking.steps);
+    notes.extend(gait.note());
+    let steps = gait.steps;
     if steps.is_empty() {
         return Err(no_steps());
     }

@@ -122,6 +122,20 @@ pub fn mean_frequency_hz(steps: &[Step]) -> Option<f64> {
     (!observed.is_empty()).then(|| observed.iter().sum::<f64>() / observed.len() as f64)
 }
 
+/// The index ranges of the bouts of walking: a bout ends at a step that `ends_bout`
+/// (no step starts within the detector's `max_step_s` after it).
+pub fn bout_ranges(steps: &[Step]) -> Vec<std::ops::Range<usize>> {
+    let mut bouts = Vec::new();
+    let mut start = 0;
+    for (idx, step) in steps.iter().enumerate() {
+        if step.ends_bout || idx + 1 == steps.len() {
+            bouts.push(start..idx + 1);
+            start = idx + 1;
+        }
+    }
+    bouts
+}
+
 /// Detects the steps in the accelerometer stream (specific force in the body frame).
 /// Samples with a non-finite value or a time that does not increase are left out and
 /// counted in a note.

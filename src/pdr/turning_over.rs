@@ -36,7 +36,7 @@ use nalgebra::Vector3;
 
 use crate::io::recording::Stream;
 
-use super::steps::Step;
+use super::steps::{bout_ranges, Step};
 
 /// Above this mean tilt rate a step may be the phone turned over (rad/s): walking with
 /// the phone in hand stayed under 0.9 on the IPIN walks, the figure eights' steps are
@@ -131,19 +131,6 @@ pub fn walking_steps(
         left_out_span_s: Some((steps[first].t_start_s, steps[last].t_end_s)),
         left_out_tilt_rate_radps: rates.get(rates.len() / 2).copied(),
     }
-}
-
-/// The index ranges of the bouts: a bout ends at a step that `ends_bout`.
-fn bout_ranges(steps: &[Step]) -> Vec<std::ops::Range<usize>> {
-    let mut bouts = Vec::new();
-    let mut start = 0;
-    for (idx, step) in steps.iter().enumerate() {
-        if step.ends_bout || idx + 1 == steps.len() {
-            bouts.push(start..idx + 1);
-            start = idx + 1;
-        }
-    }
-    bouts
 }
 
 /// The mean direction of the specific force over any time window, from prefix sums of
