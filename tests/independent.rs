@@ -17,7 +17,10 @@ fn run(
         .map(|seed| {
             let scores = score(&scenario(seed), &options);
             eprintln!(
-                "{name} seed {seed}: floor {:.2}° (true tilt {:.2?}°), raw {:?}, heading {:?} ({:.2}× floor), field {:?} ({:.2}×); {}",
+                "{name} seed {seed}: export {:.2?}° over {:.2?}° ({:.2}×); floor {:.2}° (true tilt {:.2?}°), raw {:?}, heading {:?} ({:.2}× floor), field {:?} ({:.2}×); {}",
+                scores.export_true_tilt_deg,
+                scores.true_calibration_floor_deg,
+                scores.export_over_true_tilt_floor(),
                 scores.floor_deg,
                 scores.true_tilt_floor_deg,
                 scores.raw_deg.map(|rms| (rms * 100.0).round() / 100.0),
