@@ -126,3 +126,47 @@ fn the_3d_view_of_real_boards_shades_what_they_never_pointed_at() {
     assert!(full_covered >= 90 && full_shaded <= 5, "{shaded:?}");
     assert!(turn_covered <= 40 && turn_shaded >= 20, "{shaded:?}");
 }
+
+/// Issue 45: an autopilot log's picture, each compass against the Earth's field in force
+/// and as written, says every bar's figure in words (readable without colour), and they
+/// are the figures of the compasses' sentences.
+#[test]
+fn an_autopilot_log_s_compasses_are_drawn_with_their_figures() {
+    let Some(data) = shared_data() else { return };
+    let import = common::import_paths(&[data.join("ardupilot-copter-log171/log171.bin")]);
+    let mut options = PdrOptions::default();
+    options.heading_options.neural = false;
+    let analysis = pipeline::analyse(&import, &options).expect("analyses");
+    let autopilot = analysis
+        .calibration
+        .report
+        .autopilot
+        .as_ref()
+        .expect("the compasses were assessed");
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (560, 314)).into_drawing_area();
+        compass_pdr::present::plot::compass_errors::draw_compass_errors(&root, autopilot)
+            .expect("drawn");
+    }
+    for compass in &autopilot.compasses {
+        assert!(
+            svg.contains(&compass.label()),
+            "{} is named",
+            compass.label()
+        );
+        if let Some(in_force) = compass.whole.in_force {
+            let text = format!("in force: {:.0}", in_force.vector_rms_mg);
+            assert!(svg.contains(&text), "{text} is written");
+        }
+        if let Some(new) = compass.whole.new {
+            let what = if compass.is_written() {
+                "written"
+            } else {
+                "fitted, kept out"
+            };
+            let text = format!("{what}: {:.0}", new.vector_rms_mg);
+            assert!(svg.contains(&text), "{text} is written");
+        }
+    }
+}

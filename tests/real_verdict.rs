@@ -14,7 +14,7 @@ use common::shared_data;
 use compass_pdr::pdr::PdrOptions;
 use compass_pdr::pipeline;
 use compass_pdr::present::verdict::{
-    verdict, Grade, Verdict, VerdictKind, FAIR_HEADING_RMS_DEG, GOOD_HEADING_RMS_DEG,
+    verdict, Grade, Picture, Verdict, VerdictKind, FAIR_HEADING_RMS_DEG, GOOD_HEADING_RMS_DEG,
 };
 
 /// A folder's files as a person drops them: everything but the licence and readme.
@@ -322,5 +322,38 @@ fn nothing_to_fit_is_answered_uncalibrated_with_what_to_record() {
         );
         let verdict = verdict_of(&paths);
         assert!(!verdict.to_do.is_empty(), "{paths:?}: says what to do");
+    }
+}
+
+/// Issue 45: the answer's picture is chosen by what the log is: a walk's track, a
+/// reference's heading error, a board's coverage, an autopilot's compasses, and the
+/// field's magnitude where there is neither a reference nor a calibration.
+#[test]
+fn each_kind_of_log_gets_its_picture() {
+    let Some(data) = shared_data() else { return };
+    let cases = [
+        (
+            dropped(&data.join("msft-indoor-2020/site1/F1")),
+            Picture::Track,
+        ),
+        (
+            dropped(&data.join("vehicle-pixel6a")),
+            Picture::HeadingError,
+        ),
+        (
+            dropped(&data.join("hmc5883l-sphere/full-sphere")),
+            Picture::Coverage,
+        ),
+        (
+            dropped(&data.join("hmc5883l-sphere/unmoved-with-x-pointing-forward")),
+            Picture::FieldMagnitude,
+        ),
+        (
+            vec![data.join("px4-ulog/sample.ulg")],
+            Picture::CompassErrors,
+        ),
+    ];
+    for (paths, picture) in cases {
+        assert_eq!(verdict_of(&paths).picture(), picture, "{paths:?}");
     }
 }

@@ -136,6 +136,82 @@ pub struct Verdict {
     pub steps: Option<String>,
 }
 
+/// The answer's picture: what the page draws beside the headline, chosen by what the
+/// log is, each drawn by the same plotting code as the folded details' figures.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Picture {
+    /// A walk: the dead-reckoned track, with the GNSS fixes and the reference positions
+    /// where the log has them.
+    Track,
+    /// A log with a reference heading: the heading error before and after over time.
+    HeadingError,
+    /// A board turned in the hand: the sphere of directions with its gaps.
+    Coverage,
+    /// An autopilot's log: each compass's error against the Earth's field, with the
+    /// parameters in force and as written.
+    CompassErrors,
+    /// A log with neither reference nor calibration: |B| over time, before and after.
+    FieldMagnitude,
+}
+
+impl Picture {
+    pub fn key(self) -> &'static str {
+        match self {
+            Picture::Track => "track",
+            Picture::HeadingError => "heading_error",
+            Picture::Coverage => "coverage",
+            Picture::CompassErrors => "compass_errors",
+            Picture::FieldMagnitude => "field_magnitude",
+        }
+    }
+
+    /// What the picture shows, in a sentence under it.
+    pub fn caption(self) -> &'static str {
+        match self {
+            Picture::Track => {
+                "The walk as dead-reckoned from its steps (solid line), with the GNSS fixes (dots) \
+                 and the reference positions (thin line) where the log has them."
+            }
+            Picture::HeadingError => {
+                "The heading's error against the log's reference over time: before calibration \
+                 (rings) and with the chosen calibration (dots)."
+            }
+            Picture::Coverage => {
+                "The directions the board was turned through (MotionCal's 100 regions of the \
+                 sphere): filled where samples fell, pale with an edge where none did. To cover \
+                 them, turn the board so that its axes point that way."
+            }
+            Picture::CompassErrors => {
+                "Each compass's error against the Earth's field over the whole log: with the \
+                 parameters in force (outlined) and with the new ones (filled)."
+            }
+            Picture::FieldMagnitude => {
+                "The field's magnitude |B| over time, before and after the correction: a good \
+                 calibration makes it a flat line."
+            }
+        }
+    }
+}
+
+impl Verdict {
+    /// The picture for this answer, the one that shows what the headline says: an
+    /// autopilot's compasses; for a log with a reference, a walk's track (with the
+    /// reference positions where it has them) or else the heading error; for a log
+    /// without, the coverage of the directions the field was turned through (a board in
+    /// the hand, a phone carried without a reference) or, with no calibration, the
+    /// field's magnitude.
+    pub fn picture(&self) -> Picture {
+        match (self.kind, &self.steps, &self.coverage) {
+            (VerdictKind::Autopilot, _, _) => Picture::CompassErrors,
+            (VerdictKind::Heading, Some(_), _) => Picture::Track,
+            (VerdictKind::Heading, None, _) => Picture::HeadingError,
+            (VerdictKind::FieldOnly, _, Some(_)) => Picture::Coverage,
+            (VerdictKind::FieldOnly, _, None) => Picture::FieldMagnitude,
+        }
+    }
+}
+
 /// The answer to one log: from the calibration, the heading comparison (its choice of
 /// method) and the dead reckoning, where there is one.
 pub fn verdict(

@@ -131,6 +131,16 @@ pub fn draw_coverage(
     })
 }
 
+/// An autopilot's compasses against the Earth's field, in force and new.
+pub fn draw_compass_errors(
+    canvas: &HtmlCanvasElement,
+    autopilot: &crate::analysis::calibration::autopilot::AutopilotCalibration,
+) -> Result<(), String> {
+    draw_with(canvas, |area| {
+        crate::present::plot::compass_errors::draw_compass_errors(area, autopilot)
+    })
+}
+
 /// The controls' timeline.
 pub fn draw_timeline(
     canvas: &HtmlCanvasElement,

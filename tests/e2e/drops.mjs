@@ -35,8 +35,14 @@ export function recordings(data) {
   for (const trial of readdirSync(at('hmc5883l-sphere')).sort()) {
     if (statSync(at('hmc5883l-sphere', trial)).isDirectory()) list.push([`hmc5883l-${trial}`, dropped(at('hmc5883l-sphere', trial))]);
   }
-  for (const trial of readdirSync(at('tyrex-attitude')).sort()) {
-    if (statSync(at('tyrex-attitude', trial)).isDirectory()) list.push([`tyrex-${trial}`, dropped(at('tyrex-attitude', trial))]);
+  for (const folder of ['tyrex-attitude', 'tyrex-attitude-more']) {
+    for (const trial of readdirSync(at(folder)).sort()) {
+      if (statSync(at(folder, trial)).isDirectory()) list.push([`tyrex-${trial}`, dropped(at(folder, trial))]);
+    }
+  }
+  // The IPIN 2023 walks: one GetSensorData file each.
+  for (const walk of readdirSync(at('ipin2023-track3-walks')).filter((name) => name.endsWith('.txt')).sort()) {
+    list.push([`ipin-${walk.replace(/^IPIN2023_T3_Training|\.txt$/g, '')}`, [at('ipin2023-track3-walks', walk)]]);
   }
   return list;
 }

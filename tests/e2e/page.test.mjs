@@ -105,6 +105,24 @@ test('the demo is analysed and drawn on load, with the CLI\'s figures', async ()
     assert.ok(models.includes(`MLP on ${neural.base_label}: inputs ${neural.inputs.join(', ')}`), models);
   }
   assert.match(await text(page, 'deviation-model'), new RegExp(`ellipse \\(tilt-aware 2D\\): A ${ellipseModel.a_deg.toFixed(2)}°`));
+  // The answer's picture (issue 45): the demo walk's track, drawn, and on the first
+  // screen on a desktop and on a phone.
+  assert.ok(await drawnPixels(page, 'answer-canvas') > 5000, 'the answer\'s picture is drawn');
+  const viewport = page.viewportSize();
+  for (const size of [{ width: 1360, height: 900 }, { width: 390, height: 844 }]) {
+    await page.setViewportSize(size);
+    await page.evaluate(() => window.scrollTo(0, 0));
+    const picture = await page.evaluate(() => {
+      const figure = document.getElementById('answer-figure');
+      const rect = figure.getBoundingClientRect();
+      return { kind: figure.dataset.picture, hidden: figure.hidden, top: rect.top, bottom: rect.bottom, left: rect.left, right: rect.right };
+    });
+    assert.equal(picture.kind, 'track', 'the demo walk leads with its track');
+    assert.ok(!picture.hidden && picture.top >= 0 && picture.bottom <= size.height && picture.left >= 0 && picture.right <= size.width,
+      `the demo's picture at ${size.width}×${size.height}: ${JSON.stringify(picture)}`);
+    await page.screenshot({ path: join(out, `demo-first-screen-${size.width}.png`) });
+  }
+  await page.setViewportSize(viewport);
   await page.screenshot({ path: join(out, 'demo-first-screen.png') });
   await openAllDetails(page);
   await page.screenshot({ path: join(out, 'demo.png'), fullPage: true });

@@ -1,6 +1,7 @@
 // Every real recording in ../shared/data dropped on the page as a person drops it (each
 // folder's files together, licences and readmes aside): the answer (grade, headline,
-// method, a key figure, a download) is on the first screen at 1360×900 and at 390×844,
+// method, a key figure, a download, its picture) is on the first screen at 1360×900, and
+// all but the method and the key figures, which follow the picture, at 390×844,
 // the page names no command-line flag, no main-thread task takes over 100 ms from the
 // drop to the summary (the analysis runs on a worker), and the screenshots of both are
 // kept in tests/e2e/out/real-*.png; the time from drop to summary is kept in
@@ -26,12 +27,18 @@ async function summaryBoxes(page) {
     // The first download on the screen: the row's order is the style's, not the page's.
     const shown = [...document.querySelectorAll('#summary .exports button')].filter((button) => button.offsetParent !== null);
     const firstShown = shown.sort((a, b) => a.getBoundingClientRect().left - b.getBoundingClientRect().left)[0];
+    // On a phone the picture comes before the method and the key figures (issue 45):
+    // the headline carries the key figure, and there is no room for all of them.
+    const phone = window.innerWidth <= 600;
     return {
       grade: box(document.getElementById('verdict-grade')),
       headline: box(document.getElementById('verdict-headline')),
-      method: box(document.getElementById('verdict-method')),
-      figure: box(document.querySelector('#verdict-figures dd')),
+      ...(phone ? {} : {
+        method: box(document.getElementById('verdict-method')),
+        figure: box(document.querySelector('#verdict-figures dd')),
+      }),
       download: box(firstShown),
+      picture: box(document.getElementById('answer-figure')),
     };
   });
 }
@@ -55,6 +62,9 @@ const MAX_TASK_MS = 100;
 const present = existsSync(data);
 if (!present) console.log(`skipped: ${data} not found (the real recordings live beside the project; CI has them)`);
 
+/** The answer's pictures the recordings got: every kind must be among them. */
+const pictures = new Set();
+
 for (const [name, files] of present ? recordings(data) : []) {
   test(`${name}: the answer is on the first screen, on a desktop and on a phone`, { timeout: 120_000 }, async () => {
     const desktop = { width: 1360, height: 900 };
@@ -72,19 +82,32 @@ for (const [name, files] of present ? recordings(data) : []) {
     console.log(`${name}: drop to summary ${timing.dropToSummaryMs.toFixed(0)} ms, to every figure ${timing.dropToReadyMs.toFixed(0)} ms, longest main-thread task ${timing.longestTaskMs.toFixed(0)} ms`);
     assert.ok(timing.longestTaskMs <= MAX_TASK_MS, `${name}: a main-thread task took ${timing.longestTaskMs.toFixed(0)} ms`);
     assert.ok(['good', 'fair', 'poor'].includes(await page.getAttribute('#summary', 'data-grade')), `${name}: a grade`);
-    // A board turned in the hand (no reference) and calibrated: the summary shows where
-    // its field's directions fell; the other logs (and a board with no calibration) do
-    // not get that map.
-    const coverage = await page.evaluate(() => {
-      const figure = document.getElementById('verdict-coverage-figure');
+    // The answer's picture (issue 45), chosen by what the log is and what its headline
+    // says: an autopilot's compasses; with a reference, a walk's track or else the
+    // heading error; without, the coverage of a calibrated field, else the field's
+    // magnitude. Drawn, and on the first screen at both sizes (in summaryBoxes).
+    const picture = await page.evaluate(() => {
+      const figure = document.getElementById('answer-figure');
       return {
         kind: document.getElementById('summary').dataset.kind,
+        walk: /steps dead-reckoned/.test(document.getElementById('status').textContent),
         calibrated: !document.getElementById('verdict-headline').textContent.startsWith('No 3D calibration'),
+        picture: figure.dataset.picture,
         shown: !figure.hidden && figure.getBoundingClientRect().height > 0,
       };
     });
-    assert.equal(coverage.shown, coverage.kind === 'field_only' && coverage.calibrated, `${name}: the coverage map for a ${coverage.kind} answer`);
-    if (coverage.shown) assert.ok(await drawnPixels(page, 'verdict-coverage') > 5000, `${name}: the coverage map is drawn`);
+    const expected = picture.kind === 'autopilot' ? 'compass_errors'
+      : picture.kind === 'heading' ? (picture.walk ? 'track' : 'heading_error')
+      : picture.calibrated ? 'coverage' : 'field_magnitude';
+    assert.ok(picture.shown, `${name}: the answer has a picture`);
+    assert.equal(picture.picture, expected, `${name}: the picture for a ${picture.kind} answer`);
+    pictures.add(picture.picture);
+    assert.ok(await drawnPixels(page, 'answer-canvas') > 5000, `${name}: the picture is drawn`);
+    // Read without colour: the picture in grey, kept for a person to look at (its
+    // series differ by line width, rings against dots, outlined against filled bars).
+    await page.evaluate(() => { document.getElementById('answer-figure').style.filter = 'grayscale(1)'; });
+    await page.locator('#answer-figure').screenshot({ path: join(out, `real-${name}-picture-grey.png`) });
+    await page.evaluate(() => { document.getElementById('answer-figure').style.filter = ''; });
     await page.screenshot({ path: join(out, `real-${name}-desktop.png`) });
     await assertOnFirstScreen(page, name, desktop);
     await page.setViewportSize(phone);
@@ -97,5 +120,11 @@ for (const [name, files] of present ? recordings(data) : []) {
     assert.equal(flag, null, `${name}: the page names a command-line flag: ${flag?.[0]}`);
     assert.deepEqual(problems, []);
     await close();
+  });
+}
+
+if (present) {
+  test('the recordings cover every kind of answer picture', () => {
+    assert.deepEqual([...pictures].sort(), ['compass_errors', 'coverage', 'field_magnitude', 'heading_error', 'track']);
   });
 }

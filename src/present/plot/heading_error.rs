@@ -100,7 +100,7 @@ pub fn draw_heading_error<DB: DrawingBackend>(
     .map_err(&error)?;
     let frame = super::frame_of(&chart, (time_range, y_range), ("time (s)", y_desc), false);
 
-    super::draw_dots(&mut chart, &before, RAW_COLOR, "before calibration").map_err(&error)?;
+    super::draw_rings(&mut chart, &before, RAW_COLOR, "before calibration").map_err(&error)?;
     super::draw_dots(&mut chart, &after, CORRECTED_COLOR, best_label.as_str()).map_err(&error)?;
     super::draw_legend(&mut chart, SeriesLabelPosition::LowerRight).map_err(&error)?;
     Ok(frame)

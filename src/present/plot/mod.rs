@@ -5,6 +5,7 @@
 //! sizes, backends and files belong to the caller.
 
 pub mod circle_fit;
+pub mod compass_errors;
 pub mod deviation;
 pub mod field_magnitude;
 pub mod heading_error;
@@ -103,7 +104,6 @@ pub(crate) fn draw_legend<'a, DB: DrawingBackend + 'a, CT: plotters::coord::Coor
         .draw()
 }
 
-/// The indices of at most `max_points` evenly spaced elements of `0..len`.
 /// A chart with two `f64` axes.
 pub(crate) type XyChart<'a, DB> = ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
 
@@ -123,8 +123,13 @@ pub(crate) fn styled_chart<'a, DB: DrawingBackend>(
         .x_label_area_size(36)
         .y_label_area_size(48)
         .build_cartesian_2d(x_range, y_range)?;
+    // Plotters' ten tick labels on a plot of 560 × 300 px or more; fewer on a narrower
+    // one (a phone's), so that its labels do not run into each other.
+    let (width_px, height_px) = area.dim_in_pixel();
     chart
         .configure_mesh()
+        .x_labels((width_px / 56).clamp(4, 10) as usize)
+        .y_labels((height_px / 30).clamp(4, 10) as usize)
         .x_desc(x_desc)
         .y_desc(y_desc)
         .light_line_style(WHITE.mix(0.0))
@@ -170,6 +175,26 @@ pub(crate) fn draw_dots<DB: DrawingBackend>(
     Ok(())
 }
 
+/// Points as small rings, with a legend entry: a series that must be told from dots
+/// without its colour (the heading error before calibration, beside the dots after).
+pub(crate) fn draw_rings<DB: DrawingBackend>(
+    chart: &mut XyChart<'_, DB>,
+    points: &[(f64, f64)],
+    color: RGBColor,
+    label: &str,
+) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    chart
+        .draw_series(
+            points
+                .iter()
+                .map(|&point| Circle::new(point, 2, color.stroke_width(1))),
+        )?
+        .label(label)
+        .legend(move |(x, y)| Circle::new((x + 8, y), 3, color.stroke_width(1)));
+    Ok(())
+}
+
+/// The indices of at most `max_points` evenly spaced elements of `0..len`.
 pub(crate) fn thinned_indices(len: usize, max_points: usize) -> impl Iterator<Item = usize> {
     let stride = len.div_ceil(max_points.max(1)).max(1);
     (0..len).step_by(stride)

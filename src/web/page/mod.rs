@@ -68,6 +68,8 @@ pub struct Page {
     position_error_canvas: HtmlCanvasElement,
     /// The latest analysis, for the exports; `None` before the first and after an error.
     results: std::cell::RefCell<Option<Rc<Results>>>,
+    /// The latest answer's picture, drawn again when the window's width changes it.
+    picture: std::cell::RefCell<Option<verdict::AnswerPicture>>,
     /// The latest log as imported, for re-running the analysis when a control changes.
     import: std::cell::RefCell<Option<Arc<ImportReport>>>,
     /// The running job's cancel flag (set when a new job starts or Cancel is pressed).
@@ -140,6 +142,7 @@ impl Page {
             body,
             document,
             results: std::cell::RefCell::new(None),
+            picture: std::cell::RefCell::new(None),
             import: std::cell::RefCell::new(None),
             cancel: std::cell::RefCell::new(Arc::default()),
             #[cfg(target_feature = "atomics")]
@@ -201,6 +204,7 @@ impl Page {
         .forget();
 
         self.wire_zoom();
+        self.wire_picture_resize();
         if let Some(cancel) = self.document.get_element_by_id(CANCEL_ID) {
             let page = Rc::clone(&self);
             EventListener::new(&cancel, "click", move |_| page.cancel_job()).forget();

@@ -1,17 +1,50 @@
 //! The answer first ([`crate::present::verdict`]): the grade, the headline, the method,
-//! the key figures and what to do, in the summary at the top of the page (`#summary`),
-//! above the downloads' details.
+//! the answer's picture, the key figures and what to do, in the summary at the top of
+//! the page (`#summary`), above the downloads' details.
 
 use wasm_bindgen::JsCast;
 
-use super::Page;
-use crate::present::verdict::Verdict;
+use std::rc::Rc;
+
+use gloo::events::EventListener;
+
+use super::{Page, Results};
+use crate::fit::coverage::SphereCoverage;
+use crate::present::plot::zoom::Zoom;
+use crate::present::verdict::{Picture, Verdict};
+use crate::web::canvas;
 
 /// The summary's element ids (see `www/index.html`).
 const SUMMARY_ID: &str = "summary";
 const FIGURES_ID: &str = "verdict-figures";
-const COVERAGE_FIGURE_ID: &str = "verdict-coverage-figure";
-const COVERAGE_CANVAS_ID: &str = "verdict-coverage";
+const PICTURE_FIGURE_ID: &str = "answer-figure";
+const PICTURE_CANVAS_ID: &str = "answer-canvas";
+const PICTURE_CAPTION_ID: &str = "answer-caption";
+/// The picture's widest and narrowest layouts (CSS pixels): narrower than the least, the
+/// plots' captions and labels no longer fit, and the picture is drawn at it and scaled
+/// down to the figure.
+const PICTURE_MAX_WIDTH_PX: f64 = 560.0;
+const PICTURE_MIN_WIDTH_PX: f64 = 400.0;
+/// Its height over its width: lower on a phone, where the picture shares the first
+/// screen with the headline and the downloads.
+const PICTURE_ASPECT: f64 = 0.56;
+const PICTURE_NARROW_ASPECT: f64 = 0.5;
+
+/// What the answer's picture is, with what it needs of the verdict (the coverage of a
+/// board turned in the hand), kept from the summary until it is drawn.
+pub(crate) struct AnswerPicture {
+    picture: Picture,
+    coverage: Option<SphereCoverage>,
+}
+
+impl AnswerPicture {
+    pub(crate) fn of(verdict: &Verdict) -> AnswerPicture {
+        AnswerPicture {
+            picture: verdict.picture(),
+            coverage: verdict.coverage.clone(),
+        }
+    }
+}
 
 impl Page {
     /// Fills the summary with `verdict`, or empties it (`None`: an error, or no log yet).
@@ -22,8 +55,8 @@ impl Page {
             let kind = verdict.map_or("", |verdict| verdict.kind.key());
             summary.set_attribute("data-kind", kind).ok();
         }
-        self.show_coverage(verdict.and_then(|verdict| verdict.coverage.as_ref()));
         let Some(verdict) = verdict else {
+            self.hide_picture();
             for id in ["verdict-grade", "verdict-method", "verdict-read"] {
                 self.set_text(id, "");
             }
@@ -40,28 +73,101 @@ impl Page {
         self.fill_figures(&verdict.figures);
     }
 
-    /// A calibration-only log's coverage map under the summary; hidden for the others.
-    fn show_coverage(&self, coverage: Option<&crate::fit::coverage::SphereCoverage>) {
-        let Some(figure) = self.document.get_element_by_id(COVERAGE_FIGURE_ID) else {
+    /// Draws the answer's picture, laid out for the figure's width (a phone's is
+    /// narrower than a desktop's), with its caption; a picture that cannot be drawn says
+    /// why in its place.
+    pub(super) fn draw_picture(&self, answer: &AnswerPicture, results: &Results) {
+        let Some(figure) = self.document.get_element_by_id(PICTURE_FIGURE_ID) else {
             return;
         };
-        let canvas = self
+        let Some(canvas) = self
             .document
-            .get_element_by_id(COVERAGE_CANVAS_ID)
-            .and_then(|element| element.dyn_into::<web_sys::HtmlCanvasElement>().ok());
-        match (coverage, canvas) {
-            (Some(coverage), Some(canvas)) => {
-                let _ = figure.remove_attribute("hidden");
-                if let Err(message) = crate::web::canvas::draw_coverage(&canvas, Some(coverage)) {
-                    let _ = crate::web::canvas::draw_message(
-                        &canvas,
-                        &format!("This plot could not be drawn: {message}"),
-                    );
-                }
+            .get_element_by_id(PICTURE_CANVAS_ID)
+            .and_then(|element| element.dyn_into::<web_sys::HtmlCanvasElement>().ok())
+        else {
+            return;
+        };
+        let _ = figure.remove_attribute("hidden");
+        let _ = figure.set_attribute("data-picture", answer.picture.key());
+        self.set_text(PICTURE_CAPTION_ID, answer.picture.caption());
+        let width_px = picture_width_px(f64::from(figure.client_width()));
+        let aspect = if width_px < PICTURE_MAX_WIDTH_PX {
+            PICTURE_NARROW_ASPECT
+        } else {
+            PICTURE_ASPECT
+        };
+        let height_px = (width_px * aspect).round();
+        let _ = canvas.set_attribute("data-width", &format!("{width_px}"));
+        let _ = canvas.set_attribute("data-height", &format!("{height_px}"));
+        let drawn = match (answer.picture, &results.pdr) {
+            (Picture::Track, Ok(pdr)) => {
+                canvas::draw_pdr(&canvas, canvas::PdrPlot::Trajectory, pdr, Zoom::WHOLE).map(|_| ())
             }
-            _ => {
-                let _ = figure.set_attribute("hidden", "");
+            (Picture::Track, Err(why)) => Err(why.clone()),
+            (Picture::HeadingError, _) => canvas::draw(
+                &canvas,
+                canvas::Plot::HeadingError,
+                &results.calibration,
+                Zoom::WHOLE,
+            )
+            .map(|_| ()),
+            (Picture::Coverage, _) => canvas::draw_coverage(&canvas, answer.coverage.as_ref()),
+            (Picture::CompassErrors, _) => match &results.calibration.report.autopilot {
+                Some(autopilot) => canvas::draw_compass_errors(&canvas, autopilot),
+                None => Err("the log's compasses were not assessed".to_string()),
+            },
+            (Picture::FieldMagnitude, _) => canvas::draw(
+                &canvas,
+                canvas::Plot::FieldMagnitude,
+                &results.calibration,
+                Zoom::WHOLE,
+            )
+            .map(|_| ()),
+        };
+        if let Err(message) = drawn {
+            let _ =
+                canvas::draw_message(&canvas, &format!("This plot could not be drawn: {message}"));
+        }
+        self.mark_time("data-picture-ms");
+    }
+
+    /// Draws the kept answer's picture again when the window's width changes the
+    /// figure's (a phone turned, a window resized), so that its text stays legible.
+    pub(super) fn wire_picture_resize(self: &Rc<Self>) {
+        let Some(window) = web_sys::window() else {
+            return;
+        };
+        let page = Rc::clone(self);
+        EventListener::new(&window, "resize", move |_| {
+            let Some(results) = page.results.borrow().clone() else {
+                return;
+            };
+            let (Some(figure), Some(canvas)) = (
+                page.document.get_element_by_id(PICTURE_FIGURE_ID),
+                page.document.get_element_by_id(PICTURE_CANVAS_ID),
+            ) else {
+                return;
+            };
+            let drawn_px = canvas
+                .get_attribute("data-width")
+                .and_then(|width| width.parse::<f64>().ok());
+            let wanted_px = picture_width_px(f64::from(figure.client_width()));
+            if drawn_px.is_some_and(|drawn_px| (drawn_px - wanted_px).abs() < 8.0) {
+                return;
             }
+            if let Some(answer) = page.picture.borrow().as_ref() {
+                page.draw_picture(answer, &results);
+            }
+        })
+        .forget();
+    }
+
+    /// No answer, no picture.
+    fn hide_picture(&self) {
+        *self.picture.borrow_mut() = None;
+        if let Some(figure) = self.document.get_element_by_id(PICTURE_FIGURE_ID) {
+            let _ = figure.set_attribute("hidden", "");
+            let _ = figure.remove_attribute("data-picture");
         }
     }
 
@@ -80,4 +186,11 @@ impl Page {
             }
         }
     }
+}
+
+/// The width (CSS pixels) the picture is laid out for in a figure `client_px` wide.
+fn picture_width_px(client_px: f64) -> f64 {
+    client_px
+        .clamp(PICTURE_MIN_WIDTH_PX, PICTURE_MAX_WIDTH_PX)
+        .round()
 }
