@@ -14,8 +14,11 @@
 //! displacement is at most a step or two (under a metre), where leaving in a shuffle
 //! in place adds as much that never happened.
 //!
-//! Limits: two real steps taken alone (a step aside) are left out too; a walk made only
-//! of such bouts has no track, and the note says why.
+//! Only in a log that walks: where the bouts of gait hold under half of the steps (a
+//! car's vibrations at 1 Hz, every "step" alone), nothing is left out, and the dead
+//! reckoning says what it says of any log that is not a walk.
+//!
+//! Limits: two real steps taken alone (a step aside) are left out too.
 
 use super::steps::{bout_ranges, Step};
 
@@ -46,7 +49,8 @@ impl Gait {
     }
 }
 
-/// Leaves out the steps of bouts shorter than [`MIN_GAIT_BOUT_STEPS`].
+/// Leaves out the steps of bouts shorter than [`MIN_GAIT_BOUT_STEPS`], where the bouts
+/// of gait hold at least half of the steps.
 pub fn gait_steps(steps: &[Step]) -> Gait {
     let mut kept = Vec::with_capacity(steps.len());
     let (mut n_left_out, mut n_bouts_left_out) = (0, 0);
@@ -57,6 +61,13 @@ pub fn gait_steps(steps: &[Step]) -> Gait {
             n_left_out += bout.len();
             n_bouts_left_out += 1;
         }
+    }
+    if 2 * kept.len() < steps.len() {
+        return Gait {
+            steps: steps.to_vec(),
+            n_left_out: 0,
+            n_bouts_left_out: 0,
+        };
     }
     Gait {
         steps: kept,
@@ -103,6 +114,17 @@ mod tests {
                 "3 steps in 2 bouts of fewer than 3 steps (feet shifted while standing or turning about) were left out of the track: they are not walking from one place to another."
             )
         );
+    }
+
+    #[test]
+    fn a_log_of_lone_steps_is_not_a_walk_and_keeps_them_all() {
+        // A car's vibrations at 1 Hz: every "step" alone.
+        let steps: Vec<Step> = (0..30)
+            .map(|i| step(3.0 * f64::from(i), 1.0, true))
+            .collect();
+        let gait = gait_steps(&steps);
+        assert_eq!(gait.steps, steps);
+        assert_eq!(gait.note(), None);
     }
 
     #[test]
