@@ -50,18 +50,28 @@ function canvasPixels(page, id) {
     let drawn = 0;
     let red = 0;
     let digest = 0;
+    let message = 0;
     for (let i = 0; i < data.length; i += 4) {
       const [r, g, b] = [data[i], data[i + 1], data[i + 2]];
       if (r < 250 || g < 250 || b < 250) drawn += 1;
+      // The background of a plot replaced by a message (`canvas::draw_message`).
+      if (r === 250 && g === 246 && b === 240) message += 1;
       if (r > 150 && r - g > 80 && g - b < 40) red += 1;
       for (let k = 0; k < 4; k += 1) digest = (digest * 31 + data[i + k]) | 0;
     }
-    return { drawn, red, digest };
+    return { drawn, red, digest, message, total: data.length / 4 };
   }, id);
 }
 
 /** Pixels of a canvas that are not white. */
 export const drawnPixels = async (page, id) => (await canvasPixels(page, id)).drawn;
+
+/** Whether a canvas holds a plot: thousands of pixels drawn (axes, labels, data), and
+ * not a message in the plot's place (its background covers the canvas). */
+export async function plotDrawn(page, id) {
+  const { drawn, message, total } = await canvasPixels(page, id);
+  return { drawn, isPlot: drawn > 5_000 && message < total / 2 };
+}
 
 /** Pixels of a canvas in the plots' strong red (see `canvasPixels`). */
 export const redPixels = async (page, id) => (await canvasPixels(page, id)).red;

@@ -11,7 +11,7 @@ import { test } from 'node:test';
 import assert from 'node:assert/strict';
 import { existsSync, writeFileSync } from 'node:fs';
 import { join } from 'node:path';
-import { drawnPixels, lastDropTiming, openPage, out, recordMainThread } from './common.mjs';
+import { lastDropTiming, openPage, out, plotDrawn, recordMainThread } from './common.mjs';
 import { recordings } from './drops.mjs';
 
 const data = process.env.SHARED_DATA || join(import.meta.dirname, '..', '..', '..', 'shared', 'data');
@@ -102,7 +102,7 @@ for (const [name, files] of present ? recordings(data) : []) {
     assert.ok(picture.shown, `${name}: the answer has a picture`);
     assert.equal(picture.picture, expected, `${name}: the picture for a ${picture.kind} answer`);
     pictures.add(picture.picture);
-    assert.ok(await drawnPixels(page, 'answer-canvas') > 5000, `${name}: the picture is drawn`);
+    assert.ok((await plotDrawn(page, 'answer-canvas')).isPlot, `${name}: the picture is drawn, not a message`);
     // Read without colour: the picture in grey, kept for a person to look at (its
     // series differ by line width, rings against dots, outlined against filled bars).
     await page.evaluate(() => { document.getElementById('answer-figure').style.filter = 'grayscale(1)'; });

@@ -129,6 +129,10 @@ impl Page {
                 canvas::draw_message(&canvas, &format!("This plot could not be drawn: {message}"));
         }
         self.mark_time("data-picture-ms");
+        // When this picture was drawn, on the page's clock (bench/drop_costs.mjs).
+        if let Some(performance) = web_sys::window().and_then(|window| window.performance()) {
+            let _ = figure.set_attribute("data-drawn-at", &format!("{:.1}", performance.now()));
+        }
     }
 
     /// Draws the kept answer's picture again when the window's width changes the
