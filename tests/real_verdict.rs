@@ -325,9 +325,10 @@ fn nothing_to_fit_is_answered_uncalibrated_with_what_to_record() {
     }
 }
 
-/// Issue 45: the answer's picture is chosen by what the log is: a walk's track, a
-/// reference's heading error, a board's coverage, an autopilot's compasses, and the
-/// field's magnitude where there is neither a reference nor a calibration.
+/// Issue 45: the answer's picture is chosen by what the log is: a walk on a map's track,
+/// a reference's heading error, a board's (or an unmapped walk's) coverage, an
+/// autopilot's compasses, and the field's magnitude where there is neither a reference
+/// nor a calibration.
 #[test]
 fn each_kind_of_log_gets_its_picture() {
     let Some(data) = shared_data() else { return };
@@ -354,6 +355,6 @@ fn each_kind_of_log_gets_its_picture() {
         ),
     ];
     for (paths, picture) in cases {
-        assert_eq!(verdict_of(&paths).picture(), picture, "{paths:?}");
+        assert_eq!(verdict_of(&paths).picture, picture, "{paths:?}");
     }
 }

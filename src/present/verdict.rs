@@ -134,6 +134,8 @@ pub struct Verdict {
     /// says them ("35 steps dead-reckoned over 19 m."), so that the page's status and
     /// this summary count steps for the same logs.
     pub steps: Option<String>,
+    /// The picture that goes with the answer ([`Picture`]).
+    pub picture: Picture,
 }
 
 /// The answer's picture: what the page draws beside the headline, chosen by what the
@@ -141,8 +143,8 @@ pub struct Verdict {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Picture {
-    /// A walk: the dead-reckoned track, with the GNSS fixes and the reference positions
-    /// where the log has them.
+    /// A walk on a map (GNSS fixes, or reference positions): the dead-reckoned track
+    /// with its σ, the fixes and the reference positions.
     Track,
     /// A log with a reference heading: the heading error before and after over time.
     HeadingError,
@@ -170,8 +172,9 @@ impl Picture {
     pub fn caption(self) -> &'static str {
         match self {
             Picture::Track => {
-                "The walk as dead-reckoned from its steps (solid line), with the GNSS fixes (dots) \
-                 and the reference positions (thin line) where the log has them."
+                "The walk as dead-reckoned from its steps (solid line), with rings of its \
+                 position's 1σ (thin, grey), and the GNSS fixes (dots) and the reference positions \
+                 (thin line, crosses) where the log has them."
             }
             Picture::HeadingError => {
                 "The heading's error against the log's reference over time: before calibration \
@@ -190,24 +193,6 @@ impl Picture {
                 "The field's magnitude |B| over time, before and after the correction: a good \
                  calibration makes it a flat line."
             }
-        }
-    }
-}
-
-impl Verdict {
-    /// The picture for this answer, the one that shows what the headline says: an
-    /// autopilot's compasses; for a log with a reference, a walk's track (with the
-    /// reference positions where it has them) or else the heading error; for a log
-    /// without, the coverage of the directions the field was turned through (a board in
-    /// the hand, a phone carried without a reference) or, with no calibration, the
-    /// field's magnitude.
-    pub fn picture(&self) -> Picture {
-        match (self.kind, &self.steps, &self.coverage) {
-            (VerdictKind::Autopilot, _, _) => Picture::CompassErrors,
-            (VerdictKind::Heading, Some(_), _) => Picture::Track,
-            (VerdictKind::Heading, None, _) => Picture::HeadingError,
-            (VerdictKind::FieldOnly, _, Some(_)) => Picture::Coverage,
-            (VerdictKind::FieldOnly, _, None) => Picture::FieldMagnitude,
         }
     }
 }
@@ -262,6 +247,14 @@ pub fn verdict(
                 pdr.pdr_distance_m
             )
         });
+        // A walk on a map (GNSS fixes taken, or reference positions to score it
+        // against) is pictured by its track; a walk with neither keeps its answer's.
+        let fixes = &pdr.fixes;
+        let on_map = fixes.used + fixes.used_after_reset + fixes.down_weighted > 0
+            || pdr.position_error.is_some();
+        if verdict.steps.is_some() && on_map {
+            verdict.picture = Picture::Track;
+        }
     }
     // What is written back to the device follows one rule: where it refuses, the answer
     // says why (an autopilot's compasses say it in their own sentences).
@@ -555,6 +548,7 @@ fn heading_verdict(
         to_do,
         coverage: None,
         steps: None,
+        picture: Picture::HeadingError,
     }
 }
 
@@ -583,6 +577,7 @@ fn field_only_verdict(
                 .collect(),
             coverage: None,
             steps: None,
+            picture: Picture::FieldMagnitude,
         };
     };
     let label = field.method_label.unwrap_or("the calibration");
@@ -637,6 +632,7 @@ fn field_only_verdict(
         to_do,
         coverage: Some(field.coverage.clone()),
         steps: None,
+        picture: Picture::Coverage,
     }
 }
 
@@ -746,5 +742,6 @@ fn autopilot_verdict(
         to_do,
         coverage: None,
         steps: None,
+        picture: Picture::CompassErrors,
     }
 }

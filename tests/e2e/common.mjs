@@ -70,7 +70,7 @@ export const drawnPixels = async (page, id) => (await canvasPixels(page, id)).dr
  * not a message in the plot's place (its background covers the canvas). */
 export async function plotDrawn(page, id) {
   const { drawn, message, total } = await canvasPixels(page, id);
-  return { drawn, isPlot: drawn > 5_000 && message < total / 2 };
+  return { drawn, isPlot: drawn > 5_000 && message < total / 2, isMessage: message >= total / 2 };
 }
 
 /** Pixels of a canvas in the plots' strong red (see `canvasPixels`). */

@@ -82,10 +82,10 @@ for (const [name, files] of present ? recordings(data) : []) {
     console.log(`${name}: drop to summary ${timing.dropToSummaryMs.toFixed(0)} ms, to every figure ${timing.dropToReadyMs.toFixed(0)} ms, longest main-thread task ${timing.longestTaskMs.toFixed(0)} ms`);
     assert.ok(timing.longestTaskMs <= MAX_TASK_MS, `${name}: a main-thread task took ${timing.longestTaskMs.toFixed(0)} ms`);
     assert.ok(['good', 'fair', 'poor'].includes(await page.getAttribute('#summary', 'data-grade')), `${name}: a grade`);
-    // The answer's picture (issue 45), chosen by what the log is and what its headline
-    // says: an autopilot's compasses; with a reference, a walk's track or else the
-    // heading error; without, the coverage of a calibrated field, else the field's
-    // magnitude. Drawn, and on the first screen at both sizes (in summaryBoxes).
+    // The answer's picture (issue 45), chosen by what the log is: an autopilot's
+    // compasses; a walk on a map, its track; else with a reference the heading error,
+    // without one the coverage of a calibrated field or the field's magnitude. Drawn,
+    // and on the first screen at both sizes (in summaryBoxes).
     const picture = await page.evaluate(() => {
       const figure = document.getElementById('answer-figure');
       return {
@@ -96,9 +96,13 @@ for (const [name, files] of present ? recordings(data) : []) {
         shown: !figure.hidden && figure.getBoundingClientRect().height > 0,
       };
     });
+    // The walks on a map: reference positions (msft, IPIN's landmarks) or GNSS fixes.
+    const onMap = /^(msft|ipin|sensorlogger|phyphox)/.test(name);
     const expected = picture.kind === 'autopilot' ? 'compass_errors'
-      : picture.kind === 'heading' ? (picture.walk ? 'track' : 'heading_error')
+      : onMap ? 'track'
+      : picture.kind === 'heading' ? 'heading_error'
       : picture.calibrated ? 'coverage' : 'field_magnitude';
+    assert.equal(picture.walk || !onMap, true, `${name}: a walk`);
     assert.ok(picture.shown, `${name}: the answer has a picture`);
     assert.equal(picture.picture, expected, `${name}: the picture for a ${picture.kind} answer`);
     pictures.add(picture.picture);

@@ -17,6 +17,9 @@ const GNSS_COLOR: RGBColor = RGBColor(31, 119, 180);
 const IGNORED_COLOR: RGBColor = RGBColor(170, 170, 170);
 const TRACK_COLOR: RGBColor = RGBColor(214, 39, 40);
 const OUTAGE_COLOR: RGBColor = RGBColor(255, 127, 14);
+const SIGMA_COLOR: RGBColor = RGBColor(150, 150, 150);
+/// How many rings of the position's σ a trajectory shows along its track.
+const SIGMA_RINGS: usize = 12;
 
 /// The trajectory on the left, step lengths and position error on the right. This is
 /// what `compass-pdr pdr --plot` writes.
@@ -68,8 +71,9 @@ fn scale_bar_m(span_m: f64) -> f64 {
 }
 
 /// The trajectory in metres east and north of the origin, on equal axes: the reference,
-/// the GNSS fixes used and ignored, the dead-reckoned track with its stretches without
-/// GNSS, its start and end, and a scale bar; `zoom` picks the window.
+/// the GNSS fixes used and ignored, the dead-reckoned track with rings of its position's
+/// σ and its stretches without GNSS, its start and end, and a scale bar; `zoom` picks
+/// the window.
 pub fn draw_trajectory<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
     analysis: &PdrAnalysis,
@@ -126,6 +130,7 @@ pub fn draw_trajectory<DB: DrawingBackend>(
         )
         .map_err(&error)?;
     }
+    draw_uncertainty(&mut chart, analysis, &window).map_err(&error)?;
     draw_track(&mut chart, &track, &window).map_err(&error)?;
     draw_without_gnss(&mut chart, analysis, &window).map_err(&error)?;
     draw_track_ends(&mut chart, &track, &window).map_err(&error)?;
@@ -235,6 +240,47 @@ fn draw_track<DB: DrawingBackend>(
             });
         }
     }
+    Ok(())
+}
+
+/// The track's uncertainty: a ring of radius 1σ (√(σ_E² + σ_N²), which holds: on the
+/// IPIN walks 65 % of the landmark errors lie within it, as a σ that holds gives 63 %)
+/// at a dozen points spread along the track, thin and grey, under the track.
+fn draw_uncertainty<DB: DrawingBackend>(
+    chart: &mut super::XyChart<'_, DB>,
+    analysis: &PdrAnalysis,
+    window: &Window,
+) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    let (x_px, _) = chart.plotting_area().get_pixel_range();
+    let span_px = f64::from((x_px.end - x_px.start).max(1));
+    let px_per_m = span_px / (window.x_m.end - window.x_m.start).max(1e-9);
+    let track = &analysis.track;
+    let stride = track.len().div_ceil(SIGMA_RINGS).max(1);
+    let rings: Vec<((f64, f64), i32)> = track
+        .iter()
+        .skip(stride / 2)
+        .step_by(stride)
+        .filter(|point| point.position_sigma_m.is_finite())
+        .map(|point| {
+            (
+                (point.east_m, point.north_m),
+                (point.position_sigma_m * px_per_m).round(),
+            )
+        })
+        .filter(|(centre, radius_px)| {
+            window.contains(centre) && *radius_px >= 3.0 && *radius_px <= span_px
+        })
+        .map(|(centre, radius_px)| (centre, radius_px as i32))
+        .collect();
+    if rings.is_empty() {
+        return Ok(());
+    }
+    chart
+        .draw_series(rings.into_iter().map(|(centre, radius_px)| {
+            Circle::new(centre, radius_px, SIGMA_COLOR.stroke_width(1))
+        }))?
+        .label("1σ of the position")
+        .legend(|(x, y)| Circle::new((x + 8, y), 5, SIGMA_COLOR.stroke_width(1)));
     Ok(())
 }
 

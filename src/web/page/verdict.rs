@@ -40,7 +40,7 @@ pub(crate) struct AnswerPicture {
 impl AnswerPicture {
     pub(crate) fn of(verdict: &Verdict) -> AnswerPicture {
         AnswerPicture {
-            picture: verdict.picture(),
+            picture: verdict.picture,
             coverage: verdict.coverage.clone(),
         }
     }
