@@ -14,6 +14,9 @@
 //
 //   python3 scripts/serve.py 8877 www &
 //   node bench/drop_costs.mjs http://127.0.0.1:8877/ [../shared/data] [name...]
+//
+// With DROP=1 in the environment, the first drop's split instead (a fresh page's, on the
+// code V8 has compiled for the demo only).
 import { dirname, join } from 'node:path';
 import { fileURLToPath } from 'node:url';
 import { recordMainThread, recordings } from '../tests/e2e/drops.mjs';
@@ -38,7 +41,8 @@ for (const [name, files] of chosen) {
   await page.goto(url);
   await page.waitForSelector('body[data-state="ready"]', { timeout: 30_000 });
   let split = null;
-  for (let drop = 0; drop < 2; drop += 1) {
+  const drops = process.env.DROP === '1' ? 1 : 2;
+  for (let drop = 0; drop < drops; drop += 1) {
     await page.evaluate(() => {
       document.body.dataset.state = 'dropped';
       document.getElementById('summary').removeAttribute('data-grade');

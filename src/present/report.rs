@@ -519,6 +519,8 @@ pub struct ReportFigure {
 /// The report's sections that carry figures.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ReportSection {
+    /// The answer's picture, under the verdict.
+    Answer,
     Calibration,
     HeadingModels,
     DeadReckoning,
@@ -532,12 +534,26 @@ pub fn svg_figures(
     heading: Option<&HeadingAnalysis>,
     pdr: Option<&PdrAnalysis>,
 ) -> Vec<ReportFigure> {
-    let mut figures = vec![ReportFigure {
+    let mut figures = Vec::new();
+    if let Some(heading) = heading {
+        let verdict = crate::present::verdict::verdict(
+            calibration,
+            &heading.report,
+            pdr.map(|pdr| &pdr.report),
+        );
+        figures.push(ReportFigure {
+            section: ReportSection::Answer,
+            html: svg_figure((900, 500), |area| {
+                crate::present::plot::answer::draw_answer_picture(area, &verdict, calibration, pdr)
+            }),
+        });
+    }
+    figures.push(ReportFigure {
         section: ReportSection::Calibration,
         html: svg_figure((1500, 450), |area| {
             draw_calibration_figure(area, calibration)
         }),
-    }];
+    });
     if let Some(heading) = heading {
         figures.push(ReportFigure {
             section: ReportSection::HeadingModels,
@@ -652,6 +668,7 @@ pub fn html_report(
             pdr.ok().map(|pdr| &pdr.report),
         );
         html.push_str(&verdict_html(&verdict));
+        html.push_str(&figures_of(ReportSection::Answer));
     }
     if let Some(choice) = &report.choice {
         // The analysis's one best (the page's status line and the CLI's `best:`).
@@ -820,7 +837,18 @@ mod tests {
         assert!(html.contains("compass-pdr report: &lt;b&gt;walk&lt;/b&gt;.csv"));
         assert!(!html.contains("<b>walk"));
         assert!(!html.contains("<script"));
-        assert!(html.matches("<svg").count() >= 2, "the figures are inline");
+        assert!(html.matches("<svg").count() >= 3, "the figures are inline");
+        // The answer's picture (here the heading error against the reference) comes
+        // right under the verdict, before the context.
+        let answer = html
+            .find("Heading error against the reference heading")
+            .expect("the picture");
+        let verdict_end = html.find("</section>").expect("the verdict");
+        let context = html.find("<h2>Context</h2>").expect("the context");
+        assert!(
+            verdict_end < answer && answer < context,
+            "{verdict_end} {answer} {context}"
+        );
         assert!(html.contains("<p>no steps in this log</p>"));
         for row in &heading.report.rows {
             assert!(html.contains(&escape_html(&row.label)), "{}", row.label);

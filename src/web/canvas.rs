@@ -131,13 +131,15 @@ pub fn draw_coverage(
     })
 }
 
-/// An autopilot's compasses against the Earth's field, in force and new.
-pub fn draw_compass_errors(
+/// The answer's picture ([`crate::present::plot::answer`]).
+pub fn draw_answer_picture(
     canvas: &HtmlCanvasElement,
-    autopilot: &crate::analysis::calibration::autopilot::AutopilotCalibration,
+    verdict: &crate::present::verdict::Verdict,
+    calibration: &CalibrationAnalysis,
+    pdr: Option<&PdrAnalysis>,
 ) -> Result<(), String> {
     draw_with(canvas, |area| {
-        crate::present::plot::compass_errors::draw_compass_errors(area, autopilot)
+        crate::present::plot::answer::draw_answer_picture(area, verdict, calibration, pdr)
     })
 }
 

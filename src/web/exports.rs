@@ -265,7 +265,8 @@ fn write(page: &Page, results: &Results, export: Export) -> Result<(), String> {
 
 /// The page's plots as PNG images for the report, section by section.
 fn canvas_figures(document: &Document) -> Vec<ReportFigure> {
-    const SECTIONS: [(ReportSection, &[&str]); 3] = [
+    const SECTIONS: [(ReportSection, &[&str]); 4] = [
+        (ReportSection::Answer, &["answer-canvas"]),
         (
             ReportSection::Calibration,
             &["plot-circle", "plot-heading", "plot-field"],

@@ -4,6 +4,7 @@
 //! Each plot takes a drawing area and the analysis it shows, and draws nothing else:
 //! sizes, backends and files belong to the caller.
 
+pub mod answer;
 pub mod circle_fit;
 pub mod compass_errors;
 pub mod deviation;

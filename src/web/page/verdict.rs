@@ -9,9 +9,7 @@ use std::rc::Rc;
 use gloo::events::EventListener;
 
 use super::{Page, Results};
-use crate::fit::coverage::SphereCoverage;
-use crate::present::plot::zoom::Zoom;
-use crate::present::verdict::{Picture, Verdict};
+use crate::present::verdict::Verdict;
 use crate::web::canvas;
 
 /// The summary's element ids (see `www/index.html`).
@@ -30,18 +28,16 @@ const PICTURE_MIN_WIDTH_PX: f64 = 400.0;
 const PICTURE_ASPECT: f64 = 0.56;
 const PICTURE_NARROW_ASPECT: f64 = 0.5;
 
-/// What the answer's picture is, with what it needs of the verdict (the coverage of a
-/// board turned in the hand), kept from the summary until it is drawn.
+/// The answer whose picture is drawn, kept from the summary until it is drawn (and
+/// again when the window's width changes).
 pub(crate) struct AnswerPicture {
-    picture: Picture,
-    coverage: Option<SphereCoverage>,
+    verdict: Verdict,
 }
 
 impl AnswerPicture {
     pub(crate) fn of(verdict: &Verdict) -> AnswerPicture {
         AnswerPicture {
-            picture: verdict.picture,
-            coverage: verdict.coverage.clone(),
+            verdict: verdict.clone(),
         }
     }
 }
@@ -88,8 +84,9 @@ impl Page {
             return;
         };
         let _ = figure.remove_attribute("hidden");
-        let _ = figure.set_attribute("data-picture", answer.picture.key());
-        self.set_text(PICTURE_CAPTION_ID, answer.picture.caption());
+        let picture = answer.verdict.picture;
+        let _ = figure.set_attribute("data-picture", picture.key());
+        self.set_text(PICTURE_CAPTION_ID, picture.caption());
         let width_px = picture_width_px(f64::from(figure.client_width()));
         let aspect = if width_px < PICTURE_MAX_WIDTH_PX {
             PICTURE_NARROW_ASPECT
@@ -99,31 +96,12 @@ impl Page {
         let height_px = (width_px * aspect).round();
         let _ = canvas.set_attribute("data-width", &format!("{width_px}"));
         let _ = canvas.set_attribute("data-height", &format!("{height_px}"));
-        let drawn = match (answer.picture, &results.pdr) {
-            (Picture::Track, Ok(pdr)) => {
-                canvas::draw_pdr(&canvas, canvas::PdrPlot::Trajectory, pdr, Zoom::WHOLE).map(|_| ())
-            }
-            (Picture::Track, Err(why)) => Err(why.clone()),
-            (Picture::HeadingError, _) => canvas::draw(
-                &canvas,
-                canvas::Plot::HeadingError,
-                &results.calibration,
-                Zoom::WHOLE,
-            )
-            .map(|_| ()),
-            (Picture::Coverage, _) => canvas::draw_coverage(&canvas, answer.coverage.as_ref()),
-            (Picture::CompassErrors, _) => match &results.calibration.report.autopilot {
-                Some(autopilot) => canvas::draw_compass_errors(&canvas, autopilot),
-                None => Err("the log's compasses were not assessed".to_string()),
-            },
-            (Picture::FieldMagnitude, _) => canvas::draw(
-                &canvas,
-                canvas::Plot::FieldMagnitude,
-                &results.calibration,
-                Zoom::WHOLE,
-            )
-            .map(|_| ()),
-        };
+        let drawn = canvas::draw_answer_picture(
+            &canvas,
+            &answer.verdict,
+            &results.calibration,
+            results.pdr.as_ref().ok(),
+        );
         if let Err(message) = drawn {
             let _ =
                 canvas::draw_message(&canvas, &format!("This plot could not be drawn: {message}"));
