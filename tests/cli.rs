@@ -564,8 +564,8 @@ fn report_writes_the_page_s_html_report_with_svg_figures() {
     );
     assert_eq!(
         html.matches("<svg").count(),
-        3,
-        "calibration, heading models, PDR"
+        4,
+        "the answer's picture, calibration, heading models, PDR"
     );
     assert!(html.contains("415 steps in 3 bouts"), "the PDR summary");
     assert!(
