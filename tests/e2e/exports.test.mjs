@@ -85,7 +85,9 @@ test('every export of the demo analysis downloads and reads back', async () => {
   await reportPage.setContent(report.bytes.toString('utf8'));
   assert.match(await reportPage.title(), /compass-pdr report: demo-walk\.csv/);
   assert.ok(await reportPage.$$eval('tbody tr', (rows) => rows.length) >= 8, 'the comparison table');
-  assert.equal(await reportPage.$$eval('img', (images) => images.filter((image) => image.complete && image.naturalWidth > 0).length), 9, 'the nine plots, as PNG');
+  assert.equal(await reportPage.$$eval('img', (images) => images.filter((image) => image.complete && image.naturalWidth > 0).length), 10, 'the answer\'s picture and the nine plots, as PNG');
+  // The answer's picture first, under the verdict.
+  assert.match(await reportPage.$eval('img', (image) => image.alt), /^The answer's picture/);
   assert.match(await reportPage.textContent('body'), new RegExp(`${pdr.n_steps} steps in ${pdr.n_bouts} bouts`));
   assert.deepEqual(requests, [], 'the report loads nothing');
   await reportPage.screenshot({ path: join(out, 'report.png'), fullPage: false });
