@@ -172,9 +172,9 @@ impl Picture {
     pub fn caption(self) -> &'static str {
         match self {
             Picture::Track => {
-                "The walk as dead-reckoned from its steps (solid line), with rings of its \
-                 position's 1σ (thin, grey), and the GNSS fixes (dots) and the reference positions \
-                 (thin line, crosses) where the log has them."
+                "The walk as dead-reckoned from its steps (solid line, thicker where it had no \
+                 GNSS), with rings of its position's 1σ (thin, grey), and the GNSS fixes (dots) \
+                 and the reference positions (thin line, crosses) where the log has them."
             }
             Picture::HeadingError => {
                 "The heading's error against the log's reference over time: before calibration \

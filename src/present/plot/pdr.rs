@@ -20,6 +20,8 @@ const OUTAGE_COLOR: RGBColor = RGBColor(255, 127, 14);
 const SIGMA_COLOR: RGBColor = RGBColor(150, 150, 150);
 /// How many rings of the position's σ a trajectory shows along its track.
 const SIGMA_RINGS: usize = 12;
+/// The narrowest trajectory (px) that draws its legend.
+const MIN_LEGEND_WIDTH_PX: u32 = 480;
 
 /// The trajectory on the left, step lengths and position error on the right. This is
 /// what `compass-pdr pdr --plot` writes.
@@ -135,7 +137,11 @@ pub fn draw_trajectory<DB: DrawingBackend>(
     draw_without_gnss(&mut chart, analysis, &window).map_err(&error)?;
     draw_track_ends(&mut chart, &track, &window).map_err(&error)?;
     draw_scale_bar(&mut chart, &x_range, &y_range).map_err(&error)?;
-    super::draw_legend(&mut chart, SeriesLabelPosition::UpperRight).map_err(&error)?;
+    // On a plot narrower than this the legend would hide much of the track: the
+    // caption under the page's picture says what each line is instead.
+    if area.dim_in_pixel().0 >= MIN_LEGEND_WIDTH_PX {
+        super::draw_legend(&mut chart, SeriesLabelPosition::UpperRight).map_err(&error)?;
+    }
     Ok(frame)
 }
 
