@@ -82,6 +82,20 @@ impl Diagnostics {
         }
     }
 
+    /// That `n_out_of_order` samples went back in time and were sorted (nothing when
+    /// none did): one wording for every importer.
+    pub fn push_sorted_by_time(&mut self, line: Option<usize>, n_out_of_order: usize) {
+        if n_out_of_order > 0 {
+            self.push(
+                line,
+                format!(
+                    "time goes backwards {}; the samples were sorted by time",
+                    crate::base::words::times(n_out_of_order)
+                ),
+            );
+        }
+    }
+
     /// Appends another file's diagnostics, marking each with its file.
     pub fn absorb(&mut self, other: Diagnostics, file_name: &str) {
         for diagnostic in other.kept {

@@ -358,15 +358,7 @@ fn finish(
     }
     // The magnetometer was sorted with its compass.
     let n_out_of_order = recording.sort_all_by_time() + n_main_out_of_order;
-    if n_out_of_order > 0 {
-        diagnostics.push(
-            None,
-            format!(
-                "time goes backwards {}; the samples were sorted by time",
-                crate::base::words::times(n_out_of_order)
-            ),
-        );
-    }
+    diagnostics.push_sorted_by_time(None, n_out_of_order);
     Ok(ImportReport {
         file_name: file_name.to_string(),
         format,

@@ -70,15 +70,8 @@ impl DelimitedReader {
         } else {
             0
         };
-        if n_out_of_order > 0 {
-            self.diagnostics.push(
-                Some(header.line),
-                format!(
-                    "time goes backwards {}; the samples were sorted by time",
-                    crate::base::words::times(n_out_of_order)
-                ),
-            );
-        }
+        self.diagnostics
+            .push_sorted_by_time(Some(header.line), n_out_of_order);
         shrink_all(recording);
         Ok(RawImport {
             report: ImportReport {

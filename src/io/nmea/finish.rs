@@ -80,15 +80,7 @@ impl NmeaReader {
         let n_out_of_order = recording.gnss.sort_by_time()
             + recording.device_heading.sort_by_time()
             + recording.attitude.sort_by_time();
-        if n_out_of_order > 0 {
-            diagnostics.push(
-                None,
-                format!(
-                    "time goes backwards {}; the samples were sorted by time",
-                    crate::base::words::times(n_out_of_order)
-                ),
-            );
-        }
+        diagnostics.push_sorted_by_time(None, n_out_of_order);
         Ok(ImportReport {
             autopilot: None,
             file_name,

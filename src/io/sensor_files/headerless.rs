@@ -246,13 +246,9 @@ pub(super) fn headerless_import(
     if streams.went_back {
         let n_out_of_order = streams.vector.sort_by_time();
         streams.estimate.sort_by_time();
-        streams.diagnostics.push(
-            None,
-            format!(
-                "time goes backwards {}; the samples were sorted by time",
-                crate::base::words::times(n_out_of_order)
-            ),
-        );
+        streams
+            .diagnostics
+            .push_sorted_by_time(None, n_out_of_order);
     }
     let mut recording = Recording::default();
     let mut notes = Vec::new();
