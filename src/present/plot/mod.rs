@@ -165,15 +165,7 @@ pub(crate) fn draw_dots<DB: DrawingBackend>(
     color: RGBColor,
     label: &str,
 ) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
-    chart
-        .draw_series(
-            points
-                .iter()
-                .map(|&point| Circle::new(point, 1, color.filled())),
-        )?
-        .label(label)
-        .legend(move |(x, y)| Circle::new((x + 8, y), 3, color.filled()));
-    Ok(())
+    draw_markers(chart, points, (1, color.filled()), label)
 }
 
 /// Points as small rings, with a legend entry: a series that must be told from dots
@@ -184,14 +176,24 @@ pub(crate) fn draw_rings<DB: DrawingBackend>(
     color: RGBColor,
     label: &str,
 ) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    draw_markers(chart, points, (2, color.stroke_width(1)), label)
+}
+
+/// Points as circles of `radius_px` in `style`, with a legend entry of the same style.
+fn draw_markers<DB: DrawingBackend>(
+    chart: &mut XyChart<'_, DB>,
+    points: &[(f64, f64)],
+    (radius_px, style): (i32, ShapeStyle),
+    label: &str,
+) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
     chart
         .draw_series(
             points
                 .iter()
-                .map(|&point| Circle::new(point, 2, color.stroke_width(1))),
+                .map(|&point| Circle::new(point, radius_px, style)),
         )?
         .label(label)
-        .legend(move |(x, y)| Circle::new((x + 8, y), 3, color.stroke_width(1)));
+        .legend(move |(x, y)| Circle::new((x + 8, y), 3, style));
     Ok(())
 }
 
