@@ -12,7 +12,7 @@ use compass_pdr::io::recording::GyroBias;
 use compass_pdr::pdr::step_length::StepLengthModel;
 use compass_pdr::pdr::{PdrAnalysis, PdrOptions};
 use compass_pdr::pipeline::dead_reckoning;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 fn dead_reckon(paths: &[PathBuf], options: &PdrOptions) -> PdrAnalysis {
     dead_reckon_stated(paths, options, None)
@@ -240,24 +240,31 @@ fn the_fixes_do_not_shrink_route_01_s_walks() {
         .collect();
     assert_eq!(walks.len(), 4);
     for walk in &walks {
-        let analysis = dead_reckon(std::slice::from_ref(walk), &PdrOptions::default());
-        let errors = analysis
-            .report
-            .position_error
-            .as_ref()
-            .unwrap_or_else(|| panic!("{}: no landmarks scored", walk.display()));
-        eprintln!(
-            "{}: walked {:+.1} % of the landmarks' {:.1} m",
-            walk.display(),
-            errors.distance_error_pct,
-            errors.distance_m
-        );
+        let distance_error_pct = walked_distance_error_pct(walk);
         assert!(
-            errors.distance_error_pct.abs() <= 10.0,
-            "{}: {errors:?}",
+            distance_error_pct.abs() <= 10.0,
+            "{}: {distance_error_pct:+.1} %",
             walk.display()
         );
     }
+}
+
+/// A walk's distance between its first and last landmark, dead-reckoned with the
+/// defaults, against the landmarks' polyline (%), printed.
+fn walked_distance_error_pct(walk: &Path) -> f64 {
+    let analysis = dead_reckon(&[walk.to_path_buf()], &PdrOptions::default());
+    let errors = analysis
+        .report
+        .position_error
+        .as_ref()
+        .unwrap_or_else(|| panic!("{}: no landmarks scored", walk.display()));
+    eprintln!(
+        "{}: walked {:+.1} % of the landmarks' {:.1} m",
+        walk.display(),
+        errors.distance_error_pct,
+        errors.distance_m
+    );
+    errors.distance_error_pct
 }
 
 /// Issue 42's distance bar on all twelve IPIN walks: the walked distance between the first
@@ -273,21 +280,7 @@ fn the_twelve_ipin_walks_walk_the_landmarks_distance() {
     assert_eq!(walks.len(), 12);
     let mut distance_errors_pct: Vec<f64> = walks
         .iter()
-        .map(|walk| {
-            let analysis = dead_reckon(std::slice::from_ref(walk), &PdrOptions::default());
-            let errors = analysis
-                .report
-                .position_error
-                .as_ref()
-                .unwrap_or_else(|| panic!("{}: no landmarks scored", walk.display()));
-            eprintln!(
-                "{}: walked {:+.1} % of the landmarks' {:.1} m",
-                walk.display(),
-                errors.distance_error_pct,
-                errors.distance_m
-            );
-            errors.distance_error_pct
-        })
+        .map(|walk| walked_distance_error_pct(walk))
         .collect();
     let within = distance_errors_pct
         .iter()
