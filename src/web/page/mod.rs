@@ -68,8 +68,8 @@ pub struct Page {
     position_error_canvas: HtmlCanvasElement,
     /// The latest analysis, for the exports; `None` before the first and after an error.
     results: std::cell::RefCell<Option<Rc<Results>>>,
-    /// The latest answer's picture, drawn again when the window's width changes it.
-    picture: std::cell::RefCell<Option<verdict::AnswerPicture>>,
+    /// The latest answer, whose picture is drawn again when the window's width changes.
+    answer: std::cell::RefCell<Option<crate::present::verdict::Verdict>>,
     /// The latest log as imported, for re-running the analysis when a control changes.
     import: std::cell::RefCell<Option<Arc<ImportReport>>>,
     /// The running job's cancel flag (set when a new job starts or Cancel is pressed).
@@ -142,7 +142,7 @@ impl Page {
             body,
             document,
             results: std::cell::RefCell::new(None),
-            picture: std::cell::RefCell::new(None),
+            answer: std::cell::RefCell::new(None),
             import: std::cell::RefCell::new(None),
             cancel: std::cell::RefCell::new(Arc::default()),
             #[cfg(target_feature = "atomics")]

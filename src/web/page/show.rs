@@ -56,14 +56,14 @@ impl Page {
         if drawn_early.is_empty() {
             self.zooms.reset();
         }
-        let (status, picture) = self.show_lists(&results, import.as_deref());
+        let (status, answer) = self.show_lists(&results, import.as_deref());
         // The answer's picture first, the browser getting a turn before it.
         yield_to_browser().await;
         if cancel.load(Ordering::Acquire) {
             return;
         }
-        self.draw_picture(&picture, &results);
-        *self.picture.borrow_mut() = Some(picture);
+        self.draw_picture(&answer, &results);
+        *self.answer.borrow_mut() = Some(answer);
         for figure in FIGURES {
             if drawn_early.contains(&figure.canvas()) {
                 continue;
@@ -134,13 +134,13 @@ impl Page {
         self.mark_time("data-first-plot-ms");
     }
 
-    /// The summary and every list of `results`; returns the status line and the answer's
-    /// picture, to be drawn next.
+    /// The summary and every list of `results`; returns the status line and the answer,
+    /// whose picture is drawn next.
     fn show_lists(
         &self,
         results: &Results,
         import: Option<&ImportReport>,
-    ) -> (String, super::verdict::AnswerPicture) {
+    ) -> (String, crate::present::verdict::Verdict) {
         let verdict = crate::present::verdict::verdict(
             &results.calibration,
             &results.heading.report,
@@ -148,16 +148,15 @@ impl Page {
         );
         self.show_verdict(Some(&verdict));
         self.mark_time("data-summary-ms");
-        let picture = super::verdict::AnswerPicture::of(&verdict);
         self.show_calibration(&results.calibration, import);
         let summary = self.show_heading_models(&results.calibration, &results.heading);
         self.show_dead_reckoning(&results.pdr);
         // The walk's steps as the summary counts them (none for a vehicle).
-        let status = match verdict.steps {
+        let status = match &verdict.steps {
             Some(steps) => format!("{summary} {steps}"),
             None => summary,
         };
-        (status, picture)
+        (status, verdict)
     }
 
     /// Draws one figure of `results` on its canvas (a figure that cannot be drawn says
@@ -510,8 +509,8 @@ pub(super) const FIGURES: [Figure; 9] = [
 impl Page {
     /// The whole analysis at once (the browser tests use it).
     pub(crate) fn show_analysis(&self, results: &Results, import: Option<&ImportReport>) {
-        let (status, picture) = self.show_lists(results, import);
-        self.draw_picture(&picture, results);
+        let (status, answer) = self.show_lists(results, import);
+        self.draw_picture(&answer, results);
         for figure in FIGURES {
             self.draw_figure(figure, results);
         }

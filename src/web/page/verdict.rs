@@ -28,20 +28,6 @@ const PICTURE_MIN_WIDTH_PX: f64 = 400.0;
 const PICTURE_ASPECT: f64 = 0.56;
 const PICTURE_NARROW_ASPECT: f64 = 0.5;
 
-/// The answer whose picture is drawn, kept from the summary until it is drawn (and
-/// again when the window's width changes).
-pub(crate) struct AnswerPicture {
-    verdict: Verdict,
-}
-
-impl AnswerPicture {
-    pub(crate) fn of(verdict: &Verdict) -> AnswerPicture {
-        AnswerPicture {
-            verdict: verdict.clone(),
-        }
-    }
-}
-
 impl Page {
     /// Fills the summary with `verdict`, or empties it (`None`: an error, or no log yet).
     pub(super) fn show_verdict(&self, verdict: Option<&Verdict>) {
@@ -72,7 +58,7 @@ impl Page {
     /// Draws the answer's picture, laid out for the figure's width (a phone's is
     /// narrower than a desktop's), with its caption; a picture that cannot be drawn says
     /// why in its place.
-    pub(super) fn draw_picture(&self, answer: &AnswerPicture, results: &Results) {
+    pub(super) fn draw_picture(&self, verdict: &Verdict, results: &Results) {
         let Some(figure) = self.document.get_element_by_id(PICTURE_FIGURE_ID) else {
             return;
         };
@@ -84,7 +70,7 @@ impl Page {
             return;
         };
         let _ = figure.remove_attribute("hidden");
-        let picture = answer.verdict.picture;
+        let picture = verdict.picture;
         let _ = figure.set_attribute("data-picture", picture.key());
         self.set_text(PICTURE_CAPTION_ID, picture.caption());
         let width_px = picture_width_px(f64::from(figure.client_width()));
@@ -98,7 +84,7 @@ impl Page {
         let _ = canvas.set_attribute("data-height", &format!("{height_px}"));
         let drawn = canvas::draw_answer_picture(
             &canvas,
-            &answer.verdict,
+            verdict,
             &results.calibration,
             results.pdr.as_ref().ok(),
         );
@@ -137,8 +123,8 @@ impl Page {
             if drawn_px.is_some_and(|drawn_px| (drawn_px - wanted_px).abs() < 8.0) {
                 return;
             }
-            if let Some(answer) = page.picture.borrow().as_ref() {
-                page.draw_picture(answer, &results);
+            if let Some(verdict) = page.answer.borrow().as_ref() {
+                page.draw_picture(verdict, &results);
             }
         })
         .forget();
@@ -146,7 +132,7 @@ impl Page {
 
     /// No answer, no picture.
     fn hide_picture(&self) {
-        *self.picture.borrow_mut() = None;
+        *self.answer.borrow_mut() = None;
         if let Some(figure) = self.document.get_element_by_id(PICTURE_FIGURE_ID) {
             let _ = figure.set_attribute("hidden", "");
             let _ = figure.remove_attribute("data-picture");
