@@ -141,7 +141,7 @@ pub fn attitude_csv(
     );
     let _ = writeln!(text, "# body axes: {body_axes}");
     let _ = writeln!(text, "# pitch_deg, roll_deg: body x forward, y right, z down relative to north-east-down (ZYX Euler angles)");
-    let _ = writeln!(text, "# yaw_sigma_deg: the filter's 1-sigma of the yaw");
+    let _ = writeln!(text, "# yaw_sigma_deg: 1-sigma of the yaw (the filter's own, with the error a field that passes the gates still carries)");
     let summary = &track.summary;
     let deg = |radps: f64| radps.to_degrees();
     let [bx, by, bz] = summary.final_gyro_bias_radps.map(deg);

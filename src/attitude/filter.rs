@@ -14,7 +14,9 @@
 use nalgebra::Vector3;
 
 use super::eskf::{self, Eskf, Fused};
-use super::gates::{dip_of, AccelerationLevel, FieldReference, MagneticGate, QuasiStaticField};
+use super::gates::{
+    dip_of, AccelerationLevel, FieldErrorLevel, FieldReference, MagneticGate, QuasiStaticField,
+};
 use super::{
     AttitudeEstimate, AttitudeOptions, AttitudeSummary, Sensors, GAP_RATE_RADPS, GRAVITY_BLOCK_S,
     MAX_GYRO_GAP_S, RECOVERY_S,
@@ -80,6 +82,8 @@ pub struct AttitudeFilter {
     gravity_block: Option<(f64, Vector3<f64>, usize, f64)>,
     /// One field sample's 1σ (rad), from the noise density and the field's interval.
     heading_sigma_rad: f64,
+    /// The error the fused field carries into the heading, which the stated yaw σ adds.
+    field_error: FieldErrorLevel,
     summary: AttitudeSummary,
 }
 
@@ -107,6 +111,7 @@ impl AttitudeFilter {
             field_used: false,
             gravity_block: None,
             heading_sigma_rad: options.heading_noise_rad_sqrt_s / timing.field_interval_s.sqrt(),
+            field_error: FieldErrorLevel::default(),
             summary: AttitudeSummary {
                 n_gyro_samples: 0,
                 n_gyro_gaps: 0,
@@ -218,15 +223,25 @@ impl AttitudeFilter {
             self.rest_since_s = None;
         }
         let (roll_rad, pitch_rad, yaw_rad) = filter.roll_pitch_yaw_rad();
+        let filter_sigma_rad = filter.yaw_sigma_rad();
         let estimate = AttitudeEstimate {
             roll_rad,
             pitch_rad,
             yaw_rad,
-            yaw_sigma_rad: filter.yaw_sigma_rad(),
+            yaw_sigma_rad: self.yaw_sigma_rad(filter_sigma_rad),
             field_used: self.field_used,
         };
         self.summary.n_gyro_samples += 1;
         Some(estimate)
+    }
+
+    /// The yaw's stated 1σ: the filter's own, with the error the fused field carries
+    /// ([`FieldErrorLevel`]) added in quadrature (none before a field is fused).
+    fn yaw_sigma_rad(&self, filter_sigma_rad: f64) -> f64 {
+        let field_sigma_rad = self.gate.as_ref().map_or(0.0, |gate| {
+            self.field_error.heading_sigma_rad(gate.reference())
+        });
+        filter_sigma_rad.hypot(field_sigma_rad)
     }
 
     /// Corrects the tilt with a specific force (m/s², body axes), in blocks of
@@ -348,6 +363,8 @@ impl AttitudeFilter {
         let corrects_bias = self.options.field_corrects_bias;
         match filter.fuse_magnetic_heading(field_ut, heading_sigma_rad, 9.0, corrects_bias) {
             Fused::Applied { .. } => {
+                self.field_error
+                    .add(t_s, field_ut.norm(), dip_rad, gate.reference());
                 self.summary.n_field_fused += 1;
                 self.contradicting_since_s = None;
                 self.field_used = true;

@@ -28,7 +28,10 @@
 //!   field contradicts for longer than [`RECOVERY_S`] while it looks undisturbed is
 //!   re-aimed at it (the filter, not the field, was wrong); a yaw seeded by a field the
 //!   gate calls disturbed is unknown, so the first field it passes sets it;
-//! - every output carries the yaw's 1σ, which grows while the field is refused.
+//! - every output carries the yaw's 1σ, which grows while the field is refused, with
+//!   the error that a field passing the gates still carries added
+//!   ([`gates::FieldErrorLevel`]: the filter's own variance counts each field sample's
+//!   error as independent of the next, which a disturbance's is not).
 //!
 //! It runs sample by sample in time order ([`filter::AttitudeFilter`]), so the same code
 //! serves a file ([`estimate_attitude`]) and a live stream; nothing in it looks ahead.
