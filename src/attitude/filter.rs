@@ -84,6 +84,9 @@ pub struct AttitudeFilter {
     heading_sigma_rad: f64,
     /// The error the fused field carries into the heading, which the stated yaw σ adds.
     field_error: FieldErrorLevel,
+    /// Its heading 1σ (rad) at the gate's reference, kept as each fused sample moves it
+    /// (every output states it).
+    field_error_sigma_rad: f64,
     summary: AttitudeSummary,
 }
 
@@ -112,6 +115,7 @@ impl AttitudeFilter {
             gravity_block: None,
             heading_sigma_rad: options.heading_noise_rad_sqrt_s / timing.field_interval_s.sqrt(),
             field_error: FieldErrorLevel::default(),
+            field_error_sigma_rad: 0.0,
             summary: AttitudeSummary {
                 n_gyro_samples: 0,
                 n_gyro_gaps: 0,
@@ -139,6 +143,7 @@ impl AttitudeFilter {
             Some(gate) => gate.set_reference(reference),
             None => self.gate = Some(MagneticGate::new(reference)),
         }
+        self.field_error_sigma_rad = self.field_error.heading_sigma_rad(&reference);
         self.summary.field_reference = Some(reference);
     }
 
@@ -238,10 +243,7 @@ impl AttitudeFilter {
     /// The yaw's stated 1σ: the filter's own, with the error the fused field carries
     /// ([`FieldErrorLevel`]) added in quadrature (none before a field is fused).
     fn yaw_sigma_rad(&self, filter_sigma_rad: f64) -> f64 {
-        let field_sigma_rad = self.gate.as_ref().map_or(0.0, |gate| {
-            self.field_error.heading_sigma_rad(gate.reference())
-        });
-        filter_sigma_rad.hypot(field_sigma_rad)
+        (filter_sigma_rad.powi(2) + self.field_error_sigma_rad.powi(2)).sqrt()
     }
 
     /// Corrects the tilt with a specific force (m/s², body axes), in blocks of
@@ -365,6 +367,7 @@ impl AttitudeFilter {
             Fused::Applied { .. } => {
                 self.field_error
                     .add(t_s, field_ut.norm(), dip_rad, gate.reference());
+                self.field_error_sigma_rad = self.field_error.heading_sigma_rad(gate.reference());
                 self.summary.n_field_fused += 1;
                 self.contradicting_since_s = None;
                 self.field_used = true;
