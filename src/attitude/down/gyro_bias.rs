@@ -59,11 +59,10 @@ pub fn gyro_bias_radps(
                 break;
             }
             let rate = rate * gyro_scale - known_bias_radps;
-            // ∫ R(s←t_a)ᵀ ds over the step (its midpoint's turn).
-            let step = Rotation3::new(-rate * dt_s);
-            let half = Rotation3::new(-rate * 0.5 * dt_s);
-            integral += (half * turn).matrix().transpose() * dt_s;
-            turn = step * turn;
+            // ∫ R(s←t_a)ᵀ ds over the step (the mean of its two ends' turns).
+            let next = Rotation3::new(-rate * dt_s) * turn;
+            integral += (turn.matrix() + next.matrix()).transpose() * (0.5 * dt_s);
+            turn = next;
             idx += 1;
         }
         let end = idx;
