@@ -19,6 +19,20 @@ use compass_pdr::io::import::import;
 /// The first seconds are the filter's start (its yaw σ is then the seed's).
 const SKIP_S: f64 = 5.0;
 
+/// The time of the log's first sample, of any sensor (the generator's `true_t_s` counts
+/// from it).
+fn first_sample_s(recording: &compass_pdr::io::recording::Recording) -> f64 {
+    [
+        recording.gyro_in_body_radps.t_s.first(),
+        recording.acc_in_body_mps2.t_s.first(),
+        recording.mag_in_body_ut.t_s.first(),
+    ]
+    .into_iter()
+    .flatten()
+    .copied()
+    .fold(f64::INFINITY, f64::min)
+}
+
 /// Per log: each scored sample's error (rad, offset removed) and stated σ (rad).
 fn errors_and_sigmas(log: &physics::GeneratedLog) -> Vec<(f64, f64)> {
     let report = import(&format!("{}.csv", log.name), log.csv.as_bytes()).expect("imports");
@@ -35,15 +49,7 @@ fn errors_and_sigmas(log: &physics::GeneratedLog) -> Vec<(f64, f64)> {
         &AttitudeOptions::for_gyro(recording.gyro_bias),
     )
     .expect("the generator's logs have a gyroscope and an accelerometer");
-    let t0_s = [
-        recording.gyro_in_body_radps.t_s.first(),
-        recording.acc_in_body_mps2.t_s.first(),
-        recording.mag_in_body_ut.t_s.first(),
-    ]
-    .into_iter()
-    .flatten()
-    .copied()
-    .fold(f64::INFINITY, f64::min);
+    let t0_s = first_sample_s(recording);
     let declination_rad = log.declination_deg.to_radians();
     let mut pairs = Vec::new();
     for (&t_s, estimate) in track.attitude.t_s.iter().zip(&track.attitude.values) {
@@ -150,15 +156,7 @@ fn tilt_coverage(
         let report = import(&format!("{}.csv", log.name), log.csv.as_bytes()).expect("imports");
         let recording = &report.recording;
         let gravity = compass_pdr::attitude::down::gravity_of(recording, 1.0);
-        let t0_s = [
-            recording.gyro_in_body_radps.t_s.first(),
-            recording.acc_in_body_mps2.t_s.first(),
-            recording.mag_in_body_ut.t_s.first(),
-        ]
-        .into_iter()
-        .flatten()
-        .copied()
-        .fold(f64::INFINITY, f64::min);
+        let t0_s = first_sample_s(recording);
         let estimate = &gravity.specific_force_mps2;
         for (&t_s, force) in estimate.t_s.iter().zip(&estimate.values).step_by(5) {
             let since_s = t_s - t0_s;

@@ -428,18 +428,29 @@ mod tests {
         assert!((last - 2.0).abs() < 1e-6, "{last}");
     }
 
+    /// The level after `n` fused samples at 50 Hz of the reference's dip, sample `idx`
+    /// of magnitude `magnitude_ut(idx)`.
+    fn fed(
+        reference: &FieldReference,
+        n: usize,
+        magnitude_ut: impl Fn(usize) -> f64,
+    ) -> FieldErrorLevel {
+        let mut level = FieldErrorLevel::default();
+        for idx in 0..n {
+            level.add(
+                idx as f64 * 0.02,
+                magnitude_ut(idx),
+                reference.dip_rad,
+                reference,
+            );
+        }
+        level
+    }
+
     #[test]
     fn a_field_that_keeps_its_magnitude_and_dip_carries_no_heading_error() {
         let reference = reference();
-        let mut level = FieldErrorLevel::default();
-        for idx in 0..500 {
-            level.add(
-                idx as f64 * 0.02,
-                reference.field_ut,
-                reference.dip_rad,
-                &reference,
-            );
-        }
+        let level = fed(&reference, 500, |_| reference.field_ut);
         assert_eq!(level.heading_sigma_rad(&reference), 0.0);
     }
 
@@ -448,29 +459,14 @@ mod tests {
         let reference = reference();
         // 5 µT along the field for two minutes: the heading takes as much across it,
         // (25 / 2)^½ µT over the horizontal field.
-        let mut lasting = FieldErrorLevel::default();
-        for idx in 0..6000 {
-            lasting.add(
-                idx as f64 * 0.02,
-                reference.field_ut + 5.0,
-                reference.dip_rad,
-                &reference,
-            );
-        }
+        let lasting = fed(&reference, 6000, |_| reference.field_ut + 5.0);
         let horizontal_ut = reference.field_ut * reference.dip_rad.cos();
         let expected_rad = (12.5f64.sqrt() / horizontal_ut).atan();
         assert!((lasting.heading_sigma_rad(&reference) - expected_rad).abs() < 1e-3 * expected_rad);
         // ±5 µT from one sample to the next: the filter averages it out, and so does this.
-        let mut flickering = FieldErrorLevel::default();
-        for idx in 0..6000 {
-            let sign = if idx % 2 == 0 { 1.0 } else { -1.0 };
-            flickering.add(
-                idx as f64 * 0.02,
-                reference.field_ut + 5.0 * sign,
-                reference.dip_rad,
-                &reference,
-            );
-        }
+        let flickering = fed(&reference, 6000, |idx| {
+            reference.field_ut + if idx % 2 == 0 { 5.0 } else { -5.0 }
+        });
         assert!(flickering.heading_sigma_rad(&reference) < 0.05 * expected_rad);
     }
 }
