@@ -15,10 +15,8 @@
 
 use nalgebra::{Matrix3, Rotation3, Vector3};
 
+use super::MAX_GYRO_GAP_S;
 use crate::io::recording::Stream;
-
-/// Gyroscope samples further apart than this (s) break a window.
-const MAX_GYRO_GAP_S: f64 = super::MAX_GYRO_GAP_S;
 
 /// The gyroscope's bias (rad/s, body axes, after `gyro_scale` and `known_bias_radps`)
 /// that makes its turns carry `fused` down along best: over windows of

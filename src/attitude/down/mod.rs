@@ -59,12 +59,12 @@ use nalgebra::{Rotation3, Vector2, Vector3};
 use serde::Serialize;
 
 use crate::attitude::tilt::smooth_specific_force;
-use refine::{refine_without_gyro_bias, Smoothing, CLEARLY_BETTER, LONG_TAU_FACTOR};
+use crate::base::geodesy::LocalFrame;
+use crate::io::recording::{Attitude, GnssFix, Recording, Stream};
 
 mod gyro_bias;
 mod refine;
-use crate::base::geodesy::LocalFrame;
-use crate::io::recording::{Attitude, GnssFix, Recording, Stream};
+use refine::{refine_without_gyro_bias, Smoothing, CLEARLY_BETTER, LONG_TAU_FACTOR};
 
 /// Standard gravity (m/s²), the magnitude given to the estimated specific force
 /// (CGPM 1901; only the direction matters to the tilt): `io`'s one constant.
