@@ -97,9 +97,15 @@ pub fn gyro_bias_radps(
 }
 
 /// The window (s) over which the gyroscope's bias is seen: long enough that a bias's
-/// turn (0.6° for 0.01 rad/s) stands above the down's own error, short enough that the
-/// gyroscope's scale error does not.
-pub const BIAS_WINDOW_S: f64 = 3.0;
+/// turn (2.6° for 0.003 rad/s) stands above the down's own error, which is what limits
+/// the estimate while an arm swings. On the independent generator's swinging phone the
+/// exported calibration was within 1.3 × the true one's heading error in 18 of 20 seeds
+/// against 14 with 3 s windows (`tests/independent.rs`). On TYREX NoDist_Texting the
+/// estimate is 9 mrad/s from the bias the motion capture shows, against 14 with 3 s
+/// (`tests/real_data.rs`); on the swinging and pocket trials it is further from it than
+/// zero, so on real phones this is the bias that makes down consistent with the
+/// gyroscope, not the gyroscope's bias alone.
+pub const BIAS_WINDOW_S: f64 = 15.0;
 
 #[cfg(test)]
 mod tests {
@@ -132,11 +138,17 @@ mod tests {
         (fused, gyro)
     }
 
+    /// Found as `refine` finds it, each round removing what the last found: the first
+    /// round's is short by 10-30 % (a 15 s window turns the bias's error by up to 7°,
+    /// where the linear model's residuals weigh the prior up).
     #[test]
     fn a_tumbling_body_s_bias_is_found() {
         let bias = Vector3::new(0.008, -0.006, 0.004);
         let (fused, gyro) = tumbling(120.0, bias);
-        let found = gyro_bias_radps(&fused, &gyro, 1.0, Vector3::zeros()).expect("a bias");
+        let mut found = Vector3::zeros();
+        for _ in 0..3 {
+            found += gyro_bias_radps(&fused, &gyro, 1.0, found).expect("a bias");
+        }
         assert!((found - bias).norm() < 2e-4, "{found:?} against {bias:?}");
         // Already removed, nothing is left.
         let left = gyro_bias_radps(&fused, &gyro, 1.0, bias).expect("a bias");

@@ -14,9 +14,10 @@ use crate::io::recording::Stream;
 /// Down followed the gyroscope for this many times the asked time constant once the
 /// gyroscope's bias is removed ([`refine_without_gyro_bias`]): on the independent
 /// generator's swinging phone, 10 s took the exported calibration from 5 to 14 seeds of
-/// 20 within 1.3 × the true one's heading error, the phone held in front from 17 to 19
-/// and moved by the hand from 17 to 18 (`tests/independent.rs`); 3 s and 30 s did less
-/// for the swing (10 and 12 of 20).
+/// 20 within 1.3 × the true one's heading error (18 once the bias was seen over 15 s
+/// windows), the phone held in front from 17 to 19 and moved by the hand from 17 to 18
+/// (`tests/independent.rs`); 3 s and 30 s did less for the swing (10 and 12 of 20, with
+/// 3 s windows).
 pub(super) const LONG_TAU_FACTOR: f64 = 10.0;
 
 /// How much lower the passes' median disagreement must be for the refined down to be
