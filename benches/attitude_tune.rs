@@ -25,6 +25,7 @@ mod native {
 
     use compass_pdr::analysis::attitude_track::attitude_of;
     use compass_pdr::analysis::headings::HeadingOptions;
+    use compass_pdr::attitude::smoother::Runs;
     use compass_pdr::attitude::AttitudeOptions;
     use compass_pdr::base::angle::wrap_to_pi;
     use compass_pdr::io::recording::Stream;
@@ -134,7 +135,8 @@ mod native {
                 labels = all.iter().map(|(label, _)| label.clone()).collect();
             }
             for (idx, (_, options)) in all.iter().enumerate() {
-                let (track, _) = attitude_of(recording, device.as_ref(), options).expect("a track");
+                let (track, _) = attitude_of(recording, device.as_ref(), options, Runs::BothWays)
+                    .expect("a track");
                 let mut yaw = Stream::default();
                 for (&t_s, estimate) in track.attitude.t_s.iter().zip(&track.attitude.values) {
                     yaw.push(t_s, estimate.yaw_rad);

@@ -152,9 +152,10 @@ THREADS_RUSTFLAGS="--cfg=web_sys_unstable_apis -Zlocation-detail=none -Zfmt-debu
 -C link-arg=--export=__wasm_init_tls -C link-arg=--export=__tls_size \
 -C link-arg=--export=__tls_align -C link-arg=--export=__tls_base"
 
-# Builds the threaded module into OUT_DIR (default www/pkg-threads; see ensure_nightly).
+# Builds the threaded module into OUT_DIR (default www/pkg-threads; see ensure_nightly),
+# with the crate's FEATURES (comma-separated; bench/run asks for import-bench).
 build_web_threads() {
-  local out_dir="${1:-$ROOT/www/pkg-threads}"
+  local out_dir="${1:-$ROOT/www/pkg-threads}" features="${2:-}"
   if ! ensure_nightly; then
     log "No nightly Rust: the page will read files on one thread"
     rm -rf "$out_dir"
@@ -166,7 +167,7 @@ build_web_threads() {
   rm -rf "$out_dir"
   if ! RUSTFLAGS="$THREADS_RUSTFLAGS" CARGO_PROFILE_RELEASE_OPT_LEVEL="$COMPASS_PDR_WASM_THREADS_OPT_LEVEL" cargo +nightly build --manifest-path "$ROOT/Cargo.toml" \
       --release --lib --target wasm32-unknown-unknown -Z build-std=std,panic_abort \
-      --target-dir "$ROOT/target/threads" \
+      --features "$features" --target-dir "$ROOT/target/threads" \
     || ! wasm-bindgen --target web --no-typescript --remove-name-section \
       --remove-producers-section --out-dir "$out_dir" \
       "$ROOT/target/threads/wasm32-unknown-unknown/release/compass_pdr.wasm"; then

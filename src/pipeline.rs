@@ -223,6 +223,7 @@ pub fn attitude(
         &import.recording,
         device.as_ref(),
         &AttitudeOptions::for_gyro(import.recording.gyro_bias),
+        crate::attitude::smoother::Runs::BothWays,
     )
 }
 

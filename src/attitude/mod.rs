@@ -43,6 +43,7 @@ pub mod down;
 pub mod eskf;
 pub mod filter;
 pub mod gates;
+pub mod smoother;
 pub mod tilt;
 
 use nalgebra::Vector3;

@@ -10,6 +10,9 @@ mod chunks;
 mod controls;
 mod dom;
 mod exports;
+// The import benchmark (bench/wasm/bench.js) in the plain module, and in the threaded
+// one only when bench/run builds it with the feature.
+#[cfg(any(not(target_feature = "atomics"), feature = "import-bench"))]
 mod import_bench;
 mod live_panel;
 mod mapping;

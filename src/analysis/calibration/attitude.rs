@@ -10,6 +10,7 @@
 
 use super::{selection, CalibrationReport};
 use crate::analysis::attitude_track::attitude_of;
+use crate::attitude::smoother::Runs;
 use crate::attitude::AttitudeOptions;
 use crate::io::recording::{Recording, Stream};
 
@@ -37,6 +38,7 @@ pub(super) fn attitude_heading(
         recording,
         device.as_ref(),
         &AttitudeOptions::for_gyro(recording.gyro_bias),
+        Runs::Forward,
     )
     .ok()?;
     let (yaw, sigma) = {

@@ -266,7 +266,7 @@ pub fn estimate_gravity(
     let innovation_deg = innovation_rad.to_degrees();
     if innovation_deg > MAX_INNOVATION_DEG {
         return fallback(format!(
-            "the gyroscope's turns do not carry the accelerometer's down along (they differ by {innovation_deg:.0}°              on average over {INNOVATION_BLOCK_S} s; a sign or unit of the gyroscope columns may be wrong)"
+            "the gyroscope's turns do not carry the accelerometer's down along (they differ by {innovation_deg:.0}° on average over {INNOVATION_BLOCK_S} s; a sign or unit of the gyroscope columns may be wrong)"
         ));
     }
     let motion = motions.get(motion_idx).unwrap_or(&Motion::None);
