@@ -37,9 +37,9 @@ done
 cargo bench --bench attitude --profile bench-import >&2
 printf '\n## Attitude against motion capture (TYREX, issue 18)\n\n'
 printf 'Nine trials (five in tyrex-attitude, four in tyrex-attitude-more) of the attitude benchmark of Michel et al. (Nexus 5; Qualisys truth at 60 Hz). `compass-pdr heading TRIAL/*.txt --attitude-out TRIAL.csv`\n'
-printf '(the causal filter of `src/attitude`, field corrected by the analysis'"'"'s calibration or the phone'"'"'s own estimate, whichever\n'
+printf '(the filter of `src/attitude` run forward and backward over the log, the yaws weighed by their σ: `attitude::smoother`; field corrected by the analysis'"'"'s calibration or the phone'"'"'s own estimate, whichever\n'
 printf 'lets the gates pass more field) beside the phone'"'"'s rotation vector, imufusion 1.3.3 (Fusion AHRS, gain 0.5, acceleration and magnetic\n'
-printf 'rejection 10°, recovery 5 s), ahrs 0.4.0 (Madgwick MARG, its default gain 0.041) and vqf 2.1.2 (VQF, Laidig and Seel 2023, its defaults, magnetic\ndisturbance rejection on), all fed the same gyroscope, accelerometer and\n'
+printf 'rejection 10°, recovery 5 s), ahrs 0.4.0 (Madgwick MARG, its default gain 0.041) and vqf 2.1.2 (VQF, Laidig and Seel 2023, its defaults, magnetic\ndisturbance rejection on; `vqf_offline` is its offline variant, which reads the whole log as ours does, the like-for-like peer; the others are causal), all fed the same gyroscope, accelerometer and\n'
 printf 'OS-calibrated magnetometer samples; `gyro` is the gyroscope alone from the rotation vector'"'"'s first attitude (a reference, not a\n'
 printf 'peer). Frames, alignment and exclusions: `bench/attitude_peers.py`'"'"'s header. Made by `bench/attitude.sh`.\n\n'
 printf 'Caveats: the gates'"'"' tolerances (field magnitude 15 %%, dip 10°, direction 6° over 1.5 s) were chosen while looking at these five\n'
@@ -57,7 +57,7 @@ printf 'OS'"'"'s running bias estimate, about 0.1°/s, not fitted to them), so i
 "$venv/bin/python" - "$results/attitude.json" <<'PY'
 import json, statistics, sys
 trials = [t for t in json.load(open(sys.argv[1]))["trials"] if "methods" in t and "ours" in t["methods"]]
-peers = ["rotation_vector", "fusion", "madgwick", "vqf"]
+peers = ["rotation_vector", "fusion", "madgwick", "vqf", "vqf_offline"]
 ratios = []
 for t in trials:
     best = min(t["methods"][m]["rms_deg"] for m in peers)

@@ -126,7 +126,7 @@ from scipy.spatial.transform import Rotation, Slerp
 import imufusion
 from ahrs.common.orientation import ecompass
 from ahrs.filters import Madgwick
-from vqf import VQF
+from vqf import VQF, offlineVQF
 
 TRIALS = [
     "Thibaud_Nexus5_Dist_FrontPocket",
@@ -158,7 +158,7 @@ NEAR_VERTICAL_DEG = 20.0  # body x closer than this to the vertical: no heading
 MAX_GAP_S = 0.1  # a longer hole in the phone log is lost data
 G = 9.80665  # m/s² per g, for imufusion's accelerometer unit
 
-PEERS = ["rotation_vector", "fusion", "madgwick", "vqf"]
+PEERS = ["rotation_vector", "fusion", "madgwick", "vqf", "vqf_offline"]
 METHODS = PEERS + ["gyro"]
 
 
@@ -341,6 +341,20 @@ def madgwick_loop(base):
         q = filt.updateMARG(q, gyr=gyr[k], acc=acc[k], mag=mag[k], dt=dt[k])
         out[k] = q
     return out
+
+
+def vqf_offline_loop(base):
+    """VQF's offline variant (offlineVQF, the same package and defaults): it reads the
+    whole log, future samples included, as compass-pdr's attitude export does (its
+    forward and backward runs, src/attitude/smoother.rs), so it is the like-for-like
+    peer of that export; the others are causal filters."""
+    out = offlineVQF(
+        np.ascontiguousarray(base["gyr"], dtype=float),
+        np.ascontiguousarray(base["acc"], dtype=float),
+        np.ascontiguousarray(base["mag"], dtype=float),
+        1.0 / base["rate_hz"],
+    )
+    return out["quat9D"]
 
 
 def vqf_loop(base):
@@ -568,6 +582,10 @@ def process_trial(folder, name, ours_dir, truth_dir=None):
     q, seconds = timed(vqf_loop, base)
     timing["vqf"] = seconds
     headings["vqf"] = (base["t"], heading_deg(quaternions_wxyz_to_matrices(q) @ body_x, VQF_FRAME))
+
+    q, seconds = timed(vqf_offline_loop, base)
+    timing["vqf_offline"] = seconds
+    headings["vqf_offline"] = (base["t"], heading_deg(quaternions_wxyz_to_matrices(q) @ body_x, VQF_FRAME))
 
     q0 = rotation_vector_at(rv, base["t"][:1])[0]
     q, seconds = timed(gyro_loop, base, q0)
