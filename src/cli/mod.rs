@@ -101,8 +101,8 @@ enum Command {
         #[arg(long)]
         plot: Option<PathBuf>,
         /// Write the attitude filter's output (the gyroscope, the accelerometer and the
-        /// calibrated magnetometer fused) as CSV to this file:
-        /// `t_s,yaw_deg,pitch_deg,roll_deg,yaw_sigma_deg`.
+        /// calibrated magnetometer fused; run forward and backward over the log and
+        /// combined) as CSV to this file: `t_s,yaw_deg,pitch_deg,roll_deg,yaw_sigma_deg`.
         #[arg(long)]
         attitude_out: Option<PathBuf>,
     },
