@@ -28,7 +28,8 @@ pub enum Runs {
     /// would have it. The dead reckoning's `gyro+ahrs` fuses this heading with the
     /// gyroscope itself, over the whole walk, and assumes its errors are the filter's.
     Forward,
-    /// Forward and backward, combined: the attitude export.
+    /// Forward and backward, combined: the attitude export. Without a field (or its
+    /// reference) the runs' yaws have different origins, and the forward one is kept.
     BothWays,
 }
 
@@ -41,7 +42,9 @@ pub fn attitude_over_log(
     runs: Runs,
 ) -> Result<AttitudeTrack, AttitudeError> {
     let forward = estimate_attitude(sensors, reference, options)?;
-    if runs == Runs::Forward {
+    // Without a field to share, each run's yaw counts from its own first attitude (the
+    // log's start, or its end): they cannot be combined.
+    if runs == Runs::Forward || reference.is_none() || sensors.field_in_body_ut.is_empty() {
         return Ok(forward);
     }
     let (acc, gyro, field) = (
@@ -146,6 +149,27 @@ mod tests {
             "{uneven:?}"
         );
         assert_eq!((uneven.roll_rad, uneven.pitch_rad), (0.1, -0.2));
+    }
+
+    /// A gyroscope and an accelerometer alone: the forward run's yaw counts from the
+    /// start, the backward one's from the end, so the export is the forward run.
+    #[test]
+    fn without_a_field_the_export_is_the_forward_run() {
+        let (mut acc, mut gyro) = (Stream::default(), Stream::default());
+        for idx in 0..500 {
+            let t_s = idx as f64 * 0.02;
+            acc.push(t_s, Vector3::new(0.0, 0.0, -9.81));
+            gyro.push(t_s, Vector3::new(0.0, 0.0, 0.2));
+        }
+        let sensors = Sensors {
+            acc_in_body_mps2: &acc,
+            gyro_in_body_radps: &gyro,
+            field_in_body_ut: &Stream::default(),
+        };
+        let options = AttitudeOptions::default();
+        let forward = attitude_over_log(sensors, None, &options, Runs::Forward).expect("a track");
+        let both = attitude_over_log(sensors, None, &options, Runs::BothWays).expect("a track");
+        assert_eq!(both, forward);
     }
 
     #[test]
