@@ -78,6 +78,17 @@ fn errors_and_sigmas(log: &physics::GeneratedLog, runs: Runs) -> Vec<(f64, f64)>
         .collect()
 }
 
+/// Of (error, stated σ) pairs (rad), the shares (%) whose error is within 1σ and 2σ,
+/// and the median σ (degrees).
+fn shares_within(pairs: &[(f64, f64)]) -> (f64, f64, f64) {
+    let share = |k: f64| {
+        100.0 * pairs.iter().filter(|(e, s)| e.abs() <= k * s).count() as f64 / pairs.len() as f64
+    };
+    let mut sigmas: Vec<f64> = pairs.iter().map(|(_, s)| s.to_degrees()).collect();
+    sigmas.sort_by(f64::total_cmp);
+    (share(1.0), share(2.0), sigmas[sigmas.len() / 2])
+}
+
 /// The pooled shares (%) within 1σ and 2σ over `seeds` of the track `runs` gives (the
 /// forward filter's, or the export's, forward and backward), and the RMS error
 /// (degrees).
@@ -91,18 +102,12 @@ fn coverage_of(
         .flat_map(|seed| errors_and_sigmas(&scenario(seed), runs))
         .collect();
     assert!(!pairs.is_empty(), "{name}: nothing scored");
-    let share = |k: f64| {
-        100.0 * pairs.iter().filter(|(e, s)| e.abs() <= k * s).count() as f64 / pairs.len() as f64
-    };
     let rms_deg = (pairs.iter().map(|(e, _)| e * e).sum::<f64>() / pairs.len() as f64)
         .sqrt()
         .to_degrees();
-    let mut sigmas: Vec<f64> = pairs.iter().map(|(_, s)| s.to_degrees()).collect();
-    sigmas.sort_by(f64::total_cmp);
-    let (within_1, within_2) = (share(1.0), share(2.0));
+    let (within_1, within_2, median_sigma_deg) = shares_within(&pairs);
     eprintln!(
-        "{name} ({runs:?}): yaw error RMS {rms_deg:.2}°, median stated σ {:.2}°, within 1σ {within_1:.0} %, within 2σ {within_2:.0} % ({} samples)",
-        sigmas[sigmas.len() / 2],
+        "{name} ({runs:?}): yaw error RMS {rms_deg:.2}°, median stated σ {median_sigma_deg:.2}°, within 1σ {within_1:.0} %, within 2σ {within_2:.0} % ({} samples)",
         pairs.len()
     );
     (within_1, within_2, rms_deg)
@@ -199,18 +204,12 @@ fn tilt_coverage(
         }
     }
     assert!(!pairs.is_empty(), "{name}: nothing scored");
-    let share = |k: f64| {
-        100.0 * pairs.iter().filter(|(e, s)| *e <= k * s).count() as f64 / pairs.len() as f64
-    };
     let mut errors: Vec<f64> = pairs.iter().map(|(e, _)| e.to_degrees()).collect();
     errors.sort_by(f64::total_cmp);
-    let mut sigmas: Vec<f64> = pairs.iter().map(|(_, s)| s.to_degrees()).collect();
-    sigmas.sort_by(f64::total_cmp);
-    let (within_1, within_2) = (share(1.0), share(2.0));
+    let (within_1, within_2, median_sigma_deg) = shares_within(&pairs);
     eprintln!(
-        "{name}: tilt error median {:.2}°, median stated σ {:.2}°, within 1σ {within_1:.0} %, within 2σ {within_2:.0} % ({} samples)",
+        "{name}: tilt error median {:.2}°, median stated σ {median_sigma_deg:.2}°, within 1σ {within_1:.0} %, within 2σ {within_2:.0} % ({} samples)",
         errors[errors.len() / 2],
-        sigmas[sigmas.len() / 2],
         pairs.len()
     );
     (within_1, within_2)

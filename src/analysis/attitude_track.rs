@@ -15,9 +15,11 @@
 use nalgebra::Vector3;
 
 use crate::attitude::gates::FieldReference;
-use crate::attitude::smoother::{attitude_over_log, Runs};
+use crate::attitude::smoother::{with_backward_run, Runs};
 use crate::attitude::tilt::smooth_specific_force;
-use crate::attitude::{AttitudeError, AttitudeOptions, AttitudeTrack, Sensors, RECOVERY_S};
+use crate::attitude::{
+    estimate_attitude, AttitudeError, AttitudeOptions, AttitudeTrack, Sensors, RECOVERY_S,
+};
 use crate::base::angle::wrap_to_2pi;
 use crate::fit::model::FieldCalibration;
 use crate::io::recording::{Recording, Stream};
@@ -80,28 +82,31 @@ pub fn attitude_of(
     if candidates.is_empty() {
         candidates.push((FieldSource::AsLogged, raw.clone(), None));
     }
-    let mut best: Option<(AttitudeTrack, FieldSource)> = None;
+    // The candidates are judged by their forward runs; only the one kept is run
+    // backward too.
+    let sensors = |field| Sensors {
+        acc_in_body_mps2: &recording.acc_in_body_mps2,
+        gyro_in_body_radps: &recording.gyro_in_body_radps,
+        field_in_body_ut: field,
+    };
+    let mut best: Option<(AttitudeTrack, FieldSource, &Stream<Vector3<f64>>, _)> = None;
     for (source, field, field_ut) in &candidates {
         let reference = FieldReference::of_log(field, &down, (*field_ut, None));
-        let track = attitude_over_log(
-            Sensors {
-                acc_in_body_mps2: &recording.acc_in_body_mps2,
-                gyro_in_body_radps: &recording.gyro_in_body_radps,
-                field_in_body_ut: field,
-            },
-            reference,
-            options,
-            runs,
-        )?;
+        let track = estimate_attitude(sensors(field), reference, options)?;
         if best
             .as_ref()
-            .is_none_or(|(kept, _)| track.summary.n_field_fused > kept.summary.n_field_fused)
+            .is_none_or(|(kept, ..)| track.summary.n_field_fused > kept.summary.n_field_fused)
         {
-            best = Some((track, *source));
+            best = Some((track, *source, field, reference));
         }
     }
     // `candidates` is never empty, so neither is `best`; the error is unreachable.
-    best.ok_or(AttitudeError::NoGyroscope)
+    let (track, source, field, reference) = best.ok_or(AttitudeError::NoGyroscope)?;
+    let track = match runs {
+        Runs::Forward => track,
+        Runs::BothWays => with_backward_run(track, sensors(field), reference, options)?,
+    };
+    Ok((track, source))
 }
 
 /// The samples of `stream` mapped by `map` (given each time), those it drops left out.

@@ -33,18 +33,17 @@ pub enum Runs {
     BothWays,
 }
 
-/// [`estimate_attitude`] run as `runs` says: forward, or forward and backward and
-/// combined (see the module's text; the summary is then the forward run's).
-pub fn attitude_over_log(
+/// `forward` ([`estimate_attitude`] over `sensors`) combined with the filter run
+/// backward over the same log (see the module's text); the summary stays the forward
+/// run's. Without a field to share, each run's yaw counts from its own first attitude
+/// (the log's start, or its end): they cannot be combined, and `forward` is returned.
+pub fn with_backward_run(
+    forward: AttitudeTrack,
     sensors: Sensors<'_>,
     reference: Option<super::gates::FieldReference>,
     options: &AttitudeOptions,
-    runs: Runs,
 ) -> Result<AttitudeTrack, AttitudeError> {
-    let forward = estimate_attitude(sensors, reference, options)?;
-    // Without a field to share, each run's yaw counts from its own first attitude (the
-    // log's start, or its end): they cannot be combined.
-    if runs == Runs::Forward || reference.is_none() || sensors.field_in_body_ut.is_empty() {
+    if reference.is_none() || sensors.field_in_body_ut.is_empty() {
         return Ok(forward);
     }
     let (acc, gyro, field) = (
@@ -167,8 +166,8 @@ mod tests {
             field_in_body_ut: &Stream::default(),
         };
         let options = AttitudeOptions::default();
-        let forward = attitude_over_log(sensors, None, &options, Runs::Forward).expect("a track");
-        let both = attitude_over_log(sensors, None, &options, Runs::BothWays).expect("a track");
+        let forward = estimate_attitude(sensors, None, &options).expect("a track");
+        let both = with_backward_run(forward.clone(), sensors, None, &options).expect("a track");
         assert_eq!(both, forward);
     }
 
