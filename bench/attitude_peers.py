@@ -231,6 +231,16 @@ def detect_mount(acc):
     return "side → flat", np.array([0.0, 1.0, 0.0]), f
 
 
+def body_from_device(mount, v):
+    """A device-axes vector in compass-pdr's body axes (x forward, y right, z down) for
+    a mount of detect_mount (src/io/axes.rs: flat, and on its side taken as flat, x =
+    device y, y = device x, z = -device z; upright x = -device z, y = device x, z =
+    -device y)."""
+    if mount == "upright":
+        return np.array([-v[2], v[0], -v[1]])
+    return np.array([v[1], v[0], -v[2]])
+
+
 def heading_deg(v, frame):
     """Heading (deg, clockwise from north) of world vectors v (N × 3)."""
     if frame == "nwu":

@@ -15,8 +15,7 @@ the mean difference (device axes, rad/s); its spread over 30 s pieces and the RM
 what is left say how far to trust it: a few mrad/s where the phone is held (texting,
 the swinging and pocket trials), nothing where it runs (the rates reach the
 gyroscope's range and the marker's jitter is large). It is printed in compass-pdr's
-body axes too (src/io/axes.rs: flat x = device y, y = device x, z = −device z;
-upright x = −device z, y = device x, z = −device y; on its side, as flat).
+body axes too (attitude_peers.body_from_device, the rule of src/io/axes.rs).
 """
 
 import argparse
@@ -61,13 +60,6 @@ def rates(trial, name, lag_s):
     return t, mocap, turned / STEP_S
 
 
-def body_axes(bias, mean_force):
-    f = np.abs(mean_force)
-    if f[1] > f[0] and f[1] > f[2]:
-        return "upright", np.array([-bias[2], bias[0], -bias[1]])
-    return ("flat" if f[2] >= f[0] else "side, as flat"), np.array([bias[1], bias[0], -bias[2]])
-
-
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("trials", nargs="+", type=pathlib.Path)
@@ -93,7 +85,8 @@ def main():
             for start in np.arange(t[0], t[-1] - PIECE_S / 2, PIECE_S)
         ]
         spread = float(np.max(np.linalg.norm(np.array(pieces) - bias, axis=1))) if pieces else float("nan")
-        mount, in_body = body_axes(bias, trial["acc"][:, 1:4].mean(axis=0))
+        mount, _, _ = peers.detect_mount(trial["acc"])
+        in_body = peers.body_from_device(mount, bias)
         fmt = lambda v: ", ".join(f"{1000 * x:+.1f}" for x in v)  # noqa: E731
         print(f"| {name} | {lag_s:+.2f} | {fmt(bias)} | {fmt(in_body)} | {mount} | {1000 * spread:.1f} | {rms:.3f} |")
         out.append(

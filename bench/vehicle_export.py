@@ -3,8 +3,8 @@
 (issue 43: within 1.2 × the tool's best calibration heading), independently of the
 tool's own levelling: `compass-pdr calibrate LOG --json`'s `device_calibration.sensor`
 (corrected = soft_iron · (raw − hard_iron), Android device axes) on the log's raw
-magnetometer columns, turned into body axes as the log's mount says (upright: body
-x = −device z, y = device x, z = −device y), levelled with the phone's own gravity
+magnetometer columns, turned into body axes by the mount the mean gravity gives (the
+rule of src/io/axes.rs, attitude_peers.detect_mount and body_from_device), levelled with the phone's own gravity
 sensor (`grav_*`, not the tool's down), the WMM declination the tool printed added, and
 set against the GPS bearing at 5 m/s or faster with a horizontal accuracy within 15 m.
 
@@ -19,7 +19,13 @@ import json
 import math
 import subprocess
 
+import pathlib
+import sys
+
 import numpy as np
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+import attitude_peers as peers  # noqa: E402
 
 DEFAULT_LOG = "../shared/data/vehicle-pixel6a/2023-08-09_12-47-42.csv"
 
@@ -36,28 +42,33 @@ def main():
     declination_deg = report["declination"]["declination_deg"]
     split_s = report["train_until_s"]
 
-    def body(v):
-        return np.array([-v[2], v[0], -v[1]])
-
-    t0, samples = None, []
+    rows = []
+    t0 = None
     for row in csv.DictReader(open(args.log, newline="")):
         t = datetime.datetime.fromisoformat(row["time"]).timestamp()
         t0 = t if t0 is None else t0
         try:
-            raw = np.array([float(row[f"mag_{a}"]) for a in "xyz"])
-            gravity = np.array([float(row[f"grav_{a}"]) for a in "xyz"])
-            speed, bearing, accuracy = (float(row[k]) for k in ("speed", "bearing", "horizontalAccuracy"))
+            raw = [float(row[f"mag_{a}"]) for a in "xyz"]
+            gravity = [float(row[f"grav_{a}"]) for a in "xyz"]
+            fix = [float(row[k]) for k in ("speed", "bearing", "horizontalAccuracy")]
         except ValueError:
             continue
-        field, down = body(soft_iron @ (raw - hard_iron)), -body(gravity)
+        rows.append([t - t0, *raw, *gravity, *fix])
+    table = np.array(rows)
+    mount, _, _ = peers.detect_mount(table[:, [0, 4, 5, 6]])
+    samples = []
+    for t, *values in table:
+        raw, gravity, (speed, bearing, accuracy) = np.array(values[0:3]), np.array(values[3:6]), values[6:9]
+        field = peers.body_from_device(mount, soft_iron @ (raw - hard_iron))
+        down = -peers.body_from_device(mount, gravity)
         down /= np.linalg.norm(down)
         north = field - (field @ down) * down
         north /= np.linalg.norm(north)
         east = np.cross(down, north)
         heading = math.degrees(math.atan2(east[0], north[0])) + declination_deg
-        samples.append((t - t0, heading, speed, bearing, accuracy))
+        samples.append((t, heading, speed, bearing, accuracy))
     s = np.array(samples)
-    print(f"{args.log}: the export of the {report['device_calibration']['method']} method, applied as written")
+    print(f"{args.log} ({mount}): the export of the {report['device_calibration']['method']} method, applied as written")
     for name, keep in (("whole log", s[:, 0] >= 0), (f"check part (t ≥ {split_s} s)", s[:, 0] >= split_s)):
         keep &= (s[:, 2] >= 5.0) & (s[:, 4] <= 15.0)
         error = (s[keep, 1] - s[keep, 3] + 180.0) % 360.0 - 180.0
