@@ -16,7 +16,9 @@
 //   node bench/drop_costs.mjs http://127.0.0.1:8877/ [../shared/data] [name...]
 //
 // With DROP=1 in the environment, the first drop's split instead (a fresh page's, on the
-// code V8 has compiled for the demo only).
+// code V8 has compiled for the demo only). With PAUSE_MS=N, each drop comes N ms after
+// the page is ready, as a person's drop comes after they picked the file (V8 optimises
+// the demo's hot code in the background meanwhile); without it, at once.
 import { dirname, join } from 'node:path';
 import { fileURLToPath } from 'node:url';
 import { recordMainThread, recordings } from '../tests/e2e/drops.mjs';
@@ -43,6 +45,7 @@ for (const [name, files] of chosen) {
   let split = null;
   const drops = process.env.DROP === '1' ? 1 : 2;
   for (let drop = 0; drop < drops; drop += 1) {
+    await page.waitForTimeout(Number(process.env.PAUSE_MS || 0));
     await page.evaluate(() => {
       document.body.dataset.state = 'dropped';
       document.getElementById('summary').removeAttribute('data-grade');

@@ -1,18 +1,19 @@
 // The page's analysis without the page: the WebAssembly module's whole pipeline
 // (`pdr_pipeline`: import, calibration, heading models, dead reckoning) in Node's V8,
-// on one thread, beside the native CLI's `compass-pdr pdr` on the same file pinned to
+// on one thread, beside the native CLI's `compass-pdr pdr` on the same files pinned to
 // one core (`taskset -c 0`), on the bundled demo (first, on the cold module) and on each
-// single-file real recording of ../shared/data.
+// real recording of ../shared/data as the page's end-to-end tests drop it.
 // It separates what the page adds (reading the dropped files, the worker's messages,
 // the drawing) from what WebAssembly costs against native code on the same core.
 //
-//   bench/module_vs_native.sh   # builds the module (opt-level "s", as the page's
+//   bench/module_vs_native.sh   # builds the module (opt-level 3, as the page's
 //                               # threaded module) and runs this
 //   node bench/module_vs_native.mjs PKG_DIR CLI [runs]
 import { createRequire } from 'node:module';
 import { execFileSync } from 'node:child_process';
 import { existsSync, readFileSync } from 'node:fs';
 import { basename, join } from 'node:path';
+import { recordings } from '../tests/e2e/drops.mjs';
 
 const [pkgDir, cli, runsText] = process.argv.slice(2);
 const runs = Number(runsText || 7);
@@ -23,29 +24,23 @@ if (!existsSync(data)) {
   process.exit(0);
 }
 // The bundled demo first, on the cold module: its "first run" is the page's first analysis.
+// Then every recording as the page's end-to-end tests drop it (tests/e2e/drops.mjs: a
+// folder's files together).
 const demo = join(import.meta.dirname, '..', 'assets', 'demo-walk.csv');
-const logs = [demo, ...[
-  'px4-ulog/sample.ulg',
-  'px4-ulog/sample_log_small.ulg',
-  'ardupilot-copter-log171/log171.bin',
-  'ardupilot-text-log/nan.log',
-  'msft-indoor-2020/site1/F1/5dd9ef979191710006b57086.txt',
-  'msft-indoor-2020/site1/F4/5ddb6573c5b77e0006b17932.txt',
-  'vehicle-pixel6a/2023-08-09_12-47-42.csv',
-  'qmc5883l-calibration/noisy_raw_data.csv',
-  'qmc5883l-calibration/filtered_raw_data.csv',
-].map((path) => join(data, path))].filter((path) => existsSync(path));
+const logs = [['demo-walk', [demo]], ...recordings(data)];
 const median = (values) => [...values].sort((a, b) => a - b)[Math.floor(values.length / 2)];
 
-console.log(`| recording | native \`pdr\`, one core (median of ${runs}) | module in Node, warm (median of ${runs} after one run) | module's first run | module / native |`);
-console.log('|---|---:|---:|---:|---:|');
-for (const path of logs) {
-  const bytes = readFileSync(path);
+console.log(`| recording | size | native \`pdr\`, one core (median of ${runs}) | module in Node, warm (median of ${runs} after one run) | module's first run | module / native |`);
+console.log('|---|---:|---:|---:|---:|---:|');
+for (const [name, paths] of logs) {
+  const names = paths.map((path) => basename(path));
+  const contents = paths.map((path) => readFileSync(path));
+  const sizeMb = contents.reduce((sum, bytes) => sum + bytes.length, 0) / 1e6;
   const native = [];
   for (let run = 0; run < runs; run += 1) {
     const started = performance.now();
     try {
-      execFileSync('taskset', ['-c', '0', cli, 'pdr', path], { stdio: 'ignore' });
+      execFileSync('taskset', ['-c', '0', cli, 'pdr', ...paths], { stdio: 'ignore' });
     } catch {
       // A log the CLI cannot dead-reckon still timed: it ran the same stages.
     }
@@ -56,7 +51,7 @@ for (const path of logs) {
   for (let run = 0; run <= runs; run += 1) {
     const started = performance.now();
     try {
-      wasm.pdr_pipeline(basename(path), bytes);
+      wasm.pdr_pipeline_files(names, contents);
     } catch {
       // As above.
     }
@@ -65,5 +60,5 @@ for (const path of logs) {
     else module.push(ms);
   }
   const [n, m] = [median(native), median(module)];
-  console.log(`| ${basename(path)} | ${n.toFixed(0)} ms | ${m.toFixed(0)} ms | ${first.toFixed(0)} ms | ${(m / n).toFixed(2)} |`);
+  console.log(`| ${name} | ${sizeMb.toFixed(1)} MB | ${n.toFixed(0)} ms | ${m.toFixed(0)} ms | ${first.toFixed(0)} ms | ${(m / n).toFixed(2)} |`);
 }

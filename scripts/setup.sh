@@ -95,14 +95,16 @@ optimise_wasm() {
     "$wasm" -o "$wasm.opt" && mv "$wasm.opt" "$wasm"
 }
 
-# The page's modules are built for size (the CLI and the benchmarks keep the release
-# profile's opt-level 3): measured on one build of the same code (2026-11-27), 3 gave
-# 650,404 bytes gzipped, "s" 595,319 and "z" 541,192 (wasm-opt -Os after each), and each
-# module must stay under 600 kB. The module every browser loads is built with "z"; the
-# threaded one, which a cross-origin isolated page loads for speed, with "s", which
-# keeps more of the loops' speed (601,131 bytes with its threads, under its 614,400).
+# The page's two modules (docs/development.md, "Size of the page"):
+# - www/pkg, the first-paint module every browser can load (one thread), is built for
+#   size ("z"; measured on one build of the same code, 2026-11-27: 3 gave 650,404 bytes
+#   gzipped, "s" 595,319 and "z" 541,192) and must stay within 600,000 bytes gzipped;
+# - www/pkg-threads, the analysis module a cross-origin isolated page and its workers
+#   run on shared memory (issue 45), is built for speed (opt-level 3) within 1,200,000:
+#   on 2026-12-06 its drops took 0.50-0.88x the time of the size-built module on every
+#   shared recording (docs/BENCHMARKS.md), and the demo's first render was no slower.
 export COMPASS_PDR_WASM_OPT_LEVEL="${COMPASS_PDR_WASM_OPT_LEVEL:-z}"
-export COMPASS_PDR_WASM_THREADS_OPT_LEVEL="${COMPASS_PDR_WASM_THREADS_OPT_LEVEL:-s}"
+export COMPASS_PDR_WASM_THREADS_OPT_LEVEL="${COMPASS_PDR_WASM_THREADS_OPT_LEVEL:-3}"
 
 # Builds the release wasm, generates its JS glue into www/pkg and puts the demo log
 # beside it, so that www/ is the whole static site.
@@ -135,18 +137,13 @@ ensure_nightly() {
   rustup toolchain install nightly --profile minimal --component rust-src --target wasm32-unknown-unknown
 }
 
-# -Zlocation-detail=none drops the file and line of each panic location from the threaded
-# module (8.6 kB gzipped on 2026-11-27: 618,028 -> 609,432 bytes, under its 614,400).
-# Measured on 2026-12-05 with nightly 2026-05-19 (the commit of issue 41's write-back
-# rule, 636,098 bytes gzipped with the flags above alone): -Zfmt-debug=none (no Debug
-# formatting: 631,307), -C llvm-args=-inline-threshold=25 (623,133 with both) and
-# -Cpanic=immediate-abort (no panic machinery: 610,287 with all three). The real
-# recordings dropped on the page (bench/redrop.mjs) take the same time within the noise;
-# opt-level "z" would be 570,444 but twice as slow. A panic in this module stops it at
-# once, without the panic hook's message: www/bootstrap.js and the analysis worker
-# report the trap instead.
-THREADS_RUSTFLAGS="--cfg=web_sys_unstable_apis -Zlocation-detail=none -Zfmt-debug=none \
--C llvm-args=-inline-threshold=25 -Zunstable-options -Cpanic=immediate-abort \
+# The analysis module keeps the panic machinery and Debug formatting (a panic reaches
+# the page with its message, through the panic hook): from 2026-11-27 to 2026-12-06 it
+# was built without them (-Zlocation-detail=none -Zfmt-debug=none
+# -Cpanic=immediate-abort, inline threshold 25) to fit a 614,400-byte budget; with its
+# own budget they cost 24 kB gzipped (731,400 -> 755,764 bytes) and no time measurable
+# in the page's drops (bench/drop_costs.mjs, two alternating rounds).
+THREADS_RUSTFLAGS="--cfg=web_sys_unstable_apis \
 -C target-feature=+atomics,+bulk-memory,+mutable-globals,+simd128 \
 -C link-arg=--shared-memory -C link-arg=--import-memory -C link-arg=--max-memory=4294967296 \
 -C link-arg=--export=__wasm_init_tls -C link-arg=--export=__tls_size \

@@ -30,11 +30,12 @@ async function load() {
   return { wasm: plain, threaded: false };
 }
 
-/** The threaded module stops at once on a panic (a bug), without the panic hook's
- * message (scripts/setup.sh leaves that machinery out of it): the trap reaches the page
- * as a WebAssembly.RuntimeError, and is reported here as the hook reports a panic. */
+/** A panic (a bug) ends in a trap, which reaches the page as a WebAssembly.RuntimeError
+ * after the panic hook has put its message in the status line (src/web/mod.rs); a trap
+ * without that message (one not from a panic) is reported here as the hook reports one. */
 function showTrap(error) {
   if (!(error instanceof WebAssembly.RuntimeError)) return;
+  if (document.body.dataset.state === 'error' && status.textContent.startsWith('Internal error')) return;
   document.body.dataset.state = 'error';
   status.textContent = `Internal error (a bug in compass-pdr): ${error.message}. Reload the page to continue, and please report it.`;
 }

@@ -61,8 +61,30 @@ pub fn pdr_ekf_steps(
 /// heading used as a plain object; throws an `Error` saying what is wrong with the log.
 #[wasm_bindgen]
 pub fn pdr_pipeline(file_name: &str, bytes: &[u8]) -> Result<JsValue, JsError> {
-    let report = crate::io::import::import(file_name, bytes)
-        .map_err(|error| JsError::new(&error.to_string()))?;
+    pipeline_on(&[(file_name, bytes)])
+}
+
+/// [`pdr_pipeline`] on a recording of several files read together (as the page reads a
+/// dropped folder): `file_names[i]` names `contents[i]`.
+// wasm-bindgen hands a JS array over as an owned `Vec`.
+#[allow(clippy::needless_pass_by_value)]
+#[wasm_bindgen]
+pub fn pdr_pipeline_files(
+    file_names: Vec<String>,
+    contents: Vec<js_sys::Uint8Array>,
+) -> Result<JsValue, JsError> {
+    let bytes: Vec<Vec<u8>> = contents.iter().map(js_sys::Uint8Array::to_vec).collect();
+    let files: Vec<(&str, &[u8])> = file_names
+        .iter()
+        .zip(&bytes)
+        .map(|(name, bytes)| (name.as_str(), bytes.as_slice()))
+        .collect();
+    pipeline_on(&files)
+}
+
+fn pipeline_on(files: &[(&str, &[u8])]) -> Result<JsValue, JsError> {
+    let report =
+        crate::io::import::import_files(files).map_err(|error| JsError::new(&error.to_string()))?;
     let analysis = dead_reckoning(&report, &PdrOptions::default())
         .map_err(|error| JsError::new(&error.to_string()))?;
     let result = BenchPipeline {

@@ -146,8 +146,8 @@ pub(super) fn offset_sums(offsets: &[[f64; 3]]) -> [f64; N_MOMENTS] {
 /// Adding 35 sums per sample to memory is limited by the stores (one per cycle, twice
 /// the arithmetic's time), so the offsets are read four times instead, each time for at
 /// most ten sums that stay in registers, and the sums are stored once per chunk.
-/// Written out by hand because the crate's release profile (`opt-level = "s"`) neither
-/// unrolls nor vectorises.
+/// Written out by hand because the size-built first-paint module (`opt-level = "z"`)
+/// neither unrolls nor vectorises.
 pub(super) fn scalar_offset_sums(offsets: &[[f64; 3]]) -> [f64; N_MOMENTS] {
     // Degrees 1 and 2.
     let (mut x1, mut y1, mut z1) = (0.0, 0.0, 0.0);

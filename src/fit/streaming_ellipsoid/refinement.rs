@@ -128,8 +128,8 @@ impl LeastSquaresProblem<f64, Dyn, Dyn> for GeometricProblem<'_> {
 impl GeometricProblem<'_> {
     /// Calls `visit(residual, jacobian_row)` for every sample; `None` when `A` is
     /// singular or a sample maps to zero. The arithmetic is written out on arrays
-    /// because this runs per sample and per iteration, and the crate's release
-    /// profile (`opt-level = "s"`) leaves nalgebra's small loops rolled.
+    /// because this runs per sample and per iteration, and the size-built first-paint
+    /// module (`opt-level = "z"`) leaves nalgebra's small loops rolled.
     fn for_each_row(&self, mut visit: impl FnMut(f64, &[f64])) -> Option<()> {
         let (hard_iron_ut, soft_iron) = (self.hard_iron_ut(), self.soft_iron());
         let gain = Self::gain(&soft_iron)?;
