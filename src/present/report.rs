@@ -544,7 +544,13 @@ pub fn svg_figures(
         figures.push(ReportFigure {
             section: ReportSection::Answer,
             html: svg_figure((900, 500), |area| {
-                crate::present::plot::answer::draw_answer_picture(area, &verdict, calibration, pdr)
+                crate::present::plot::answer::draw_answer_picture(
+                    area,
+                    &verdict,
+                    (calibration, Some(heading)),
+                    pdr,
+                )
+                .map(|_| ())
             }),
         });
     }

@@ -178,7 +178,8 @@ impl Picture {
             }
             Picture::HeadingError => {
                 "The heading's error against the log's reference over time: before calibration \
-                 (rings) and with the chosen calibration (dots)."
+                 (rings) and with the heading the answer chose (dots); a grey line marks where \
+                 the part kept back to check begins."
             }
             Picture::Coverage => {
                 "The directions the board was turned through (MotionCal's 100 regions of the \

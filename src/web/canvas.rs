@@ -135,11 +135,11 @@ pub fn draw_coverage(
 pub fn draw_answer_picture(
     canvas: &HtmlCanvasElement,
     verdict: &crate::present::verdict::Verdict,
-    calibration: &CalibrationAnalysis,
+    analyses: (&CalibrationAnalysis, Option<&HeadingAnalysis>),
     pdr: Option<&PdrAnalysis>,
-) -> Result<(), String> {
+) -> Result<Option<String>, String> {
     draw_with(canvas, |area| {
-        crate::present::plot::answer::draw_answer_picture(area, verdict, calibration, pdr)
+        crate::present::plot::answer::draw_answer_picture(area, verdict, analyses, pdr)
     })
 }
 

@@ -93,6 +93,8 @@ for (const [name, files] of present ? recordings(data) : []) {
         walk: /steps dead-reckoned/.test(document.getElementById('status').textContent),
         calibrated: !document.getElementById('verdict-headline').textContent.startsWith('No 3D calibration'),
         picture: figure.dataset.picture,
+        shows: figure.dataset.shows,
+        headline: document.getElementById('verdict-headline').textContent,
         shown: !figure.hidden && figure.getBoundingClientRect().height > 0,
       };
     });
@@ -105,6 +107,10 @@ for (const [name, files] of present ? recordings(data) : []) {
     assert.equal(picture.walk || !onMap, true, `${name}: a walk`);
     assert.ok(picture.shown, `${name}: the answer has a picture`);
     assert.equal(picture.picture, expected, `${name}: the picture for a ${picture.kind} answer`);
+    // The heading error drawn is the heading the headline names.
+    if (picture.picture === 'heading_error') {
+      assert.ok(picture.shows && picture.headline.includes(picture.shows), `${name}: the picture shows ${picture.shows}, the headline says ${picture.headline}`);
+    }
     pictures.add(picture.picture);
     assert.ok((await plotDrawn(page, 'answer-canvas')).isPlot, `${name}: the picture is drawn, not a message`);
     // Read without colour: the picture in grey, kept for a person to look at (its

@@ -177,11 +177,13 @@ pub fn draw_residual_histogram<DB: DrawingBackend>(
     Ok(())
 }
 
-/// Heading error over time of the raw heading and of the best row.
+/// Heading error over time of the raw heading (rings) and of the row the comparison
+/// chose (dots): the heading the answer's headline names, as the answer's picture.
+/// Returns the chosen row's label, as the legend gives it.
 pub fn draw_heading_errors<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
     analysis: &HeadingAnalysis,
-) -> Result<(), PlotError> {
+) -> Result<String, PlotError> {
     let error = PlotError::from_backend::<DrawingAreaErrorKind<DB::ErrorType>>("heading error");
     let t_s = &analysis.t_s;
     let series = |key: RowKey| -> Vec<(f64, f64)> {
@@ -244,10 +246,10 @@ pub fn draw_heading_errors<DB: DrawingBackend>(
             .label("train | check")
             .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], BLACK.mix(0.4)));
     }
-    super::draw_dots(&mut chart, &raw, RAW_COLOR, "uncalibrated").map_err(&error)?;
+    super::draw_rings(&mut chart, &raw, RAW_COLOR, "before calibration").map_err(&error)?;
     super::draw_dots(&mut chart, &best, CORRECTED_COLOR, best_label.as_str()).map_err(&error)?;
     super::draw_legend(&mut chart, SeriesLabelPosition::LowerRight).map_err(&error)?;
-    Ok(())
+    Ok(best_label)
 }
 
 /// The online model's coefficients A to E over time, as recursive least squares refits

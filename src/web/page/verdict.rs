@@ -85,12 +85,24 @@ impl Page {
         let drawn = canvas::draw_answer_picture(
             &canvas,
             verdict,
-            &results.calibration,
+            (&results.calibration, Some(&results.heading)),
             results.pdr.as_ref().ok(),
         );
-        if let Err(message) = drawn {
-            let _ =
-                canvas::draw_message(&canvas, &format!("This plot could not be drawn: {message}"));
+        match drawn {
+            // The heading drawn as "after", for the page's tests to hold to the headline.
+            Ok(Some(label)) => {
+                let _ = figure.set_attribute("data-shows", &label);
+            }
+            Ok(None) => {
+                let _ = figure.remove_attribute("data-shows");
+            }
+            Err(message) => {
+                let _ = figure.remove_attribute("data-shows");
+                let _ = canvas::draw_message(
+                    &canvas,
+                    &format!("This plot could not be drawn: {message}"),
+                );
+            }
         }
         self.mark_time("data-picture-ms");
         // When this picture was drawn, on the page's clock (bench/drop_costs.mjs).
