@@ -18,7 +18,9 @@
 // With DROP=1 in the environment, the first drop's split instead (a fresh page's, on the
 // code V8 has compiled for the demo only). With PAUSE_MS=N, each drop comes N ms after
 // the page is ready, as a person's drop comes after they picked the file (V8 optimises
-// the demo's hot code in the background meanwhile); without it, at once.
+// the demo's hot code in the background meanwhile); without it, at once. With WARM=1,
+// the first drop waits for the analysis worker's warm-up (www/analysis-worker.js: small
+// logs of every format analysed while the user picks a file) to end.
 import { dirname, join } from 'node:path';
 import { fileURLToPath } from 'node:url';
 import { recordMainThread, recordings } from '../tests/e2e/drops.mjs';
@@ -42,6 +44,7 @@ for (const [name, files] of chosen) {
   await page.addInitScript(recordMainThread);
   await page.goto(url);
   await page.waitForSelector('body[data-state="ready"]', { timeout: 30_000 });
+  if (process.env.WARM === '1') await page.waitForSelector('body[data-warmed-up-ms]', { state: 'attached', timeout: 30_000 });
   let split = null;
   const drops = process.env.DROP === '1' ? 1 : 2;
   for (let drop = 0; drop < drops; drop += 1) {

@@ -47,6 +47,10 @@ export function startAnalysisWorker(wasm) {
   // A job's timing, kept where a benchmark asked for it (bench/drop_costs.mjs sets
   // `window.__jobTimings` to an array), with when the page heard that the job was done.
   worker.addEventListener('message', ({ data }) => {
+    // The warm-up's end (analysis-worker.js), on the page's body for its tests.
+    if (data?.warmedUp !== undefined && self.document) {
+      document.body.dataset.warmedUpMs = data.warmedUp.toFixed(0);
+    }
     if (data?.done && data.timing && Array.isArray(self.__jobTimings)) {
       self.__jobTimings.push({ ...data.timing, receivedAt: performance.timeOrigin + performance.now() });
     }

@@ -16,13 +16,14 @@ mod exports;
 mod import_bench;
 mod live_panel;
 mod mapping;
-// The fits' benchmarks (bench/wasm/{ellipsoid,mlp,pdr}.js) and `analyse_file` load the
-// plain module only: their entry points are left out of the threaded one, which has
-// the smaller size budget left.
+// The fits' benchmarks (bench/wasm/{ellipsoid,mlp}.js) and `analyse_file` load the
+// plain module only: their entry points are left out of the threaded one.
 #[cfg(not(target_feature = "atomics"))]
 mod nn_bench;
 mod page;
-#[cfg(not(target_feature = "atomics"))]
+// The whole pipeline on a log's bytes: the PDR benchmark's entry points
+// (bench/wasm/pdr.js, bench/module_vs_native.mjs) and, in the threaded module, the
+// analysis worker's warm-up (www/analysis-worker.js).
 mod pdr_bench;
 mod storage;
 #[cfg(target_feature = "atomics")]

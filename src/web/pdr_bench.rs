@@ -97,3 +97,14 @@ fn pipeline_on(files: &[(&str, &[u8])]) -> Result<JsValue, JsError> {
     serde::Serialize::serialize(&result, &serializer)
         .map_err(|error| JsError::new(&error.to_string()))
 }
+
+/// The analysis worker's warm-up of the code a car's log takes (www/analysis-worker.js,
+/// after the small logs of each format): the pipeline on a simulated drive of
+/// `duration_s` (the octagonal loop of `compass-pdr simulate --scenario vehicle`, at
+/// 50 Hz, as canonical CSV). Returns what [`pdr_pipeline`] returns.
+#[wasm_bindgen]
+pub fn pdr_pipeline_simulated_drive(duration_s: f64) -> Result<JsValue, JsError> {
+    let config = crate::sim::walk::WalkConfig::vehicle_loop(8, duration_s, 50.0);
+    let text = crate::io::canonical_csv::write(&crate::sim::walk::simulate(&config));
+    pipeline_on(&[("simulated-drive.csv", text.as_bytes())])
+}
