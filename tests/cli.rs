@@ -300,7 +300,7 @@ fn heading_compares_every_method_and_draws_the_deviation_figure() {
     for caption in [
         "Deviation curve (Eq. 12)",
         "Residuals:",
-        "Heading error over time",
+        "Heading error against the reference heading",
         "Online A…E",
     ] {
         assert!(text.contains(caption), "{caption} missing from the figure");

@@ -101,7 +101,9 @@ fn pipeline_on(files: &[(&str, &[u8])]) -> Result<JsValue, JsError> {
 /// The analysis worker's warm-up of the code a car's log takes (www/analysis-worker.js,
 /// after the small logs of each format): the pipeline on a simulated drive of
 /// `duration_s` (the octagonal loop of `compass-pdr simulate --scenario vehicle`, at
-/// 50 Hz, as canonical CSV). Returns what [`pdr_pipeline`] returns.
+/// 50 Hz, as canonical CSV). Returns what [`pdr_pipeline`] returns. Only in the threaded
+/// module, whose worker runs it.
+#[cfg(target_feature = "atomics")]
 #[wasm_bindgen]
 pub fn pdr_pipeline_simulated_drive(duration_s: f64) -> Result<JsValue, JsError> {
     let config = crate::sim::walk::WalkConfig::vehicle_loop(8, duration_s, 50.0);

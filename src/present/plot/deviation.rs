@@ -225,7 +225,7 @@ pub fn draw_heading_errors<DB: DrawingBackend>(
     );
     let mut chart = super::styled_chart(
         area,
-        "Heading error over time",
+        "Heading error against the reference heading",
         first_s..last_s.max(first_s + 1e-3),
         -limit_deg..limit_deg,
         "time (s)",
