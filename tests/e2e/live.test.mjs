@@ -192,6 +192,14 @@ test('a live session at 1,000 lines/s for 30 s converges, loses no line, and the
   assert.equal(await text(page, 'live-skipped-count'), '0');
   console.log(`live: ${totalLines} lines in 30 s, the page's event loop at most ${fake.maxLagMs.toFixed(0)} ms late`);
   assert.ok(fake.maxLagMs < 250, `the page froze for ${fake.maxLagMs} ms`);
+  // The refit and the redraw run on the page's thread (src/web/live_panel/drawing.rs):
+  // each stays under the bound the page holds every main-thread task to.
+  const longest = await page.evaluate(() => ({
+    refit: Number(document.getElementById('live').dataset.longestRefitMs),
+    draw: Number(document.getElementById('live').dataset.longestDrawMs),
+  }));
+  console.log(`live: the longest refit ${longest.refit.toFixed(1)} ms, the longest redraw ${longest.draw.toFixed(1)} ms`);
+  assert.ok(longest.refit > 0 && longest.refit < 100 && longest.draw > 0 && longest.draw < 100, JSON.stringify(longest));
 
   // The fit converged on the board's distortion, and says so.
   await page.waitForSelector('#live[data-good-enough="yes"]', { timeout: 5_000 });

@@ -88,6 +88,9 @@ pub struct LivePanel {
     simulation: RefCell<Option<(Ticker, Simulation)>>,
     /// Why the last refit gave no fit, for the status line.
     fit_message: RefCell<Option<String>>,
+    /// The longest refit and the longest redraw on this page so far (ms of its thread),
+    /// on the panel for the end-to-end tests (`data-longest-refit-ms`, `-draw-ms`).
+    longest_ms: Cell<(f64, f64)>,
     /// Why the last click on a Send button sent nothing, shown until a send goes out
     /// (or, for the latest fit, until it may be sent).
     refusal: RefCell<Option<Refusal>>,
@@ -145,6 +148,7 @@ impl LivePanel {
             ticker: RefCell::new(None),
             simulation: RefCell::new(None),
             fit_message: RefCell::new(None),
+            longest_ms: Cell::new((0.0, 0.0)),
             refusal: RefCell::new(None),
             recent: RefCell::new(Vec::new()),
             import: cast(typed("live-import")?, "live-import")?,
