@@ -14,8 +14,8 @@ const WHOLE_FILE_BYTES = 16 * 1024 * 1024;
 
 /** Jobs run one after the other, each to its end (the page cancels one through its flag). */
 let running = Promise.resolve();
-/** Jobs posted and not yet done. */
-let jobsWaiting = 0;
+/** Jobs posted so far. */
+let jobsPosted = 0;
 /** Whether the warm-up was started (once, after the first job: the demo). */
 let warmUpStarted = false;
 
@@ -24,17 +24,18 @@ self.onmessage = ({ data }) => {
     initSync({ module: data.module, memory: data.memory });
     return;
   }
-  jobsWaiting += 1;
+  jobsPosted += 1;
   // A job that throws outside its own handling (a trap) is reported, and the next
   // jobs still run.
   running = running
     .then(() => runJob(data))
     .catch((error) => postMessage({ id: data.id, failed: `${error}` }))
     .finally(() => {
-      jobsWaiting -= 1;
       if (!warmUpStarted) {
         warmUpStarted = true;
-        setTimeout(warmUp, WARM_UP_AFTER_MS);
+        const jobsBefore = jobsPosted;
+        // Once a job has come after the first, the user has dropped a log: no warm-up.
+        setTimeout(() => warmUp(() => jobsPosted !== jobsBefore), WARM_UP_AFTER_MS);
       }
     });
 };
@@ -55,23 +56,18 @@ const WARM_UP_ROUNDS = 3;
 /** A pause that lets a job's message in. */
 const turn = () => new Promise((resolve) => setTimeout(resolve, 0));
 
-/** The warm-up logs' names and bytes (those that could be fetched). */
-async function warmUpLogs() {
-  const at = (file) => new URL(`pkg-threads/warm-up/${file}`, import.meta.url);
-  const logs = await (await fetch(at('warm-up.json'))).json();
-  const fetched = await Promise.all(logs.map(async (files) => {
-    try {
-      const contents = await Promise.all(files.map(async (file) => {
-        const response = await fetch(at(file));
-        if (!response.ok) throw new Error(`${file}: ${response.status}`);
-        return new Uint8Array(await response.arrayBuffer());
-      }));
-      return { names: files.map((file) => file.split('/').pop()), contents };
-    } catch {
-      return null;
-    }
-  }));
-  return fetched.filter(Boolean);
+/** The bytes of one warm-up log's files, or null when they cannot be fetched. */
+async function fetchLog(files) {
+  try {
+    const contents = await Promise.all(files.map(async (file) => {
+      const response = await fetch(new URL(`pkg-threads/warm-up/${file}`, import.meta.url));
+      if (!response.ok) throw new Error(`${file}: ${response.status}`);
+      return new Uint8Array(await response.arrayBuffer());
+    }));
+    return { names: files.map((file) => file.split('/').pop()), contents };
+  } catch {
+    return null;
+  }
 }
 
 /** While the user picks a file, the module analyses small logs of every format it reads
@@ -79,29 +75,37 @@ async function warmUpLogs() {
  * code of a car's log, which no small log takes), one at a time, WARM_UP_ROUNDS times:
  * V8 compiles each importer's code and optimises the hot parts then, not during the
  * user's first drop (issue 45: that drop took up to 1.8 times the next one). A job
- * posted meanwhile waits for at most the log being analysed, and ends the warm-up.
- * Nothing is shown; a log that cannot be fetched (offline before the first visit kept
- * it) is skipped. */
-async function warmUp() {
+ * posted ends the warm-up (it waits for at most the log being analysed), and nothing is
+ * fetched once one was (`jobCame`); nothing is shown; a log that cannot be fetched
+ * (offline before the first visit kept it) is skipped. A timer cannot fire while this
+ * thread analyses a job, so without that check a drop within the first second would
+ * start the warm-up as its job ends, beside the page drawing its figures. */
+async function warmUp(jobCame) {
   const started = performance.now();
-  let logs;
+  if (jobCame()) return;
+  let list;
   try {
-    logs = await warmUpLogs();
+    list = await (await fetch(new URL('pkg-threads/warm-up/warm-up.json', import.meta.url))).json();
   } catch {
     return;
   }
+  // Each log fetched in the first round, when its turn comes, and kept for the others.
+  const logs = list.map(() => undefined);
   for (let round = 0; round < WARM_UP_ROUNDS; round += 1) {
-    for (const { names, contents } of logs) {
+    for (const [logIdx, files] of list.entries()) {
       await turn();
-      if (jobsWaiting > 0) return;
+      if (jobCame()) return;
+      if (logs[logIdx] === undefined) logs[logIdx] = await fetchLog(files);
+      if (jobCame()) return;
+      if (!logs[logIdx]) continue;
       try {
-        pdr_pipeline_files(names, contents);
+        pdr_pipeline_files(logs[logIdx].names, logs[logIdx].contents);
       } catch {
         // A log the pipeline refuses still ran its importer.
       }
     }
     await turn();
-    if (jobsWaiting > 0) return;
+    if (jobCame()) return;
     try {
       pdr_pipeline_simulated_drive(WARM_UP_DRIVE_S);
     } catch {
