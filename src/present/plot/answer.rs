@@ -64,20 +64,20 @@ fn shows_choice(heading: &HeadingAnalysis) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::analysis::calibration::{calibrate, CalibrationOptions};
-    use crate::analysis::headings::{compare, HeadingOptions};
+    use crate::analysis::headings::HeadingOptions;
     use crate::io::canonical_csv;
     use crate::io::import::import;
     use crate::sim::walk::{simulate, WalkConfig};
 
     /// The heading-error picture draws the heading the headline names: the comparison's
-    /// choice, whichever row it is, not the best field calibration's.
+    /// choice, whichever row it is, not the best field calibration's. The analyses are
+    /// the pipeline's, as the page and the report get them.
     #[test]
     fn the_heading_error_picture_shows_the_heading_the_headline_names() {
         let text = canonical_csv::write(&simulate(&WalkConfig::from_seed(5, 120.0)));
         let report = import("sim.csv", text.as_bytes()).expect("readable");
-        let calibration = calibrate(report, &CalibrationOptions::default()).expect("analysable");
-        let heading = compare(&calibration, &HeadingOptions::default());
+        let (calibration, heading) =
+            crate::pipeline::headings(&report, &HeadingOptions::default()).expect("analysable");
         let verdict = crate::present::verdict::verdict(&calibration, &heading.report, None);
         assert_eq!(
             verdict.picture,
