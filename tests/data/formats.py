@@ -18,7 +18,20 @@ two phone apps' formats, for the golden cases of their importers (tests/data/cas
   them), the system's name, the parameters a compass calibration of zero leaves in
   force (`CAL_MAG0_*`), then the subscriptions and one data message per sample, times
   in µs since boot. A multicopter's body axes are x forward, y right, z down, walk.csv's
-  own, so the vectors are written as they are.
+  own, so the vectors are written as they are;
+- `indoor-walk.txt`: an Android sensor dump as the Microsoft Indoor Location Competition
+  2020's logger writes it (src/io/tagged_lines/android.rs): its `#` headers, then one
+  line per event, `unix_ms<TAB>TYPE_…<TAB>values`, the seven motion sensors of each
+  sample (the OS's calibrated and uncalibrated accelerometer, gyroscope and field, and
+  the rotation vector), a `TYPE_WIFI` scan each second and a `TYPE_WAYPOINT` every 3 s
+  (the walk's truth in metres, east and north);
+- `tyrex-walk/`: the TYREX attitude benchmark's per-sensor text files
+  (src/io/sensor_files/headerless.rs): `accelerometer.txt`, `gyroscope.txt` and
+  `magnetometer.txt` with the OS's drift and bias estimates, their calibrated copies,
+  and `record.properties` with the start time.
+
+The last two are the analysis worker's warm-up logs of those formats too
+(scripts/setup.sh, `WARM_UP_LOGS`), beside the others.
 
 The field is written as the simulator made it, hard iron included, in both (GetSensorData's
 `MAGN` is the OS-calibrated field on a real phone; the importer says so and the fits find the
@@ -112,6 +125,8 @@ def main():
             )
     (folder / "Location.csv").write_text("\n".join(out) + "\n")
     write_ulog(data, t0)
+    write_indoor_dump(data)
+    write_tyrex(data, t0)
     (folder / "Metadata.csv").write_text(
         "version,device name,recording time,platform,appVersion,device id,sensors,sampleRateMs\n"
         "3,simulated,2026-05-14_16-30-00,android,1.12.0,formats.py,"
@@ -192,6 +207,91 @@ def write_ulog(data, t0):
                 ),
             )
     (HERE / "walk.ulg").write_bytes(bytes(log.bytes))
+
+
+# The OS's estimates the phone apps write beside the raw readings, in device axes: the
+# field's hard-iron bias (µT) and the gyroscope's drift (rad/s).
+OS_MAG_BIAS_UT = (12.5, -7.25, 30.0)
+OS_GYRO_DRIFT_RADPS = (0.002, -0.001, 0.0005)
+
+
+def rotation_vector(heading_deg):
+    """Android's rotation vector (x, y, z, device to east-north-up) of a phone held flat,
+    screen up, its top towards `heading_deg` (clockwise from north): a turn of
+    −heading about up."""
+    half = math.radians(-heading_deg) / 2
+    return (0.0, 0.0, math.sin(half))
+
+
+def tabbed(values):
+    """Values as the Microsoft logger writes them: tab-separated."""
+    return "\t".join(f"{v:.6f}" for v in values)
+
+
+def spaced(values):
+    """Values as TYREX's logger writes them: space-separated, up to 7 digits."""
+    return " ".join(f"{v:.7g}" for v in values)
+
+
+def write_indoor_dump(data):
+    start_ms = round(float(data[0]["t_s"]) * 1000)
+    lines = [
+        f"#\tstartTime:{start_ms}",
+        "#\tSiteID:simulated\tSiteName:formats.py\tFloorId:simulated-F1\tFloorName:F1",
+        "#\tBrand:simulated\tModel:formats.py\tAndroidName:8.1.0\tAPILevel:27\t",
+        "#\ttype:1\tname:Accelerometer\tversion:1\tvendor:simulated\tresolution:0.0024\tpower:0.18\tmaximumRange:39.2",
+        "#\ttype:4\tname:Gyroscope\tversion:1\tvendor:simulated\tresolution:0.0011\tpower:0.9\tmaximumRange:34.9",
+        "#\ttype:2\tname:Magnetometer\tversion:1\tvendor:simulated\tresolution:0.6\tpower:2.4\tmaximumRange:4912.0",
+    ]
+    last_wifi_ms = None
+    for idx, row in enumerate(data):
+        t_ms = round(float(row["t_s"]) * 1000)
+        acc = vector(row, "acc", "mps2")
+        gyro = vector(row, "gyro", "radps")
+        mag = vector(row, "mag", "ut")
+        calibrated = [m - b for m, b in zip(mag, OS_MAG_BIAS_UT)]
+        raw_gyro = [g + d for g, d in zip(gyro, OS_GYRO_DRIFT_RADPS)]
+        heading = float(row["ref_heading_deg"])
+        lines += [
+            f"{t_ms}\tTYPE_ACCELEROMETER\t{tabbed(acc)}\t3",
+            f"{t_ms}\tTYPE_MAGNETIC_FIELD\t{tabbed(calibrated)}\t3",
+            f"{t_ms}\tTYPE_GYROSCOPE\t{tabbed(gyro)}\t3",
+            f"{t_ms}\tTYPE_ROTATION_VECTOR\t{tabbed(rotation_vector(heading))}\t3",
+            f"{t_ms}\tTYPE_MAGNETIC_FIELD_UNCALIBRATED\t{tabbed(mag)}\t{tabbed(OS_MAG_BIAS_UT)}\t3",
+            f"{t_ms}\tTYPE_GYROSCOPE_UNCALIBRATED\t{tabbed(raw_gyro)}\t{tabbed(OS_GYRO_DRIFT_RADPS)}\t3",
+            f"{t_ms}\tTYPE_ACCELEROMETER_UNCALIBRATED\t{tabbed(acc)}\t0.000000\t0.000000\t0.000000\t3",
+        ]
+        if last_wifi_ms is None or t_ms - last_wifi_ms >= 1000:
+            last_wifi_ms = t_ms
+            for ap in range(4):
+                lines.append(
+                    f"{t_ms}\tTYPE_WIFI\tsimulated-{ap}\t0e:00:00:00:00:{ap:02x}\t{-40 - 9 * ap - idx % 7}\t5825\t{t_ms - 300}"
+                )
+        if idx % 150 == 0 or idx == len(data) - 1:
+            lines.append(f"{t_ms}\tTYPE_WAYPOINT\t{float(row['ref_e_m']):.4f}\t{float(row['ref_n_m']):.4f}")
+    lines.append(f"#\tendTime:{round(float(data[-1]['t_s']) * 1000)}")
+    (HERE / "indoor-walk.txt").write_text("\n".join(lines) + "\n")
+
+
+def write_tyrex(data, t0):
+    folder = HERE / "tyrex-walk"
+    folder.mkdir(exist_ok=True)
+    files = {name: [] for name in ("accelerometer", "gyroscope", "gyroscope-calibrated", "magnetometer", "magnetometer-calibrated")}
+    for row in data:
+        t = f"{round((float(row['t_s']) - t0) * 1e3) / 1e3 + 0.25:.9f}"
+        acc = vector(row, "acc", "mps2")
+        gyro = vector(row, "gyro", "radps")
+        mag = vector(row, "mag", "ut")
+        files["accelerometer"].append(f"{t} {spaced(acc)}")
+        files["gyroscope"].append(f"{t} {spaced([g + d for g, d in zip(gyro, OS_GYRO_DRIFT_RADPS)])} {spaced(OS_GYRO_DRIFT_RADPS)}")
+        files["gyroscope-calibrated"].append(f"{t} {spaced(gyro)}")
+        files["magnetometer"].append(f"{t} {spaced(mag)} {spaced(OS_MAG_BIAS_UT)}")
+        files["magnetometer-calibrated"].append(f"{t} {spaced([m - b for m, b in zip(mag, OS_MAG_BIAS_UT)])}")
+    for name, lines in files.items():
+        (folder / f"{name}.txt").write_text("\n".join(lines) + "\n")
+    (folder / "record.properties").write_text(
+        f"[Device]\nManufacturer = simulated\nModel = formats.py\nOSVersion = 23\nID = 0\n\n[Time]\nStartTime = {round(t0)}\n"
+    )
 
 
 if __name__ == "__main__":
