@@ -74,7 +74,11 @@ async function fetchLog(files) {
  * (pkg-threads/warm-up/, from tests/data: scripts/setup.sh) and a simulated drive (the
  * code of a car's log, which no small log takes), one at a time, WARM_UP_ROUNDS times:
  * V8 compiles each importer's code and optimises the hot parts then, not during the
- * user's first drop (issue 45: that drop took up to 1.8 times the next one). A job
+ * user's first drop (issue 45: that drop took up to 1.8 times the next one). Each
+ * format's log has the kinds of lines real ones have (tests/data/formats.py): with a
+ * Microsoft-style Android dump and a TYREX folder in place of a dump of two sensors
+ * and none, the first drops of those recordings parsed in 22-36 ms instead of 31-45
+ * (bench/drop_costs.mjs WARM=1 DROP=1, 2026-12-06, two runs). A job
  * posted ends the warm-up (it waits for at most the log being analysed), and nothing is
  * fetched once one was (`jobCame`); nothing is shown; a log that cannot be fetched
  * (offline before the first visit kept it) is skipped. A timer cannot fire while this
@@ -115,8 +119,36 @@ async function warmUp(jobCame) {
   postMessage({ warmedUp: performance.now() - started });
 }
 
-/** The bytes of a file read whole, asked for ahead: the browser reads the next file
- * while this thread parses the one before. */
+/** Bytes of the files read whole that may be asked for ahead of the one being parsed. */
+const READ_AHEAD_BYTES = 64 * 1024 * 1024;
+
+/** The reads of a job's files, asked for ahead: the browser reads the next files while
+ * this thread parses the ones before (bench/drop_costs.mjs, 2026-12-06: a drop of a
+ * folder of files, TYREX's ten or Sensor Logger's, took 5-40 ms less than with one file
+ * asked for ahead), within READ_AHEAD_BYTES beyond the file being parsed. */
+class ReadAhead {
+  constructor(files) {
+    this.files = files;
+    this.reads = [];
+    this.asked = 0;
+  }
+
+  /** File `fileIdx`'s read (null for a file read in chunks), and the next ones asked for. */
+  take(fileIdx) {
+    const wholeSize = (file) => (file.size <= WHOLE_FILE_BYTES ? file.size : 0);
+    let bytesAhead = this.files.slice(fileIdx + 1, this.asked).reduce((sum, file) => sum + wholeSize(file), 0);
+    while (this.asked < this.files.length && (this.asked <= fileIdx || bytesAhead + wholeSize(this.files[this.asked]) <= READ_AHEAD_BYTES)) {
+      if (this.asked > fileIdx) bytesAhead += wholeSize(this.files[this.asked]);
+      this.reads[this.asked] = readWhole(this.files[this.asked]);
+      this.asked += 1;
+    }
+    const read = this.reads[fileIdx];
+    this.reads[fileIdx] = null;
+    return read;
+  }
+}
+
+/** The bytes of a file read whole, or null when it is to be read in chunks. */
 function readWhole(file) {
   if (!(file.size > 0 && file.size <= WHOLE_FILE_BYTES)) return null;
   const bytes = file.arrayBuffer();
@@ -147,10 +179,9 @@ async function runJob({ id, files }) {
     const reader = new FileReaderSync();
     const totalBytes = files.reduce((sum, file) => sum + file.size, 0);
     let bytesDone = 0;
-    let next = files.length > 0 ? readWhole(files[0]) : null;
+    const ahead = new ReadAhead(files);
     reading: for (const [fileIdx, file] of files.entries()) {
-      const whole = next;
-      next = fileIdx + 1 < files.length ? readWhole(files[fileIdx + 1]) : null;
+      const whole = ahead.take(fileIdx);
       if (job.cancelled()) break;
       if (whole) {
         postMessage({ id, progress: bytesDone / Math.max(totalBytes, 1), file: file.name });
