@@ -123,9 +123,10 @@ async function warmUp(jobCame) {
 const READ_AHEAD_BYTES = 64 * 1024 * 1024;
 
 /** The reads of a job's files, asked for ahead: the browser reads the next files while
- * this thread parses the ones before (bench/drop_costs.mjs, 2026-12-06: a drop of a
- * folder of files, TYREX's ten or Sensor Logger's, took 5-40 ms less than with one file
- * asked for ahead), within READ_AHEAD_BYTES beyond the file being parsed. */
+ * this thread parses the ones before, within READ_AHEAD_BYTES beyond the file being
+ * parsed (bench/drop_costs.mjs, 2026-12-06, two runs each: Sensor Logger's folder
+ * dropped in 307-317 ms against 328-364 with one file asked for ahead, a TYREX trial's
+ * in 104-110 against 117-126). */
 class ReadAhead {
   constructor(files) {
     this.files = files;
