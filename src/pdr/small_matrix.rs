@@ -3,9 +3,18 @@
 //! nalgebra's static and dynamic matrices of this size each brought their own
 //! multiplication, LU and inverse code into the page's module (about 10 KB gzipped, more
 //! than the threaded module's budget had left); these few loops do what the filter
-//! needs: products, transposes and a Gauss-Jordan inverse with partial pivoting. Each
-//! is kept out of line: inlined at every use, the products alone grew the module by
-//! kilobytes.
+//! needs: products, transposes and a Gauss-Jordan inverse with partial pivoting.
+//!
+//! Each is `#[inline]`, so the optimiser decides by the build's opt-level: the page's
+//! first-paint module, built for size, keeps them out of line (inlined at every use, the
+//! products alone grew it by kilobytes); the analysis module and the CLI, built for
+//! speed, inline them. Out of line, a 7 × 7 operand (392 bytes) passed or returned by
+//! value is copied through memory on every call, which WebAssembly does with
+//! bulk-memory calls into the engine: in Node's profile of the Pixel 6a drive (a
+//! transition and an update each second of 87 minutes) `Cov::mul`, `Cov::zeros` and
+//! `Cov::identity` took a fifth of the pipeline, and inlined the pipeline took
+//! 85-88 ms against 95-100 (`pdr_pipeline_files`, best of 15, three rounds,
+//! 2026-12-06).
 
 use std::ops::{Add, AddAssign, Index, IndexMut, Mul, Sub};
 
@@ -21,18 +30,18 @@ pub(super) struct State(pub(super) [f64; DIM]);
 pub(super) struct Cov(pub(super) [[f64; DIM]; DIM]);
 
 impl State {
-    #[inline(never)]
+    #[inline]
     pub(super) fn zeros() -> State {
         State([0.0; DIM])
     }
 
-    #[inline(never)]
+    #[inline]
     pub(super) fn dot(&self, other: &State) -> f64 {
         self.0.iter().zip(&other.0).map(|(a, b)| a * b).sum()
     }
 
     /// `self · otherᵀ`, a matrix of rank one.
-    #[inline(never)]
+    #[inline]
     pub(super) fn outer(&self, other: &State) -> Cov {
         let mut out = Cov::zeros();
         for (row, a) in out.0.iter_mut().zip(&self.0) {
@@ -43,19 +52,19 @@ impl State {
         out
     }
 
-    #[inline(never)]
+    #[inline]
     pub(super) fn scaled(&self, factor: f64) -> State {
         State(self.0.map(|value| value * factor))
     }
 }
 
 impl Cov {
-    #[inline(never)]
+    #[inline]
     pub(super) fn zeros() -> Cov {
         Cov([[0.0; DIM]; DIM])
     }
 
-    #[inline(never)]
+    #[inline]
     pub(super) fn identity() -> Cov {
         let mut out = Cov::zeros();
         for (i, row) in out.0.iter_mut().enumerate() {
@@ -64,7 +73,7 @@ impl Cov {
         out
     }
 
-    #[inline(never)]
+    #[inline]
     pub(super) fn transpose(&self) -> Cov {
         let mut out = Cov::zeros();
         for (i, row) in self.0.iter().enumerate() {
@@ -76,25 +85,25 @@ impl Cov {
     }
 
     /// `self · other`, where `other` is a state.
-    #[inline(never)]
+    #[inline]
     pub(super) fn times(&self, other: &State) -> State {
         State(std::array::from_fn(|i| State(self.0[i]).dot(other)))
     }
 
-    #[inline(never)]
+    #[inline]
     pub(super) fn scaled(&self, factor: f64) -> Cov {
         Cov(self.0.map(|row| row.map(|value| value * factor)))
     }
 
     /// `(self + selfᵀ) / 2`.
-    #[inline(never)]
+    #[inline]
     pub(super) fn symmetric(&self) -> Cov {
         (*self + self.transpose()).scaled(0.5)
     }
 
     /// The inverse by Gauss-Jordan elimination with partial pivoting; `None` when a
     /// pivot is below `1e-300` (singular to working precision).
-    #[inline(never)]
+    #[inline]
     pub(super) fn try_inverse(&self) -> Option<Cov> {
         let mut a = self.0;
         let mut inverse = Cov::identity().0;
@@ -158,7 +167,7 @@ impl IndexMut<(usize, usize)> for Cov {
 
 impl Add for State {
     type Output = State;
-    #[inline(never)]
+    #[inline]
     fn add(self, other: State) -> State {
         State(std::array::from_fn(|i| self.0[i] + other.0[i]))
     }
@@ -166,14 +175,14 @@ impl Add for State {
 
 impl Sub for State {
     type Output = State;
-    #[inline(never)]
+    #[inline]
     fn sub(self, other: State) -> State {
         State(std::array::from_fn(|i| self.0[i] - other.0[i]))
     }
 }
 
 impl AddAssign for State {
-    #[inline(never)]
+    #[inline]
     fn add_assign(&mut self, other: State) {
         *self = *self + other;
     }
@@ -181,7 +190,7 @@ impl AddAssign for State {
 
 impl Add for Cov {
     type Output = Cov;
-    #[inline(never)]
+    #[inline]
     fn add(self, other: Cov) -> Cov {
         Cov(std::array::from_fn(|i| {
             std::array::from_fn(|j| self.0[i][j] + other.0[i][j])
@@ -191,7 +200,7 @@ impl Add for Cov {
 
 impl Sub for Cov {
     type Output = Cov;
-    #[inline(never)]
+    #[inline]
     fn sub(self, other: Cov) -> Cov {
         Cov(std::array::from_fn(|i| {
             std::array::from_fn(|j| self.0[i][j] - other.0[i][j])
@@ -201,7 +210,7 @@ impl Sub for Cov {
 
 impl Mul for Cov {
     type Output = Cov;
-    #[inline(never)]
+    #[inline]
     fn mul(self, other: Cov) -> Cov {
         let mut out = Cov::zeros();
         for i in 0..DIM {
