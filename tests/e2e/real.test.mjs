@@ -5,8 +5,9 @@
 // the page names no command-line flag, no main-thread task takes over 100 ms from the
 // drop to the summary (the analysis runs on a worker), and the screenshots of both are
 // kept in tests/e2e/out/real-*.png; the time from drop to summary is kept in
-// tests/e2e/out/real-timing-*.json for bench/real_logs.py. Skipped, with a message, when ../shared/data is absent (a
-// user's clone); CI has it.
+// tests/e2e/out/real-timing-*.json for bench/real_logs.py, with that of FIRST_DROPS - 1
+// more first drops, each on a fresh page. Skipped, with a message, when ../shared/data
+// is absent (a user's clone); CI has it.
 import { test } from 'node:test';
 import assert from 'node:assert/strict';
 import { existsSync, writeFileSync } from 'node:fs';
@@ -59,6 +60,30 @@ async function assertOnFirstScreen(page, name, viewport) {
 /** The longest the page may be unresponsive while a log is read and analysed. */
 const MAX_TASK_MS = 100;
 
+/** First drops timed per recording, each on a fresh page: one page load gives one first
+ * drop, and on this 2-core machine one drop's time moves by 10-30 % from page to page
+ * (a recording's page / CLI ratio by up to 0.4 between runs), so bench/real_logs.py
+ * takes their median. */
+const FIRST_DROPS = 3;
+
+/** A fresh page at `viewport`, after its warm-up, as a person drops a file there: the
+ * page, the checks' handles and the drop's timing (lastDropTiming). */
+async function firstDrop(files, viewport) {
+  const opened = await openPage({ viewport, initScript: recordMainThread });
+  const { page } = opened;
+  await page.waitForSelector('body[data-state="ready"]', { timeout: 30_000 });
+  // The drop comes as a person's does, after they picked the file: by then the analysis
+  // worker has analysed its small logs of every format (www/analysis-worker.js), so V8
+  // compiled their code then. Its end is awaited: a worker that cannot run fails here.
+  // (bench/drop_costs.mjs measures a drop at once after the demo too.)
+  await page.waitForSelector('body[data-warmed-up-ms]', { state: 'attached', timeout: 30_000 });
+  // Marks the page so that the next "ready" or "error" is this log's.
+  await page.evaluate(() => { document.body.dataset.state = 'dropped'; });
+  await page.setInputFiles('#file-input', files);
+  await page.waitForFunction(() => ['ready', 'error'].includes(document.body.dataset.state), null, { timeout: 100_000 });
+  return { ...opened, timing: await lastDropTiming(page) };
+}
+
 const present = existsSync(data);
 if (!present) console.log(`skipped: ${data} not found (the real recordings live beside the project; CI has them)`);
 
@@ -69,23 +94,10 @@ for (const [name, files] of present ? recordings(data) : []) {
   test(`${name}: the answer is on the first screen, on a desktop and on a phone`, { timeout: 120_000 }, async () => {
     const desktop = { width: 1360, height: 900 };
     const phone = { width: 390, height: 844 };
-    const { page, problems, close } = await openPage({ viewport: desktop, initScript: recordMainThread });
-    await page.waitForSelector('body[data-state="ready"]', { timeout: 30_000 });
-    // The drop comes as a person's does, after they picked the file: by then the analysis
-    // worker has analysed its small logs of every format (www/analysis-worker.js), so V8
-    // compiled their code then. Its end is awaited: a worker that cannot run fails here.
-    // (bench/drop_costs.mjs measures a drop at once after the demo too.)
-    await page.waitForSelector('body[data-warmed-up-ms]', { state: 'attached', timeout: 30_000 });
-    // Marks the page so that the next "ready" or "error" is this log's.
-    await page.evaluate(() => { document.body.dataset.state = 'dropped'; });
-    await page.setInputFiles('#file-input', files);
-    await page.waitForFunction(() => ['ready', 'error'].includes(document.body.dataset.state), null, { timeout: 100_000 });
+    const { page, problems, close, timing } = await firstDrop(files, desktop);
     const status = await page.textContent('#status');
     assert.equal(await page.getAttribute('body', 'data-state'), 'ready', `${name}: ${status}`);
-    const timing = await lastDropTiming(page);
-    writeFileSync(join(out, `real-timing-${name}.json`), JSON.stringify({ name, files, ...timing }));
-    console.log(`${name}: drop to summary ${timing.dropToSummaryMs.toFixed(0)} ms, to every figure ${timing.dropToReadyMs.toFixed(0)} ms, longest main-thread task ${timing.longestTaskMs.toFixed(0)} ms`);
-    assert.ok(timing.longestTaskMs <= MAX_TASK_MS, `${name}: a main-thread task took ${timing.longestTaskMs.toFixed(0)} ms`);
+
     assert.ok(['good', 'fair', 'poor'].includes(await page.getAttribute('#summary', 'data-grade')), `${name}: a grade`);
     // The answer's picture (issue 45), chosen by what the log is: an autopilot's
     // compasses; a walk on a map, its track; else with a reference the heading error,
@@ -135,6 +147,20 @@ for (const [name, files] of present ? recordings(data) : []) {
     assert.equal(flag, null, `${name}: the page names a command-line flag: ${flag?.[0]}`);
     assert.deepEqual(problems, []);
     await close();
+    // The same drop on fresh pages, one at a time, for its time.
+    const timings = [timing];
+    for (let drop = 1; drop < FIRST_DROPS; drop += 1) {
+      const again = await firstDrop(files, desktop);
+      assert.equal(await again.page.getAttribute('body', 'data-state'), 'ready', `${name}: drop ${drop + 1}`);
+      assert.deepEqual(again.problems, []);
+      await again.close();
+      timings.push(again.timing);
+    }
+    writeFileSync(join(out, `real-timing-${name}.json`), JSON.stringify({ name, files, ...timing, firstDrops: timings }));
+    for (const { dropToSummaryMs, dropToReadyMs, longestTaskMs } of timings) {
+      console.log(`${name}: drop to summary ${dropToSummaryMs.toFixed(0)} ms, to every figure ${dropToReadyMs.toFixed(0)} ms, longest main-thread task ${longestTaskMs.toFixed(0)} ms`);
+      assert.ok(longestTaskMs <= MAX_TASK_MS, `${name}: a main-thread task took ${longestTaskMs.toFixed(0)} ms`);
+    }
   });
 }
 
