@@ -6,15 +6,16 @@
 //! needs: products, transposes and a Gauss-Jordan inverse with partial pivoting.
 //!
 //! Each is `#[inline]`, so the optimiser decides by the build's opt-level: the page's
-//! first-paint module, built for size, keeps them out of line (inlined at every use, the
-//! products alone grew it by kilobytes); the analysis module and the CLI, built for
-//! speed, inline them. Out of line, a 7 × 7 operand (392 bytes) passed or returned by
-//! value is copied through memory on every call, which WebAssembly does with
-//! bulk-memory calls into the engine: in Node's profile of the Pixel 6a drive (a
-//! transition and an update each second of 87 minutes) `Cov::mul`, `Cov::zeros` and
-//! `Cov::identity` took a fifth of the pipeline, and inlined the pipeline took
-//! 85-88 ms against 95-100 (`pdr_pipeline_files`, best of 15, three rounds,
-//! 2026-12-06).
+//! first-paint module, built for size, keeps them out of line (90 bytes more gzipped
+//! than with `#[inline(never)]`; forced inline at every use, the products alone grew it
+//! by kilobytes); the analysis module and the CLI, built for speed, inline all but the
+//! product (4.6 kB more for the analysis module). Out of line, a 7 × 7 operand
+//! (392 bytes) passed or returned by value is copied through memory on every call,
+//! which WebAssembly does with bulk-memory calls into the engine: in Node's profile of
+//! the Pixel 6a drive (a transition and an update each second of 87 minutes)
+//! `Cov::mul`, `Cov::zeros` and `Cov::identity` took a fifth of the pipeline, and
+//! inlined the pipeline took 85-88 ms against 95-100 (`pdr_pipeline_files`, best of 15,
+//! three rounds, 2026-12-06).
 
 use std::ops::{Add, AddAssign, Index, IndexMut, Mul, Sub};
 
