@@ -42,7 +42,7 @@ use thiserror::Error;
 
 use super::collector::{Clock, Collector, Slot};
 use super::fields::{
-    check_count, finite, quaternion_from_rotation_vector, split_fields, vector3, TaggedFieldError,
+    check_count, finite, quaternion_from_rotation_vector, vector3, with_fields, TaggedFieldError,
 };
 use super::{LineReader, ANDROID_DUMP, MAX_LINE_BYTES};
 use crate::io::{shorten, ImportError, ImportReport};
@@ -91,12 +91,13 @@ impl LineReader for AndroidReader {
             return;
         }
         // Tabs separate the fields; a copy whose tabs became spaces is still read.
-        let fields = if trimmed.contains('\t') {
-            split_fields(trimmed, '\t')
+        let read = if trimmed.contains('\t') {
+            with_fields(trimmed, '\t', |fields| self.read_fields(number, fields))
         } else {
-            trimmed.split_whitespace().collect()
+            let fields: Vec<&str> = trimmed.split_whitespace().collect();
+            self.read_fields(number, &fields)
         };
-        if let Err(error) = self.read_fields(number, &fields) {
+        if let Err(error) = read {
             self.collector.problem(number, error.to_string());
         }
     }
