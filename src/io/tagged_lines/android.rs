@@ -42,7 +42,7 @@ use thiserror::Error;
 
 use super::collector::{Clock, Collector, Slot};
 use super::fields::{
-    check_count, finite, quaternion_from_rotation_vector, vector3, with_fields, TaggedFieldError,
+    check_count, finite, quaternion_from_rotation_vector, split_fields, vector3, TaggedFieldError,
 };
 use super::{LineReader, ANDROID_DUMP, MAX_LINE_BYTES};
 use crate::io::{shorten, ImportError, ImportReport};
@@ -91,13 +91,12 @@ impl LineReader for AndroidReader {
             return;
         }
         // Tabs separate the fields; a copy whose tabs became spaces is still read.
-        let read = if trimmed.contains('\t') {
-            with_fields(trimmed, '\t', |fields| self.read_fields(number, fields))
+        let fields = if trimmed.contains('\t') {
+            split_fields(trimmed, '\t')
         } else {
-            let fields: Vec<&str> = trimmed.split_whitespace().collect();
-            self.read_fields(number, &fields)
+            trimmed.split_whitespace().collect()
         };
-        if let Err(error) = read {
+        if let Err(error) = self.read_fields(number, &fields) {
             self.collector.problem(number, error.to_string());
         }
     }

@@ -121,61 +121,12 @@ pub(super) fn check_count(
     })
 }
 
-/// Fields a line keeps on the stack ([`with_fields`]); the logs' longest lines have 11.
-const FIELDS_ON_STACK: usize = 24;
-
-/// `read` on `text` split on `separator`, its fields trimmed and empty trailing ones
-/// dropped (a line may end with the separator). The fields are gathered on the stack,
-/// in a vector only past [`FIELDS_ON_STACK`]: a vector per line cost an allocation and a
-/// free for each of a log's tens of thousands of lines, which in the page's
-/// WebAssembly are calls into its allocator.
-pub(super) fn with_fields<'a, R>(
-    text: &'a str,
-    separator: char,
-    read: impl FnOnce(&[&'a str]) -> R,
-) -> R {
-    let mut on_stack = [""; FIELDS_ON_STACK];
-    let mut n_on_stack = 0;
-    let mut spilled: Option<Vec<&'a str>> = None;
-    for field in text.split(separator).map(str::trim) {
-        match &mut spilled {
-            Some(fields) => fields.push(field),
-            None if n_on_stack < FIELDS_ON_STACK => {
-                on_stack[n_on_stack] = field;
-                n_on_stack += 1;
-            }
-            None => {
-                let mut fields = on_stack.to_vec();
-                fields.push(field);
-                spilled = Some(fields);
-            }
-        }
+/// Splits on `separator`, trimming fields and dropping empty trailing ones (a line may
+/// end with the separator).
+pub(super) fn split_fields(text: &str, separator: char) -> Vec<&str> {
+    let mut fields: Vec<&str> = text.split(separator).map(str::trim).collect();
+    while fields.last().is_some_and(|field| field.is_empty()) {
+        fields.pop();
     }
-    let mut fields: &[&str] = spilled.as_deref().unwrap_or(&on_stack[..n_on_stack]);
-    while let Some((last, rest)) = fields.split_last() {
-        if !last.is_empty() {
-            break;
-        }
-        fields = rest;
-    }
-    read(fields)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn fields_are_trimmed_and_empty_trailing_ones_dropped_on_the_stack_or_past_it() {
-        let owned = |text: &str| with_fields(text, ';', |fields| fields.join("|"));
-        assert_eq!(owned("ACCE; 1.5 ;2;;x;;"), "ACCE|1.5|2||x");
-        assert_eq!(owned(";;"), "");
-        assert_eq!(owned(""), "");
-        let long: Vec<String> = (0..FIELDS_ON_STACK + 5).map(|i| i.to_string()).collect();
-        let line = format!("{};;", long.join(";"));
-        assert_eq!(
-            with_fields(&line, ';', <[&str]>::to_vec),
-            long.iter().map(String::as_str).collect::<Vec<_>>()
-        );
-    }
+    fields
 }

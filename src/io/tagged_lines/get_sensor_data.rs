@@ -56,7 +56,7 @@ use thiserror::Error;
 
 use super::collector::{Clock, Collector, Slot};
 use super::fields::{
-    check_count, finite, quaternion_from_rotation_vector, vector3, with_fields, TaggedFieldError,
+    check_count, finite, quaternion_from_rotation_vector, split_fields, vector3, TaggedFieldError,
 };
 use super::{LineReader, GET_SENSOR_DATA, MAX_LINE_BYTES};
 use crate::base::angle::wrap_to_2pi;
@@ -139,7 +139,8 @@ impl LineReader for GetSensorDataReader {
             );
             return;
         }
-        if let Err(error) = with_fields(trimmed, ';', |fields| self.read_fields(number, fields)) {
+        let fields = split_fields(trimmed, ';');
+        if let Err(error) = self.read_fields(number, &fields) {
             self.collector.problem(number, error.to_string());
         }
     }
