@@ -136,7 +136,7 @@ class ReadAhead {
 
   /** File `fileIdx`'s read (null for a file read in chunks), and the next ones asked for. */
   take(fileIdx) {
-    const wholeSize = (file) => (file.size <= WHOLE_FILE_BYTES ? file.size : 0);
+    const wholeSize = (file) => (readsWhole(file) ? file.size : 0);
     let bytesAhead = this.files.slice(fileIdx + 1, this.asked).reduce((sum, file) => sum + wholeSize(file), 0);
     while (this.asked < this.files.length && (this.asked <= fileIdx || bytesAhead + wholeSize(this.files[this.asked]) <= READ_AHEAD_BYTES)) {
       if (this.asked > fileIdx) bytesAhead += wholeSize(this.files[this.asked]);
@@ -149,9 +149,14 @@ class ReadAhead {
   }
 }
 
+/** Whether `file` is read whole (else in chunks). */
+function readsWhole(file) {
+  return file.size > 0 && file.size <= WHOLE_FILE_BYTES;
+}
+
 /** The bytes of a file read whole, or null when it is to be read in chunks. */
 function readWhole(file) {
-  if (!(file.size > 0 && file.size <= WHOLE_FILE_BYTES)) return null;
+  if (!readsWhole(file)) return null;
   const bytes = file.arrayBuffer();
   // A read asked for ahead and then not waited for (the job was cancelled) must not
   // report its failure as unhandled; waited for, it still throws.
