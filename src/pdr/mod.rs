@@ -227,7 +227,9 @@ impl Default for PdrOptions {
 }
 
 /// Dead-reckons an imported recording with the heading comparison made on it
-/// ([`crate::pipeline`] runs the two in order).
+/// ([`crate::pipeline`] runs the two in order). Its steps (the functions below marked
+/// `#[inline(never)]`) run once per log and stay out of line (docs/ARCHITECTURE.md,
+/// "Build").
 pub fn dead_reckon(
     import: &ImportReport,
     (calibration, headings): (&CalibrationAnalysis, &HeadingAnalysis),
@@ -334,6 +336,7 @@ struct HeadedSteps {
 
 /// Stages 1 and 2: the heading (the comparison's choice, fitted again outside the
 /// outages), the steps of walking, and each step's heading; fails without either.
+#[inline(never)]
 fn headed_steps(
     import: &ImportReport,
     (calibration, headings): (&CalibrationAnalysis, &HeadingAnalysis),
@@ -390,6 +393,7 @@ fn headed_steps(
 
 /// Stage 4: the step model trained on the reference sets (one trained on GNSS only where
 /// its lengths are plausible) and each step's length (m) by it.
+#[inline(never)]
 fn step_model_and_lengths(
     steps: &[Step],
     sets: &ReferenceSets,
@@ -406,6 +410,7 @@ fn step_model_and_lengths(
 }
 
 /// The steps' length error (m) against the reference lengths, where a step has one.
+#[inline(never)]
 fn step_length_error_m(
     step_lengths_m: &[f64],
     step_references_m: &[Option<f64>],
@@ -419,6 +424,7 @@ fn step_length_error_m(
 }
 
 /// The track's heading error (deg) at each step against the log's reference heading.
+#[inline(never)]
 fn step_heading_error_deg(
     steps: &[Step],
     track: &[TrackPoint],
@@ -549,6 +555,7 @@ fn plausible_step_model(
 }
 
 /// The filter over the steps and the fixes, from the start position.
+#[inline(never)]
 fn run_filter(
     steps: &[Step],
     step_lengths_m: &[f64],
@@ -631,6 +638,7 @@ struct Placing {
 
 impl Placing {
     /// The frame, fixes and reference positions of `recording` under `options`' policy.
+    #[inline(never)]
     fn of(recording: &Recording, options: &PdrOptions, notes: &mut Vec<String>) -> Placing {
         let fix_policy = options.fix_policy();
         let (frame, fixes) = local_fixes(recording, &fix_policy);
@@ -671,6 +679,7 @@ fn local_fixes(recording: &Recording, policy: &GnssPolicy) -> (Option<LocalFrame
 }
 
 /// What became of the fixes `placing` gave the filter, with a note when none was used.
+#[inline(never)]
 fn count_fixes(
     fix_use: &[FixUse],
     placing: &Placing,
@@ -733,6 +742,7 @@ struct TrackScores {
     pdr_distance_m: f64,
 }
 
+#[inline(never)]
 fn track_scores(
     track: &[TrackPoint],
     reference_en_m: &[(f64, [f64; 2])],

@@ -95,6 +95,8 @@ pub(super) fn reference_positions(
 /// Per-step references from the GNSS speed while GNSS is good: the speed at the middle
 /// of the step (interpolated across at most 1.5 s) times its duration. The last step of
 /// a bout, whose end is a guess, has none.
+// A step run once per log, out of line (docs/ARCHITECTURE.md, "Build").
+#[inline(never)]
 pub(super) fn gnss_step_references(
     recording: &Recording,
     steps: &[Step],
@@ -142,6 +144,8 @@ pub(super) struct ReferenceSets<'a> {
 impl<'a> ReferenceSets<'a> {
     /// Every set for these steps: the known distance, the reference positions' and the
     /// admissible fixes' straight stretches, and the GNSS speed's per-step references.
+    // A step run once per log, out of line (docs/ARCHITECTURE.md, "Build").
+    #[inline(never)]
     pub(super) fn of(
         steps: &[Step],
         step_headings_rad: &[f64],
@@ -461,6 +465,8 @@ pub(super) fn start_position(
 
 /// Each step's reference length: from dense reference positions (5 Hz or more: the
 /// distance between the positions at its start and end), else its GNSS reference.
+// A step run once per log, out of line (docs/ARCHITECTURE.md, "Build").
+#[inline(never)]
 pub(super) fn step_reference_lengths(
     steps: &[Step],
     reference_en_m: &[(f64, [f64; 2])],

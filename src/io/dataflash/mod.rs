@@ -133,6 +133,8 @@ fn offsets_of(track: &MagTrack, in_force: Option<&ArduPilotCompass>) -> Option<V
 /// the main compass's raw field becomes its magnetometer, the same samples in the same
 /// order), and the main one: COMPASS_PRIMARY's, where its raw field is known. How many
 /// of the main compass's raw samples were out of time order.
+// A step run once per log, out of line (docs/ARCHITECTURE.md, "Build").
+#[inline(never)]
 fn set_compasses(autopilot: &mut AutopilotLog, mags: &[MagTrack]) -> usize {
     autopilot.compasses = mags
         .iter()
@@ -258,6 +260,8 @@ fn compass_of(track: &MagTrack, params: &AutopilotLog) -> CompassLog {
 }
 
 /// The notes on the whole log: what was read, the firmware, the parameters.
+// A step run once per log, out of line (docs/ARCHITECTURE.md, "Build").
+#[inline(never)]
 fn log_notes(summary: String, counts: &[(String, usize)], autopilot: &AutopilotLog) -> Vec<String> {
     let mut notes = vec![summary];
     let read: Vec<String> = counts
@@ -373,6 +377,8 @@ fn finish(
 }
 
 /// A note for each compass that logged readings of exactly zero, which were left out.
+// A step run once per log, out of line (docs/ARCHITECTURE.md, "Build").
+#[inline(never)]
 fn zero_reading_notes(mags: &[MagTrack]) -> Vec<String> {
     mags.iter()
         .filter(|track| track.n_zero_readings > 0)
@@ -390,6 +396,8 @@ fn zero_reading_notes(mags: &[MagTrack]) -> Vec<String> {
 
 /// The main compass's raw field as the recording's magnetometer, with its frame; notes
 /// say which compass it is and that the others are kept apart. `None` without one.
+// A step run once per log, out of line (docs/ARCHITECTURE.md, "Build").
+#[inline(never)]
 fn take_main_compass(
     recording: &mut Recording,
     autopilot: &AutopilotLog,
@@ -430,6 +438,8 @@ fn take_main_compass(
 
 /// The gyroscope's bias marked as removed by ArduPilot, with notes on the IMU and the
 /// samples of other instances left unused.
+// A step run once per log, out of line (docs/ARCHITECTURE.md, "Build").
+#[inline(never)]
 fn imu_notes(recording: &mut Recording, n_other_instances: usize, notes: &mut Vec<String>) {
     if !recording.gyro_in_body_radps.is_empty() {
         recording.gyro_bias = GyroBias::RemovedByDevice;
@@ -448,6 +458,8 @@ fn imu_notes(recording: &mut Recording, n_other_instances: usize, notes: &mut Ve
 }
 
 /// The note on `ATT`, whose attitude is turned into the board's ([`board_attitude`]).
+// A step run once per log, out of line (docs/ARCHITECTURE.md, "Build").
+#[inline(never)]
 fn attitude_notes(recording: &mut Recording, autopilot: &AutopilotLog, notes: &mut Vec<String>) {
     if !recording.attitude.is_empty() {
         notes.push(

@@ -227,6 +227,8 @@ impl Collector {
     }
 
     /// The first notes: the samples read per tag, and the gyroscope's kind.
+    // A step run once per log, out of line (docs/ARCHITECTURE.md, "Build").
+    #[inline(never)]
     fn read_notes(&self) -> Vec<String> {
         let mut notes = Vec::new();
         if !self.n_read.is_empty() {
@@ -248,6 +250,8 @@ impl Collector {
 
     /// Every stream but the magnetometer in body axes (by `mount`) and seconds (by
     /// `to_s`), the rotation vector as an attitude.
+    // A step run once per log, out of line (docs/ARCHITECTURE.md, "Build").
+    #[inline(never)]
     fn recording_in_body(&self, to_s: impl Fn(f64) -> f64 + Copy, mount: PhoneMount) -> Recording {
         let to_body = |v: &Vector3<f64>| mount.device_to_body(*v);
         Recording {
@@ -269,6 +273,8 @@ impl Collector {
 
     /// The raw field (with the OS's bias estimate) as the recording's magnetometer, else
     /// the OS-calibrated one, in body axes and seconds; a note says which.
+    // A step run once per log, out of line (docs/ARCHITECTURE.md, "Build").
+    #[inline(never)]
     fn take_magnetometer(
         &self,
         recording: &mut Recording,
@@ -305,6 +311,8 @@ impl Collector {
 
     /// Sorts every stream of `recording` by time, with a diagnostic when time went
     /// backwards.
+    // A step run once per log, out of line (docs/ARCHITECTURE.md, "Build").
+    #[inline(never)]
     fn sort_by_time(&mut self, recording: &mut Recording) {
         // The bias shares the magnetometer's times, so only the magnetometer is counted.
         let n_out_of_order = recording.acc_in_body_mps2.sort_by_time()
@@ -346,6 +354,8 @@ fn convert<T, U>(
 
 /// The mount from the mean specific force in device axes, Flat when undecided; the
 /// choice and its mapping go into the notes.
+// A step run once per log, out of line (docs/ARCHITECTURE.md, "Build").
+#[inline(never)]
 fn detect_mount(acc_in_device_mps2: &Stream<Vector3<f64>>, notes: &mut Vec<String>) -> PhoneMount {
     let n = acc_in_device_mps2.len();
     if n == 0 {
