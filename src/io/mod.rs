@@ -171,6 +171,11 @@ pub enum ImportError {
         byte_offset: usize,
     },
 
+    /// JSON, such as the map or the track some loggers keep beside their logs: no
+    /// format this tool reads starts with `{`.
+    #[error("{file_name} is JSON, not a sensor log (a GeoJSON map or track is not read; GPX and KML tracks are). Drop the log itself: CSV or text with a header line such as t_s,mag_x_ut,mag_y_ut,mag_z_ut, NMEA, or an autopilot log.")]
+    Json { file_name: String },
+
     #[error("{file_name} has no header line, only blank or comment lines. Add a header such as t_s,mag_x_ut,mag_y_ut,mag_z_ut.")]
     NoHeader { file_name: String },
 

@@ -245,3 +245,30 @@ proptest! {
         prop_assert_eq!(read_in_chunks(name, &bytes, &chunk_ends), import(name, &bytes));
     }
 }
+
+#[test]
+fn a_json_file_is_named_json_whole_and_in_chunks() {
+    // A floor plan as a phone logger keeps it beside its log: one line of GeoJSON.
+    let mut map = String::from(
+        r#"{"type": "FeatureCollection", "features": [{"type": "Feature", "geometry": {"type": "MultiPolygon", "coordinates": [[["#,
+    );
+    for idx in 0..5_000 {
+        map.push_str(&format!("[120.07{idx:04}, 30.29{idx:04}], "));
+    }
+    map.push_str("[120.0, 30.0]]]]}}]}\n");
+    let error = import_file("geojson_map.json", map.as_bytes(), None).err();
+    assert_eq!(
+        error,
+        Some(ImportError::Json {
+            file_name: "geojson_map.json".to_string()
+        })
+    );
+    let chunked = read_in_chunks("geojson_map.json", map.as_bytes(), &[1000, 20_000]).err();
+    assert_eq!(chunked, error);
+    // A byte-order mark and blank lines before it change nothing.
+    let floor_info = "\u{feff}\n\n{\"map_info\": {\"height\": 188.4, \"width\": 257.9}}\n";
+    assert!(matches!(
+        import_file("floor_info.json", floor_info.as_bytes(), None),
+        Err(ImportError::Json { .. })
+    ));
+}
