@@ -90,7 +90,9 @@ optimise_wasm() {
     log "No tests/e2e/node_modules/.bin/wasm-opt (npm ci --prefix tests/e2e): $(basename "$wasm") left unoptimised"
     return 0
   fi
-  "$wasm_opt" -O1 --converge --low-memory-unused --enable-threads --enable-bulk-memory --enable-mutable-globals --enable-simd \
+  # KEEP_WASM_NAMES=1 keeps the functions' names, for profiles
+  # (bench/first_drop_compiles.mjs); the sizes are then not the page's.
+  "$wasm_opt" -O1 ${KEEP_WASM_NAMES:+-g} --converge --low-memory-unused --enable-threads --enable-bulk-memory --enable-mutable-globals --enable-simd \
     --enable-sign-ext --enable-nontrapping-float-to-int --enable-reference-types --enable-multivalue \
     "$wasm" -o "$wasm.opt" && mv "$wasm.opt" "$wasm"
 }
@@ -165,7 +167,7 @@ build_web_threads() {
   if ! RUSTFLAGS="$THREADS_RUSTFLAGS" CARGO_PROFILE_RELEASE_OPT_LEVEL="$COMPASS_PDR_WASM_THREADS_OPT_LEVEL" cargo +nightly build --manifest-path "$ROOT/Cargo.toml" \
       --release --lib --target wasm32-unknown-unknown -Z build-std=std,panic_abort \
       --features "$features" --target-dir "$ROOT/target/threads" \
-    || ! wasm-bindgen --target web --no-typescript --remove-name-section \
+    || ! wasm-bindgen --target web --no-typescript $([ -n "${KEEP_WASM_NAMES:-}" ] || echo --remove-name-section) \
       --remove-producers-section --out-dir "$out_dir" \
       "$ROOT/target/threads/wasm32-unknown-unknown/release/compass_pdr.wasm"; then
     log "The threaded module did not build: the page will read files on one thread"
