@@ -4,9 +4,11 @@
 //! logs (DataFlash, ULog) by their first bytes, then, once the file is known to be text
 //! ([`super::ensure_text`]), by its first lines: DataFlash text, GPX or KML, NMEA
 //! sentences, the Android sensor dump, GetSensorData logs, delimited text with a header,
-//! or serial sensor lines. The file name counts only for a phone app's per-sensor files
-//! ([`super::sensor_files`]), and only together with their content. Lines of only
-//! numbers go to the delimited reader when the user has mapped their columns. Several
+//! or serial sensor lines; a file that starts with `{` is JSON (a map or a track a
+//! logger keeps beside its log) and is refused as such. The file name counts only for a
+//! phone app's per-sensor files ([`super::sensor_files`]), and only together with their
+//! content. Lines of only numbers go to the delimited reader when the user has mapped
+//! their columns. Several
 //! files dropped together (phyphox writes one file per sensor) are read one by one and
 //! merged into one recording; a file that cannot be read becomes a diagnostic of the
 //! merge, and the rest is still used.
