@@ -23,7 +23,7 @@
 // logs of every format analysed while the user picks a file) to end.
 import { dirname, join } from 'node:path';
 import { fileURLToPath } from 'node:url';
-import { recordMainThread, recordings } from '../tests/e2e/drops.mjs';
+import { openBenchPage, recordings } from '../tests/e2e/drops.mjs';
 
 const root = join(dirname(fileURLToPath(import.meta.url)), '..');
 const { chromium } = await import(join(root, 'tests/e2e/node_modules/playwright-core/index.mjs'));
@@ -39,12 +39,7 @@ console.log(`| recording | ${columns.join(' | ')} | fixed part (drop to summary 
 console.log(`|---|${'---:|'.repeat(columns.length + 1)}`);
 const ms = (value) => (Number.isFinite(value) ? `${value.toFixed(0)}` : '–');
 for (const [name, files] of chosen) {
-  const context = await browser.newContext({ viewport: { width: 1360, height: 900 } });
-  const page = await context.newPage();
-  await page.addInitScript(recordMainThread);
-  await page.goto(url);
-  await page.waitForSelector('body[data-state="ready"]', { timeout: 30_000 });
-  if (process.env.WARM === '1') await page.waitForSelector('body[data-warmed-up-ms]', { state: 'attached', timeout: 30_000 });
+  const { context, page } = await openBenchPage(browser, url, { warm: process.env.WARM === '1' });
   let split = null;
   const drops = process.env.DROP === '1' ? 1 : 2;
   for (let drop = 0; drop < drops; drop += 1) {

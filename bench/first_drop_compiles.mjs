@@ -15,7 +15,7 @@
 // when KEEP_WASM_NAMES=1); without one, functions are named by their index.
 import { dirname, join } from 'node:path';
 import { fileURLToPath } from 'node:url';
-import { recordMainThread, recordings } from '../tests/e2e/drops.mjs';
+import { openBenchPage, recordings } from '../tests/e2e/drops.mjs';
 
 /** The browser's output lines, as they come: playwright-core prints them on this
  * process's stderr under `DEBUG=pw:browser`, set before it is loaded. */
@@ -80,12 +80,7 @@ const browser = await chromium.launch({
 console.log('| recording | TurboFan compiles during the first drop | ms | the three longest (ms) |');
 console.log('|---|---:|---:|---|');
 for (const [name, files] of chosen) {
-  const context = await browser.newContext({ viewport: { width: 1360, height: 900 } });
-  const page = await context.newPage();
-  await page.addInitScript(recordMainThread);
-  await page.goto(url);
-  await page.waitForSelector('body[data-state="ready"]', { timeout: 30_000 });
-  await page.waitForSelector('body[data-warmed-up-ms]', { state: 'attached', timeout: 60_000 });
+  const { context, page } = await openBenchPage(browser, url, { warm: true });
   await page.waitForTimeout(500);
   const from = lines.length;
   await page.evaluate(() => {

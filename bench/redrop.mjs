@@ -8,7 +8,7 @@
 //   node bench/redrop.mjs http://127.0.0.1:8877/ [drops] [../shared/data]
 import { dirname, join } from 'node:path';
 import { fileURLToPath } from 'node:url';
-import { lastDropTiming, recordMainThread, recordings } from '../tests/e2e/drops.mjs';
+import { lastDropTiming, openBenchPage, recordings } from '../tests/e2e/drops.mjs';
 
 const root = join(dirname(fileURLToPath(import.meta.url)), '..');
 const { chromium } = await import(join(root, 'tests/e2e/node_modules/playwright-core/index.mjs'));
@@ -27,11 +27,7 @@ console.log(`| recording | ${Array.from({ length: drops }, (_, k) => `drop ${k +
 console.log(`|---|${'---:|'.repeat(drops)}`);
 for (const name of chosen) {
   const files = all.get(name);
-  const context = await browser.newContext({ viewport: { width: 1360, height: 900 } });
-  const page = await context.newPage();
-  await page.addInitScript(recordMainThread);
-  await page.goto(url);
-  await page.waitForSelector('body[data-state="ready"]', { timeout: 30_000 });
+  const { context, page } = await openBenchPage(browser, url);
   const times = [];
   for (let drop = 0; drop < drops; drop += 1) {
     // The next "ready" or "error", and the next grade, are this drop's.

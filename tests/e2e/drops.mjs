@@ -71,6 +71,19 @@ export function recordMainThread() {
   if (document.body) watchBody(); else document.addEventListener('DOMContentLoaded', watchBody);
 }
 
+/** A fresh desktop-sized page of `browser` at `url` for the benchmarks, recording its main
+ * thread (`recordMainThread`): once the page is ready and, with `warm`, once the analysis
+ * worker's warm-up has ended (www/analysis-worker.js). Returns its context and the page. */
+export async function openBenchPage(browser, url, { warm = false } = {}) {
+  const context = await browser.newContext({ viewport: { width: 1360, height: 900 } });
+  const page = await context.newPage();
+  await page.addInitScript(recordMainThread);
+  await page.goto(url);
+  await page.waitForSelector('body[data-state="ready"]', { timeout: 30_000 });
+  if (warm) await page.waitForSelector('body[data-warmed-up-ms]', { state: 'attached', timeout: 60_000 });
+  return { context, page };
+}
+
 /** After `recordMainThread`: from the last file chosen to its answer in the summary and
  * to the next `ready` or `error` (every figure drawn), and the main thread's long tasks
  * meanwhile. */
