@@ -3,7 +3,7 @@
 //! delimited text and NMEA then go in blocks of whole lines, every other format line by
 //! line through the line decoder.
 
-use super::{format_for, looks_like_json, sample_lines, FileImport, Format, SAMPLE_BYTES};
+use super::{format_for, refuse_json, sample_lines, FileImport, Format, SAMPLE_BYTES};
 use crate::io::delimited::{self, ColumnMapping, DelimitedReader};
 use crate::io::lines::{Line, LineDecoder};
 use crate::io::sensor_files::{self, SensorFile, SensorFileReader};
@@ -282,11 +282,7 @@ impl ChunkedImport {
         }
         let sample_lines = sample_lines(&self.prefix);
         let sample: Vec<&str> = sample_lines.iter().map(String::as_str).collect();
-        if looks_like_json(&sample) {
-            return Err(ImportError::Json {
-                file_name: self.file_name.clone(),
-            });
-        }
+        refuse_json(&self.file_name, &sample)?;
         if let Some(sensor_file) = sensor_files::recognise(&self.file_name, &sample) {
             self.start_reading_sensor_file(sensor_file);
             return Ok(());

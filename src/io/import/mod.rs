@@ -62,15 +62,22 @@ fn sample_lines(bytes: &[u8]) -> Vec<String> {
     sample_lines
 }
 
-/// Whether a file's first lines are JSON (its first character `{`): no format read
+/// Refuses a file whose first lines are JSON (its first character `{`): no format read
 /// here starts so, and a delimited header of a JSON line would name thousands of
-/// "columns" (a GeoJSON floor plan is one line of 100 kB).
-fn looks_like_json(sample: &[&str]) -> bool {
-    sample
+/// "columns" (a GeoJSON floor plan is one line of 100 kB). Both import paths ask this.
+fn refuse_json(file_name: &str, sample: &[&str]) -> Result<(), ImportError> {
+    let json = sample
         .iter()
         .map(|line| line.trim_start_matches('\u{feff}').trim_start())
         .find(|line| !line.is_empty())
-        .is_some_and(|line| line.starts_with('{'))
+        .is_some_and(|line| line.starts_with('{'));
+    if json {
+        Err(ImportError::Json {
+            file_name: file_name.to_string(),
+        })
+    } else {
+        Ok(())
+    }
 }
 
 /// The format of a file, told from its first lines; `None` when nothing fits.
@@ -158,11 +165,7 @@ pub fn import_file(
     ensure_text(file_name, bytes)?;
     let sample_lines = sample_lines(bytes);
     let sample: Vec<&str> = sample_lines.iter().map(String::as_str).collect();
-    if looks_like_json(&sample) {
-        return Err(ImportError::Json {
-            file_name: file_name.to_string(),
-        });
-    }
+    refuse_json(file_name, &sample)?;
     if sensor_files::recognise(file_name, &sample).is_some() {
         // The readers a file read in chunks uses, fed the whole file at once.
         let mut chunked = ChunkedImport::new(file_name, Some(bytes.len()));
