@@ -3,12 +3,12 @@
 //! table, the deviation models, their plots), the dead reckoning (summary and plots),
 //! the timeline, and errors in the place of all of them.
 //!
-//! The summary goes first, then the lists, then the figures, one per task. Where the
-//! analysis worker runs a job, its calibration and figures can be shown before the job
-//! ends: the worker sends a copy when the calibration step is done, and the page shows
-//! it after `EARLY_FIGURES_AFTER_MS` unless the job has finished by then (so that a
-//! quick analysis's answer does not wait behind them); the finished analysis does not
-//! draw those figures again.
+//! The summary goes first, then the answer's picture, then the lists, then the figures,
+//! one per task. Where the analysis worker runs a job, its calibration and figures can
+//! be shown before the job ends: the worker sends a copy when the calibration step is
+//! done, and the page shows it after `EARLY_FIGURES_AFTER_MS` unless the job has
+//! finished by then (so that a quick analysis's answer does not wait behind them); the
+//! finished analysis does not draw those figures again.
 
 use std::rc::Rc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -33,10 +33,11 @@ const MAX_DIAGNOSTICS_SHOWN: usize = 50;
 
 impl Page {
     /// Shows a finished analysis of `import` (or why there is none): the answer first
-    /// (the summary), then the lists of the calibration, the heading models and the
-    /// dead reckoning, then their figures one at a time, the browser getting a turn
-    /// between them (to paint, to answer input), so that no part of the drawing is a
-    /// long task. A job started meanwhile (`cancel` set) stops the drawing: its own
+    /// (the summary), then its picture, then the lists of the calibration, the heading
+    /// models and the dead reckoning (1-4 ms, in folded details: after the picture, so
+    /// that the headline is painted without waiting for them), then their figures one
+    /// at a time, the browser getting a turn between them (to paint, to answer input),
+    /// so that no part of the drawing is a long task. A job started meanwhile (`cancel` set) stops the drawing: its own
     /// outcome follows. `stage`: where the analysis started, for the run counters.
     pub(super) async fn show_outcome(
         &self,
@@ -56,13 +57,19 @@ impl Page {
         if drawn_early.is_empty() {
             self.zooms.reset();
         }
-        let (status, answer) = self.show_lists(&results, import.as_deref());
-        // The answer's picture first, the browser getting a turn before it.
+        let answer = self.show_answer(&results);
+        // The answer's picture next, then the lists (in the folded details below it),
+        // the browser getting a turn before each: the headline is painted first.
         yield_to_browser().await;
         if cancel.load(Ordering::Acquire) {
             return;
         }
         self.draw_picture(&answer, &results);
+        yield_to_browser().await;
+        if cancel.load(Ordering::Acquire) {
+            return;
+        }
+        let status = self.show_lists(&results, import.as_deref(), &answer);
         *self.answer.borrow_mut() = Some(answer);
         for figure in FIGURES {
             if drawn_early.contains(&figure.canvas()) {
@@ -134,13 +141,8 @@ impl Page {
         self.mark_time("data-first-plot-ms");
     }
 
-    /// The summary and every list of `results`; returns the status line and the answer,
-    /// whose picture is drawn next.
-    fn show_lists(
-        &self,
-        results: &Results,
-        import: Option<&ImportReport>,
-    ) -> (String, crate::present::verdict::Verdict) {
+    /// The answer of `results` in the summary; returns it, for its picture and lists.
+    fn show_answer(&self, results: &Results) -> crate::present::verdict::Verdict {
         let verdict = crate::present::verdict::verdict(
             &results.calibration,
             &results.heading.report,
@@ -148,15 +150,24 @@ impl Page {
         );
         self.show_verdict(Some(&verdict));
         self.mark_time("data-summary-ms");
+        verdict
+    }
+
+    /// Every list of `results` below the summary; returns the status line.
+    fn show_lists(
+        &self,
+        results: &Results,
+        import: Option<&ImportReport>,
+        verdict: &crate::present::verdict::Verdict,
+    ) -> String {
         self.show_calibration(&results.calibration, import);
         let summary = self.show_heading_models(&results.calibration, &results.heading);
         self.show_dead_reckoning(&results.pdr);
         // The walk's steps as the summary counts them (none for a vehicle).
-        let status = match &verdict.steps {
+        match &verdict.steps {
             Some(steps) => format!("{summary} {steps}"),
             None => summary,
-        };
-        (status, verdict)
+        }
     }
 
     /// Draws one figure of `results` on its canvas (a figure that cannot be drawn says
@@ -509,8 +520,9 @@ pub(super) const FIGURES: [Figure; 9] = [
 impl Page {
     /// The whole analysis at once (the browser tests use it).
     pub(crate) fn show_analysis(&self, results: &Results, import: Option<&ImportReport>) {
-        let (status, answer) = self.show_lists(results, import);
+        let answer = self.show_answer(results);
         self.draw_picture(&answer, results);
+        let status = self.show_lists(results, import, &answer);
         for figure in FIGURES {
             self.draw_figure(figure, results);
         }
