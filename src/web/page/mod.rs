@@ -9,6 +9,7 @@
 //! the end-to-end tests.
 
 pub(crate) mod analysis;
+mod loading;
 mod reading;
 mod show;
 mod verdict;
@@ -89,6 +90,8 @@ pub struct Page {
     early_figures: std::cell::RefCell<Vec<show::Canvas>>,
     /// The zoomable plots' zooms and frames.
     zooms: zoom::Zooms,
+    /// The running job's loading display, held back for its first moments.
+    loading: loading::Held,
 }
 
 /// What reading and analysing a log gave: the import (when the files could be read)
@@ -152,6 +155,7 @@ impl Page {
             n_shown: std::cell::Cell::new(0),
             early_figures: std::cell::RefCell::default(),
             zooms: zoom::Zooms::default(),
+            loading: loading::Held::default(),
         }))
     }
 
@@ -228,7 +232,20 @@ impl Page {
 
     /// Starts a job: the one running (if any) is cancelled; returns the new one's
     /// cancel flag.
-    fn begin_job(&self) -> Arc<AtomicBool> {
+    fn begin_job(self: &Rc<Self>) -> Arc<AtomicBool> {
+        let job = self.loading.begin();
+        let page = Rc::clone(self);
+        spawn_local(async move {
+            pause(loading::SHOWN_AFTER_MS).await;
+            if let Some((status, progress)) = page.loading.release(job) {
+                if let Some(status) = status {
+                    page.set_state("loading", &status);
+                }
+                if let Some((fraction, file_name)) = progress {
+                    page.show_progress(fraction, &file_name);
+                }
+            }
+        });
         let cancel = Arc::new(AtomicBool::new(false));
         // A job's early figures do not count for the next.
         self.early_figures.take();
@@ -381,7 +398,12 @@ impl Page {
                         Work::Again(request) => *request,
                         Work::Files { .. } => return None,
                     },
-                    Err(None) => return None,
+                    Err(None) => {
+                        // The worker failed, and the page says so: nothing held back is
+                        // shown.
+                        self.loading.end();
+                        return None;
+                    }
                 }
             }
             None => request,
@@ -419,7 +441,16 @@ impl Page {
         dom::fill_list(&self.document, id, items);
     }
 
+    /// Puts the page in `state` with `message` in the status line; a job's `loading`
+    /// is held back for its first moments (`loading.rs`), any other state ends that.
     fn set_state(&self, state: &str, message: &str) {
+        if state == "loading" {
+            if self.loading.hold_status(message) {
+                return;
+            }
+        } else {
+            self.loading.end();
+        }
         self.body.set_attribute("data-state", state).ok();
         self.status
             .set_text_content(Some(&super::wording::for_page(message)));

@@ -197,6 +197,8 @@ impl Page {
                 // The worker never took the job: read the files here instead.
                 Err(Some(_)) => {}
                 Err(None) => {
+                    // The worker failed, and the page says so: nothing held back is shown.
+                    self.loading.end();
                     self.hide_progress();
                     return None;
                 }
@@ -290,6 +292,9 @@ impl Page {
     }
 
     pub(super) fn show_progress(&self, fraction: f64, file_name: &str) {
+        if self.loading.hold_progress(fraction, file_name) {
+            return;
+        }
         if let Some(progress) = self.document.get_element_by_id(PROGRESS_ID) {
             let _ = progress.set_attribute("value", &format!("{:.4}", fraction.clamp(0.0, 1.0)));
             let _ = progress.remove_attribute("hidden");
@@ -301,6 +306,7 @@ impl Page {
     }
 
     pub(super) fn hide_progress(&self) {
+        self.loading.drop_progress();
         if let Some(progress) = self.document.get_element_by_id(PROGRESS_ID) {
             let _ = progress.set_attribute("hidden", "");
         }
