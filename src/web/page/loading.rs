@@ -1,5 +1,5 @@
-//! A job's "loading" display (the body's `loading` state with its Cancel button, the
-//! status line's "Reading …"/"Analysing …", the progress bar), held back for the job's
+//! A job's "loading" display (the Cancel button, the status line's "Reading …" and
+//! "Analysing …", the progress bar), held back for the job's
 //! first [`SHOWN_AFTER_MS`]: most drops are answered within that, and the display would
 //! only flash. Each change of it costs the browser a frame (style, layout, paint,
 //! raster and compositing: several milliseconds of CPU with software rendering), and on
@@ -8,7 +8,9 @@
 //! drops each, builds alternating, bench/drop_costs.mjs WARM=1 DROP=1, 2026-12-06): the
 //! HMC5883L sphere 52-61 ms against 41-45, the HMC5883L lying still 67-78 against
 //! 64-65, Microsoft F1 86-91 against 75-77, the Pixel 6a drive 109-128 against 100-111.
-//! A job still running then shows the latest of what was held back.
+//! A job still running then shows the latest of what was held back. The body's
+//! `data-state` is not held back: it says at once that the page is loading, for the
+//! tests and for whatever else watches it.
 
 use std::cell::{Cell, RefCell};
 

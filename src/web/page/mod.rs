@@ -48,6 +48,10 @@ const TRAJECTORY_CANVAS_ID: &str = "plot-trajectory";
 const STEPS_CANVAS_ID: &str = "plot-steps";
 const POSITION_ERROR_CANVAS_ID: &str = "plot-position-error";
 
+/// The body's attribute that shows the `loading` state's Cancel button (`www/style.css`):
+/// set once the job's loading display is shown (`loading.rs`).
+const LOADING_SHOWN: &str = "data-loading-shown";
+
 /// Bytes read from a file at a time: small enough that the page answers between
 /// chunks, large enough that the reads cost little.
 pub(super) const CHUNK_BYTES: f64 = 4.0 * 1024.0 * 1024.0;
@@ -238,6 +242,7 @@ impl Page {
         spawn_local(async move {
             pause(loading::SHOWN_AFTER_MS).await;
             if let Some((status, progress)) = page.loading.release(job) {
+                page.body.set_attribute(LOADING_SHOWN, "").ok();
                 if let Some(status) = status {
                     page.set_state("loading", &status);
                 }
@@ -441,17 +446,20 @@ impl Page {
         dom::fill_list(&self.document, id, items);
     }
 
-    /// Puts the page in `state` with `message` in the status line; a job's `loading`
-    /// is held back for its first moments (`loading.rs`), any other state ends that.
+    /// Puts the page in `state` with `message` in the status line. A job's `loading`
+    /// display (the message, the Cancel button) is held back for its first moments
+    /// (`loading.rs`), its state is not; any other state ends the holding.
     fn set_state(&self, state: &str, message: &str) {
+        self.body.set_attribute("data-state", state).ok();
         if state == "loading" {
             if self.loading.hold_status(message) {
                 return;
             }
+            self.body.set_attribute(LOADING_SHOWN, "").ok();
         } else {
             self.loading.end();
+            self.body.remove_attribute(LOADING_SHOWN).ok();
         }
-        self.body.set_attribute("data-state", state).ok();
         self.status
             .set_text_content(Some(&super::wording::for_page(message)));
         if state == "ready" {
