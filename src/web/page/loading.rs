@@ -4,10 +4,10 @@
 //! only flash. Each change of it costs the browser a frame (style, layout, paint,
 //! raster and compositing: several milliseconds of CPU with software rendering), and on
 //! a 2-core machine those frames took a core from the analysis worker and its pool.
-//! Drop to the answer, with the display shown at once against held back (four first
-//! drops each, builds alternating, bench/drop_costs.mjs WARM=1 DROP=1, 2026-12-06): the
-//! HMC5883L sphere 52-61 ms against 41-45, the HMC5883L lying still 67-78 against
-//! 64-65, Microsoft F1 86-91 against 75-77, the Pixel 6a drive 109-128 against 100-111.
+//! Drop to the answer, the display held back against shown at once (four first drops
+//! each, builds alternating, bench/drop_costs.mjs WARM=1 DROP=1, 2026-12-07): the
+//! HMC5883L sphere 47-53 ms against 49-69, the HMC5883L lying still 67-72 against 71-83,
+//! Microsoft F1 76-82 against 97-129, the Pixel 6a drive 106-123 against 119-140.
 //! A job still running then shows the latest of what was held back. The body's
 //! `data-state` is not held back: it says at once that the page is loading, for the
 //! tests and for whatever else watches it.
