@@ -8,14 +8,22 @@
 //! each, builds alternating, bench/drop_costs.mjs WARM=1 DROP=1, 2026-12-07): the
 //! HMC5883L sphere 47-53 ms against 49-69, the HMC5883L lying still 67-72 against 71-83,
 //! Microsoft F1 76-82 against 97-129, the Pixel 6a drive 106-123 against 119-140.
-//! A job still running then shows the latest of what was held back. The body's
-//! `data-state` is not held back: it says at once that the page is loading, for the
-//! tests and for whatever else watches it.
+//! A job still running then shows the latest of what was held back. A drop with a file
+//! over [`HELD_UP_TO_BYTES`] shows its display at once: it takes a second or more. The
+//! body's `data-state` is not held back: it says at once that the page is loading, for
+//! the tests and for whatever else watches it.
 
 use std::cell::{Cell, RefCell};
 
 /// How long a job runs before its loading display is shown (ms).
 pub(super) const SHOWN_AFTER_MS: i32 = 200;
+
+/// The largest file of a drop whose display is held back (bytes): a larger one is read
+/// in chunks (`WHOLE_FILE_BYTES` in `www/analysis-worker.js`), and its analysis takes a
+/// second or more (the 50 MB log of `tests/e2e/page.test.mjs`: 1.7-1.9 s, of which its
+/// reading about 250 ms), so its progress is worth showing from the start. No file of
+/// `../shared/data` is this large.
+pub(super) const HELD_UP_TO_BYTES: f64 = 16.0 * 1024.0 * 1024.0;
 
 /// What a job has held back of its loading display.
 #[derive(Default)]
@@ -34,10 +42,11 @@ pub(super) struct Held {
 pub(super) type Display = (Option<String>, Option<(f64, String)>);
 
 impl Held {
-    /// A job begins: its display is held back; returns its number for the timer.
-    pub(super) fn begin(&self) -> u64 {
+    /// A job begins: its display is held back if `hold`; returns its number for the
+    /// timer.
+    pub(super) fn begin(&self, hold: bool) -> u64 {
         self.job.set(self.job.get() + 1);
-        self.holding.set(true);
+        self.holding.set(hold);
         self.status.take();
         self.progress.take();
         self.job.get()
@@ -91,13 +100,13 @@ mod tests {
     #[wasm_bindgen_test]
     fn a_quick_job_shows_nothing_and_a_slow_one_its_latest_state() {
         let held = Held::default();
-        let quick = held.begin();
+        let quick = held.begin(true);
         assert!(held.hold_status("Reading a.csv…"));
         assert!(held.hold_progress(0.5, "a.csv"));
         held.end();
         assert!(held.release(quick).is_none(), "the job ended first");
 
-        let slow = held.begin();
+        let slow = held.begin(true);
         assert!(held.hold_progress(0.2, "b.csv"));
         assert!(held.hold_status("Analysing b.csv…"));
         assert!(held.hold_progress(0.7, "b.csv"));
@@ -114,17 +123,26 @@ mod tests {
     #[wasm_bindgen_test]
     fn an_earlier_jobs_timer_shows_nothing_of_the_next() {
         let held = Held::default();
-        let first = held.begin();
-        let second = held.begin();
+        let first = held.begin(true);
+        let second = held.begin(true);
         assert!(held.hold_status("Reading c.csv…"));
         assert!(held.release(first).is_none());
         assert!(held.release(second).is_some());
     }
 
     #[wasm_bindgen_test]
+    fn a_job_not_held_back_shows_everything_at_once() {
+        let held = Held::default();
+        let job = held.begin(false);
+        assert!(!held.hold_status("Reading large.csv…"));
+        assert!(!held.hold_progress(0.1, "large.csv"));
+        assert!(held.release(job).is_none());
+    }
+
+    #[wasm_bindgen_test]
     fn a_hidden_progress_bar_is_not_shown_later() {
         let held = Held::default();
-        let job = held.begin();
+        let job = held.begin(true);
         assert!(held.hold_progress(1.0, "d.csv"));
         held.drop_progress();
         assert_eq!(held.release(job), Some((None, None)));

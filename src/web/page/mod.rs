@@ -235,9 +235,10 @@ impl Page {
     }
 
     /// Starts a job: the one running (if any) is cancelled; returns the new one's
-    /// cancel flag.
-    fn begin_job(self: &Rc<Self>) -> Arc<AtomicBool> {
-        let job = self.loading.begin();
+    /// cancel flag. Its loading display is held back for a while if `hold`
+    /// (`loading.rs`).
+    fn begin_job(self: &Rc<Self>, hold: bool) -> Arc<AtomicBool> {
+        let job = self.loading.begin(hold);
         let page = Rc::clone(self);
         spawn_local(async move {
             pause(loading::SHOWN_AFTER_MS).await;
@@ -354,7 +355,7 @@ impl Page {
             return;
         };
         let page = Rc::clone(self);
-        let cancel = self.begin_job();
+        let cancel = self.begin_job(true);
         spawn_local(async move {
             let file_name = import.file_name.clone();
             page.set_state("loading", &format!("Analysing {file_name} again…"));

@@ -11,7 +11,7 @@ use std::sync::Arc;
 use wasm_bindgen_futures::spawn_local;
 
 use super::analysis::Request;
-use super::{now_ms, yield_to_browser, Outcome, Page, CHUNK_BYTES};
+use super::{loading, now_ms, yield_to_browser, Outcome, Page, CHUNK_BYTES};
 use crate::analysis::levelled::AnalysisError;
 use crate::io::delimited::{preview, ColumnMapping, Preview};
 use crate::io::import::{header_signature, merge, ChunkedImport, FileImport};
@@ -79,7 +79,8 @@ impl Page {
         mapping: Option<ColumnMapping>,
     ) {
         let page = Rc::clone(self);
-        let cancel = self.begin_job();
+        let largest_bytes = files.iter().map(|file| file.size()).fold(0.0, f64::max);
+        let cancel = self.begin_job(largest_bytes <= loading::HELD_UP_TO_BYTES);
         spawn_local(async move {
             let names: Vec<String> = files.iter().map(web_sys::File::name).collect();
             page.set_state("loading", &format!("Reading {}…", names.join(", ")));

@@ -3,7 +3,7 @@
 //! table, the deviation models, their plots), the dead reckoning (summary and plots),
 //! the timeline, and errors in the place of all of them.
 //!
-//! The summary goes first, then the answer's picture, then the lists, then the figures,
+//! The summary goes first, then the answer's picture and the lists, then the figures,
 //! one per task. Where the analysis worker runs a job, its calibration and figures can
 //! be shown before the job ends: the worker sends a copy when the calibration step is
 //! done, and the page shows it after `EARLY_FIGURES_AFTER_MS` unless the job has
@@ -33,12 +33,12 @@ const MAX_DIAGNOSTICS_SHOWN: usize = 50;
 
 impl Page {
     /// Shows a finished analysis of `import` (or why there is none): the answer first
-    /// (the summary), then its picture, then the lists of the calibration, the heading
-    /// models and the dead reckoning (1-4 ms, in folded details: after the picture, so
-    /// that the headline is painted without waiting for them), then their figures one
-    /// at a time, the browser getting a turn between them (to paint, to answer input),
-    /// so that no part of the drawing is a long task. A job started meanwhile (`cancel` set) stops the drawing: its own
-    /// outcome follows. `stage`: where the analysis started, for the run counters.
+    /// (the summary), then its picture and the lists of the calibration, the heading
+    /// models and the dead reckoning (1-4 ms, in folded details: after a turn, so that
+    /// the headline is painted without waiting for them), then their figures one at a
+    /// time, the browser getting a turn between them (to paint, to answer input), so
+    /// that no part of the drawing is a long task. A job started meanwhile (`cancel`
+    /// set) stops the drawing: its own outcome follows. `stage`: where the analysis started, for the run counters.
     pub(super) async fn show_outcome(
         &self,
         outcome: Result<Results, AnalysisError>,
@@ -58,17 +58,13 @@ impl Page {
             self.zooms.reset();
         }
         let answer = self.show_answer(&results);
-        // The answer's picture next, then the lists (in the folded details below it),
-        // the browser getting a turn before each: the headline is painted first.
+        // The answer's picture and the lists (in the folded details below it) after a
+        // turn: the headline is painted first.
         yield_to_browser().await;
         if cancel.load(Ordering::Acquire) {
             return;
         }
         self.draw_picture(&answer, &results);
-        yield_to_browser().await;
-        if cancel.load(Ordering::Acquire) {
-            return;
-        }
         let status = self.show_lists(&results, import.as_deref(), &answer);
         *self.answer.borrow_mut() = Some(answer);
         for figure in FIGURES {
