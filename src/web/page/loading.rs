@@ -1,9 +1,9 @@
 //! A job's "loading" display (the Cancel button, the status line's "Reading …" and
-//! "Analysing …", the progress bar), held back for the job's
-//! first [`SHOWN_AFTER_MS`]: most drops are answered within that, and the display would
-//! only flash. Each change of it costs the browser a frame (style, layout, paint,
-//! raster and compositing: several milliseconds of CPU with software rendering), and on
-//! a 2-core machine those frames took a core from the analysis worker and its pool.
+//! "Analysing …", the progress bar), held back for the job's first [`SHOWN_AFTER_MS`]:
+//! most drops are answered within that, and the display would only flash. Each change
+//! of it costs the browser a frame (style, layout, paint, raster and compositing:
+//! several milliseconds of CPU with software rendering), and on a 2-core machine those
+//! frames took a core from the analysis worker and its pool.
 //! Drop to the answer, the display held back against shown at once (four first drops
 //! each, builds alternating, bench/drop_costs.mjs WARM=1 DROP=1, 2026-12-07): the
 //! HMC5883L sphere 47-53 ms against 49-69, the HMC5883L lying still 67-72 against 71-83,
