@@ -197,7 +197,7 @@ impl Eskf {
     /// yaw agrees with the magnetometer; `None` for a field with no horizontal part.
     pub fn magnetic_heading_error(&self, field_in_body: Vector3<f64>) -> Option<f64> {
         let field_in_nav = self.nav_from_body * field_in_body;
-        let horizontal = crate::base::norm2d(field_in_nav.x, field_in_nav.y);
+        let horizontal = field_in_nav.xy().norm();
         (horizontal > 1e-9 * field_in_nav.norm().max(1e-300) && horizontal.is_finite())
             .then(|| field_in_nav.y.atan2(field_in_nav.x))
     }
@@ -358,7 +358,7 @@ pub fn attitude_from(
 ) -> UnitQuaternion<f64> {
     // f_b = Rᵀ·(0, 0, −g): f_x = g·sin θ, f_y = −g·sin φ·cos θ, f_z = −g·cos φ·cos θ.
     let f = specific_force_in_body;
-    let pitch_rad = f.x.atan2(crate::base::norm2d(f.y, f.z));
+    let pitch_rad = f.x.atan2(f.yz().norm());
     let roll_rad = (-f.y).atan2(-f.z);
     let level_from_body = UnitQuaternion::from_euler_angles(roll_rad, pitch_rad, 0.0);
     let yaw_rad = field_in_body.map_or(0.0, |field| {

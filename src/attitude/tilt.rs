@@ -90,7 +90,7 @@ impl Tilt {
             return None;
         }
         let (fx, fy, fz) = (f_in_body_mps2.x, f_in_body_mps2.y, f_in_body_mps2.z);
-        let h = crate::base::norm2d(fy, fz);
+        let h = f_in_body_mps2.yz().norm();
         let roll_sin_cos = if h > 0.0 {
             (-fy / h, -fz / h)
         } else {

@@ -297,7 +297,7 @@ fn loop_closing_drift(recording: &Recording, relative: &Stream<f64>) -> Option<(
             east += sin * dt_s;
             north += cos * dt_s;
         }
-        crate::base::norm2d(east, north)
+        nalgebra::Vector2::new(east, north).norm()
     };
     // A grid, then golden-section refinement around the best point.
     let n_grid = 400;

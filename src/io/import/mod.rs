@@ -8,10 +8,9 @@
 //! logger keeps beside its log) and is refused as such. The file name counts only for a
 //! phone app's per-sensor files ([`super::sensor_files`]), and only together with their
 //! content. Lines of only numbers go to the delimited reader when the user has mapped
-//! their columns. Several
-//! files dropped together (phyphox writes one file per sensor) are read one by one and
-//! merged into one recording; a file that cannot be read becomes a diagnostic of the
-//! merge, and the rest is still used.
+//! their columns. Several files dropped together (phyphox writes one file per sensor)
+//! are read one by one and merged into one recording; a file that cannot be read
+//! becomes a diagnostic of the merge, and the rest is still used.
 //!
 //! The files: here the entry points, the detection and [`Inspection`] (the report with
 //! each stream's summary; a magnetometer in raw counts is summarised in counts);
